@@ -1,0 +1,1 @@
+"""ams_can_bridge: battery-management CAN buses to ROS 2."""

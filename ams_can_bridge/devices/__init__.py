@@ -1,0 +1,1 @@
+"""Device state objects: decoded readings in, BatteryState/diagnostic reports out."""

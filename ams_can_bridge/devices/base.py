@@ -1,0 +1,249 @@
+"""Per-device state, the contract between the protocol layer and the ROS node.
+
+The receive thread calls ``Device.handle_frame`` for every frame of the device's IDs; it
+decodes (protocol layer), updates state under a lock and returns quickly. The executor asks
+for ``battery_report`` / ``diagnostic_report`` and turns them into ROS messages. No rclpy here:
+reports are plain dataclasses that mirror sensor_msgs/BatteryState and DiagnosticStatus.
+"""
+from __future__ import annotations
+
+import enum
+import math
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, ClassVar, Mapping
+
+from ams_can_bridge.protocols.common import ProtocolError
+
+NAN = math.nan
+
+
+class Level(enum.IntEnum):
+    """diagnostic_msgs/DiagnosticStatus levels (same byte values)."""
+
+    OK = 0
+    WARN = 1
+    ERROR = 2
+    STALE = 3
+
+
+class PowerSupplyStatus(enum.IntEnum):
+    """sensor_msgs/BatteryState POWER_SUPPLY_STATUS_* values."""
+
+    UNKNOWN = 0
+    CHARGING = 1
+    DISCHARGING = 2
+    NOT_CHARGING = 3
+    FULL = 4
+
+
+class PowerSupplyHealth(enum.IntEnum):
+    """sensor_msgs/BatteryState POWER_SUPPLY_HEALTH_* values."""
+
+    UNKNOWN = 0
+    GOOD = 1
+    OVERHEAT = 2
+    DEAD = 3
+    OVERVOLTAGE = 4
+    UNSPEC_FAILURE = 5
+    COLD = 6
+    WATCHDOG_TIMER_EXPIRE = 7
+    SAFETY_TIMER_EXPIRE = 8
+
+
+class PowerSupplyTechnology(enum.IntEnum):
+    """sensor_msgs/BatteryState POWER_SUPPLY_TECHNOLOGY_* values."""
+
+    UNKNOWN = 0
+    NIMH = 1
+    LION = 2
+    LIPO = 3
+    LIFE = 4
+    NICD = 5
+    LIMN = 6
+
+
+@dataclass
+class BatteryReport:
+    """sensor_msgs/BatteryState without ROS: NaN = unknown, current < 0 while discharging."""
+
+    stamp: float = NAN  # wall-clock time (s since epoch) the primary frame was received
+    voltage: float = NAN
+    temperature: float = NAN
+    current: float = NAN
+    charge: float = NAN
+    capacity: float = NAN
+    design_capacity: float = NAN
+    percentage: float = NAN  # 0..1
+    power_supply_status: int = PowerSupplyStatus.UNKNOWN
+    power_supply_health: int = PowerSupplyHealth.UNKNOWN
+    power_supply_technology: int = PowerSupplyTechnology.UNKNOWN
+    present: bool = False
+    cell_voltage: list[float] = field(default_factory=list)
+    cell_temperature: list[float] = field(default_factory=list)
+    location: str = ''
+    serial_number: str = ''
+
+
+@dataclass
+class DiagnosticReport:
+    """diagnostic_msgs/DiagnosticStatus without ROS (name/hardware_id are set by the node)."""
+
+    level: Level
+    message: str
+    values: dict[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One ROS parameter of a device instance, declared by the node as '<name>.<key>'.
+
+    type is one of bool, int, float, str, 'int[]', 'str[]'. default None = no default
+    (declared without a value; the device must cope with it unset). low/high/step give the
+    ROS range (FloatingPointRange/IntegerRange); choices restrict strings.
+    """
+
+    key: str
+    type: Any
+    default: Any
+    description: str
+    low: float | None = None
+    high: float | None = None
+    step: float | None = None
+    choices: tuple[str, ...] = ()
+    read_only: bool = True
+
+
+def common_params(device_cls: type['Device']) -> list[ParamSpec]:
+    """Parameters every device instance has, with the device type's defaults."""
+    specs = [
+        ParamSpec('frame_id', str, '', 'header.frame_id of the BatteryState messages'),
+        ParamSpec('location', str, '', 'BatteryState.location (where the pack sits)'),
+        ParamSpec('serial_number', str, '', 'BatteryState.serial_number'),
+        ParamSpec('stale_timeout', float, 5.0 * device_cls.BROADCAST_PERIOD,
+                  'seconds without a status frame before the device is STALE '
+                  '(default 5 x its broadcast period)', low=0.01, high=3600.0),
+    ]
+    if device_cls.DEFAULT_BASE_ID is not None:
+        specs.append(ParamSpec('base_id', int, device_cls.DEFAULT_BASE_ID,
+                               f'first CAN ID of the device (default {device_cls.DEFAULT_BASE_ID}'
+                               f' = 0x{device_cls.DEFAULT_BASE_ID:X})', low=0, high=0x1FFFFFFF))
+    if device_cls.EXTENDED_ID_CHOICE:
+        specs.append(ParamSpec('extended_id', bool, device_cls.DEFAULT_EXTENDED_ID,
+                               'use 29-bit (extended) CAN IDs'))
+    return specs
+
+
+class Device:
+    """Base of every device state: counters, staleness, locking, malformed-frame bookkeeping.
+
+    Subclasses set the class constants, build their codec in __init__, and implement
+    ``_handle`` (decoded reading -> state; return True for the primary status frame),
+    ``_battery_report`` and ``_diagnostic_report``.
+    """
+
+    TYPE: ClassVar[str] = ''
+    BROADCAST_PERIOD: ClassVar[float] = 1.0  # s, of the primary status frame
+    DEFAULT_BASE_ID: ClassVar[int | None] = None
+    EXTENDED_ID_CHOICE: ClassVar[bool] = False
+    DEFAULT_EXTENDED_ID: ClassVar[bool] = False
+    PARAMS: ClassVar[list[ParamSpec]] = []  # type-specific, besides common_params()
+
+    def __init__(self, name: str, params: Mapping[str, Any],
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.name = name
+        self.params = dict(params)
+        self.clock = clock
+        self.lock = threading.Lock()
+        self.frames_received = 0
+        self.frames_malformed = 0
+        self.last_malformed: str = ''
+        self.last_seen: float | None = None  # clock() of the last valid primary frame
+        self.stale_timeout = float(self.params.get('stale_timeout')
+                                   or 5.0 * self.BROADCAST_PERIOD)
+        self.codec: Any = None
+
+    # --- receive side (bus thread) -------------------------------------------------------
+    @property
+    def arbitration_ids(self) -> frozenset[int]:
+        """Every CAN ID this device consumes (the node filters and dispatches on these)."""
+        return self.codec.arbitration_ids
+
+    @property
+    def is_extended_id(self) -> bool:
+        """Whether the device's IDs are 29-bit."""
+        return bool(getattr(self.codec, 'is_extended_id', False))
+
+    def handle_frame(self, arbitration_id: int, data: bytes, stamp: float) -> bool:
+        """Decode and apply one frame; True when it was the primary status frame.
+
+        Never raises for bad input: a ProtocolError is counted as malformed and
+        remembered (the node logs it throttled); nothing of it reaches the state.
+        """
+        try:
+            reading = self.codec.decode(arbitration_id, data)
+        except ProtocolError as exc:
+            with self.lock:
+                self.frames_malformed += 1
+                self.last_malformed = str(exc)
+            return False
+        with self.lock:
+            self.frames_received += 1
+            primary = self._handle(reading, stamp)
+            if primary:
+                self.last_seen = self.clock()
+            return primary
+
+    def _handle(self, reading: Any, stamp: float) -> bool:
+        raise NotImplementedError
+
+    # --- executor side ----------------------------------------------------------------
+    def is_stale(self) -> bool:
+        """True when no primary frame came within stale_timeout (or none ever)."""
+        return self.last_seen is None or self.clock() - self.last_seen > self.stale_timeout
+
+    def battery_report(self) -> BatteryReport:
+        """The BatteryState to publish now (present False while stale)."""
+        with self.lock:
+            report = self._battery_report()
+        report.present = report.present and not self.is_stale()
+        report.location = str(self.params.get('location', ''))
+        report.serial_number = str(self.params.get('serial_number', ''))
+        return report
+
+    def diagnostic_report(self) -> DiagnosticReport:
+        """Level, one-line summary and every decoded field; STALE overrides while silent."""
+        with self.lock:
+            report = self._diagnostic_report()
+            report.values.setdefault('frames received', str(self.frames_received))
+            report.values.setdefault('frames malformed', str(self.frames_malformed))
+            if self.last_malformed:
+                report.values.setdefault('last malformed frame', self.last_malformed)
+        if self.is_stale():
+            waited = ('never heard' if self.last_seen is None
+                      else f'silent for {self.clock() - self.last_seen:.1f} s')
+            report.level = Level.STALE
+            report.message = f'stale: {waited} (stale_timeout {self.stale_timeout:g} s)'
+        return report
+
+    def _battery_report(self) -> BatteryReport:
+        raise NotImplementedError
+
+    def _diagnostic_report(self) -> DiagnosticReport:
+        raise NotImplementedError
+
+    def extra_arrays(self) -> dict[str, tuple[int, int, list[float]]]:
+        """Extra Float32MultiArray topics: '<suffix>' -> (rows, cols, row-major data)."""
+        return {}
+
+
+def current_status(current_a: float, idle_band_a: float = 0.05) -> PowerSupplyStatus:
+    """CHARGING / DISCHARGING / NOT_CHARGING from a ROS-signed current (< 0 discharging)."""
+    if current_a != current_a:
+        return PowerSupplyStatus.UNKNOWN
+    if current_a > idle_band_a:
+        return PowerSupplyStatus.CHARGING
+    if current_a < -idle_band_a:
+        return PowerSupplyStatus.DISCHARGING
+    return PowerSupplyStatus.NOT_CHARGING

@@ -1,0 +1,10 @@
+"""Pure-Python codecs for every CAN protocol the bridge speaks (no rclpy here).
+
+One module per protocol. Each defines a codec class with:
+
+* ``arbitration_ids``: frozenset of the IDs it decodes;
+* ``decode(arbitration_id, data) -> <reading dataclass>``, raising MalformedFrameError;
+* ``encode(<message dataclass>) -> Frame``, raising EncodeRangeError.
+"""
+from ams_can_bridge.protocols.common import (  # noqa: F401
+    EncodeRangeError, Frame, MalformedFrameError, ProtocolError)

@@ -1,0 +1,105 @@
+"""What every protocol module shares: the frame type, the typed errors, the DBC loader.
+
+Protocol code is pure Python (no rclpy, no python-can): a frame is just an ID, bytes and
+a flag, so the codecs run the same in the node, the simulators, the tests and benchmarks.
+"""
+from __future__ import annotations
+
+import functools
+import os
+from pathlib import Path
+from typing import NamedTuple
+
+import cantools
+from cantools.database.can import Database
+
+PACKAGE = 'ams_can_bridge'
+
+
+class Frame(NamedTuple):
+    """One classic CAN data frame, as the codecs build and read it."""
+
+    arbitration_id: int
+    data: bytes
+    is_extended_id: bool = False
+
+
+class ProtocolError(Exception):
+    """Base of every error the protocol layer raises on purpose."""
+
+
+class MalformedFrameError(ProtocolError):
+    """A received frame that cannot be a valid message of its ID (count it, drop it)."""
+
+    def __init__(self, arbitration_id: int, data: bytes, reason: str) -> None:
+        self.arbitration_id = arbitration_id
+        self.data = bytes(data)
+        self.reason = reason
+        super().__init__(
+            f'malformed frame 0x{arbitration_id:X} [{self.data.hex(" ").upper()}]: {reason}')
+
+
+class EncodeRangeError(ProtocolError, ValueError):
+    """A value to send that the protocol cannot carry: out of range or off its step."""
+
+    def __init__(self, field: str, value: object, allowed: str) -> None:
+        self.field = field
+        self.value = value
+        self.allowed = allowed
+        super().__init__(f'{field} = {value!r} cannot be sent: allowed {allowed}')
+
+
+def check_dlc(arbitration_id: int, data: bytes, expected: int | tuple[int, ...]) -> None:
+    """Raise MalformedFrameError unless len(data) is one of the expected lengths."""
+    lengths = (expected,) if isinstance(expected, int) else expected
+    if len(data) not in lengths:
+        want = ' or '.join(str(n) for n in lengths)
+        raise MalformedFrameError(arbitration_id, data, f'DLC {len(data)}, expected {want}')
+
+
+def check_range(field: str, value: float, low: float, high: float,
+                step: float | None = None, unit: str = '') -> None:
+    """Raise EncodeRangeError unless low <= value <= high (and on the step grid from low)."""
+    suffix = f' {unit}' if unit else ''
+    allowed = f'{low:g}..{high:g}{suffix}' + (f' in steps of {step:g}{suffix}' if step else '')
+    if value != value or not low <= value <= high:  # NaN fails too
+        raise EncodeRangeError(field, value, allowed)
+    if step:
+        n = (value - low) / step
+        if abs(n - round(n)) > 1e-6:
+            raise EncodeRangeError(field, value, allowed)
+
+
+def msg_defs_dir() -> Path:
+    """Find the installed msg_defs/ (colcon, pip or the source tree), wherever we run from.
+
+    Order: $AMS_CAN_BRIDGE_MSG_DEFS, the ament index (sourced ROS workspace), the
+    share/ folder next to the installed Python package (pip venv or colcon install
+    space, found by walking up from this file), then the source checkout.
+    """
+    env = os.environ.get('AMS_CAN_BRIDGE_MSG_DEFS')
+    if env:
+        return Path(env)
+    candidates: list[Path] = []
+    try:
+        from ament_index_python.packages import get_package_share_directory
+        candidates.append(Path(get_package_share_directory(PACKAGE)) / 'msg_defs')
+    except Exception:  # not a sourced ROS environment, or the index lacks us
+        pass
+    here = Path(__file__).resolve()
+    for parent in here.parents:
+        candidates.append(parent / 'share' / PACKAGE / 'msg_defs')
+    candidates.append(here.parents[2] / 'msg_defs')  # source checkout / editable install
+    for path in candidates:
+        if path.is_dir() and any(path.glob('*.dbc')):
+            return path
+    raise FileNotFoundError(
+        'cannot find the ams_can_bridge msg_defs/ folder (DBC files); looked in: '
+        + ', '.join(str(p) for p in candidates)
+        + '. Install the package (colcon build or pip install .) or set AMS_CAN_BRIDGE_MSG_DEFS.')
+
+
+@functools.cache
+def load_dbc(name: str) -> Database:
+    """Load msg_defs/<name>.dbc once per process, strictly (overlapping signals fail)."""
+    return cantools.database.load_file(str(msg_defs_dir() / f'{name}.dbc'), strict=True)

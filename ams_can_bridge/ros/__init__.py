@@ -1,0 +1,1 @@
+"""The ROS 2 side: the bridge node, msg conversion, services. Only here is rclpy imported."""

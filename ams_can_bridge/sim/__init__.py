@@ -1,0 +1,1 @@
+"""Device simulators (pure models) and the runner that puts them on a python-can bus."""

@@ -1,0 +1,34 @@
+"""ament_python package ams_can_bridge: installs code, DBC files, configs and launch files."""
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = 'ams_can_bridge'
+
+setup(
+    name=PACKAGE,
+    version='0.1.0',
+    packages=find_packages(exclude=['test', 'test.*', 'bench']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
+        ('share/' + PACKAGE, ['package.xml']),
+        ('share/' + PACKAGE + '/msg_defs', sorted(glob('msg_defs/*.dbc'))),
+        ('share/' + PACKAGE + '/config', sorted(glob('config/*.yaml'))),
+        ('share/' + PACKAGE + '/launch', sorted(glob('launch/*.py'))),
+    ],
+    python_requires='>=3.11',
+    install_requires=['setuptools', 'python-can>=4.4', 'cantools>=39', 'pyserial'],
+    zip_safe=False,
+    maintainer='ams_can_bridge developers',
+    maintainer_email='dev@ams-can-bridge.invalid',
+    description='Battery-management CAN buses (AMS + IVT-S, ZEVA EVMS3/BMS16, SMA) to ROS 2',
+    license='Apache-2.0',
+    tests_require=['pytest'],
+    entry_points={
+        'console_scripts': [
+            'bridge = ams_can_bridge.ros.bridge_main:main',
+            'simulator = ams_can_bridge.sim.main:main',
+            'demo = ams_can_bridge.demo:main',
+        ],
+    },
+)
