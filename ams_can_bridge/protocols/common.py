@@ -8,7 +8,8 @@ from __future__ import annotations
 import functools
 import os
 from pathlib import Path
-from typing import NamedTuple
+from dataclasses import dataclass
+from typing import Any, NamedTuple
 
 import cantools
 from cantools.database.can import Database
@@ -47,6 +48,26 @@ class EncodeRangeError(ProtocolError, ValueError):
         self.value = value
         self.allowed = allowed
         super().__init__(f'{field} = {value!r} cannot be sent: allowed {allowed}')
+
+
+@dataclass(frozen=True)
+class ConfigField:
+    """One configuration value of a device, in physical units, with what the wire allows.
+
+    The protocol module lists these once (``CONFIG_FIELDS``); its encoder validates with
+    them and the ROS layer declares its parameters (ranges, descriptions) from them.
+    type: float, int, bool, str (then ``choices``) or 'int[]' (then ``length``).
+    """
+
+    name: str
+    type: Any
+    low: float | None = None
+    high: float | None = None
+    step: float | None = None
+    unit: str = ''
+    description: str = ''
+    choices: tuple[str, ...] = ()
+    length: int = 0
 
 
 def check_dlc(arbitration_id: int, data: bytes, expected: int | tuple[int, ...]) -> None:
