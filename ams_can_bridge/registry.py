@@ -1,4 +1,5 @@
-"""Where each device type lives: state class, simulator class, ROS command services.
+"""
+Where each device type lives: state class, simulator class, ROS command services.
 
 Lazy 'module:Class' strings, so importing the registry costs nothing and a node that only
 listens to a BMS16 never imports the AMS code.
@@ -41,7 +42,7 @@ def load(path: str) -> Any:
 
 
 def device_class(device_type: str) -> Any:
-    """The Device subclass for a type name, with a clear error for unknown types."""
+    """Return the Device subclass for a type name, with a clear error for unknown types."""
     if device_type not in DEVICES:
         raise ValueError(f'unknown device type {device_type!r}: use one of '
                          + ', '.join(DEVICE_TYPES))

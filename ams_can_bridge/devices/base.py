@@ -1,4 +1,5 @@
-"""Per-device state, the contract between the protocol layer and the ROS node.
+"""
+Per-device state, the contract between the protocol layer and the ROS node.
 
 The receive thread calls ``Device.handle_frame`` for every frame of the device's IDs; it
 decodes (protocol layer), updates state under a lock and returns quickly. The executor asks
@@ -97,7 +98,8 @@ class DiagnosticReport:
 
 @dataclass(frozen=True)
 class ParamSpec:
-    """One ROS parameter of a device instance, declared by the node as '<name>.<key>'.
+    """
+    One ROS parameter of a device instance, declared by the node as '<name>.<key>'.
 
     type is one of bool, int, float, str, 'int[]', 'str[]'. default None = no default
     (declared without a value; the device must cope with it unset). low/high/step give the
@@ -116,7 +118,7 @@ class ParamSpec:
 
 
 def common_params(device_cls: type['Device']) -> list[ParamSpec]:
-    """Parameters every device instance has, with the device type's defaults."""
+    """List the parameters every device instance has, with the device type's defaults."""
     specs = [
         ParamSpec('frame_id', str, '', 'header.frame_id of the BatteryState messages'),
         ParamSpec('location', str, '', 'BatteryState.location (where the pack sits)'),
@@ -136,7 +138,8 @@ def common_params(device_cls: type['Device']) -> list[ParamSpec]:
 
 
 class Device:
-    """Base of every device state: counters, staleness, locking, malformed-frame bookkeeping.
+    """
+    Base of every device state: counters, staleness, locking, malformed-frame bookkeeping.
 
     Subclasses set the class constants, build their codec in __init__, and implement
     ``_handle`` (decoded reading -> state; return True for the primary status frame),
@@ -167,16 +170,17 @@ class Device:
     # --- receive side (bus thread) -------------------------------------------------------
     @property
     def arbitration_ids(self) -> frozenset[int]:
-        """Every CAN ID this device consumes (the node filters and dispatches on these)."""
+        """Return every CAN ID this device consumes (the node filters and dispatches on them)."""
         return self.codec.arbitration_ids
 
     @property
     def is_extended_id(self) -> bool:
-        """Whether the device's IDs are 29-bit."""
+        """Tell whether the device's IDs are 29-bit."""
         return bool(getattr(self.codec, 'is_extended_id', False))
 
     def handle_frame(self, arbitration_id: int, data: bytes, stamp: float) -> bool:
-        """Decode and apply one frame; True when it was the primary status frame.
+        """
+        Decode and apply one frame; True when it was the primary status frame.
 
         Never raises for bad input: a ProtocolError is counted as malformed and
         remembered (the node logs it throttled); nothing of it reaches the state.
@@ -200,11 +204,11 @@ class Device:
 
     # --- executor side ----------------------------------------------------------------
     def is_stale(self) -> bool:
-        """True when no primary frame came within stale_timeout (or none ever)."""
+        """Tell whether no primary frame came within stale_timeout (or none ever)."""
         return self.last_seen is None or self.clock() - self.last_seen > self.stale_timeout
 
     def battery_report(self) -> BatteryReport:
-        """The BatteryState to publish now (present False while stale)."""
+        """Build the BatteryState to publish now (present False while stale)."""
         with self.lock:
             report = self._battery_report()
         report.present = report.present and not self.is_stale()
@@ -213,7 +217,7 @@ class Device:
         return report
 
     def diagnostic_report(self) -> DiagnosticReport:
-        """Level, one-line summary and every decoded field; STALE overrides while silent."""
+        """Build level, one-line summary and every decoded field; STALE wins while silent."""
         with self.lock:
             report = self._diagnostic_report()
             report.values.setdefault('frames received', str(self.frames_received))
@@ -234,7 +238,7 @@ class Device:
         raise NotImplementedError
 
     def extra_arrays(self) -> dict[str, tuple[int, int, list[float]]]:
-        """Extra Float32MultiArray topics: '<suffix>' -> (rows, cols, row-major data)."""
+        """List extra Float32MultiArray topics: '<suffix>' -> (rows, cols, row-major data)."""
         return {}
 
 

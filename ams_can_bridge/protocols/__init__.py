@@ -1,4 +1,5 @@
-"""Pure-Python codecs for every CAN protocol the bridge speaks (no rclpy here).
+"""
+Pure-Python codecs for every CAN protocol the bridge speaks (no rclpy here).
 
 One module per protocol. Each defines a codec class with:
 

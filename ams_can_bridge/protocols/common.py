@@ -1,4 +1,5 @@
-"""What every protocol module shares: the frame type, the typed errors, the DBC loader.
+"""
+What every protocol module shares: the frame type, the typed errors, the DBC loader.
 
 Protocol code is pure Python (no rclpy, no python-can): a frame is just an ID, bytes and
 a flag, so the codecs run the same in the node, the simulators, the tests and benchmarks.
@@ -52,7 +53,8 @@ class EncodeRangeError(ProtocolError, ValueError):
 
 @dataclass(frozen=True)
 class ConfigField:
-    """One configuration value of a device, in physical units, with what the wire allows.
+    """
+    One configuration value of a device, in physical units, with what the wire allows.
 
     The protocol module lists these once (``CONFIG_FIELDS``); its encoder validates with
     them and the ROS layer declares its parameters (ranges, descriptions) from them.
@@ -92,7 +94,8 @@ def check_range(field: str, value: float, low: float, high: float,
 
 
 def msg_defs_dir() -> Path:
-    """Find the installed msg_defs/ (colcon, pip or the source tree), wherever we run from.
+    """
+    Find the installed msg_defs/ (colcon, pip or the source tree), wherever we run from.
 
     Order: $AMS_CAN_BRIDGE_MSG_DEFS, the ament index (sourced ROS workspace), the
     share/ folder next to the installed Python package (pip venv or colcon install

@@ -1,4 +1,5 @@
-"""Simulated devices: the contract the runner (bus I/O) and the device models share.
+"""
+Simulated devices: the contract the runner (bus I/O) and the device models share.
 
 A simulator is a pure model: time in, frames out, frames in. It never touches a bus, a
 thread or a clock of its own, so tests step it deterministically and the same objects run
@@ -24,7 +25,8 @@ class Faults:
 
 
 class SimDevice:
-    """Base of every simulated device.
+    """
+    Base of every simulated device.
 
     ``tick(now)`` returns the frames due at ``now`` (seconds, any monotonic origin) and
     advances the physics; ``on_frame(frame, now)`` takes a frame from the bus. Models
@@ -39,15 +41,15 @@ class SimDevice:
         self.faults = Faults()
 
     def tick(self, now: float) -> list[Frame]:
-        """Frames due at ``now`` (empty while faults.silent)."""
+        """Return the frames due at ``now`` (empty while faults.silent)."""
         raise NotImplementedError
 
     def on_frame(self, frame: Frame, now: float) -> None:
-        """A frame seen on the bus (commands addressed to this device, or anything)."""
+        """Take a frame seen on the bus (commands addressed to this device, or anything)."""
 
     @staticmethod
     def corrupt(frame: Frame) -> Frame:
-        """The same frame with one byte dropped (or one added if empty): a wrong DLC."""
+        """Return the frame with one byte dropped (or one added if empty): a wrong DLC."""
         data = frame.data[:-1] if frame.data else b'\x00'
         return Frame(frame.arbitration_id, data, frame.is_extended_id)
 
@@ -61,7 +63,7 @@ class Periodic:
         self.phase = phase
 
     def due(self, now: float) -> bool:
-        """True (and advance) when the next slot has come; skips missed slots."""
+        """Tell (and advance) when the next slot has come; missed slots are skipped."""
         if self.next is None:
             self.next = now + self.phase
         if now + 1e-9 < self.next:

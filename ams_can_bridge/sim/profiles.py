@@ -5,7 +5,8 @@ import math
 
 
 def drive_current_a(t: float) -> float:
-    """A lap-like discharge current (A, positive = discharge): accelerate, brake, recuperate.
+    """
+    A lap-like discharge current (A, positive = discharge): accelerate, brake, recuperate.
 
     Periodic over 20 s, between about -30 A (regeneration) and 120 A (full throttle),
     so SoC falls steadily while the signs of both directions show up in a short demo.
@@ -18,5 +19,5 @@ def drive_current_a(t: float) -> float:
 
 
 def charge_current_a(t: float, setpoint_a: float = 20.0) -> float:
-    """Charging current (A, positive = discharge, so negative here) with a small ripple."""
+    """Give a charging current (A, positive = discharge, so negative here) with ripple."""
     return -(setpoint_a + 0.3 * math.sin(2 * math.pi * t / 2.0))

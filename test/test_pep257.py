@@ -1,0 +1,10 @@
+"""ament pep257 docstring conventions over the package and tests."""
+import pytest
+from ament_pep257.main import main
+
+
+@pytest.mark.linter
+@pytest.mark.pep257
+def test_pep257():
+    rc = main(argv=['ams_can_bridge', 'test'])
+    assert rc == 0, 'Found code style errors / warnings'
