@@ -1,0 +1,69 @@
+#!/usr/bin/env bash
+# Both ways of installing the package, checked as a user would meet them:
+#  1. colcon build in a scratch ROS workspace: files where ROS expects them, then the
+#     installed code finds its msg_defs/ with the workspace sourced, run from elsewhere;
+#  2. pip install . into a fresh virtual environment with the pinned ROS wheels.
+# Usage: scripts/check_install.sh [python-of-the-dev-venv]  (./dev setup makes .venv first)
+set -euo pipefail
+here=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+py=${1:-$here/.venv/bin/python}
+bin=$(dirname "$py")
+scratch=$(mktemp -d)
+trap '[ -n "${KEEP_SCRATCH:-}" ] || rm -rf "$scratch"' EXIT
+export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
+export ROS_DOMAIN_ID=${ROS_DOMAIN_ID:-$(( ($$ % 100) + 100 ))}
+fail() { echo "check_install: FAIL: $*" >&2; exit 1; }
+
+probe='
+import sys
+from pathlib import Path
+from ams_can_bridge.protocols.common import load_dbc, msg_defs_dir
+d = msg_defs_dir()
+assert Path(sys.argv[1]) in d.parents, f"msg_defs found at {d}, not under {sys.argv[1]}"
+names = sorted(p.stem for p in d.glob("*.dbc"))
+assert names == ["ams", "bms16", "evms3", "ivt_s", "sma"], names
+for n in names:
+    assert load_dbc(n).messages
+print("msg_defs at", d)
+'
+
+echo "== colcon build in $scratch/ws"
+pkg="$scratch/ws/src/ams_can_bridge"
+mkdir -p "$pkg"
+# The package as git sees it: tracked files plus new ones not ignored (no .venv, no build/).
+(cd "$here" && git ls-files -z --cached --others --exclude-standard \
+   | xargs -0 -I{} sh -c '[ -e "{}" ] && printf "%s\0" "{}"' \
+   | tar --null -T - -cf -) | tar -C "$pkg" -xf -
+[ -f "$pkg/package.xml" ] || fail "copying the source tree"
+(cd "$scratch/ws" && PATH="$bin:$PATH" "$bin/colcon" build --event-handlers console_direct- \
+   > "$scratch/colcon.log" 2>&1) || { tail -40 "$scratch/colcon.log"; fail "colcon build"; }
+inst="$scratch/ws/install/ams_can_bridge"
+for f in lib/ams_can_bridge/bridge lib/ams_can_bridge/simulator lib/ams_can_bridge/demo \
+         share/ams_can_bridge/package.xml share/ams_can_bridge/launch/bridge.launch.py \
+         share/ament_index/resource_index/packages/ams_can_bridge; do
+  [ -e "$inst/$f" ] || fail "colcon install lacks $f"
+done
+for f in ams ivt_s evms3 bms16 sma; do
+  [ -f "$inst/share/ams_can_bridge/msg_defs/$f.dbc" ] || fail "colcon install lacks msg_defs/$f.dbc"
+done
+ls "$inst"/share/ams_can_bridge/config/*.yaml >/dev/null || fail "colcon install lacks config/*.yaml"
+(cd "$scratch" && set +u && source ws/install/setup.bash && set -u && \
+  "$py" -c "$probe" "$inst") || fail "colcon-installed package does not find its msg_defs"
+(cd "$scratch" && set +u && source ws/install/setup.bash && set -u && \
+  PATH="$bin:$PATH" timeout 60 ws/install/ams_can_bridge/lib/ams_can_bridge/simulator --help \
+  >/dev/null) || fail "installed simulator --help"
+echo "colcon build: OK ($inst)"
+
+echo "== pip install . into a fresh venv"
+"$py" -m venv "$scratch/venv"
+"$scratch/venv/bin/python" -m pip install --quiet --upgrade pip
+"$scratch/venv/bin/python" -m pip install --quiet -r "$here/requirements.txt" "$here" \
+  || fail "pip install ."
+(cd "$scratch" && "$scratch/venv/bin/python" -c "$probe" "$scratch/venv") \
+  || fail "pip-installed package does not find its msg_defs"
+for exe in bridge simulator demo; do
+  [ -x "$scratch/venv/bin/$exe" ] || fail "pip install lacks the $exe executable"
+done
+(cd "$scratch" && timeout 60 "$scratch/venv/bin/simulator" --help >/dev/null) \
+  || fail "pip-installed simulator --help"
+echo "pip install: OK ($scratch/venv)"
