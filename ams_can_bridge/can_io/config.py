@@ -1,0 +1,115 @@
+"""Bus configuration, status snapshot and errors of the CAN I/O layer."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import re
+
+STATES = ('connecting', 'connected', 'reconnecting', 'error', 'bus-off', 'error-passive',
+          'replay finished', 'stopped')
+
+_INT = re.compile(r'[+-]?(0x[0-9a-fA-F]+|0o[0-7]+|0b[01]+|\d+)$')
+_FLOAT = re.compile(r'[+-]?(\d+\.\d*|\.\d+|\d+)([eE][+-]?\d+)?$')
+
+
+class CanSendError(Exception):
+    """A frame could not be sent: the bus is not connected, or the driver refused it."""
+
+
+def _convert(value: str) -> object:
+    """Turn an option value string into the int/float/bool/None it obviously is."""
+    lowered = value.strip().lower()
+    if lowered in ('true', 'yes', 'on'):
+        return True
+    if lowered in ('false', 'no', 'off'):
+        return False
+    if lowered in ('none', 'null'):
+        return None
+    if _INT.match(lowered):
+        try:
+            return int(lowered, 0)
+        except ValueError:  # '010': base 0 refuses leading zeros, decimal is what was meant
+            return int(lowered, 10)
+    if _FLOAT.match(lowered):
+        return float(lowered)
+    return value
+
+
+def parse_options(entries: list[str] | tuple[str, ...] | None) -> dict[str, object]:
+    """
+    Parse python-can interface options given as 'key=value' strings.
+
+    Values that are obviously numbers or booleans become int/float/bool ('0x10' -> 16,
+    '0.5' -> 0.5, 'true' -> True, 'none' -> None); anything else stays a string.
+    Raises ValueError naming the entry when it has no '=' or an empty key.
+    """
+    options: dict[str, object] = {}
+    for entry in entries or ():
+        if not isinstance(entry, str) or '=' not in entry:
+            raise ValueError(
+                f'can.options entry {entry!r} is not of the form key=value '
+                "(e.g. 'sleep_after_open=0' or 'receive_own_messages=false')")
+        key, _, value = entry.partition('=')
+        key = key.strip()
+        if not key or not key.isidentifier():
+            raise ValueError(
+                f'can.options entry {entry!r}: {key!r} is not a valid option name '
+                '(a python-can keyword argument such as tty_baudrate)')
+        options[key] = _convert(value)
+    return options
+
+
+@dataclass
+class BusConfig:
+    """
+    Which bus to open and how (mirrors the bridge's can.* parameters).
+
+    bitrate 0 leaves the adapter as it is; interface 'replay' plays the log file named by
+    channel at replay_rate (1.0 = real time, 0 = as fast as possible); record = path of a
+    log file (format by extension, as can.Logger) that receives every frame in and out.
+    """
+
+    interface: str = 'socketcan'
+    channel: str = 'can0'
+    bitrate: int = 0
+    fd: bool = False
+    options: dict[str, object] = field(default_factory=dict)
+    reconnect_period: float = 1.0
+    replay_rate: float = 1.0
+    record: str = ''
+
+    def __post_init__(self) -> None:
+        """Validate the values a user types, naming the field."""
+        if not self.interface:
+            raise ValueError("can.interface is empty: use e.g. 'socketcan', 'slcan', 'virtual'")
+        if self.bitrate < 0:
+            raise ValueError(f'can.bitrate = {self.bitrate}: must be >= 0 (0 = leave as is)')
+        if not self.reconnect_period > 0:
+            raise ValueError(f'can.reconnect_period = {self.reconnect_period}: must be > 0 s')
+        if not self.replay_rate >= 0:
+            raise ValueError(f'can.replay_rate = {self.replay_rate}: must be >= 0 '
+                             '(1.0 = real time, 0 = as fast as possible)')
+
+    @property
+    def hardware_id(self) -> str:
+        """'<interface>:<channel>', as the diagnostics report it."""
+        return f'{self.interface}:{self.channel}'
+
+
+@dataclass(frozen=True)
+class BusStatus:
+    """A snapshot of the bus state and counters (cheap to take, safe to keep)."""
+
+    state: str
+    reason: str
+    frames_in: int
+    frames_out: int
+    frames_dropped_tx: int
+    error_frames: int
+    reconnects: int
+    hardware_id: str
+    callback_errors: int = 0
+
+    @property
+    def connected(self) -> bool:
+        """Tell whether frames flow (connected, or error-passive which still receives)."""
+        return self.state in ('connected', 'error-passive')

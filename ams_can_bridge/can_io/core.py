@@ -1,0 +1,312 @@
+"""CanIo: python-can bus lifecycle (open, filters, receive thread, reconnect, send, record)."""
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from typing import Callable
+
+import can
+
+from ams_can_bridge.can_io.config import BusConfig, BusStatus, CanSendError
+from ams_can_bridge.can_io.replay import ReplayBus
+from ams_can_bridge.protocols.common import Frame
+
+OnFrame = Callable[[int, bytes, bool, float], None]
+
+_RECV_TIMEOUT = 0.1     # s: how quickly the receive thread notices stop()
+_STATE_POLL = 0.5       # s: how often bus.state is asked (it may be a driver call)
+_SEND_TIMEOUT = 0.05    # s: a full TX queue is a dropped frame, not a stalled caller
+_CALLBACK_LOG_EVERY = 5.0  # s: throttle for errors raised by on_frame
+
+# SocketCAN error-frame encoding (linux/can/error.h); the virtual bus carries it unchanged.
+_CAN_ERR_CRTL = 0x04
+_CAN_ERR_BUSOFF = 0x40
+_CAN_ERR_CRTL_PASSIVE = 0x10 | 0x20      # RX / TX passive
+_CAN_ERR_CRTL_ACTIVE = 0x40
+_SOCKETCAN_ERRORS = ('socketcan', 'virtual')
+
+
+class _BusLost(Exception):
+    """Raised inside the receive loop when the bus must be closed and re-opened."""
+
+    def __init__(self, state: str, reason: str) -> None:
+        super().__init__(reason)
+        self.state = state
+        self.reason = reason
+
+
+class CanIo:
+    """
+    One CAN bus: a receive thread that never dies, thread-safe send, optional recording.
+
+    ``on_frame(arbitration_id, data, is_extended_id, receive_wall_time)`` is called on the
+    receive thread for every data frame whose (id, extended) is in ``filters`` (all frames
+    when filters is None). Error frames are counted, remote frames ignored.
+    """
+
+    def __init__(self, config: BusConfig, on_frame: OnFrame,
+                 filters: list[tuple[int, bool]] | None = None,
+                 logger: logging.Logger | None = None) -> None:
+        self.config = config
+        self._on_frame = on_frame
+        self._filters = None if filters is None else sorted(set(
+            (int(i), bool(e)) for i, e in filters))
+        self._std_ids = frozenset(i for i, e in self._filters or () if not e)
+        self._ext_ids = frozenset(i for i, e in self._filters or () if e)
+        self._log = logger or logging.getLogger('ams_can_bridge.can_io')
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._tx_lock = threading.Lock()
+        self._rec_lock = threading.Lock()
+        self._bus: can.BusABC | ReplayBus | None = None
+        self._recorder: can.Listener | None = None
+        self._state = 'stopped'
+        self._reason = ''
+        self._ever_connected = False
+        self.frames_in = 0
+        self.frames_out = 0
+        self.frames_dropped_tx = 0
+        self.error_frames = 0
+        self.reconnects = 0
+        self.callback_errors = 0
+        self._last_callback_log = 0.0
+
+    # ----------------------------------------------------------------------------- public
+    def start(self) -> None:
+        """Open the recording (raises OSError/ValueError if impossible) and start receiving."""
+        if self._thread is not None:
+            return
+        if self.config.record:
+            try:
+                self._recorder = can.Logger(self.config.record)
+            except Exception as exc:
+                raise ValueError(f'can.record = {self.config.record!r}: cannot record there: '
+                                 f'{exc}') from exc
+        self._stop.clear()
+        self._set_state('connecting', '')
+        self._thread = threading.Thread(target=self._run, name='can_io-rx', daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        """Stop the thread, shut the bus down and close the recording (idempotent)."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=10.0)
+            self._thread = None
+        self._close_bus()
+        with self._rec_lock:
+            recorder, self._recorder = self._recorder, None
+        if recorder is not None:
+            try:
+                recorder.stop()
+            except Exception as exc:  # a full disk must not turn shutdown into a traceback
+                self._log.error('CAN recording %s not closed cleanly: %s',
+                                self.config.record, exc)
+        self._state = 'stopped'
+
+    def status(self) -> BusStatus:
+        """Return a snapshot of state and counters."""
+        return BusStatus(
+            state=self._state, reason=self._reason, frames_in=self.frames_in,
+            frames_out=self.frames_out, frames_dropped_tx=self.frames_dropped_tx,
+            error_frames=self.error_frames, reconnects=self.reconnects,
+            hardware_id=self.config.hardware_id, callback_errors=self.callback_errors)
+
+    def send(self, frame: Frame) -> None:
+        """Send one frame now; raise CanSendError if not connected or the driver refuses."""
+        try:
+            msg = can.Message(arbitration_id=frame.arbitration_id, data=frame.data,
+                              is_extended_id=frame.is_extended_id,
+                              is_fd=len(frame.data) > 8, is_rx=False, check=True)
+        except (ValueError, TypeError) as exc:
+            with self._tx_lock:
+                self.frames_dropped_tx += 1
+            raise CanSendError(f'invalid frame {frame!r}: {exc}') from exc
+        with self._tx_lock:
+            bus = self._bus
+            if bus is None or self._state not in ('connected', 'error-passive'):
+                self.frames_dropped_tx += 1
+                raise CanSendError(
+                    f'CAN bus {self.config.hardware_id} is not connected ({self._state}'
+                    + (f': {self._reason}' if self._reason else '') + ')')
+            try:
+                bus.send(msg, timeout=_SEND_TIMEOUT)
+            except Exception as exc:
+                self.frames_dropped_tx += 1
+                raise CanSendError(f'CAN bus {self.config.hardware_id}: sending '
+                                   f'0x{frame.arbitration_id:X} failed: {exc}') from exc
+            self.frames_out += 1
+        if self._recorder is not None:
+            msg.timestamp = time.time()
+            self._record(msg)
+
+    # ---------------------------------------------------------------------------- thread
+    def _set_state(self, state: str, reason: str, level: int = logging.INFO) -> None:
+        if state != self._state or reason != self._reason:
+            self._log.log(level, 'CAN bus %s: %s%s', self.config.hardware_id, state,
+                          f' ({reason})' if reason else '')
+        self._state = state
+        self._reason = reason
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            try:
+                bus = self._open()
+            except Exception as exc:
+                state = 'reconnecting' if self._ever_connected else 'error'
+                self._set_state(state, _describe(exc), logging.WARNING)
+                self._stop.wait(self.config.reconnect_period)
+                continue
+            try:
+                self._receive(bus)
+            except _BusLost as lost:
+                self._set_state(lost.state, lost.reason, logging.WARNING)
+            except Exception as exc:  # recv raised: adapter unplugged, driver error, ...
+                self._set_state('reconnecting', _describe(exc), logging.WARNING)
+            else:
+                if isinstance(bus, ReplayBus) and bus.finished:
+                    self._replay_finished(bus)
+                    return
+            self._close_bus()
+            self._stop.wait(self.config.reconnect_period)
+
+    def _open(self) -> can.BusABC | ReplayBus:
+        cfg = self.config
+        if cfg.interface == 'replay':
+            bus: can.BusABC | ReplayBus = ReplayBus(cfg.channel, cfg.replay_rate)
+        else:
+            kwargs = dict(cfg.options)
+            if cfg.bitrate > 0:
+                kwargs['bitrate'] = cfg.bitrate
+            if cfg.fd:
+                kwargs['fd'] = True
+            bus = can.Bus(interface=cfg.interface, channel=cfg.channel, **kwargs)
+            if self._filters and type(bus)._apply_filters is not can.BusABC._apply_filters:
+                # Only where the driver filters in hardware/kernel: elsewhere python-can
+                # would loop over the filter list per frame, slower than our set lookup.
+                try:
+                    bus.set_filters([
+                        {'can_id': i, 'can_mask': 0x1FFFFFFF if e else 0x7FF, 'extended': e}
+                        for i, e in self._filters])
+                except Exception as exc:
+                    self._log.warning('CAN bus %s: driver filters not installed (%s); '
+                                      'filtering in software', cfg.hardware_id, exc)
+        with self._tx_lock:
+            self._bus = bus
+        if self._ever_connected:
+            self.reconnects += 1
+        self._ever_connected = True
+        self._set_state('connected', f'replaying {cfg.channel}' if cfg.interface == 'replay'
+                        else '')
+        return bus
+
+    def _close_bus(self) -> None:
+        with self._tx_lock:
+            bus, self._bus = self._bus, None
+        if bus is not None:
+            try:
+                bus.shutdown()
+            except Exception as exc:  # an unplugged adapter fails its own close
+                self._log.debug('CAN bus %s shutdown: %s', self.config.hardware_id, exc)
+
+    def _replay_finished(self, bus: ReplayBus) -> None:
+        reason = f'{bus.played} frames played from {bus.path}'
+        if bus.error:
+            reason += f'; stopped at a bad entry: {bus.error}'
+        self._set_state('replay finished', reason)
+
+    def _receive(self, bus: can.BusABC | ReplayBus) -> None:
+        """Receive until stop (return), replay end (return) or failure (raise)."""
+        # Locals: this loop runs ~10k times/s on a saturated bus.
+        recv = bus.recv
+        stop = self._stop.is_set
+        on_frame = self._on_frame
+        wall = time.time
+        filtering = self._filters is not None
+        std_ids, ext_ids = self._std_ids, self._ext_ids
+        poll_state = (not isinstance(bus, ReplayBus)
+                      and type(bus).state is not can.BusABC.state)
+        replay = bus if isinstance(bus, ReplayBus) else None
+        decode_errors = self.config.interface in _SOCKETCAN_ERRORS
+        next_poll = wall() + _STATE_POLL
+        while not stop():
+            msg = recv(_RECV_TIMEOUT)
+            now = wall()
+            if msg is not None:
+                if msg.is_error_frame:
+                    self.error_frames += 1
+                    if decode_errors:
+                        self._error_frame(msg)
+                elif not msg.is_remote_frame:
+                    self.frames_in += 1
+                    if self._recorder is not None:
+                        msg.timestamp = now
+                        self._record(msg)
+                    if not filtering or msg.arbitration_id in (
+                            ext_ids if msg.is_extended_id else std_ids):
+                        try:
+                            on_frame(msg.arbitration_id, bytes(msg.data), msg.is_extended_id,
+                                     now)
+                        except Exception as exc:
+                            self._callback_failed(msg, exc)
+            elif replay is not None and replay.finished:
+                return
+            if now >= next_poll:
+                next_poll = now + _STATE_POLL
+                if poll_state:
+                    self._poll_state(bus)
+
+    def _poll_state(self, bus: can.BusABC) -> None:
+        try:
+            state = bus.state
+        except Exception:  # drivers that cannot tell: nothing to learn
+            return
+        if state == can.BusState.ERROR:
+            raise _BusLost('bus-off', 'controller reports bus-off (BusState.ERROR)')
+        if state == can.BusState.PASSIVE:
+            if self._state != 'error-passive':
+                self._set_state('error-passive', 'controller reports error-passive',
+                                logging.WARNING)
+        elif self._state == 'error-passive':
+            self._set_state('connected', '')
+
+    def _error_frame(self, msg: can.Message) -> None:
+        err = msg.arbitration_id
+        if err & _CAN_ERR_BUSOFF:
+            raise _BusLost('bus-off', 'an error frame reports the controller bus-off')
+        if err & _CAN_ERR_CRTL and len(msg.data) > 1:
+            if msg.data[1] & _CAN_ERR_CRTL_PASSIVE and self._state != 'error-passive':
+                self._set_state('error-passive', 'error-passive (error frame)',
+                                logging.WARNING)
+            elif msg.data[1] & _CAN_ERR_CRTL_ACTIVE and self._state == 'error-passive':
+                self._set_state('connected', '')
+
+    def _record(self, msg: can.Message) -> None:
+        with self._rec_lock:
+            recorder = self._recorder
+            if recorder is None:
+                return
+            try:
+                recorder.on_message_received(msg)
+            except Exception as exc:  # disk full: stop recording, keep the bus alive
+                self._recorder = None
+                self._log.error('CAN recording to %s stopped: %s', self.config.record, exc)
+
+    def _callback_failed(self, msg: can.Message, exc: Exception) -> None:
+        self.callback_errors += 1
+        now = time.monotonic()
+        if now - self._last_callback_log >= _CALLBACK_LOG_EVERY:
+            self._last_callback_log = now
+            self._log.error('frame 0x%X [%s] handler failed (%d so far): %s: %s',
+                            msg.arbitration_id, msg.data.hex(' ').upper(),
+                            self.callback_errors, type(exc).__name__, exc)
+
+
+def _describe(exc: BaseException) -> str:
+    """python-can's reason, with the exception type when the text alone is unclear."""
+    text = str(exc).strip()
+    cause = exc.__cause__ or exc.__context__
+    if cause is not None and str(cause) and str(cause) not in text:
+        text = f'{text}: {cause}' if text else str(cause)
+    return text or type(exc).__name__
