@@ -1,0 +1,551 @@
+"""
+Formula-Student AMS (accumulator management system) protocol: PROTOCOLS.md section 1.
+
+Ten 11-bit messages at ``base_id + offset`` (default base 0x300). The field layout lives in
+``msg_defs/ams.dbc`` and nowhere else: this module decodes through cantools and adds what a
+DBC cannot say (valid bank/group IDs, known enum values, DLC checks, typed readings) and
+checks every value before it is encoded, so a bad command fails loudly instead of being
+clamped. Readings are frozen dataclasses; enums carry the vendor's names.
+"""
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+from typing import Any, Callable, Union
+
+from ams_can_bridge.protocols.common import (
+    check_range, EncodeRangeError, Frame, load_dbc, MalformedFrameError)
+
+DEFAULT_BASE_ID = 0x300
+
+# Offsets from the base ID (PROTOCOLS.md section 1 table).
+STATUS = 0x000
+CHARGER_STATUS = 0x001
+CAR_STATUS = 0x005
+CHARGER_COMMANDS = 0x010
+CELL_VOLTAGES = 0x011
+CELL_TEMPERATURES = 0x012
+DISCHARGE_TEMPERATURES = 0x013
+ERROR = 0x014
+OVERRIDE_CHARGE_CURRENT = 0x050
+OVERRIDE_BANK_COUNT = 0x051
+OFFSETS = (STATUS, CHARGER_STATUS, CAR_STATUS, CHARGER_COMMANDS, CELL_VOLTAGES,
+           CELL_TEMPERATURES, DISCHARGE_TEMPERATURES, ERROR, OVERRIDE_CHARGE_CURRENT,
+           OVERRIDE_BANK_COUNT)
+
+MAX_BANKS = 5
+CELLS_PER_GROUP = 7
+CELL_GROUPS = 4
+CELLS_PER_BANK = CELLS_PER_GROUP * CELL_GROUPS  # 28
+TEMPS_PER_GROUP = 5
+DISCHARGE_TEMPS_PER_GROUP = 7
+TEMP_GROUPS = 2
+TEMPS_PER_BANK = TEMPS_PER_GROUP * TEMP_GROUPS  # 10
+DISCHARGE_TEMPS_PER_BANK = DISCHARGE_TEMPS_PER_GROUP * TEMP_GROUPS  # 14
+CELL_VOLT_STEP = 0.02  # V per bit (cells and Volt_min)
+CURRENT_STEP = 0.1  # A per bit (charger current, override charge current)
+
+
+class AmsState(enum.IntEnum):
+    """AMS controller state (status word bits 4..0)."""
+
+    NOT_REPORTED = 0
+    IDLE = 1
+    SC_ENABLED = 2
+    TS_ACTIVE = 3
+    DRIVE = 4
+    ERROR = 5
+    INIT_CHARGING = 6
+    PRECHARGING = 7
+    CHARGING = 8
+    CHARGE_ERROR = 9
+
+
+class CarCommand(enum.IntEnum):
+    """Command of the master in the car-status heartbeat (byte 0 bits 3..0)."""
+
+    NO_COMMAND = 0
+    ENABLE_SC = 1
+    ENABLE_TS = 2
+    ENABLE_DRIVE = 3
+    ABORT = 4
+    SET_BANK_COUNT = 5
+    SYNC_TIME = 6
+
+
+class AmsError(enum.IntEnum):
+    """AMS error IDs (vendor names without ERROR_AMS_; AIR-/AIR+/PRE+ spelled out)."""
+
+    CELL_VOLTAGE_LOW = 1
+    CELL_VOLTAGE_HIGH = 2
+    CELL_TEMP_LOW = 3
+    CELL_TEMP_HIGH = 4
+    LTC6813_COMM = 5
+    SHUNT_COMM = 6
+    UNABLE_TO_OPEN_SC = 7
+    UNABLE_TO_CLOSE_SC = 8
+    UNABLE_TO_OPEN_AIR_MINUS = 9
+    UNABLE_TO_CLOSE_AIR_MINUS = 10
+    UNABLE_TO_OPEN_AIR_PLUS = 11
+    UNABLE_TO_CLOSE_AIR_PLUS = 12
+    UNABLE_TO_OPEN_PRE_PLUS = 13
+    UNABLE_TO_CLOSE_PRE_PLUS = 14
+    PRE_TIMEOUT = 15
+    UNEXPECTED_CHARGE_RATE = 16
+    BANK_COUNT_MISMATCH = 17
+    UNEXPECTED_TS_CURRENT = 18
+    RELAY_FAILED = 19
+    SC_BROKEN = 20
+    UNFIT_CHARGE_VOLTAGE = 21
+    MONITOR_ERROR = 22
+    DISCHARGE_TEMP_TIMEOUT = 23
+
+
+class ChargerStart(enum.IntEnum):
+    """Start/stop field of the charger commands (byte 0 bits 1..0)."""
+
+    NO_COMMAND = 0
+    START = 1
+    STOP = 2
+
+
+@dataclass(frozen=True, slots=True)
+class AmsStatusWord:
+    """The 16-bit status word (relay bits 1 = closed; bank count as the AMS counted it)."""
+
+    air_plus: bool = False
+    air_minus: bool = False
+    precharge: bool = False
+    warn_volt: bool = False
+    warn_temp: bool = False
+    hvdc_interlock: bool = False
+    imd_error: bool = False
+    ams_error: bool = False
+    bank_count: int = 0
+    state: AmsState = AmsState.NOT_REPORTED
+
+
+@dataclass(frozen=True, slots=True)
+class AmsStatus:
+    """AMS status for the car (base + 0x000), the AMS's primary frame."""
+
+    status: AmsStatusWord
+    volt_min_v: float
+    temp_max_c: int
+    soc_pct: int
+    counter: int
+    relay_error_air_minus: bool = False
+    relay_error_air_plus: bool = False
+    relay_error_precharge: bool = False
+
+
+@dataclass(frozen=True, slots=True)
+class AmsChargerStatus:
+    """AMS status for the charger (base + 0x001)."""
+
+    status: AmsStatusWord
+    soc_pct: int
+    charger_current_a: float
+    charger_on: bool
+
+
+@dataclass(frozen=True, slots=True)
+class CarStatus:
+    """Car-status heartbeat from the master (base + 0x005)."""
+
+    command: CarCommand
+    bank_count: int
+    counter: int
+
+
+@dataclass(frozen=True, slots=True)
+class ChargerCommand:
+    """Charger commands (base + 0x010)."""
+
+    start: ChargerStart
+    time_tick: int
+
+
+@dataclass(frozen=True, slots=True)
+class CellVoltages:
+    """Seven cell voltages of one bank (1..5) and group (0..3), base + 0x011."""
+
+    bank: int
+    group: int
+    voltages_v: tuple[float, ...]
+
+    @property
+    def first_cell(self) -> int:
+        """Index (0-based) within the bank of the first voltage: group * 7."""
+        return self.group * CELLS_PER_GROUP
+
+
+@dataclass(frozen=True, slots=True)
+class CellTemperatures:
+    """Five cell temperatures of one bank (1..5) and group (0..1), base + 0x012."""
+
+    bank: int
+    group: int
+    temperatures_c: tuple[int, ...]
+
+    @property
+    def first_sensor(self) -> int:
+        """Index (0-based) within the bank of the first temperature: group * 5."""
+        return self.group * TEMPS_PER_GROUP
+
+
+@dataclass(frozen=True, slots=True)
+class DischargeTemperatures:
+    """Seven discharge temperatures of one bank (1..5) and group (0..1), base + 0x013."""
+
+    bank: int
+    group: int
+    temperatures_c: tuple[int, ...]
+
+    @property
+    def first_sensor(self) -> int:
+        """Index (0-based) within the bank of the first temperature: group * 7."""
+        return self.group * DISCHARGE_TEMPS_PER_GROUP
+
+
+@dataclass(frozen=True, slots=True)
+class AmsErrorEvent:
+    """An AMS error event (base + 0x014) with the AMS time tick."""
+
+    error: AmsError
+    time_tick: int
+
+
+@dataclass(frozen=True, slots=True)
+class OverrideChargeCurrent:
+    """Override of the charge current (base + 0x050)."""
+
+    current_a: float
+
+
+@dataclass(frozen=True, slots=True)
+class OverrideBankCount:
+    """Override of the bank count (base + 0x051)."""
+
+    bank_count: int
+
+
+AmsMessage = Union[AmsStatus, AmsChargerStatus, CarStatus, ChargerCommand, CellVoltages,
+                   CellTemperatures, DischargeTemperatures, AmsErrorEvent,
+                   OverrideChargeCurrent, OverrideBankCount]
+
+# Value -> enum member, so decoding is a dict lookup (None = unknown value = malformed).
+_STATES = {int(m): m for m in AmsState}
+_COMMANDS = {int(m): m for m in CarCommand}
+_ERRORS = {int(m): m for m in AmsError}
+_STARTS = {int(m): m for m in ChargerStart}
+
+_STATUS_BITS = (('AIR_Plus', 'air_plus'), ('AIR_Minus', 'air_minus'),
+                ('Precharge_Relay', 'precharge'), ('Warn_Volt', 'warn_volt'),
+                ('Warn_Temp', 'warn_temp'), ('HVDC_Interlock', 'hvdc_interlock'),
+                ('IMD_Error', 'imd_error'), ('AMS_Error', 'ams_error'))
+_CELL_SIGNALS = tuple(f'Cell_Voltage_{k}' for k in range(1, CELLS_PER_GROUP + 1))
+_TEMP_SIGNALS = tuple(f'Cell_Temperature_{k}' for k in range(1, TEMPS_PER_GROUP + 1))
+_DISCHARGE_SIGNALS = tuple(
+    f'Discharge_Temperature_{k}' for k in range(1, DISCHARGE_TEMPS_PER_GROUP + 1))
+
+_DBC_NAMES = {
+    STATUS: 'AMS_Status', CHARGER_STATUS: 'AMS_Status_Charger', CAR_STATUS: 'CAR_Status',
+    CHARGER_COMMANDS: 'CHARGER_Commands', CELL_VOLTAGES: 'AMS_Cell_Voltages',
+    CELL_TEMPERATURES: 'AMS_Cell_Temperatures',
+    DISCHARGE_TEMPERATURES: 'AMS_Discharge_Temperatures', ERROR: 'AMS_Error',
+    OVERRIDE_CHARGE_CURRENT: 'CHARGER_Override_Charge_Current',
+    OVERRIDE_BANK_COUNT: 'CHARGER_Override_Bank_Count',
+}
+
+
+class _Bad(Exception):
+    """Internal: a decoded value is impossible (becomes MalformedFrameError with the data)."""
+
+
+# Status words seen so far, by their raw 16-bit value: a car sends a handful of distinct words,
+# and building a frozen dataclass costs more than the whole cantools decode (measured).
+_WORD_CACHE: dict[int, AmsStatusWord] = {}
+
+
+def _status_word(sig: dict[str, Any], data: bytes) -> AmsStatusWord:
+    raw = data[0] << 8 | data[1]  # bytes or bytearray (python-can gives the latter)
+    word = _WORD_CACHE.get(raw)
+    if word is not None:
+        return word
+    state = _STATES.get(sig['AMS_State'])
+    if state is None:
+        raise _Bad(f'unknown AMS state {sig["AMS_State"]} (known 0..9)')
+    banks = sig['Bank_Count']
+    if banks > MAX_BANKS:
+        raise _Bad(f'status bank count {banks} (allowed 0..{MAX_BANKS})')
+    word = AmsStatusWord(bool(sig['AIR_Plus']), bool(sig['AIR_Minus']),
+                         bool(sig['Precharge_Relay']), bool(sig['Warn_Volt']),
+                         bool(sig['Warn_Temp']), bool(sig['HVDC_Interlock']),
+                         bool(sig['IMD_Error']), bool(sig['AMS_Error']), banks, state)
+    _WORD_CACHE[raw] = word  # bounded: at most 2**16 words
+    return word
+
+
+def _bank_group(sig: dict[str, Any], groups: int) -> tuple[int, int]:
+    bank, group = sig['Bank_ID'], sig['Group_ID']
+    if not 1 <= bank <= MAX_BANKS:
+        raise _Bad(f'bank ID {bank} (allowed 1..{MAX_BANKS})')
+    if group >= groups:
+        raise _Bad(f'group ID {group} (allowed 0..{groups - 1})')
+    return bank, group
+
+
+def _dec_status(sig: dict[str, Any], data: bytes) -> AmsStatus:
+    return AmsStatus(_status_word(sig, data), sig['Volt_min'], sig['Temp_max'], sig['SOC'],
+                     sig['Counter'], bool(sig['Relay_Error_AIR_Minus']),
+                     bool(sig['Relay_Error_AIR_Plus']), bool(sig['Relay_Error_Precharge']))
+
+
+def _dec_charger_status(sig: dict[str, Any], data: bytes) -> AmsChargerStatus:
+    return AmsChargerStatus(_status_word(sig, data), sig['SOC'], sig['Charger_Current'],
+                            bool(sig['Turn_On_Charger']))
+
+
+def _dec_car_status(sig: dict[str, Any], data: bytes) -> CarStatus:
+    command = _COMMANDS.get(sig['CMD'])
+    if command is None:
+        raise _Bad(f'unknown car command {sig["CMD"]} (known 0..6)')
+    banks = sig['Bank_Count']
+    if not 1 <= banks <= MAX_BANKS:
+        raise _Bad(f'car status bank count {banks} (allowed 1..{MAX_BANKS})')
+    return CarStatus(command, banks, sig['Counter'])
+
+
+def _dec_charger_commands(sig: dict[str, Any], data: bytes) -> ChargerCommand:
+    start = _STARTS.get(sig['Start'])
+    if start is None:
+        raise _Bad(f'unknown charger start command {sig["Start"]} (known 0..2)')
+    return ChargerCommand(start, sig['Time_Tick'])
+
+
+def _dec_cells(sig: dict[str, Any], data: bytes) -> CellVoltages:
+    bank, group = _bank_group(sig, CELL_GROUPS)
+    return CellVoltages(bank, group, tuple([sig[n] for n in _CELL_SIGNALS]))
+
+
+def _dec_temps(sig: dict[str, Any], data: bytes) -> CellTemperatures:
+    bank, group = _bank_group(sig, TEMP_GROUPS)
+    return CellTemperatures(bank, group, tuple([sig[n] for n in _TEMP_SIGNALS]))
+
+
+def _dec_discharge(sig: dict[str, Any], data: bytes) -> DischargeTemperatures:
+    bank, group = _bank_group(sig, TEMP_GROUPS)
+    return DischargeTemperatures(bank, group, tuple([sig[n] for n in _DISCHARGE_SIGNALS]))
+
+
+def _dec_error(sig: dict[str, Any], data: bytes) -> AmsErrorEvent:
+    error = _ERRORS.get(sig['AMS_Error_ID'])
+    if error is None:
+        raise _Bad(f'unknown AMS error ID {sig["AMS_Error_ID"]} (known 1..23)')
+    return AmsErrorEvent(error, sig['AMS_Time_Tick'])
+
+
+def _dec_override_current(sig: dict[str, Any], data: bytes) -> OverrideChargeCurrent:
+    return OverrideChargeCurrent(sig['Charge_Current'])
+
+
+def _dec_override_banks(sig: dict[str, Any], data: bytes) -> OverrideBankCount:
+    banks = sig['Bank_Count']
+    if not 1 <= banks <= MAX_BANKS:
+        raise _Bad(f'override bank count {banks} (allowed 1..{MAX_BANKS})')
+    return OverrideBankCount(banks)
+
+
+_DECODERS: dict[int, Callable[[dict[str, Any], bytes], Any]] = {
+    STATUS: _dec_status, CHARGER_STATUS: _dec_charger_status, CAR_STATUS: _dec_car_status,
+    CHARGER_COMMANDS: _dec_charger_commands, CELL_VOLTAGES: _dec_cells,
+    CELL_TEMPERATURES: _dec_temps, DISCHARGE_TEMPERATURES: _dec_discharge, ERROR: _dec_error,
+    OVERRIDE_CHARGE_CURRENT: _dec_override_current, OVERRIDE_BANK_COUNT: _dec_override_banks,
+}
+
+
+# --- encode-side checks ---------------------------------------------------------------------
+def _num(field: str, value: Any, low: float, high: float, step: float | None = None,
+         unit: str = '') -> float:
+    """Check a number against its wire range and step; bool and non-numbers are refused."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        suffix = f' {unit}' if unit else ''
+        raise EncodeRangeError(field, value, f'a number {low:g}..{high:g}{suffix}')
+    check_range(field, value, low, high, step, unit)
+    return value
+
+
+def _int(field: str, value: Any, low: int, high: int) -> int:
+    # 3.0 is accepted (YAML spells numbers either way); 2.5 is not.
+    if isinstance(value, float) and value == value and not value.is_integer():
+        raise EncodeRangeError(field, value, f'{low}..{high}, a whole number')
+    return int(_num(field, value, low, high))
+
+
+def _flag(field: str, value: Any) -> int:
+    if value not in (0, 1) or not isinstance(value, (bool, int)):
+        raise EncodeRangeError(field, value, 'True/False (or 0/1)')
+    return int(value)
+
+
+def _member(field: str, value: Any, enum_cls: type[enum.IntEnum]) -> int:
+    values = {int(m) for m in enum_cls}
+    if isinstance(value, bool) or not isinstance(value, int) or int(value) not in values:
+        names = ', '.join(f'{m.name}={int(m)}' for m in enum_cls)
+        raise EncodeRangeError(field, value, f'a {enum_cls.__name__}: {names}')
+    return int(value)
+
+
+def _values(field: str, values: Any, count: int, low: float, high: float, step: float,
+            unit: str) -> list[float]:
+    if not isinstance(values, (tuple, list)) or len(values) != count:
+        raise EncodeRangeError(field, values, f'exactly {count} values')
+    return [_num(f'{field}[{i}]', v, low, high, step, unit) for i, v in enumerate(values)]
+
+
+def _enc_status_word(word: AmsStatusWord) -> dict[str, Any]:
+    if not isinstance(word, AmsStatusWord):
+        raise EncodeRangeError('status', word, 'an AmsStatusWord')
+    sig = {name: _flag(attr, getattr(word, attr)) for name, attr in _STATUS_BITS}
+    sig['Bank_Count'] = _int('bank_count', word.bank_count, 0, MAX_BANKS)
+    sig['AMS_State'] = _member('state', word.state, AmsState)
+    return sig
+
+
+def _enc_status(m: AmsStatus) -> dict[str, Any]:
+    sig = _enc_status_word(m.status)
+    sig['Volt_min'] = _num('volt_min_v', m.volt_min_v, 0, 5.1, CELL_VOLT_STEP, 'V')
+    sig['Temp_max'] = _int('temp_max_c', m.temp_max_c, 0, 255)
+    sig['SOC'] = _int('soc_pct', m.soc_pct, 0, 100)
+    sig['Counter'] = _int('counter', m.counter, 0, 255)
+    sig['Relay_Error_AIR_Minus'] = _flag('relay_error_air_minus', m.relay_error_air_minus)
+    sig['Relay_Error_AIR_Plus'] = _flag('relay_error_air_plus', m.relay_error_air_plus)
+    sig['Relay_Error_Precharge'] = _flag('relay_error_precharge', m.relay_error_precharge)
+    return sig
+
+
+def _enc_charger_status(m: AmsChargerStatus) -> dict[str, Any]:
+    sig = _enc_status_word(m.status)
+    sig['SOC'] = _int('soc_pct', m.soc_pct, 0, 100)
+    sig['Charger_Current'] = _num('charger_current_a', m.charger_current_a, 0, 25.5,
+                                  CURRENT_STEP, 'A')
+    sig['Turn_On_Charger'] = _flag('charger_on', m.charger_on)
+    return sig
+
+
+def _enc_car_status(m: CarStatus) -> dict[str, Any]:
+    return {'CMD': _member('command', m.command, CarCommand),
+            'Bank_Count': _int('bank_count', m.bank_count, 1, MAX_BANKS),
+            'Counter': _int('counter', m.counter, 0, 255)}
+
+
+def _enc_charger_commands(m: ChargerCommand) -> dict[str, Any]:
+    return {'Start': _member('start', m.start, ChargerStart),
+            'Time_Tick': _int('time_tick', m.time_tick, 0, 0xFFFF)}
+
+
+def _enc_bank_group(m: Any, groups: int) -> dict[str, Any]:
+    return {'Bank_ID': _int('bank', m.bank, 1, MAX_BANKS),
+            'Group_ID': _int('group', m.group, 0, groups - 1)}
+
+
+def _enc_cells(m: CellVoltages) -> dict[str, Any]:
+    sig = _enc_bank_group(m, CELL_GROUPS)
+    values = _values('voltages_v', m.voltages_v, CELLS_PER_GROUP, 0, 5.1, CELL_VOLT_STEP, 'V')
+    sig.update(zip(_CELL_SIGNALS, values))
+    return sig
+
+
+def _enc_temps(m: CellTemperatures) -> dict[str, Any]:
+    sig = _enc_bank_group(m, TEMP_GROUPS)
+    values = _values('temperatures_c', m.temperatures_c, TEMPS_PER_GROUP, -128, 127, 1, 'degC')
+    sig.update(zip(_TEMP_SIGNALS, values))
+    return sig
+
+
+def _enc_discharge(m: DischargeTemperatures) -> dict[str, Any]:
+    sig = _enc_bank_group(m, TEMP_GROUPS)
+    values = _values('temperatures_c', m.temperatures_c, DISCHARGE_TEMPS_PER_GROUP,
+                     -128, 127, 1, 'degC')
+    sig.update(zip(_DISCHARGE_SIGNALS, values))
+    return sig
+
+
+def _enc_error(m: AmsErrorEvent) -> dict[str, Any]:
+    return {'AMS_Error_ID': _member('error', m.error, AmsError),
+            'AMS_Time_Tick': _int('time_tick', m.time_tick, 0, 0xFFFF)}
+
+
+def _enc_override_current(m: OverrideChargeCurrent) -> dict[str, Any]:
+    return {'Charge_Current': _num('current_a', m.current_a, 0, 25.5, CURRENT_STEP, 'A')}
+
+
+def _enc_override_banks(m: OverrideBankCount) -> dict[str, Any]:
+    return {'Bank_Count': _int('bank_count', m.bank_count, 1, MAX_BANKS)}
+
+
+_ENCODERS: dict[type, tuple[int, Callable[[Any], dict[str, Any]]]] = {
+    AmsStatus: (STATUS, _enc_status), AmsChargerStatus: (CHARGER_STATUS, _enc_charger_status),
+    CarStatus: (CAR_STATUS, _enc_car_status),
+    ChargerCommand: (CHARGER_COMMANDS, _enc_charger_commands),
+    CellVoltages: (CELL_VOLTAGES, _enc_cells), CellTemperatures: (CELL_TEMPERATURES, _enc_temps),
+    DischargeTemperatures: (DISCHARGE_TEMPERATURES, _enc_discharge),
+    AmsErrorEvent: (ERROR, _enc_error),
+    OverrideChargeCurrent: (OVERRIDE_CHARGE_CURRENT, _enc_override_current),
+    OverrideBankCount: (OVERRIDE_BANK_COUNT, _enc_override_banks),
+}
+
+
+class AmsCodec:
+    """Frames <-> typed AMS messages at one base ID (11-bit IDs)."""
+
+    is_extended_id = False
+
+    def __init__(self, base_id: int = DEFAULT_BASE_ID) -> None:
+        highest = 0x7FF - max(OFFSETS)
+        if isinstance(base_id, bool) or not isinstance(base_id, int) \
+                or not 0 <= base_id <= highest:
+            raise EncodeRangeError('base_id', base_id,
+                                   f'0..0x{highest:X} (11-bit IDs up to base + 0x051)')
+        self.base_id = base_id
+        db = load_dbc('ams')
+        # One dict lookup per frame: ID -> (DLC, cantools decode, reading builder).
+        self._decode_table: dict[int, tuple[int, Callable[..., dict], Callable]] = {}
+        self._encode_table: dict[type, tuple[int, Callable, Callable]] = {}
+        for offset in OFFSETS:
+            msg = db.get_message_by_name(_DBC_NAMES[offset])
+            self._decode_table[base_id + offset] = (msg.length, msg.decode_simple,
+                                                    _DECODERS[offset])
+        for cls, (offset, encoder) in _ENCODERS.items():
+            msg = db.get_message_by_name(_DBC_NAMES[offset])
+            self._encode_table[cls] = (base_id + offset, msg.encode, encoder)
+        self.arbitration_ids = frozenset(self._decode_table)
+
+    def id_of(self, offset: int) -> int:
+        """Return the CAN ID of the message at an offset (STATUS, CELL_VOLTAGES, ...)."""
+        return self.base_id + offset
+
+    def decode(self, arbitration_id: int, data: bytes) -> AmsMessage:
+        """Decode one frame to its typed reading; MalformedFrameError if it cannot be one."""
+        entry = self._decode_table.get(arbitration_id)
+        if entry is None:
+            raise MalformedFrameError(arbitration_id, data,
+                                      f'not an AMS ID at base 0x{self.base_id:X}')
+        length, decode_signals, build = entry
+        if len(data) != length:
+            raise MalformedFrameError(arbitration_id, data,
+                                      f'DLC {len(data)}, expected {length}')
+        try:
+            return build(decode_signals(data, False, True), data)
+        except _Bad as exc:
+            raise MalformedFrameError(arbitration_id, data, str(exc)) from None
+
+    def encode(self, message: AmsMessage) -> Frame:
+        """Encode one message; EncodeRangeError names the field and its allowed range."""
+        entry = self._encode_table.get(type(message))
+        if entry is None:
+            raise EncodeRangeError('message', message,
+                                   'one of ' + ', '.join(c.__name__ for c in _ENCODERS))
+        arbitration_id, encode_signals, check = entry
+        return Frame(arbitration_id, encode_signals(check(message)), False)
