@@ -1,0 +1,239 @@
+"""
+IVT-S current shunt state: latest result of each kind, sign convention, counters, health.
+
+Other devices read it through ``current_a``, ``voltage_v`` and ``charge_ah`` (the AMS fills
+its pack BatteryState from them), so those take the device lock and never return a number
+that is unknown, stale or flagged invalid by the sensor: NaN instead.
+
+Sign: on the wire the current is positive in whichever direction the shunt is mounted for;
+``discharge_positive`` (default true, the common mounting) says which. ROS values follow
+sensor_msgs: current and charge are negative while discharging.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+import time
+from typing import Any, Callable, Mapping
+
+from ams_can_bridge.devices.base import (
+    BatteryReport, current_status, DiagnosticReport, Device, Level, ParamSpec,
+    PowerSupplyHealth)
+from ams_can_bridge.protocols.ivt_s import (
+    BYTE_ORDERS, DBC_NAME, DEFAULT_BASE_ID, IvtMux, IvtResult, IvtSCodec, RAW_UNIT, SI_UNIT)
+
+NAN = math.nan
+# A counter anomaly keeps the device at WARN until this many good frames of that result
+# followed it: one lost frame is visible for a moment, a stuck counter stays visible.
+COUNTER_RECOVERY_FRAMES = 16
+
+
+@dataclass
+class _Track:
+    """Per-result bookkeeping: last frame, when it came, counter health."""
+
+    result: IvtResult
+    seen: float  # Device.clock() at reception
+    stuck: int = 0  # frames that repeated the previous counter
+    jumps: int = 0  # frames whose counter skipped (lost frames or a reset sensor)
+    good_streak: int = 0  # frames with the expected counter since the last anomaly
+
+    @property
+    def counter_trouble(self) -> bool:
+        """Tell whether a recent counter anomaly still lacks enough good frames after it."""
+        return (self.stuck or self.jumps) > 0 and self.good_streak < COUNTER_RECOVERY_FRAMES
+
+
+def _as_bool(key: str, value: Any) -> bool:
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, str) and value.lower() in ('true', 'false'):
+        return value.lower() == 'true'
+    raise ValueError(f'ivt_s.{key} = {value!r}: allowed true | false')
+
+
+class IvtSDevice(Device):
+    """
+    Isabellenhuette IVT-S: current, voltages U1..U3, temperature, power, charge, energy.
+
+    The primary frame is the current result (base_id); the device is STALE when it stops.
+    BROADCAST_PERIOD 0.1 s: the IVT-S cycle time is set in the sensor (Formula Student
+    setups commonly run 10..100 ms); 0.1 s gives a 0.5 s stale_timeout, short enough to
+    catch a dead current sensor in a car, and a sensor set to a slower cycle needs a
+    larger ``stale_timeout``.
+    """
+
+    TYPE = 'ivt_s'
+    BROADCAST_PERIOD = 0.1
+    DEFAULT_BASE_ID = DEFAULT_BASE_ID
+    PARAMS = [
+        ParamSpec('byte_order', str, 'big',
+                  'byte order of the 32-bit result values: big (factory setting) or little '
+                  '(if the sensor was configured so)', choices=BYTE_ORDERS),
+        ParamSpec('discharge_positive', bool, True,
+                  'true if the IVT-S reports a positive current while the pack discharges '
+                  '(depends on how the shunt is mounted); ROS current is negative while '
+                  'discharging either way'),
+    ]
+
+    def __init__(self, name: str, params: Mapping[str, Any],
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        super().__init__(name, params, clock)
+        base_id = self.params.get('base_id')
+        base_id = DEFAULT_BASE_ID if base_id is None else int(base_id)
+        self.byte_order = str(self.params.get('byte_order') or 'big')
+        self.discharge_positive = _as_bool('discharge_positive',
+                                           self.params.get('discharge_positive', True))
+        self.codec = IvtSCodec(base_id, self.byte_order)
+        # Wire current/charge -> ROS sign (negative while discharging).
+        self._sign = -1.0 if self.discharge_positive else 1.0
+        self._tracks: dict[IvtMux, _Track] = {}
+        self._stamp = NAN
+
+    # --- bus thread ------------------------------------------------------------------------
+    def _handle(self, reading: IvtResult, stamp: float) -> bool:
+        now = self.clock()
+        track = self._tracks.get(reading.kind)
+        if track is None:
+            self._tracks[reading.kind] = _Track(reading, now)
+        else:
+            previous = track.result.counter
+            # After a silence longer than stale_timeout a counter restart is expected.
+            if now - track.seen <= self.stale_timeout:
+                if reading.counter == previous:
+                    track.stuck += 1
+                    track.good_streak = 0
+                elif reading.counter != (previous + 1) & 0x0F:
+                    track.jumps += 1
+                    track.good_streak = 0
+                else:
+                    track.good_streak += 1
+            track.result = reading
+            track.seen = now
+        if reading.kind is IvtMux.I:
+            self._stamp = stamp
+            return True
+        return False
+
+    # --- values other devices use ------------------------------------------------------------
+    def current_a(self) -> float:
+        """Pack current in A, ROS sign (negative while discharging); NaN if unknown/stale."""
+        with self.lock:
+            return self._current_a()
+
+    def voltage_v(self) -> float:
+        """Voltage U1 in V; NaN if unknown, stale or flagged invalid by the sensor."""
+        with self.lock:
+            return self._valid(IvtMux.U1)
+
+    def charge_ah(self) -> float:
+        """Charge counter (As / 3600) in Ah, ROS sign like the current; NaN if unknown."""
+        with self.lock:
+            return self._sign * self._valid(IvtMux.AS) / 3600.0
+
+    def temperature_c(self) -> float:
+        """Sensor temperature in degC; NaN if unknown or stale."""
+        with self.lock:
+            return self._valid(IvtMux.T)
+
+    def latest(self, kind: IvtMux) -> IvtResult | None:
+        """Return the last decoded result of one kind (None before any), whatever its age."""
+        with self.lock:
+            track = self._tracks.get(IvtMux(kind))
+            return track.result if track else None
+
+    # --- helpers (lock held) ---------------------------------------------------------------
+    def _fresh(self, kind: IvtMux) -> _Track | None:
+        track = self._tracks.get(kind)
+        if track is None or self.clock() - track.seen > self.stale_timeout:
+            return None
+        return track
+
+    def _valid(self, kind: IvtMux) -> float:
+        """SI value (sensor sign) of a fresh result without its result-error bit, else NaN."""
+        track = self._fresh(kind)
+        if track is None or track.result.result_error:
+            return NAN
+        return track.result.value
+
+    def _current_a(self) -> float:
+        return self._sign * self._valid(IvtMux.I)
+
+    def _fresh_results(self) -> list[IvtResult]:
+        return [t.result for k, t in sorted(self._tracks.items()) if self._fresh(k)]
+
+    # --- executor side ---------------------------------------------------------------------
+    def _battery_report(self) -> BatteryReport:
+        current = self._current_a()
+        results = self._fresh_results()
+        if any(r.system_error for r in results):
+            health = PowerSupplyHealth.UNSPEC_FAILURE
+        elif results:
+            health = PowerSupplyHealth.GOOD
+        else:
+            health = PowerSupplyHealth.UNKNOWN
+        return BatteryReport(
+            stamp=self._stamp,
+            voltage=self._valid(IvtMux.U1),
+            current=current,
+            charge=self._sign * self._valid(IvtMux.AS) / 3600.0,
+            temperature=self._valid(IvtMux.T),
+            power_supply_status=current_status(current),
+            power_supply_health=health,
+            present=IvtMux.I in self._tracks,
+        )
+
+    def _diagnostic_report(self) -> DiagnosticReport:
+        results = self._fresh_results()
+        errors, warnings = [], []
+        system = [DBC_NAME[r.kind] for r in results if r.system_error]
+        if system:
+            errors.append(f'system error ({", ".join(system)})')
+        for flag, label in (('ocs', 'over-current (OCS) tripped'),
+                            ('result_error', 'result error/out of range'),
+                            ('measurement_error', 'measurement error')):
+            names = [DBC_NAME[r.kind] for r in results if getattr(r, flag)]
+            if names:
+                warnings.append(f'{label} ({", ".join(names)})')
+        trouble = [DBC_NAME[k] for k, t in sorted(self._tracks.items()) if t.counter_trouble]
+        if trouble:
+            warnings.append(f'counter stuck or skipping ({", ".join(trouble)})')
+        silent = [DBC_NAME[k] for k in sorted(self._tracks) if k is not IvtMux.I
+                  and self._fresh(k) is None]
+        if silent:
+            warnings.append(f'result stopped ({", ".join(silent)})')
+        level = Level.ERROR if errors else Level.WARN if warnings else Level.OK
+        current, voltage = self._current_a(), self._valid(IvtMux.U1)
+        summary = f'{current:.2f} A, {voltage:.1f} V'
+        message = '; '.join(errors + warnings + [summary])
+        return DiagnosticReport(level, message, self._values(current))
+
+    def _values(self, current: float) -> dict[str, str]:
+        values = {
+            'current (A, negative = discharging)': f'{current:.3f}',
+            'charge (Ah, negative = discharged)':
+                f'{self._sign * self._valid(IvtMux.AS) / 3600.0:.4f}',
+            'power (W, as measured)': f'{self._valid(IvtMux.W):g}',
+            'energy (Wh, as measured)': f'{self._valid(IvtMux.WH):g}',
+            'byte order': self.byte_order,
+            'discharge positive': str(self.discharge_positive).lower(),
+        }
+        for kind in IvtMux:
+            name = DBC_NAME[kind]
+            track = self._tracks.get(kind)
+            if track is None:
+                values[f'{name} ({SI_UNIT[kind]})'] = 'not received'
+                continue
+            r = track.result
+            values[f'{name} ({SI_UNIT[kind]})'] = f'{r.value:g}'
+            values[f'{name} raw ({RAW_UNIT[kind]})'] = str(r.raw)
+            values[f'{name} counter'] = str(r.counter)
+            flags = [label for flag, label in (
+                (r.ocs, 'OCS'), (r.result_error, 'result error'),
+                (r.measurement_error, 'measurement error'), (r.system_error, 'system error'))
+                if flag]
+            values[f'{name} status'] = ', '.join(flags) or 'ok'
+            values[f'{name} counter stuck'] = str(track.stuck)
+            values[f'{name} counter jumps'] = str(track.jumps)
+            values[f'{name} age (s)'] = f'{self.clock() - track.seen:.2f}'
+        return values
