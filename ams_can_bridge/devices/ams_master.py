@@ -1,0 +1,361 @@
+"""
+The AMS master role without ROS: the car-status heartbeat and the command/wait logic.
+
+The heartbeat (car status, base + 0x005) runs on its own thread from a monotonic absolute
+schedule: slot k is due at ``start + k * period``. Sleeping to an absolute time cannot drift;
+when the thread is late by a whole period or more (machine overloaded), the missed slots are
+skipped (never sent in a burst) and counted. The counter increments by one per frame actually
+put on the bus and wraps 255 -> 0.
+
+The command field carries at most one request at a time (the bus frame has one field):
+
+- ENABLE_SC / ENABLE_TS / ENABLE_DRIVE are carried in every heartbeat until the call
+  answers (target state reported, ERROR / CHARGE_ERROR / an error event, abort, timeout),
+  then the field goes back to NO_COMMAND. A second command while one waits is refused.
+- ABORT is never refused: it replaces whatever is carried in the very next heartbeat (the
+  waiting call answers 'aborted') and is carried until the AMS reports IDLE or the timeout
+  passes, then NO_COMMAND. A stale ENABLE_* is never sent after an abort.
+- SET_BANK_COUNT / SYNC_TIME are one-shot: carried by exactly one heartbeat; the call
+  answers once that frame was sent.
+
+Only AMS status frames received *after* the request was first carried count as an answer,
+so a state reported before the request can never confirm it.
+"""
+from __future__ import annotations
+
+import enum
+import math
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+from ams_can_bridge.protocols.common import Frame
+
+POLL_S = 0.005  # waiting calls re-check the AMS state this often (a few ms)
+
+
+class CarCommand(enum.IntEnum):
+    """Car commands (car status b0 bits 3..0)."""
+
+    NO_COMMAND = 0
+    ENABLE_SC = 1
+    ENABLE_TS = 2
+    ENABLE_DRIVE = 3
+    ABORT = 4
+    SET_BANK_COUNT = 5
+    SYNC_TIME = 6
+
+
+class AmsStateCode(enum.IntEnum):
+    """AMS states (status word bits 4..0); 0 = nothing reported yet."""
+
+    NOT_REPORTED = 0
+    IDLE = 1
+    SC_ENABLED = 2
+    TS_ACTIVE = 3
+    DRIVE = 4
+    ERROR = 5
+    INIT_CHARGING = 6
+    PRECHARGING = 7
+    CHARGING = 8
+    CHARGE_ERROR = 9
+
+
+TARGETS = {
+    CarCommand.ENABLE_SC: AmsStateCode.SC_ENABLED,
+    CarCommand.ENABLE_TS: AmsStateCode.TS_ACTIVE,
+    CarCommand.ENABLE_DRIVE: AmsStateCode.DRIVE,
+    CarCommand.ABORT: AmsStateCode.IDLE,
+}
+ONE_SHOT = (CarCommand.SET_BANK_COUNT, CarCommand.SYNC_TIME)
+ERROR_STATES = (AmsStateCode.ERROR, AmsStateCode.CHARGE_ERROR)
+
+
+def state_name(code: int) -> str:
+    """Name of an AMS state code (unknown codes as 'UNKNOWN(n)')."""
+    try:
+        return AmsStateCode(code).name
+    except ValueError:
+        return f'UNKNOWN({code})'
+
+
+@dataclass(frozen=True)
+class AmsView:
+    """What the master needs to know about the AMS now (read from the device state)."""
+
+    state: int = 0            # AmsStateCode value of the last status frame
+    status_seq: int = 0       # +1 per AMS status frame received
+    error_seq: int = 0        # +1 per AMS error event (0x014) received
+    errors: str = ''          # active error names, human readable ('' = none)
+    stale: bool = True
+
+    def describe(self) -> str:
+        """One line for service messages: state and errors."""
+        if self.status_seq == 0:
+            return 'AMS state: not reported yet (no AMS status frame received)'
+        text = f'AMS state: {state_name(self.state)}'
+        text += f', errors: {self.errors}' if self.errors else ', errors: none'
+        return text + (' (AMS status is stale)' if self.stale else '')
+
+
+@dataclass(frozen=True)
+class CommandResult:
+    """The answer of a command call."""
+
+    success: bool
+    message: str
+
+
+@dataclass
+class _Request:
+    command: CarCommand
+    started: float
+    carried: int = 0                 # heartbeats that carried it
+    first_counter: int | None = None  # counter of the first heartbeat that carried it
+    status_seq_at_send: int | None = None
+    error_seq_at_start: int = 0
+    cancelled: str = ''              # reason when replaced (abort) or stopped (gate)
+    done: bool = False
+
+
+@dataclass
+class HeartbeatStats:
+    """Counters of the heartbeat thread (diagnostics and the benchmark)."""
+
+    frames_sent: int = 0
+    send_failures: int = 0
+    missed_slots: int = 0
+    last_error: str = ''
+    send_times: list[float] = field(default_factory=list)  # only when record=True
+
+
+class HeartbeatSchedule:
+    """Absolute monotonic slots: slot k at start + k * period, late slots skipped."""
+
+    def __init__(self, period: float, start: float) -> None:
+        if not period > 0:
+            raise ValueError(f'heartbeat period {period!r} must be > 0')
+        self.period = period
+        self.start = start
+        self.k = 0
+
+    def due(self) -> float:
+        """Time of the next slot."""
+        return self.start + self.k * self.period
+
+    def take(self, now: float) -> int:
+        """Consume the slot due at or before now; return how many slots were skipped."""
+        latest = int(math.floor((now - self.start) / self.period + 1e-9))
+        skipped = max(0, latest - self.k)
+        self.k = max(self.k, latest) + 1
+        return skipped
+
+    def rebase(self, period: float, now: float) -> None:
+        """Change the period from now on (first slot of the new period: one period ahead)."""
+        if not period > 0:
+            raise ValueError(f'heartbeat period {period!r} must be > 0')
+        last = self.start + (self.k - 1) * self.period if self.k else now
+        self.period = period
+        self.start = max(last + period, now)
+        self.k = 0
+
+
+class AmsMaster:
+    """Heartbeat thread + command requests; the ROS layer only wires services to it."""
+
+    def __init__(self, encode: Callable[[int, int, int], Frame],
+                 send: Callable[[Frame], tuple[bool, str]],
+                 view: Callable[[], AmsView], period: float = 0.05, bank_count: int = 1,
+                 clock: Callable[[], float] = time.monotonic, record: bool = False) -> None:
+        """
+        Wire the master to its codec, bus and AMS state.
+
+        encode(command, bank_count, counter) builds the car status frame; send(frame)
+        returns (ok, message); view() reads the AMS device state.
+        """
+        self._encode = encode
+        self._send = send
+        self._view = view
+        self._clock = clock
+        self._cond = threading.Condition()
+        self._send_lock = threading.Lock()  # stop() returns only after an in-flight send
+        self._thread: threading.Thread | None = None
+        self._running = False
+        self._generation = 0  # a thread from before a stop/start never sends again
+        self._period = float(period)
+        self._schedule: HeartbeatSchedule | None = None
+        self.bank_count = int(bank_count)
+        self.counter = 0
+        self.stats = HeartbeatStats()
+        self._record = record
+        self._request: _Request | None = None
+
+    # --- heartbeat thread --------------------------------------------------------------
+    @property
+    def running(self) -> bool:
+        """True while the heartbeat thread sends."""
+        return self._running
+
+    @property
+    def period(self) -> float:
+        """Heartbeat period in seconds."""
+        return self._period
+
+    def start(self) -> None:
+        """Start the heartbeat (no-op when running)."""
+        with self._cond:
+            if self._running:
+                return
+            self._running = True
+            self._generation += 1
+            self._schedule = HeartbeatSchedule(self._period, self._clock())
+            self._thread = threading.Thread(target=self._run, args=(self._generation,),
+                                            name='ams-heartbeat', daemon=True)
+            self._thread.start()
+
+    def stop(self, reason: str = 'the heartbeat stopped') -> None:
+        """Stop the heartbeat; a waiting call answers failure with reason, field reset."""
+        with self._cond:
+            thread = self._thread
+            self._running = False
+            self._thread = None
+            if self._request is not None:
+                self._request.cancelled = reason
+                self._request = None
+            self._cond.notify_all()
+        with self._send_lock:
+            pass  # a frame being sent right now is on the bus before stop() returns
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(timeout=2.0)
+
+    def set_period(self, period: float) -> None:
+        """Change the heartbeat period at run time."""
+        with self._cond:
+            self._period = float(period)
+            if self._schedule is not None:
+                self._schedule.rebase(self._period, self._clock())
+            self._cond.notify_all()
+
+    def set_bank_count(self, bank_count: int) -> None:
+        """Bank count carried by every following heartbeat."""
+        with self._cond:
+            self.bank_count = int(bank_count)
+
+    def current_command(self) -> CarCommand:
+        """The command the next heartbeat carries."""
+        with self._cond:
+            return self._request.command if self._request else CarCommand.NO_COMMAND
+
+    def _alive(self, generation: int) -> bool:
+        return self._running and self._generation == generation
+
+    def _run(self, generation: int) -> None:
+        while True:
+            with self._cond:
+                while self._alive(generation):
+                    wait = self._schedule.due() - self._clock()
+                    if wait <= 0:
+                        break
+                    self._cond.wait(wait)
+                if not self._alive(generation):
+                    return
+                self.stats.missed_slots += self._schedule.take(self._clock())
+                request = self._request
+                command = request.command if request else CarCommand.NO_COMMAND
+                try:
+                    frame = self._encode(int(command), self.bank_count, self.counter)
+                except Exception as exc:  # a bad bank count must not kill the thread
+                    frame = None
+                    self.stats.last_error = f'cannot build the heartbeat: {exc}'
+            # send outside the condition: a slow bus must not block service calls or abort
+            with self._send_lock:
+                if not self._alive(generation):
+                    return
+                ok, message = ((False, self.stats.last_error) if frame is None
+                               else self._send(frame))
+            sent_at = self._clock()
+            view = self._view() if ok and request is not None else None
+            with self._cond:
+                if ok:
+                    self.stats.frames_sent += 1
+                    if self._record:
+                        self.stats.send_times.append(sent_at)
+                    if request is not None and not request.done and not request.cancelled:
+                        if request.carried == 0:
+                            request.first_counter = self.counter
+                            request.status_seq_at_send = view.status_seq
+                        request.carried += 1
+                        if request.command in ONE_SHOT and self._request is request:
+                            self._request = None  # exactly one heartbeat carries it
+                    self.counter = (self.counter + 1) & 0xFF
+                else:
+                    self.stats.send_failures += 1
+                    self.stats.last_error = message
+                self._cond.notify_all()
+
+    # --- commands ------------------------------------------------------------------------
+    def command(self, command: CarCommand, timeout: float) -> CommandResult:
+        """Carry a command in the heartbeat and wait for its answer (see module docstring)."""
+        command = CarCommand(command)
+        with self._cond:
+            if not self._running:
+                return CommandResult(False, f'{command.name} not sent: the heartbeat is not '
+                                     'running')
+            current = self._request
+            if command != CarCommand.ABORT and current is not None:
+                return CommandResult(False, f'{command.name} refused: {current.command.name} is '
+                                     'still in progress (wait for its answer, or call abort)')
+            if current is not None:
+                current.cancelled = 'aborted'
+            request = _Request(command, self._clock(), error_seq_at_start=self._view().error_seq)
+            self._request = request
+            self._cond.notify_all()
+            return self._wait(request, timeout)
+
+    def _wait(self, request: _Request, timeout: float) -> CommandResult:
+        """Wait (holding self._cond between polls) until the request is answered."""
+        name = request.command.name
+        deadline = request.started + timeout
+        try:
+            while True:
+                if request.cancelled:
+                    return CommandResult(False, f'{name}: {request.cancelled} '
+                                         f'({self._view().describe()})')
+                view = self._view()
+                if request.command in ONE_SHOT and request.carried:
+                    return CommandResult(True, f'{name} sent in the heartbeat with counter '
+                                         f'{request.first_counter}; {view.describe()}')
+                if request.command in TARGETS and request.carried:
+                    answer = self._judge(request, view)
+                    if answer is not None:
+                        return answer
+                now = self._clock()
+                if now >= deadline:
+                    sent = (f'carried in {request.carried} heartbeats' if request.carried
+                            else 'never sent (' + (self.stats.last_error or 'no slot') + ')')
+                    goal = (f'waiting for {TARGETS[request.command].name}'
+                            if request.command in TARGETS else 'waiting to be sent')
+                    return CommandResult(False, f'{name}: timeout after {timeout:g} s {goal}, '
+                                         f'{sent}; {view.describe()}')
+                self._cond.wait(min(POLL_S, deadline - now))
+        finally:
+            request.done = True
+            if self._request is request:
+                self._request = None  # back to NO_COMMAND: nothing lingers after an answer
+
+    def _judge(self, request: _Request, view: AmsView) -> CommandResult | None:
+        target = TARGETS[request.command]
+        name = request.command.name
+        fresh = view.status_seq > (request.status_seq_at_send or 0)
+        if fresh and view.state == target:
+            return CommandResult(True, f'{name}: AMS reports {target.name}; {view.describe()}')
+        if request.command == CarCommand.ABORT:
+            return None  # abort keeps asking for IDLE whatever happens, until the timeout
+        if view.error_seq > request.error_seq_at_start:
+            return CommandResult(False, f'{name} failed: the AMS reported an error event; '
+                                 f'{view.describe()}')
+        if fresh and view.state in ERROR_STATES:
+            return CommandResult(False, f'{name} failed: the AMS went to '
+                                 f'{state_name(view.state)}; {view.describe()}')
+        return None

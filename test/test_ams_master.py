@@ -1,0 +1,231 @@
+"""The AMS master without ROS: heartbeat schedule, counter, command field, waits, abort."""
+import threading
+import time
+
+import pytest
+
+from ams_can_bridge.devices.ams_master import (AmsMaster, AmsStateCode, AmsView, CarCommand,
+                                               HeartbeatSchedule)
+from ams_can_bridge.protocols.common import Frame
+
+
+def encode(command: int, bank_count: int, counter: int) -> Frame:
+    """Car status frame by hand from PROTOCOLS.md: b0 = bank << 4 | command, b1 = counter."""
+    return Frame(0x305, bytes([(bank_count << 4) | command, counter]))
+
+
+class ScriptedAms:
+    """The far end: reacts to the command nibble of each heartbeat like an AMS would."""
+
+    def __init__(self, behaviour: str = 'obey', steps: int = 2) -> None:
+        self.behaviour = behaviour  # obey | never | error | error_event
+        self.steps = steps          # heartbeats before reaching the target (precharge time)
+        self.lock = threading.Lock()
+        self.state = AmsStateCode.IDLE
+        self.status_seq = 0
+        self.error_seq = 0
+        self.errors = ''
+        self.frames: list[tuple[float, Frame]] = []
+        self._seen = 0
+
+    def send(self, frame: Frame) -> tuple[bool, str]:
+        with self.lock:
+            self.frames.append((time.monotonic(), frame))
+            command = frame.data[0] & 0x0F
+            targets = {1: AmsStateCode.SC_ENABLED, 2: AmsStateCode.TS_ACTIVE,
+                       3: AmsStateCode.DRIVE, 4: AmsStateCode.IDLE}
+            if command in targets and self.behaviour != 'never':
+                self._seen += 1
+                if command == 4:
+                    self.state = AmsStateCode.IDLE
+                elif self.behaviour == 'error':
+                    self.state = AmsStateCode.ERROR
+                    self.errors = 'PRE_TIMEOUT'
+                elif self.behaviour == 'error_event':
+                    self.error_seq += 1
+                    self.errors = 'SC_BROKEN'
+                elif self._seen >= self.steps:
+                    self.state = targets[command]
+                elif command == 2:
+                    self.state = AmsStateCode.PRECHARGING
+            else:
+                self._seen = 0
+            self.status_seq += 1  # the AMS answers each heartbeat with a status frame
+        return True, ''
+
+    def view(self) -> AmsView:
+        with self.lock:
+            return AmsView(int(self.state), self.status_seq, self.error_seq, self.errors, False)
+
+    def commands(self) -> list[int]:
+        with self.lock:
+            return [f.data[0] & 0x0F for _, f in self.frames]
+
+    def wait_frames(self, n: int, timeout: float = 5.0) -> None:
+        deadline = time.monotonic() + timeout
+        while len(self.frames) < n and time.monotonic() < deadline:
+            time.sleep(0.002)
+        assert len(self.frames) >= n
+
+
+@pytest.fixture
+def rig():
+    made = []
+
+    def make(behaviour='obey', period=0.01, **kw):
+        ams = ScriptedAms(behaviour, **kw)
+        master = AmsMaster(encode, ams.send, ams.view, period=period, bank_count=3)
+        made.append(master)
+        return ams, master
+    yield make
+    for master in made:
+        master.stop()
+
+
+def test_schedule_is_absolute_and_skips_missed_slots():
+    schedule = HeartbeatSchedule(0.05, start=100.0)
+    assert schedule.due() == 100.0
+    assert schedule.take(100.001) == 0
+    assert schedule.due() == pytest.approx(100.05)
+    # late by 3.5 periods: slots 1, 2, 3 are missed, slot 4 is sent now, next is slot 5
+    assert schedule.take(100.2 + 0.001) == 3
+    assert schedule.due() == pytest.approx(100.25)
+    # a slightly late wake-up does not shift the grid (no drift)
+    assert schedule.take(100.26) == 0
+    assert schedule.due() == pytest.approx(100.30)
+    with pytest.raises(ValueError):
+        HeartbeatSchedule(0.0, 0.0)
+
+
+def test_heartbeat_counter_bank_count_and_no_command(rig):
+    ams, master = rig(period=0.002)
+    master.start()
+    ams.wait_frames(300)
+    master.stop()
+    counters = [f.data[1] for _, f in ams.frames]
+    assert all((b - a) & 0xFF == 1 for a, b in zip(counters, counters[1:]))
+    assert 0 in counters[1:] and 255 in counters  # wrapped 255 -> 0
+    assert all(f.arbitration_id == 0x305 and f.data[0] == 0x30 for _, f in ams.frames)
+    n = len(ams.frames)
+    time.sleep(0.05)
+    assert len(ams.frames) == n  # stopped means silent
+
+
+def test_state_commands_answer_on_target_then_field_returns_to_no_command(rig):
+    ams, master = rig(steps=3)
+    master.start()
+    for command, target in ((CarCommand.ENABLE_SC, 'SC_ENABLED'),
+                            (CarCommand.ENABLE_TS, 'TS_ACTIVE'),
+                            (CarCommand.ENABLE_DRIVE, 'DRIVE')):
+        result = master.command(command, timeout=2.0)
+        assert result.success, result.message
+        assert target in result.message
+        assert master.current_command() == CarCommand.NO_COMMAND
+    n = len(ams.frames)
+    ams.wait_frames(n + 5)
+    assert set(ams.commands()[n + 1:]) == {0}
+
+
+def test_timeout_when_the_ams_never_answers(rig):
+    ams, master = rig('never')
+    master.start()
+    t0 = time.monotonic()
+    result = master.command(CarCommand.ENABLE_SC, timeout=0.3)
+    assert not result.success
+    assert time.monotonic() - t0 >= 0.3
+    assert 'timeout' in result.message and 'waiting for SC_ENABLED' in result.message
+    assert 'AMS state: IDLE' in result.message
+    assert master.current_command() == CarCommand.NO_COMMAND
+
+
+@pytest.mark.parametrize('behaviour, text', [('error', 'ERROR'), ('error_event', 'SC_BROKEN')])
+def test_error_answers_failure_with_state_and_error(rig, behaviour, text):
+    ams, master = rig(behaviour)
+    master.start()
+    result = master.command(CarCommand.ENABLE_TS, timeout=2.0)
+    assert not result.success
+    assert text in result.message and 'failed' in result.message
+
+
+def test_abort_replaces_a_waiting_command_in_the_next_heartbeat(rig):
+    ams, master = rig('never', period=0.02)
+    master.start()
+    answers = {}
+    waiter = threading.Thread(
+        target=lambda: answers.setdefault('ts', master.command(CarCommand.ENABLE_TS, 5.0)))
+    waiter.start()
+    deadline = time.monotonic() + 2
+    while CarCommand.ENABLE_TS not in ams.commands() and time.monotonic() < deadline:
+        time.sleep(0.002)
+    ams.behaviour = 'obey'  # the AMS obeys the abort
+    n_before = len(ams.frames)
+    abort = master.command(CarCommand.ABORT, timeout=2.0)
+    waiter.join(2)
+    assert abort.success, abort.message
+    assert not answers['ts'].success and 'aborted' in answers['ts'].message
+    commands = ams.commands()
+    # the first heartbeat after the abort call carries ABORT (at most one was in flight)
+    assert commands[n_before] == 4 or commands[n_before + 1] == 4
+    first_abort = commands.index(4)
+    assert 2 not in commands[first_abort:]  # no stale ENABLE_TS after the abort
+
+
+def test_a_second_command_is_refused_while_one_waits_but_abort_never(rig):
+    ams, master = rig('never', period=0.01)
+    ams.state = AmsStateCode.TS_ACTIVE  # stuck there: it will not obey the abort either
+    master.start()
+    waiter = threading.Thread(target=master.command, args=(CarCommand.ENABLE_SC, 1.0))
+    waiter.start()
+    while master.current_command() != CarCommand.ENABLE_SC:
+        time.sleep(0.002)
+    refused = master.command(CarCommand.ENABLE_TS, 1.0)
+    assert not refused.success and 'ENABLE_SC is still in progress' in refused.message
+    abort = master.command(CarCommand.ABORT, 0.2)  # AMS never answers: abort times out
+    assert not abort.success and 'waiting for IDLE' in abort.message
+    assert 'AMS state: TS_ACTIVE' in abort.message
+    waiter.join(2)
+    assert master.current_command() == CarCommand.NO_COMMAND
+
+
+def test_one_shot_commands_are_carried_by_exactly_one_heartbeat(rig):
+    ams, master = rig()
+    master.start()
+    for command in (CarCommand.SET_BANK_COUNT, CarCommand.SYNC_TIME):
+        result = master.command(command, timeout=1.0)
+        assert result.success, result.message
+        assert 'sent in the heartbeat with counter' in result.message
+    ams.wait_frames(len(ams.frames) + 3)
+    commands = ams.commands()
+    assert commands.count(5) == 1 and commands.count(6) == 1
+
+
+def test_stop_while_waiting_answers_failure_and_not_running_refuses(rig):
+    ams, master = rig('never')
+    assert not master.command(CarCommand.ENABLE_SC, 0.1).success  # never started
+    master.start()
+    answers = []
+    waiter = threading.Thread(
+        target=lambda: answers.append(master.command(CarCommand.ENABLE_SC, 5.0)))
+    waiter.start()
+    while master.current_command() != CarCommand.ENABLE_SC:
+        time.sleep(0.002)
+    master.stop('commands_enabled was set to false')
+    waiter.join(2)
+    assert not answers[0].success and 'commands_enabled' in answers[0].message
+    n = len(ams.frames)
+    time.sleep(0.05)
+    assert len(ams.frames) == n
+    master.start()  # restart: heartbeats again, counter continues
+    ams.wait_frames(n + 3)
+    assert (ams.frames[n][1].data[1] - ams.frames[n - 1][1].data[1]) & 0xFF == 1
+
+
+def test_period_change_at_run_time(rig):
+    ams, master = rig(period=0.05)
+    master.start()
+    ams.wait_frames(2)
+    master.set_period(0.005)
+    n = len(ams.frames)
+    t0 = time.monotonic()
+    ams.wait_frames(n + 40)
+    assert time.monotonic() - t0 < 40 * 0.05 * 0.8  # clearly faster than the old period
