@@ -1,0 +1,308 @@
+"""
+SMA Sunny Island BMS protocol: frames <-> typed readings (PROTOCOLS.md s. 5).
+
+Fixed 11-bit IDs, little-endian fields; sent by SMA-compatible BMSs (Pylontech, BYD, ...)
+and by the ZEVA BMS16 next to its own frames:
+
+- 0x351 limits: charge voltage U16 0.1 V, charge / discharge current S16 0.1 A,
+  discharge voltage U16 0.1 V;
+- 0x355 SoC U16 %, SoH U16 %, optional high-resolution SoC U16 0.01 %;
+- 0x356 voltage S16 0.01 V, current S16 0.1 A (**positive = charging**), temperature
+  S16 0.1 degC;
+- 0x35A alarms (bytes 0..3) and warnings (bytes 4..7), 2 bits per condition
+  (1 active, 2 OK, 0 or 3 not supported);
+- 0x35E manufacturer name, ASCII; 0x35F battery type, BMS version, capacity Ah.
+
+Decisions:
+
+- The invalid markers 0x8000 (signed fields) and 0xFFFF (unsigned fields) decode as None
+  ("not available"); encoders write them for None.
+- Devices differ in how many bytes they send, so each message accepts a DLC range and a
+  field the frame is too short for decodes as None (0x35A: NOT_SUPPORTED): 0x351 6..8,
+  0x355 4..8, 0x356 6..8, 0x35A 1..8, 0x35E 1..8, 0x35F 6..8. Anything else is malformed.
+- The manufacturer name drops trailing NUL / space padding; a byte that is not printable
+  ASCII becomes '?' (a vendor's odd byte is not worth losing the frame for).
+- SMA defines no "generator" alarm (warning byte only); the pair is decoded like the others
+  so alarms and warnings share one set of names.
+"""
+from __future__ import annotations
+
+import enum
+import functools
+from dataclasses import dataclass, field
+from typing import Union
+
+from ams_can_bridge.protocols.common import (
+    check_dlc, check_range, EncodeRangeError, Frame, load_dbc, MalformedFrameError)
+
+LIMITS_ID = 0x351
+SOC_ID = 0x355
+BATTERY_ID = 0x356
+ALARMS_ID = 0x35A
+MANUFACTURER_ID = 0x35E
+INFO_ID = 0x35F
+SMA_IDS = frozenset({LIMITS_ID, SOC_ID, BATTERY_ID, ALARMS_ID, MANUFACTURER_ID, INFO_ID})
+INVALID_S16 = -0x8000
+INVALID_U16 = 0xFFFF
+DLC_RANGE = {
+    LIMITS_ID: (6, 7, 8), SOC_ID: (4, 5, 6, 7, 8), BATTERY_ID: (6, 7, 8),
+    ALARMS_ID: tuple(range(1, 9)), MANUFACTURER_ID: tuple(range(1, 9)), INFO_ID: (6, 7, 8),
+}
+
+
+class SmaFlag(enum.IntEnum):
+    """State of one alarm / warning condition (wire value 3 also means NOT_SUPPORTED)."""
+
+    NOT_SUPPORTED = 0
+    ACTIVE = 1
+    OK = 2
+
+
+_FLAGS = (SmaFlag.NOT_SUPPORTED, SmaFlag.ACTIVE, SmaFlag.OK, SmaFlag.NOT_SUPPORTED)
+
+# Condition k is the 2-bit pair at bits 2(k % 4)+1..2(k % 4) of byte k // 4 (alarms) and
+# of byte 4 + k // 4 (warnings).
+SMA_CONDITIONS = (
+    'general', 'high_voltage', 'low_voltage', 'high_temperature',
+    'low_temperature', 'high_temperature_charge', 'low_temperature_charge',
+    'high_discharge_current',
+    'high_charge_current', 'contactor', 'short_circuit', 'bms_internal',
+    'cell_imbalance', 'reserved1', 'reserved2', 'generator',
+)
+
+
+@dataclass(frozen=True)
+class SmaLimits:
+    """0x351: charge / discharge limits (None = not available)."""
+
+    charge_voltage_v: float | None
+    charge_current_a: float | None
+    discharge_current_a: float | None
+    discharge_voltage_v: float | None
+
+
+@dataclass(frozen=True)
+class SmaSoc:
+    """0x355: SoC and SoH in %, the optional high-resolution SoC in 0.01 %."""
+
+    soc_pct: int | None
+    soh_pct: int | None
+    soc_hires_pct: float | None = None
+
+
+@dataclass(frozen=True)
+class SmaBattery:
+    """0x356: voltage, current (positive = charging, the ROS sign), temperature."""
+
+    voltage_v: float | None
+    current_a: float | None
+    temperature_c: float | None
+
+
+def _all_not_supported() -> dict[str, SmaFlag]:
+    return {name: SmaFlag.NOT_SUPPORTED for name in SMA_CONDITIONS}
+
+
+@dataclass(frozen=True)
+class SmaAlarms:
+    """0x35A: every condition's alarm and warning flag, keyed by SMA_CONDITIONS names."""
+
+    alarms: dict[str, SmaFlag] = field(default_factory=_all_not_supported)
+    warnings: dict[str, SmaFlag] = field(default_factory=_all_not_supported)
+
+    @property
+    def active_alarms(self) -> tuple[str, ...]:
+        """Names of the active alarms, in protocol order."""
+        return tuple(n for n in SMA_CONDITIONS if self.alarms.get(n) == SmaFlag.ACTIVE)
+
+    @property
+    def active_warnings(self) -> tuple[str, ...]:
+        """Names of the active warnings, in protocol order."""
+        return tuple(n for n in SMA_CONDITIONS if self.warnings.get(n) == SmaFlag.ACTIVE)
+
+
+@dataclass(frozen=True)
+class SmaManufacturer:
+    """0x35E: manufacturer name."""
+
+    name: str
+
+
+@dataclass(frozen=True)
+class SmaBatteryInfo:
+    """0x35F: battery type and BMS version (vendor codes), capacity in Ah."""
+
+    battery_type: int | None
+    bms_version: int | None
+    capacity_ah: int | None
+
+
+SmaReading = Union[SmaLimits, SmaSoc, SmaBattery, SmaAlarms, SmaManufacturer, SmaBatteryInfo]
+
+
+def _u16(data: bytes, i: int, scale: int = 1) -> float | int | None:
+    if len(data) < i + 2:
+        return None
+    raw = data[i] | data[i + 1] << 8
+    if raw == INVALID_U16:
+        return None
+    return raw if scale == 1 else raw / scale
+
+
+def _s16(data: bytes, i: int, scale: int) -> float | None:
+    raw = data[i] | data[i + 1] << 8
+    if raw == 0x8000:
+        return None
+    return (raw - 0x10000 if raw & 0x8000 else raw) / scale
+
+
+def _put_u16(field_name: str, value: float | None, scale: int, unit: str,
+             high: float | None = None) -> bytes:
+    if value is None:
+        return INVALID_U16.to_bytes(2, 'little')
+    top = (INVALID_U16 - 1) / scale if high is None else high
+    check_range(f'sma.{field_name}', value, 0, top, unit=unit)
+    return round(value * scale).to_bytes(2, 'little')
+
+
+def _put_s16(field_name: str, value: float | None, scale: int, unit: str) -> bytes:
+    if value is None:
+        return INVALID_S16.to_bytes(2, 'little', signed=True)
+    check_range(f'sma.{field_name}', value, -0x7FFF / scale, 0x7FFF / scale, unit=unit)
+    return round(value * scale).to_bytes(2, 'little', signed=True)
+
+
+# signal -> (start, length, scale, signed) the fast path assumes; checked once per process.
+_DBC_LAYOUT = {
+    (LIMITS_ID, 'ChargeVoltageLimit'): (0, 16, 0.1, False),
+    (LIMITS_ID, 'ChargeCurrentLimit'): (16, 16, 0.1, True),
+    (LIMITS_ID, 'DischargeCurrentLimit'): (32, 16, 0.1, True),
+    (LIMITS_ID, 'DischargeVoltageLimit'): (48, 16, 0.1, False),
+    (SOC_ID, 'SoC'): (0, 16, 1, False),
+    (SOC_ID, 'SoH'): (16, 16, 1, False),
+    (SOC_ID, 'SoCHighRes'): (32, 16, 0.01, False),
+    (BATTERY_ID, 'Voltage'): (0, 16, 0.01, True),
+    (BATTERY_ID, 'Current'): (16, 16, 0.1, True),
+    (BATTERY_ID, 'Temperature'): (32, 16, 0.1, True),
+    (ALARMS_ID, 'Alarm_HighVoltage'): (2, 2, 1, False),
+    (ALARMS_ID, 'Warning_General'): (32, 2, 1, False),
+    (ALARMS_ID, 'Warning_Generator'): (62, 2, 1, False),
+    (INFO_ID, 'Capacity'): (32, 16, 1, False),
+}
+
+
+@functools.cache
+def check_dbc() -> None:
+    """Raise RuntimeError unless msg_defs/sma.dbc has the layout the codec assumes."""
+    db = load_dbc('sma')
+    for (frame_id, name), want in _DBC_LAYOUT.items():
+        sig = db.get_message_by_frame_id(frame_id).get_signal_by_name(name)
+        have = (sig.start, sig.length, sig.scale, sig.is_signed)
+        if have != want or sig.byte_order != 'little_endian':
+            raise RuntimeError(f'sma.dbc: signal {name} is {have}, the codec assumes {want}')
+
+
+class SmaCodec:
+    """Decode and encode the SMA BMS frames 0x351, 0x355, 0x356, 0x35A, 0x35E, 0x35F."""
+
+    is_extended_id = False
+    arbitration_ids = SMA_IDS
+
+    def __init__(self) -> None:
+        check_dbc()
+        self._decoders = {
+            LIMITS_ID: self._limits, SOC_ID: self._soc, BATTERY_ID: self._battery,
+            ALARMS_ID: self._alarms, MANUFACTURER_ID: self._manufacturer, INFO_ID: self._info,
+        }
+
+    # --- decode ---------------------------------------------------------------------
+    def decode(self, arbitration_id: int, data: bytes) -> SmaReading:
+        """Decode one frame; MalformedFrameError for an unknown ID or a DLC out of range."""
+        decoder = self._decoders.get(arbitration_id)
+        if decoder is None:
+            raise MalformedFrameError(arbitration_id, data, 'not an SMA BMS ID')
+        check_dlc(arbitration_id, data, DLC_RANGE[arbitration_id])
+        return decoder(data)
+
+    @staticmethod
+    def _limits(data: bytes) -> SmaLimits:
+        return SmaLimits(_u16(data, 0, 10), _s16(data, 2, 10), _s16(data, 4, 10),
+                         _u16(data, 6, 10))
+
+    @staticmethod
+    def _soc(data: bytes) -> SmaSoc:
+        return SmaSoc(_u16(data, 0), _u16(data, 2), _u16(data, 4, 100))
+
+    @staticmethod
+    def _battery(data: bytes) -> SmaBattery:
+        return SmaBattery(_s16(data, 0, 100), _s16(data, 2, 10), _s16(data, 4, 10))
+
+    @staticmethod
+    def _alarms(data: bytes) -> SmaAlarms:
+        padded = data + bytes(8 - len(data))  # bytes not sent: conditions not supported
+        return SmaAlarms(
+            {name: _FLAGS[(padded[k >> 2] >> ((k & 3) << 1)) & 3]
+             for k, name in enumerate(SMA_CONDITIONS)},
+            {name: _FLAGS[(padded[4 + (k >> 2)] >> ((k & 3) << 1)) & 3]
+             for k, name in enumerate(SMA_CONDITIONS)})
+
+    @staticmethod
+    def _manufacturer(data: bytes) -> SmaManufacturer:
+        text = bytes(data).rstrip(b'\x00 ')
+        return SmaManufacturer(''.join(chr(b) if 0x20 <= b < 0x7F else '?' for b in text))
+
+    @staticmethod
+    def _info(data: bytes) -> SmaBatteryInfo:
+        return SmaBatteryInfo(_u16(data, 0), _u16(data, 2), _u16(data, 4))
+
+    # --- encode ---------------------------------------------------------------------
+    def encode(self, message: SmaReading) -> Frame:
+        """Encode any SMA message (None fields as invalid markers); EncodeRangeError else."""
+        if isinstance(message, SmaLimits):
+            data = (_put_u16('charge_voltage_v', message.charge_voltage_v, 10, 'V')
+                    + _put_s16('charge_current_a', message.charge_current_a, 10, 'A')
+                    + _put_s16('discharge_current_a', message.discharge_current_a, 10, 'A')
+                    + _put_u16('discharge_voltage_v', message.discharge_voltage_v, 10, 'V'))
+            return Frame(LIMITS_ID, data)
+        if isinstance(message, SmaSoc):
+            # Always 6 bytes (0xFFFF = no high-resolution SoC), the layout of the DBC.
+            data = (_put_u16('soc_pct', message.soc_pct, 1, '%', 100)
+                    + _put_u16('soh_pct', message.soh_pct, 1, '%', 100)
+                    + _put_u16('soc_hires_pct', message.soc_hires_pct, 100, '%', 100))
+            return Frame(SOC_ID, data)
+        if isinstance(message, SmaBattery):
+            data = (_put_s16('voltage_v', message.voltage_v, 100, 'V')
+                    + _put_s16('current_a', message.current_a, 10, 'A')
+                    + _put_s16('temperature_c', message.temperature_c, 10, 'degC'))
+            return Frame(BATTERY_ID, data)
+        if isinstance(message, SmaAlarms):
+            return Frame(ALARMS_ID, self._encode_flags(message))
+        if isinstance(message, SmaManufacturer):
+            name = message.name
+            if (not isinstance(name, str) or not 1 <= len(name) <= 8
+                    or not all(0x20 <= ord(c) < 0x7F for c in name)):
+                raise EncodeRangeError('sma.manufacturer', name, '1..8 printable ASCII chars')
+            return Frame(MANUFACTURER_ID, name.encode('ascii').ljust(8, b'\x00'))
+        if isinstance(message, SmaBatteryInfo):
+            data = (_put_u16('battery_type', message.battery_type, 1, '')
+                    + _put_u16('bms_version', message.bms_version, 1, '')
+                    + _put_u16('capacity_ah', message.capacity_ah, 1, 'Ah'))
+            return Frame(INFO_ID, data)
+        raise TypeError(f'not an SMA message: {message!r}')
+
+    @staticmethod
+    def _encode_flags(message: SmaAlarms) -> bytes:
+        data = bytearray(8)
+        for kind, flags, first in (('alarms', message.alarms, 0),
+                                   ('warnings', message.warnings, 4)):
+            for name in flags:
+                if name not in SMA_CONDITIONS:
+                    raise EncodeRangeError(f'sma.{kind}', name,
+                                           'condition names ' + ', '.join(SMA_CONDITIONS))
+            for k, name in enumerate(SMA_CONDITIONS):
+                flag = flags.get(name, SmaFlag.NOT_SUPPORTED)
+                if flag not in (0, 1, 2):
+                    raise EncodeRangeError(f'sma.{kind}.{name}', flag,
+                                           'SmaFlag NOT_SUPPORTED, ACTIVE or OK')
+                data[first + (k >> 2)] |= int(flag) << ((k & 3) << 1)
+        return bytes(data)
