@@ -4,8 +4,8 @@ import time
 
 import pytest
 
-from ams_can_bridge.devices.ams_master import (AmsMaster, AmsStateCode, AmsView, CarCommand,
-                                               HeartbeatSchedule)
+from ams_can_bridge.devices.ams_master import AmsMaster, AmsView, HeartbeatSchedule
+from ams_can_bridge.protocols.ams import AmsState, CarCommand
 from ams_can_bridge.protocols.common import Frame
 
 
@@ -21,7 +21,7 @@ class ScriptedAms:
         self.behaviour = behaviour  # obey | never | error | error_event
         self.steps = steps          # heartbeats before reaching the target (precharge time)
         self.lock = threading.Lock()
-        self.state = AmsStateCode.IDLE
+        self.state = AmsState.IDLE
         self.status_seq = 0
         self.error_seq = 0
         self.errors = ''
@@ -32,14 +32,14 @@ class ScriptedAms:
         with self.lock:
             self.frames.append((time.monotonic(), frame))
             command = frame.data[0] & 0x0F
-            targets = {1: AmsStateCode.SC_ENABLED, 2: AmsStateCode.TS_ACTIVE,
-                       3: AmsStateCode.DRIVE, 4: AmsStateCode.IDLE}
+            targets = {1: AmsState.SC_ENABLED, 2: AmsState.TS_ACTIVE,
+                       3: AmsState.DRIVE, 4: AmsState.IDLE}
             if command in targets and self.behaviour != 'never':
                 self._seen += 1
                 if command == 4:
-                    self.state = AmsStateCode.IDLE
+                    self.state = AmsState.IDLE
                 elif self.behaviour == 'error':
-                    self.state = AmsStateCode.ERROR
+                    self.state = AmsState.ERROR
                     self.errors = 'PRE_TIMEOUT'
                 elif self.behaviour == 'error_event':
                     self.error_seq += 1
@@ -47,7 +47,7 @@ class ScriptedAms:
                 elif self._seen >= self.steps:
                     self.state = targets[command]
                 elif command == 2:
-                    self.state = AmsStateCode.PRECHARGING
+                    self.state = AmsState.PRECHARGING
             else:
                 self._seen = 0
             self.status_seq += 1  # the AMS answers each heartbeat with a status frame
@@ -172,7 +172,7 @@ def test_abort_replaces_a_waiting_command_in_the_next_heartbeat(rig):
 
 def test_a_second_command_is_refused_while_one_waits_but_abort_never(rig):
     ams, master = rig('never', period=0.01)
-    ams.state = AmsStateCode.TS_ACTIVE  # stuck there: it will not obey the abort either
+    ams.state = AmsState.TS_ACTIVE  # stuck there: it will not obey the abort either
     master.start()
     waiter = threading.Thread(target=master.command, args=(CarCommand.ENABLE_SC, 1.0))
     waiter.start()

@@ -23,59 +23,31 @@ so a state reported before the request can never confirm it.
 """
 from __future__ import annotations
 
-import enum
 import math
 import threading
 import time
 from dataclasses import dataclass, field
 from typing import Callable
 
+from ams_can_bridge.protocols.ams import AmsState, CarCommand
 from ams_can_bridge.protocols.common import Frame
 
 POLL_S = 0.005  # waiting calls re-check the AMS state this often (a few ms)
 
-
-class CarCommand(enum.IntEnum):
-    """Car commands (car status b0 bits 3..0)."""
-
-    NO_COMMAND = 0
-    ENABLE_SC = 1
-    ENABLE_TS = 2
-    ENABLE_DRIVE = 3
-    ABORT = 4
-    SET_BANK_COUNT = 5
-    SYNC_TIME = 6
-
-
-class AmsStateCode(enum.IntEnum):
-    """AMS states (status word bits 4..0); 0 = nothing reported yet."""
-
-    NOT_REPORTED = 0
-    IDLE = 1
-    SC_ENABLED = 2
-    TS_ACTIVE = 3
-    DRIVE = 4
-    ERROR = 5
-    INIT_CHARGING = 6
-    PRECHARGING = 7
-    CHARGING = 8
-    CHARGE_ERROR = 9
-
-
 TARGETS = {
-    CarCommand.ENABLE_SC: AmsStateCode.SC_ENABLED,
-    CarCommand.ENABLE_TS: AmsStateCode.TS_ACTIVE,
-    CarCommand.ENABLE_DRIVE: AmsStateCode.DRIVE,
-    CarCommand.ABORT: AmsStateCode.IDLE,
+    CarCommand.ENABLE_SC: AmsState.SC_ENABLED,
+    CarCommand.ENABLE_TS: AmsState.TS_ACTIVE,
+    CarCommand.ENABLE_DRIVE: AmsState.DRIVE,
+    CarCommand.ABORT: AmsState.IDLE,
 }
 ONE_SHOT = (CarCommand.SET_BANK_COUNT, CarCommand.SYNC_TIME)
-ERROR_STATES = (AmsStateCode.ERROR, AmsStateCode.CHARGE_ERROR)
+ERROR_STATES = (AmsState.ERROR, AmsState.CHARGE_ERROR)
 
 
 def state_name(code: int) -> str:
-    """Name of an AMS state code (unknown codes as 'UNKNOWN(n)')."""
+    """Return the name of an AMS state code (unknown codes as 'UNKNOWN(n)')."""
     try:
-        return AmsStateCode(code).name
+        return AmsState(code).name
     except ValueError:
         return f'UNKNOWN({code})'
 
@@ -84,14 +56,14 @@ def state_name(code: int) -> str:
 class AmsView:
     """What the master needs to know about the AMS now (read from the device state)."""
 
-    state: int = 0            # AmsStateCode value of the last status frame
+    state: int = 0            # AmsState value of the last status frame
     status_seq: int = 0       # +1 per AMS status frame received
     error_seq: int = 0        # +1 per AMS error event (0x014) received
     errors: str = ''          # active error names, human readable ('' = none)
     stale: bool = True
 
     def describe(self) -> str:
-        """One line for service messages: state and errors."""
+        """Describe state and errors in one line (for service messages)."""
         if self.status_seq == 0:
             return 'AMS state: not reported yet (no AMS status frame received)'
         text = f'AMS state: {state_name(self.state)}'
@@ -141,7 +113,7 @@ class HeartbeatSchedule:
         self.k = 0
 
     def due(self) -> float:
-        """Time of the next slot."""
+        """Return the time of the next slot."""
         return self.start + self.k * self.period
 
     def take(self, now: float) -> int:
@@ -194,12 +166,12 @@ class AmsMaster:
     # --- heartbeat thread --------------------------------------------------------------
     @property
     def running(self) -> bool:
-        """True while the heartbeat thread sends."""
+        """Tell whether the heartbeat thread is sending."""
         return self._running
 
     @property
     def period(self) -> float:
-        """Heartbeat period in seconds."""
+        """Return the heartbeat period in seconds."""
         return self._period
 
     def start(self) -> None:
@@ -238,12 +210,12 @@ class AmsMaster:
             self._cond.notify_all()
 
     def set_bank_count(self, bank_count: int) -> None:
-        """Bank count carried by every following heartbeat."""
+        """Set the bank count carried by every following heartbeat."""
         with self._cond:
             self.bank_count = int(bank_count)
 
     def current_command(self) -> CarCommand:
-        """The command the next heartbeat carries."""
+        """Return the command the next heartbeat carries."""
         with self._cond:
             return self._request.command if self._request else CarCommand.NO_COMMAND
 
