@@ -1,0 +1,200 @@
+"""The ``simulator`` executable: simulated battery devices on any python-can bus."""
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import sys
+import threading
+import time
+from typing import Any, Sequence
+
+from ams_can_bridge import registry
+from ams_can_bridge.can_io import parse_options
+from ams_can_bridge.sim.base import SimDevice
+from ams_can_bridge.sim.runner import open_bus, SimRunner
+
+DEFAULT_VIRTUAL_CHANNEL = 'ams_can_bridge'
+# The AMS goes first so the IVT-S can measure its pack.
+_ORDER = ('ams', 'ivt_s', 'evms3', 'bms16', 'sma')
+
+
+def _device_list(text: str) -> list[str]:
+    types = [t.strip() for t in text.split(',') if t.strip()]
+    unknown = [t for t in types if t not in registry.SIMULATORS]
+    if unknown or not types:
+        raise argparse.ArgumentTypeError(
+            f'unknown device type(s) {", ".join(unknown) or "(none)"}: use a comma list of '
+            + ', '.join(registry.SIMULATORS))
+    return sorted(set(types), key=_ORDER.index)
+
+
+def _fault(text: str) -> tuple[str, str, Any]:
+    device, sep, rest = text.partition(':')
+    kind, _, value = rest.partition('=')
+    if not sep or not device or not kind:
+        raise argparse.ArgumentTypeError(
+            f'fault {text!r}: write device:kind[=value], e.g. bms16:silent, evms3:error=12, '
+            'ams:malformed, ams:drift=0.3, ams:drift_cell=5')
+    parsed = parse_options([f'v={value}'])['v'] if value else True
+    return device, kind, parsed
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Command-line interface of ``simulator``."""
+    p = argparse.ArgumentParser(
+        prog='simulator',
+        description='Simulated AMS, IVT-S, EVMS3 (+BMS12), BMS16 and SMA BMS on a CAN bus, '
+                    'for testing the bridge without hardware. Stop with Ctrl-C.')
+    p.add_argument('--interface', default='virtual',
+                   help='python-can interface (virtual, socketcan, slcan, pcan, ...); '
+                        'default virtual (in-process only: use the demo for that)')
+    p.add_argument('--channel', default=None,
+                   help=f'channel (default {DEFAULT_VIRTUAL_CHANNEL!r} for virtual, can0 '
+                        'otherwise; a serial device for slcan)')
+    p.add_argument('--bitrate', type=int, default=0, help='bit/s, 0 = leave the adapter as is')
+    p.add_argument('--option', action='append', default=[], metavar='KEY=VALUE',
+                   help='python-can interface option, repeatable (e.g. sleep_after_open=0)')
+    p.add_argument('--devices', type=_device_list, default=list(_ORDER),
+                   help='comma list of ' + ', '.join(registry.SIMULATORS) + ' (default all)')
+    p.add_argument('--ams-banks', type=int, default=None, metavar='N', help='AMS banks 1..5')
+    p.add_argument('--bms12-modules', type=int, default=None, metavar='N',
+                   help='BMS12 modules behind the EVMS3, 0..16')
+    p.add_argument('--ivt-byte-order', choices=('big', 'little'), default=None,
+                   help='IVT-S result byte order (default big)')
+    p.add_argument('--fault', type=_fault, action='append', default=[],
+                   metavar='DEVICE:KIND[=VALUE]',
+                   help='inject a fault: silent, malformed, error=CODE, drift=VOLTS, '
+                        'drift_cell=INDEX, or KIND=VALUE for model-specific faults')
+    p.add_argument('--duration', type=float, default=None, metavar='S',
+                   help='stop after S seconds (default: run until Ctrl-C)')
+    p.add_argument('--tick', type=float, default=0.002, metavar='S', help='model tick period')
+    p.add_argument('--status-period', type=float, default=5.0, metavar='S',
+                   help='seconds between status lines on stderr')
+    p.add_argument('--quiet', action='store_true', help='no startup/status lines')
+    p.add_argument('--verbose', action='store_true', help='debug logging')
+    return p
+
+
+def build_devices(types: Sequence[str], ams_banks: int | None = None,
+                  bms12_modules: int | None = None,
+                  ivt_byte_order: str | None = None) -> list[SimDevice]:
+    """Instantiate the simulators named by type (instance name = type name)."""
+    devices: list[SimDevice] = []
+    ams = None
+    for kind in sorted(types, key=_ORDER.index):
+        cls = registry.load(registry.SIMULATORS[kind])
+        kwargs: dict[str, Any] = {'name': kind}
+        if kind == 'ams' and ams_banks is not None:
+            kwargs['bank_count'] = ams_banks
+        elif kind == 'evms3' and bms12_modules is not None:
+            kwargs['bms12_modules'] = bms12_modules
+        elif kind == 'ivt_s':
+            if ivt_byte_order is not None:
+                kwargs['byte_order'] = ivt_byte_order
+            if ams is not None:
+                # The shunt sits in the AMS pack: both must tell the same story.
+                kwargs['current_fn'] = ams.pack_current_a
+                kwargs['voltage_fn'] = ams.pack_voltage_v
+        device = cls(**kwargs)
+        if kind == 'ams':
+            ams = device
+        devices.append(device)
+    return devices
+
+
+_FAULT_FIELDS = {'silent': 'silent', 'malformed': 'malformed', 'error': 'error_code',
+                 'error_code': 'error_code', 'drift': 'cell_drift_v',
+                 'cell_drift_v': 'cell_drift_v', 'drift_cell': 'drift_cell'}
+
+
+def apply_faults(devices: Sequence[SimDevice], faults: Sequence[tuple[str, str, Any]]) -> None:
+    """Set fault switches; raise ValueError naming an unknown device."""
+    by_name = {d.name: d for d in devices}
+    for name, kind, value in faults:
+        if name not in by_name:
+            raise ValueError(f'--fault {name}:{kind}: no simulated device {name!r} '
+                             f'(running: {", ".join(by_name)})')
+        target = _FAULT_FIELDS.get(kind)
+        if target is None:
+            by_name[name].faults.extra[kind] = value
+        else:
+            setattr(by_name[name].faults, target, value)
+
+
+def _ids(runner: SimRunner) -> str:
+    parts = []
+    for name, ids in runner.ids_by_device.items():
+        text = ','.join(f'0x{i:X}' + ('x' if ext else '') for i, ext in sorted(ids)[:12])
+        more = f'+{len(ids) - 12}' if len(ids) > 12 else ''
+        parts.append(f'{name}[{text or "-"}{more}]')
+    return ' '.join(parts)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the simulator until Ctrl-C, SIGTERM or --duration; 2 if the bus cannot open."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
+                        format='%(levelname)s %(name)s: %(message)s')
+    channel = args.channel or (DEFAULT_VIRTUAL_CHANNEL if args.interface == 'virtual'
+                               else 'can0')
+    try:
+        options = parse_options(args.option)
+        devices = build_devices(args.devices, args.ams_banks, args.bms12_modules,
+                                args.ivt_byte_order)
+        apply_faults(devices, args.fault)
+    except (ValueError, TypeError) as exc:
+        print(f'simulator: {exc}', file=sys.stderr)
+        return 2
+    try:
+        bus = open_bus(args.interface, channel, args.bitrate, options)
+    except Exception as exc:
+        print(f'simulator: cannot open CAN bus {args.interface}:{channel}: {exc}',
+              file=sys.stderr)
+        return 2
+
+    done = threading.Event()
+    try:
+        signal.signal(signal.SIGTERM, lambda *_: done.set())
+    except ValueError:  # not the main thread (called from a test): Ctrl-C/duration only
+        pass
+    runner = SimRunner(bus, devices, tick_period=args.tick)
+    say = (lambda text: None) if args.quiet else (
+        lambda text: print(f'simulator: {text}', file=sys.stderr, flush=True))
+    try:
+        runner.step(time.monotonic())  # first frames now, so the summary can list the IDs
+        runner.start()
+        say(f'{len(devices)} device(s) on {args.interface}:{channel}'
+            + (f' at {args.bitrate} bit/s' if args.bitrate else '') + ': ' + _ids(runner))
+        clashes = runner.shared_ids()
+        if clashes:
+            say('warning: several devices send the same ID(s) '
+                + ', '.join(f'0x{i:X}' for i, _ in clashes) + ': choose --devices')
+        started = time.monotonic()
+        end = started + args.duration if args.duration is not None else None
+        next_status = started + args.status_period
+        while not done.is_set():
+            now = time.monotonic()
+            if end is not None and now >= end:
+                break
+            if now >= next_status:
+                next_status += args.status_period
+                say(f'{now - started:.0f} s: {runner.frames_sent} frames sent, '
+                    f'{runner.frames_received} received, {runner.send_errors} send errors')
+            wake = min(x for x in (end, next_status) if x is not None)
+            done.wait(max(0.0, min(wake - now, 0.5)))
+    except KeyboardInterrupt:
+        pass
+    finally:
+        runner.stop()
+        try:
+            bus.shutdown()
+        except Exception:  # an adapter unplugged under us: nothing left to close
+            pass
+    say(f'stopped: {runner.frames_sent} frames sent, {runner.send_errors} send errors')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
