@@ -1,0 +1,130 @@
+"""The demo: its renderer with known data, and the installed `demo` executable end to end."""
+import math
+import os
+import re
+import subprocess
+import sys
+
+import pytest
+
+from ams_can_bridge.demo_view import (
+    cell_range, COLUMNS, DeviceRow, fmt_uptime, level_name, render, View)
+
+NAN = math.nan
+ANSI = re.compile(r'\033\[[0-9;?]*[A-Za-z]')
+DEVICES = ('ams', 'ivt_s', 'evms3', 'bms16', 'sma')
+
+
+def known_view() -> View:
+    return View(
+        bus='virtual:demo', uptime_s=3723.9, frames_in=12345, frames_out=67,
+        bus_state='connected', bus_level='OK',
+        rows=[
+            DeviceRow('ams', 'ams', 'DRIVE', 403.25, -45.16, 0.8734, 3.6012, 3.652, 31.04,
+                      'OK', 'DRIVE, no errors'),
+            DeviceRow('bms16', 'bms16', '', NAN, NAN, NAN, NAN, NAN, NAN, 'STALE',
+                      'no status frame for 1.25 s'),
+            DeviceRow('sma', 'sma', 'ALARM', 51.2, 12.0, 1.0, NAN, NAN, -5.0, 'ERROR', ''),
+        ],
+        last_command='enable_drive', last_answer='OK in 0.31 s: DRIVE')
+
+
+def table(text: str) -> list[str]:
+    lines = text.splitlines()
+    start = next(i for i, line in enumerate(lines) if line.startswith('DEVICE'))
+    return lines[start:start + 4]
+
+
+def test_render_plain_aligns_columns_units_and_nan():
+    text = render(known_view(), colour=False, unicode=False)
+    assert '\033[' not in text
+    header, ams, bms16, sma = table(text)
+    # Every column starts at the same offset in the header and in the rows.
+    starts = [header.index(title) for title, _, _ in COLUMNS]
+    assert starts == sorted(starts)
+    assert ams.split() == ['ams', 'ams', 'DRIVE', '403.2', 'V', '-45.2', 'A', '87.3', '%',
+                           '3.601', 'V', '3.652', 'V', '31.0', 'C', 'OK']
+    # Right-aligned numbers end where their header ends.
+    volt_end = header.index('VOLTAGE') + len('VOLTAGE')
+    assert ams[:volt_end].endswith('403.2 V')
+    assert bms16[:volt_end].endswith('n/a')
+    assert bms16.split() == ['bms16', 'bms16'] + ['n/a'] * 7 + ['STALE']
+    assert sma.split()[-1] == 'ERROR' and '100.0 %' in sma and '-5.0 C' in sma
+    assert 'nan' not in text.lower().replace('n/a', '')
+    assert 'uptime 1:02:03' in text
+    assert 'frames in 12345 / out 67' in text
+    assert 'last command: enable_drive -> OK in 0.31 s: DRIVE' in text
+    assert '  bms16: no status frame for 1.25 s' in text
+
+
+def test_render_colour_keeps_alignment_and_colours_levels():
+    plain = render(known_view(), colour=False, unicode=True)
+    coloured = render(known_view(), colour=True, unicode=True)
+    assert ANSI.sub('', coloured) == plain
+    assert '\u2014' in plain and '\u00b0C' in plain and 'n/a' not in plain
+    rows = {line.split()[0]: line for line in coloured.splitlines()
+            if line.split() and line.split()[0] in ('ams', 'bms16', 'sma')}
+    assert '\033[32mOK' in rows['ams']          # green OK
+    assert '\033[35mSTALE' in rows['bms16']     # magenta STALE
+    assert '\033[31;1mERROR' in rows['sma']     # red ERROR
+    assert '\033[32;1mDRIVE' in rows['ams']     # the state the demo walks to
+
+
+def test_render_before_any_data():
+    view = View(rows=[DeviceRow(name, name) for name in DEVICES])
+    text = render(view, unicode=False)
+    assert 'no status yet' in text and 'last command: none yet' in text
+    for name in DEVICES:
+        assert re.search(rf'^{name}\s+{name}\s+(n/a\s+){{7}}n/a$', text, re.M), name
+
+
+def test_helpers():
+    assert cell_range([NAN, 3.5, 3.2, NAN]) == (3.2, 3.5)
+    assert all(math.isnan(v) for v in cell_range([NAN, NAN]))
+    assert all(math.isnan(v) for v in cell_range([]))
+    assert [level_name(b) for b in (b'\x00', b'\x01', b'\x02', b'\x03')] == [
+        'OK', 'WARN', 'ERROR', 'STALE']
+    assert level_name(2) == 'ERROR' and level_name(None) == ''
+    assert fmt_uptime(59.9) == '0:00:59' and fmt_uptime(3600) == '1:00:00'
+
+
+def demo_executable() -> str:
+    path = os.path.join(os.path.dirname(sys.executable), 'demo')
+    assert os.access(path, os.X_OK), f'the demo console script is not installed at {path}'
+    return path
+
+
+def snapshots(output: str) -> list[str]:
+    return [part for part in output.split('--- t = ') if part.strip()][1:]
+
+
+def rows_of(snapshot: str) -> dict[str, list[str]]:
+    rows = {}
+    for line in snapshot.splitlines():
+        words = line.split()
+        if len(words) > 2 and words[0] in DEVICES and words[1] == words[0]:
+            rows[words[0]] = words
+    return rows
+
+
+@pytest.mark.slow
+def test_installed_demo_runs_drives_the_ams_and_exits_cleanly():
+    env = dict(os.environ)  # conftest: LOCALHOST discovery, a domain of this run
+    result = subprocess.run([demo_executable(), '--duration', '10', '--plain'],
+                            capture_output=True, text=True, timeout=60, env=env)
+    output = result.stdout + result.stderr
+    assert result.returncode == 0, output[-3000:]
+    assert 'Traceback' not in output, output[-3000:]
+    shots = snapshots(result.stdout)
+    assert len(shots) >= 5, result.stdout[-3000:]
+    last = rows_of(shots[-1])
+    assert set(last) == set(DEVICES), shots[-1]
+    for name, words in last.items():
+        numbers = [w for w in words[2:] if re.fullmatch(r'-?\d+\.\d+', w)]
+        assert numbers, f'{name} shows no numbers: {words}'
+    assert 'OK (connected)' in shots[-1]
+    # The AMS state column over time: it reached DRIVE, and IDLE after the abort.
+    states = [rows_of(shot).get('ams', ['', '', ''])[2] for shot in shots]
+    assert 'DRIVE' in states, states
+    assert 'IDLE' in states[states.index('DRIVE'):], states
+    assert 'abort -> OK' in result.stdout, result.stdout[-3000:]
