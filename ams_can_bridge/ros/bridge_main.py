@@ -1,0 +1,49 @@
+"""
+Entry point of the ``bridge`` executable: the bridge node on a multi-threaded executor.
+
+``ros2 run ams_can_bridge bridge --ros-args --params-file config/bms16.yaml``. Exit codes:
+0 after Ctrl-C / SIGTERM (clean shutdown: the CAN thread is joined, the bus closed),
+2 when the parameters cannot work (the error names the parameter and what to change).
+"""
+from __future__ import annotations
+
+import sys
+
+import rclpy
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+import rclpy.logging
+
+from ams_can_bridge.ros.bridge_node import BridgeNode, ConfigError, NODE_NAME
+
+# Telemetry runs in one mutually exclusive group; waiting command services need the rest.
+EXECUTOR_THREADS = 4
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the bridge until Ctrl-C or SIGTERM; return the process exit code."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        try:
+            node = BridgeNode()
+        except ConfigError as exc:
+            rclpy.logging.get_logger(NODE_NAME).error(
+                f'cannot start: {exc}')
+            return 2
+        executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
+        executor.add_node(node)
+        try:
+            executor.spin()
+        finally:
+            executor.shutdown(timeout_sec=2.0)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,462 @@
+"""
+The ``bridge`` node: CAN frames -> device state -> BatteryState, arrays and /diagnostics.
+
+Threads: the CanIo receive thread decodes every frame into its devices (``handle_frame``)
+and never calls rclpy per frame; a primary status frame only marks its device as due and
+wakes the executor through a guard condition (primary frames are <= 10 Hz per device, and
+a burst of them costs one wake-up). Publishing happens on the executor, in
+``telemetry_group``; services that wait go in ``service_group`` (reentrant), so telemetry
+keeps flowing while a command waits for the device.
+
+COMMANDERS seam (the command services live in other modules). For each device instance
+whose type is in ``ams_can_bridge.registry.COMMANDERS`` and whose module imports, the node
+declares ``cls.PARAMS`` (ParamSpec list, as '<name>.<key>', validated like every device
+parameter) and then builds ``cls(node, device, name)``. A commander may use:
+
+- ``node.commands_enabled`` (bool, follows the ``commands_enabled`` parameter);
+- ``node.transmit(frame) -> (ok, message)``: refuses with a message naming
+  ``commands_enabled`` while commands are disabled, else sends through CanIo
+  (``(False, reason)`` when the bus refuses);
+- ``node.service_group`` for its services, ``node.params`` (ParamRegistry), ``node.devices``.
+
+and the node calls on it (each optional): ``validate_parameter(full_name, value) -> str |
+None`` before any parameter set (a string refuses the set, as its reason);
+``on_parameters_changed({full_name: value})`` after a successful set;
+``on_commands_enabled(enabled)`` when ``commands_enabled`` changes; ``destroy()`` at
+shutdown. A missing commander module is skipped with a debug log.
+"""
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from typing import Any
+
+from diagnostic_msgs.msg import DiagnosticArray
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import BatteryState
+from std_msgs.msg import Float32MultiArray
+
+from ams_can_bridge import registry
+from ams_can_bridge.can_io import BusConfig, CanIo, CanSendError, parse_options
+from ams_can_bridge.devices.base import Device, ParamSpec, common_params
+from ams_can_bridge.protocols.common import Frame
+from ams_can_bridge.ros import convert
+from ams_can_bridge.ros.params import ParamError, ParamRegistry
+
+NODE_NAME = 'ams_can_bridge'
+MALFORMED_LOG_PERIOD = 5.0  # s between malformed-frame log lines per device
+STALE_PUBLISH_PERIOD = 1.0  # s, battery_state present:false while stale
+WATCH_PERIOD = 0.2  # s, how fast bus state / staleness transitions are noticed
+
+BUS_PARAMS = [
+    ParamSpec('interface', str, 'socketcan',
+              'python-can interface: socketcan, slcan, pcan, kvaser, virtual, replay, ...'),
+    ParamSpec('channel', str, 'can0', 'python-can channel (for replay: the log file)'),
+    ParamSpec('bitrate', int, 0, 'bit/s; 0 = leave the adapter as it is', low=0,
+              high=10_000_000),
+    ParamSpec('fd', bool, False, 'CAN FD bus'),
+    ParamSpec('options', 'str[]', [], 'extra python-can bus arguments, key=value'),
+    ParamSpec('reconnect_period', float, 1.0, 's between attempts to (re)open the bus',
+              low=0.01, high=3600.0),
+    ParamSpec('replay_rate', float, 1.0, 'replay speed: 1.0 = real time, 0 = fast as possible',
+              low=0.0, high=1000.0),
+    ParamSpec('record', str, '', 'file to record the raw bus into (empty = off)'),
+]
+NODE_PARAMS = [
+    ParamSpec('devices', 'str[]', [], 'device instance names (each has <name>.type)'),
+    ParamSpec('diagnostics_period', float, 1.0, 's between /diagnostics publications',
+              low=0.01, high=3600.0),
+    ParamSpec('commands_enabled', bool, False,
+              'transmit gate: false = pure listener, nothing is ever sent', read_only=False),
+]
+
+
+class ConfigError(ValueError):
+    """The node cannot start with these parameters (the message says what to change)."""
+
+
+class _RosLogHandler(logging.Handler):
+    """Forward stdlib logging records (from CanIo) to the node's rclpy logger."""
+
+    def __init__(self, ros_logger: Any) -> None:
+        super().__init__()
+        self.ros_logger = ros_logger
+
+    def emit(self, record: logging.LogRecord) -> None:
+        text = self.format(record)
+        if record.levelno >= logging.ERROR:
+            self.ros_logger.error(text)
+        elif record.levelno >= logging.WARNING:
+            self.ros_logger.warning(text)
+        elif record.levelno >= logging.INFO:
+            self.ros_logger.info(text)
+        else:
+            self.ros_logger.debug(text)
+
+
+def format_ids(ids: frozenset[int] | set[int], extended: bool) -> str:
+    """'0x300-0x301, 0x305' (runs of consecutive IDs collapsed), '(29-bit)' when extended."""
+    runs: list[list[int]] = []
+    for i in sorted(ids):
+        if runs and i == runs[-1][1] + 1:
+            runs[-1][1] = i
+        else:
+            runs.append([i, i])
+    text = ', '.join(f'0x{a:X}' if a == b else f'0x{a:X}-0x{b:X}' for a, b in runs)
+    return text + (' (29-bit)' if extended else '')
+
+
+class BridgeNode(Node):
+    """Bridge battery-management CAN devices to ROS topics and diagnostics."""
+
+    def __init__(self, node_name: str = NODE_NAME, **kwargs: Any) -> None:
+        super().__init__(node_name, **kwargs)
+        self.params = ParamRegistry(self)
+        self.telemetry_group = MutuallyExclusiveCallbackGroup()
+        self.service_group = ReentrantCallbackGroup()
+        self.devices: dict[str, Device] = {}
+        self.commanders: dict[str, Any] = {}
+        self.commands_enabled = False
+        self.can_io: CanIo | None = None
+        self._ready = False
+        self._due: set[str] = set()
+        self._due_lock = threading.Lock()
+        self._levels: dict[str, int] = {}
+        self._malformed_logged: dict[str, tuple[int, float]] = {}
+        self._bus_state = ''
+        self._bus_lost_at: float | None = None
+        self._bus_ever_connected = False
+        self._stale: dict[str, bool] = {}
+        self._heard: set[str] = set()
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.add_post_set_parameters_callback(self._after_set_parameters)
+        try:
+            self._configure()
+        except (ParamError, ConfigError) as exc:
+            self.destroy_node()
+            raise ConfigError(str(exc)) from None
+        self._ready = True
+        self.can_io.start()
+        self._log_summary()
+
+    # --- set-up ---------------------------------------------------------------------------
+    def _configure(self) -> None:
+        bus = self.params.declare_all('can.', BUS_PARAMS)
+        node = self.params.declare_all('', NODE_PARAMS)
+        self.diagnostics_period = node['diagnostics_period']
+        self.commands_enabled = node['commands_enabled']
+        try:
+            options = parse_options(bus['options'])
+        except ValueError as exc:
+            raise ConfigError(f'can.options: {exc} (write each option as key=value)') from None
+        try:
+            self.bus_config = BusConfig(
+                interface=bus['interface'], channel=bus['channel'], bitrate=bus['bitrate'],
+                fd=bus['fd'], options=options, reconnect_period=bus['reconnect_period'],
+                replay_rate=bus['replay_rate'], record=bus['record'])
+        except ValueError as exc:
+            raise ConfigError(str(exc)) from None
+        self.hardware_id = f"{bus['interface']}:{bus['channel']}"
+        self.device_params: dict[str, dict[str, Any]] = {}
+        names = node['devices']
+        if len(set(names)) != len(names):
+            raise ConfigError(f'devices = {names}: instance names must be unique')
+        for name in names:
+            self._add_device(name)
+        self._attach_current_sensors()
+        self._dispatch_std: dict[int, tuple[Device, ...]] = {}
+        self._dispatch_ext: dict[int, tuple[Device, ...]] = {}
+        for device in self.devices.values():
+            table = self._dispatch_ext if device.is_extended_id else self._dispatch_std
+            for can_id in device.arbitration_ids:
+                table[can_id] = table.get(can_id, ()) + (device,)
+        filters = ([(i, False) for i in sorted(self._dispatch_std)]
+                   + [(i, True) for i in sorted(self._dispatch_ext)])
+        self._make_publishers()
+        for name, device in self.devices.items():
+            self._add_commander(name, device)
+        can_logger = logging.getLogger(f'{NODE_NAME}.can_io.{id(self)}')
+        can_logger.propagate = False
+        # CanIo logs every state change; the node logs the user-facing transitions itself.
+        can_logger.setLevel(logging.WARNING)
+        can_logger.addHandler(_RosLogHandler(self.get_logger()))
+        self.can_io = CanIo(self.bus_config, self._on_frame, filters, can_logger)
+
+    def _add_device(self, name: str) -> None:
+        if not name or '/' in name or '.' in name or name != name.strip():
+            raise ConfigError(f'devices: {name!r} is not a usable instance name '
+                              '(no empty names, dots, slashes or spaces)')
+        type_spec = ParamSpec('type', str, name, 'device type: ' + ', '.join(
+            registry.DEVICE_TYPES), choices=registry.DEVICE_TYPES)
+        try:
+            device_type = self.params.declare(f'{name}.type', type_spec)
+        except ParamError:
+            raise ConfigError(
+                f'{name}.type: unknown device type for instance {name!r}; set {name}.type to '
+                'one of ' + ', '.join(registry.DEVICE_TYPES)) from None
+        cls = registry.device_class(device_type)
+        values = self.params.declare_all(f'{name}.', common_params(cls) + list(cls.PARAMS))
+        try:
+            device = cls(name, values)
+        except (ValueError, TypeError) as exc:
+            raise ConfigError(f'device {name!r} ({device_type}): {exc}') from None
+        self.devices[name] = device
+        self.device_params[name] = values
+        self._stale[name] = True
+
+    def _attach_current_sensors(self) -> None:
+        ivts = [n for n, d in self.devices.items() if d.TYPE == 'ivt_s']
+        for name, device in self.devices.items():
+            if device.TYPE != 'ams':
+                continue
+            wanted = self.device_params[name].get('current_sensor') or ''
+            if not wanted:
+                if not ivts:
+                    continue
+                wanted = ivts[0]
+            elif wanted not in ivts:
+                raise ConfigError(
+                    f'{name}.current_sensor = {wanted!r} is not an ivt_s instance: set it to '
+                    + (' or '.join(repr(i) for i in ivts) if ivts else "'' (none configured)")
+                    + ' or add it to devices with type ivt_s')
+            device.attach_current_sensor(self.devices[wanted])
+            self.device_params[name]['current_sensor'] = wanted
+
+    def _make_publishers(self) -> None:
+        self.battery_pubs = {}
+        self.array_pubs: dict[str, dict[str, Any]] = {}
+        for name, device in self.devices.items():
+            self.battery_pubs[name] = self.create_publisher(
+                BatteryState, f'{name}/battery_state', 10)
+            self.array_pubs[name] = {
+                suffix: self.create_publisher(Float32MultiArray, f'{name}/{suffix}', 10)
+                for suffix in device.extra_arrays()}
+        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self._wake = self.create_guard_condition(self._publish_due, self.telemetry_group)
+        self.create_timer(self.diagnostics_period, self.publish_diagnostics,
+                          self.telemetry_group)
+        self.create_timer(STALE_PUBLISH_PERIOD, self._publish_stale, self.telemetry_group)
+        self.create_timer(WATCH_PERIOD, self._watch, self.telemetry_group)
+
+    def _add_commander(self, name: str, device: Device) -> None:
+        path = registry.COMMANDERS.get(device.TYPE)
+        if path is None:
+            return
+        module = path.partition(':')[0]
+        try:
+            cls = registry.load(path)
+        except ModuleNotFoundError as exc:
+            if exc.name and module.startswith(exc.name):
+                self.get_logger().debug(f'{name}: no command module {module} yet, no services')
+                return
+            raise
+        values = self.params.declare_all(f'{name}.', list(getattr(cls, 'PARAMS', [])))
+        self.device_params[name].update(values)
+        self.commanders[name] = cls(self, device, name)
+
+    def _log_summary(self) -> None:
+        cfg = self.bus_config
+        rate = f' @ {cfg.bitrate} bit/s' if cfg.bitrate else ''
+        lines = [f'CAN bus {self.hardware_id}{rate}'
+                 + (' (FD)' if cfg.fd else '')
+                 + (f', recording to {cfg.record}' if cfg.record else '')
+                 + (', commands ENABLED' if self.commands_enabled else ', listen only')]
+        for name, device in self.devices.items():
+            lines.append(f'  {name} ({device.TYPE}): '
+                         + format_ids(device.arbitration_ids, device.is_extended_id))
+        if not self.devices:
+            lines.append('  no devices configured (set the devices parameter)')
+        self.get_logger().info('\n'.join(lines))
+
+    # --- receive thread -------------------------------------------------------------------
+    def _on_frame(self, arbitration_id: int, data: bytes, is_extended_id: bool,
+                  wall_time: float) -> None:
+        table = self._dispatch_ext if is_extended_id else self._dispatch_std
+        devices = table.get(arbitration_id)
+        if devices is None:
+            return
+        for device in devices:
+            if device.handle_frame(arbitration_id, data, wall_time):
+                with self._due_lock:
+                    wake = not self._due
+                    self._due.add(device.name)
+                if wake:
+                    self._wake.trigger()
+
+    # --- executor: publishing -------------------------------------------------------------
+    def _publish_due(self) -> None:
+        with self._due_lock:
+            due, self._due = self._due, set()
+        for name in due:
+            self._publish_battery(name)
+        if due and self._levels_changed():
+            self.publish_diagnostics()
+
+    def _publish_battery(self, name: str) -> None:
+        device = self.devices[name]
+        report = device.battery_report()
+        frame_id = self.device_params[name].get('frame_id', '')
+        self.battery_pubs[name].publish(convert.battery_state(report, frame_id, time.time()))
+        for suffix, (rows, cols, data) in device.extra_arrays().items():
+            pub = self.array_pubs[name].get(suffix)
+            if pub is not None:
+                pub.publish(convert.multi_array(rows, cols, data))
+
+    def _publish_stale(self) -> None:
+        for name, device in self.devices.items():
+            if device.is_stale():
+                self._publish_battery(name)
+
+    def _statuses(self) -> list[tuple[str, Any]]:
+        reports = [(name, device.diagnostic_report()) for name, device in self.devices.items()]
+        reports.append(('CAN bus', self._bus_report()))
+        return reports
+
+    def _bus_report(self) -> Any:
+        status = self.can_io.status()
+        malformed = sum(d.frames_malformed for d in self.devices.values())
+        return convert.bus_report(status, malformed, self.bus_config.interface)
+
+    def _levels_changed(self) -> bool:
+        levels = {name: int(r.level) for name, r in self._statuses()}
+        return levels != self._levels
+
+    def publish_diagnostics(self) -> None:
+        """Publish one DiagnosticArray: every device plus the CAN bus."""
+        msg = DiagnosticArray()
+        msg.header.stamp = convert.stamp_msg(time.time())
+        levels = {}
+        for name, report in self._statuses():
+            levels[name] = int(report.level)
+            msg.status.append(convert.diagnostic_status(
+                report, f'{self.get_name()}: {name}', self.hardware_id))
+        self._levels = levels
+        self.diag_pub.publish(msg)
+
+    def _watch(self) -> None:
+        self._watch_bus()
+        now = time.monotonic()
+        for name, device in self.devices.items():
+            stale = device.is_stale()
+            if stale != self._stale[name]:
+                self._stale[name] = stale
+                if stale:
+                    self.get_logger().warning(
+                        f'{name}: no status frame for {device.stale_timeout:g} s: STALE')
+                    self._publish_battery(name)
+                elif name in self._heard:
+                    self.get_logger().info(f'{name}: receiving again')
+                else:
+                    self.get_logger().info(f'{name}: first status frame received')
+                self._heard.add(name)
+            count = device.frames_malformed
+            logged, at = self._malformed_logged.get(name, (0, -math.inf))
+            if count > logged and now - at >= MALFORMED_LOG_PERIOD:
+                self._malformed_logged[name] = (count, now)
+                self.get_logger().warning(
+                    f'{name}: {count} malformed frame(s) so far, dropped; last: '
+                    f'{device.last_malformed}')
+        if self._levels_changed():
+            self.publish_diagnostics()
+
+    def _watch_bus(self) -> None:
+        status = self.can_io.status()
+        state = str(status.state)
+        if state == self._bus_state:
+            return
+        previous, self._bus_state = self._bus_state, state
+        log = self.get_logger()
+        reason = f': {status.reason}' if status.reason else ''
+        was_up = previous in ('connected', 'error-passive')
+        if state == 'connected':
+            if self._bus_lost_at is not None and self._bus_ever_connected:
+                log.info(f'CAN bus {self.hardware_id} reconnected after '
+                         f'{time.monotonic() - self._bus_lost_at:.1f} s')
+            elif not was_up:
+                log.info(f'CAN bus {self.hardware_id} connected')
+            self._bus_ever_connected = True
+            self._bus_lost_at = None
+        elif state == 'error-passive':
+            log.warning(f'CAN bus {self.hardware_id} error-passive{reason}')
+        elif state == 'replay finished':
+            log.info(f'replay of {self.bus_config.channel} finished')
+        elif state in ('connecting', 'stopped'):
+            log.debug(f'CAN bus {self.hardware_id}: {state}')
+        elif was_up or self._bus_lost_at is None:
+            # log the transition to "down" once, not every retry of the reconnect loop
+            self._bus_lost_at = time.monotonic()
+            what = 'lost' if self._bus_ever_connected else 'cannot be opened'
+            log.error(f'CAN bus {self.hardware_id} {what} ({state}{reason}); retrying every '
+                      f'{self.bus_config.reconnect_period:g} s')
+        else:
+            log.debug(f'CAN bus {self.hardware_id}: {state}{reason}')
+
+    # --- commands seam --------------------------------------------------------------------
+    def transmit(self, frame: Frame) -> tuple[bool, str]:
+        """Send one frame if commands are enabled; (ok, message) - never raises."""
+        if not self.commands_enabled:
+            return False, ('commands are disabled: set the parameter commands_enabled to true '
+                           '(ros2 param set /ams_can_bridge commands_enabled true) to transmit')
+        try:
+            result = self.can_io.send(frame)
+        except CanSendError as exc:
+            return False, f'CAN send failed on {self.hardware_id}: {exc}'
+        except Exception as exc:  # a bus error must become a service answer, not a crash
+            return False, f'CAN send failed on {self.hardware_id}: {exc}'
+        if isinstance(result, tuple):
+            return bool(result[0]), str(result[1])
+        if result is False:
+            return False, f'CAN send failed on {self.hardware_id}: {self.can_io.status().reason}'
+        return True, f'sent 0x{frame.arbitration_id:X} [{frame.data.hex(" ").upper()}]'
+
+    def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
+        for param in parameters:
+            reason = self.params.validate(param)
+            if reason is None and self._ready:
+                value = self.params.value(param)
+                for commander in self.commanders.values():
+                    check = getattr(commander, 'validate_parameter', None)
+                    reason = check(param.name, value) if check else None
+                    if reason:
+                        break
+            if reason:
+                return SetParametersResult(successful=False, reason=reason)
+        return SetParametersResult(successful=True)
+
+    def _after_set_parameters(self, parameters: list[Parameter]) -> None:
+        if not self._ready:
+            return
+        changed = {p.name: self.params.value(p) for p in parameters}
+        if 'commands_enabled' in changed and changed['commands_enabled'] != \
+                self.commands_enabled:
+            self.commands_enabled = bool(changed['commands_enabled'])
+            self.get_logger().warning('commands ENABLED: the bridge may transmit'
+                                      if self.commands_enabled else
+                                      'commands disabled: listen only')
+            for commander in self.commanders.values():
+                hook = getattr(commander, 'on_commands_enabled', None)
+                if hook:
+                    hook(self.commands_enabled)
+        for commander in self.commanders.values():
+            hook = getattr(commander, 'on_parameters_changed', None)
+            if hook:
+                hook(changed)
+
+    # --- shutdown -------------------------------------------------------------------------
+    def destroy_node(self) -> None:
+        """Stop the commanders and the bus thread (closes the bus), then the node."""
+        self._ready = False
+        for commander in self.commanders.values():
+            hook = getattr(commander, 'destroy', None)
+            if hook:
+                hook()
+        self.commanders.clear()
+        if self.can_io is not None:
+            self.can_io.stop()
+            self.can_io = None
+        super().destroy_node()

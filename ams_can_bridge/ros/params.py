@@ -1,0 +1,174 @@
+"""
+Declare ParamSpec / ConfigField lists as ROS parameters, and validate values set later.
+
+Numeric parameters are declared with ``dynamic_typing`` so that YAML ``3`` and ``3.0`` (and
+``ros2 param set x 3``) both work: rclpy would otherwise refuse an INTEGER for a DOUBLE
+parameter. The type and range are then checked here (``coerce``), both at start-up and on
+every later set, with a reason that names the parameter, the value and what is allowed.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any, Iterable
+
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from ams_can_bridge.devices.base import ParamSpec
+from ams_can_bridge.protocols.common import ConfigField
+
+_STATIC_TYPES = {
+    bool: Parameter.Type.BOOL,
+    str: Parameter.Type.STRING,
+    'int[]': Parameter.Type.INTEGER_ARRAY,
+    'str[]': Parameter.Type.STRING_ARRAY,
+    'float[]': Parameter.Type.DOUBLE_ARRAY,
+}
+
+
+class ParamError(ValueError):
+    """A parameter value that the bridge cannot use (the message says what to change)."""
+
+
+def spec_from_config_field(field: ConfigField, key_prefix: str = 'config.',
+                           read_only: bool = False) -> ParamSpec:
+    """Turn a protocol ConfigField into a ParamSpec with no default (key = prefix + name)."""
+    unit = f' [{field.unit}]' if field.unit else ''
+    description = (field.description or field.name) + unit
+    if field.type == 'int[]' and field.length:
+        description += f' ({field.length} values)'
+    return ParamSpec(key_prefix + field.name, field.type, None, description, low=field.low,
+                     high=field.high, step=field.step, choices=field.choices,
+                     read_only=read_only)
+
+
+def _allowed(spec: ParamSpec) -> str:
+    parts = []
+    if spec.low is not None and spec.high is not None:
+        parts.append(f'{spec.low:g}..{spec.high:g}')
+    if spec.step:
+        parts.append(f'in steps of {spec.step:g}')
+    if spec.choices:
+        parts.append('one of ' + ', '.join(spec.choices))
+    return ' '.join(parts)
+
+
+def _check_range(name: str, spec: ParamSpec, value: float) -> None:
+    if spec.low is not None and spec.high is not None:
+        if value != value or not spec.low - 1e-9 <= value <= spec.high + 1e-9:
+            raise ParamError(f'{name} = {value!r} is out of range: allowed {_allowed(spec)}')
+    if spec.step and spec.low is not None:
+        n = (value - spec.low) / spec.step
+        if abs(n - round(n)) > 1e-6:
+            raise ParamError(f'{name} = {value!r} is off the step: allowed {_allowed(spec)}')
+
+
+def coerce(name: str, spec: ParamSpec, value: Any) -> Any:
+    """Return value as spec.type (None stays None = unset) or raise ParamError saying why."""
+    if value is None:
+        return None
+    if spec.type is float or spec.type is int:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ParamError(f'{name} = {value!r} must be a number')
+        if spec.type is int:
+            if isinstance(value, float) and (not math.isfinite(value) or value != int(value)):
+                raise ParamError(f'{name} = {value!r} must be a whole number')
+            value = int(value)
+        else:
+            value = float(value)
+        _check_range(name, spec, value)
+        return value
+    if spec.type is bool:
+        if not isinstance(value, bool):
+            raise ParamError(f'{name} = {value!r} must be true or false')
+        return value
+    if spec.type is str:
+        if not isinstance(value, str):
+            raise ParamError(f'{name} = {value!r} must be a string')
+        if spec.choices and value not in spec.choices:
+            raise ParamError(f'{name} = {value!r} is not allowed: use one of '
+                             + ', '.join(spec.choices))
+        return value
+    if spec.type in ('int[]', 'str[]', 'float[]'):
+        if not isinstance(value, (list, tuple)):
+            raise ParamError(f'{name} = {value!r} must be a list')
+        element = {'int[]': int, 'str[]': str, 'float[]': float}[spec.type]
+        element_spec = ParamSpec(spec.key, element, None, '', spec.low, spec.high, spec.step,
+                                 spec.choices)
+        return [coerce(f'{name}[{i}]', element_spec, v) for i, v in enumerate(value)]
+    raise ParamError(f'{name}: unsupported parameter type {spec.type!r}')
+
+
+def descriptor(spec: ParamSpec) -> ParameterDescriptor:
+    """Build the ParameterDescriptor of a spec (description, range, read-only, typing)."""
+    desc = ParameterDescriptor(description=spec.description, read_only=spec.read_only)
+    constraints = _allowed(spec)
+    if constraints:
+        desc.additional_constraints = constraints
+    if spec.type in (int, float):
+        desc.dynamic_typing = True  # see module docstring: 3 and 3.0 both work
+        if spec.low is not None and spec.high is not None:
+            if spec.type is int:
+                desc.integer_range = [IntegerRange(from_value=int(spec.low),
+                                                   to_value=int(spec.high),
+                                                   step=int(spec.step or 0))]
+            else:
+                desc.floating_point_range = [FloatingPointRange(
+                    from_value=float(spec.low), to_value=float(spec.high),
+                    step=float(spec.step or 0.0))]
+    return desc
+
+
+class ParamRegistry:
+    """Every parameter the node declared from specs, so later sets can be validated."""
+
+    def __init__(self, node: Node) -> None:
+        self.node = node
+        self.specs: dict[str, ParamSpec] = {}
+
+    def declare(self, name: str, spec: ParamSpec) -> Any:
+        """
+        Declare one parameter; return its coerced value (None = unset).
+
+        Raises ParamError naming the parameter when the value given (override) is unusable.
+        """
+        self.specs[name] = spec
+        desc = descriptor(spec)
+        try:
+            if spec.type in (int, float):
+                default = None if spec.default is None else spec.type(spec.default)
+                param = self.node.declare_parameter(name, default, desc)
+            elif spec.default is None or spec.default == []:
+                # an empty list cannot carry its element type, and YAML [] arrives unset
+                param = self.node.declare_parameter(name, _STATIC_TYPES[spec.type], desc)
+            else:
+                param = self.node.declare_parameter(name, spec.default, desc)
+        except ParamError:
+            raise
+        except Exception as exc:  # rclpy's type/range exceptions: reword for the user
+            raise ParamError(f'parameter {name}: {exc}') from None
+        value = coerce(name, spec, param.value)
+        if value is None and spec.type in ('int[]', 'str[]', 'float[]') and spec.default == []:
+            return []
+        return value
+
+    def declare_all(self, prefix: str, specs: Iterable[ParamSpec]) -> dict[str, Any]:
+        """Declare '<prefix><key>' for every spec; return {key: value}."""
+        return {spec.key: self.declare(prefix + spec.key, spec) for spec in specs}
+
+    def validate(self, param: Parameter) -> str | None:
+        """Reason string when param's new value is unusable, None when fine or not ours."""
+        spec = self.specs.get(param.name)
+        if spec is None:
+            return None
+        try:
+            coerce(param.name, spec, param.value)
+        except ParamError as exc:
+            return str(exc)
+        return None
+
+    def value(self, param: Parameter) -> Any:
+        """Return the coerced value of a parameter that passed validate()."""
+        spec = self.specs.get(param.name)
+        return param.value if spec is None else coerce(param.name, spec, param.value)
