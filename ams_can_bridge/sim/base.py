@@ -68,6 +68,8 @@ class Periodic:
             self.next = now + self.phase
         if now + 1e-9 < self.next:
             return False
-        missed = int((now - self.next) // self.period)
+        # max(0, ...): within the 1e-9 tolerance now - next is a tiny negative, whose floor
+        # division is -1; without the clamp next would never advance and fire every tick.
+        missed = max(0, int((now - self.next) // self.period))
         self.next += (missed + 1) * self.period
         return True
