@@ -372,6 +372,12 @@ def _num(field: str, value: Any, low: float, high: float, step: float | None = N
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         suffix = f' {unit}' if unit else ''
         raise EncodeRangeError(field, value, f'a number {low:g}..{high:g}{suffix}')
+    # Float noise at the ends (255 * 0.02 = 5.1000000000000005, as decoded) is no overrange.
+    eps = (step or 1.0) * 1e-9
+    if high < value <= high + eps:
+        value = high
+    elif low - eps <= value < low:
+        value = low
     check_range(field, value, low, high, step, unit)
     return value
 
@@ -393,7 +399,7 @@ def _member(field: str, value: Any, enum_cls: type[enum.IntEnum]) -> int:
     values = {int(m) for m in enum_cls}
     if isinstance(value, bool) or not isinstance(value, int) or int(value) not in values:
         names = ', '.join(f'{m.name}={int(m)}' for m in enum_cls)
-        raise EncodeRangeError(field, value, f'a {enum_cls.__name__}: {names}')
+        raise EncodeRangeError(field, value, f'a {enum_cls.__name__} value ({names})')
     return int(value)
 
 
