@@ -46,69 +46,17 @@ from ams_can_bridge.can_io import BusConfig, CanIo, CanSendError, parse_options
 from ams_can_bridge.devices.base import Device, ParamSpec, common_params
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.ros import convert
-from ams_can_bridge.ros.params import ParamError, ParamRegistry
+from ams_can_bridge.ros.convert import format_ids, RosLogHandler
+from ams_can_bridge.ros.params import BUS_PARAMS, NODE_PARAMS, ParamError, ParamRegistry
 
 NODE_NAME = 'ams_can_bridge'
 MALFORMED_LOG_PERIOD = 5.0  # s between malformed-frame log lines per device
 STALE_PUBLISH_PERIOD = 1.0  # s, battery_state present:false while stale
 WATCH_PERIOD = 0.2  # s, how fast bus state / staleness transitions are noticed
 
-BUS_PARAMS = [
-    ParamSpec('interface', str, 'socketcan',
-              'python-can interface: socketcan, slcan, pcan, kvaser, virtual, replay, ...'),
-    ParamSpec('channel', str, 'can0', 'python-can channel (for replay: the log file)'),
-    ParamSpec('bitrate', int, 0, 'bit/s; 0 = leave the adapter as it is', low=0,
-              high=10_000_000),
-    ParamSpec('fd', bool, False, 'CAN FD bus'),
-    ParamSpec('options', 'str[]', [], 'extra python-can bus arguments, key=value'),
-    ParamSpec('reconnect_period', float, 1.0, 's between attempts to (re)open the bus',
-              low=0.01, high=3600.0),
-    ParamSpec('replay_rate', float, 1.0, 'replay speed: 1.0 = real time, 0 = fast as possible',
-              low=0.0, high=1000.0),
-    ParamSpec('record', str, '', 'file to record the raw bus into (empty = off)'),
-]
-NODE_PARAMS = [
-    ParamSpec('devices', 'str[]', [], 'device instance names (each has <name>.type)'),
-    ParamSpec('diagnostics_period', float, 1.0, 's between /diagnostics publications',
-              low=0.01, high=3600.0),
-    ParamSpec('commands_enabled', bool, False,
-              'transmit gate: false = pure listener, nothing is ever sent', read_only=False),
-]
-
 
 class ConfigError(ValueError):
     """The node cannot start with these parameters (the message says what to change)."""
-
-
-class _RosLogHandler(logging.Handler):
-    """Forward stdlib logging records (from CanIo) to the node's rclpy logger."""
-
-    def __init__(self, ros_logger: Any) -> None:
-        super().__init__()
-        self.ros_logger = ros_logger
-
-    def emit(self, record: logging.LogRecord) -> None:
-        text = self.format(record)
-        if record.levelno >= logging.ERROR:
-            self.ros_logger.error(text)
-        elif record.levelno >= logging.WARNING:
-            self.ros_logger.warning(text)
-        elif record.levelno >= logging.INFO:
-            self.ros_logger.info(text)
-        else:
-            self.ros_logger.debug(text)
-
-
-def format_ids(ids: frozenset[int] | set[int], extended: bool) -> str:
-    """'0x300-0x301, 0x305' (runs of consecutive IDs collapsed), '(29-bit)' when extended."""
-    runs: list[list[int]] = []
-    for i in sorted(ids):
-        if runs and i == runs[-1][1] + 1:
-            runs[-1][1] = i
-        else:
-            runs.append([i, i])
-    text = ', '.join(f'0x{a:X}' if a == b else f'0x{a:X}-0x{b:X}' for a, b in runs)
-    return text + (' (29-bit)' if extended else '')
 
 
 class BridgeNode(Node):
@@ -184,7 +132,7 @@ class BridgeNode(Node):
         can_logger.propagate = False
         # CanIo logs every state change; the node logs the user-facing transitions itself.
         can_logger.setLevel(logging.WARNING)
-        can_logger.addHandler(_RosLogHandler(self.get_logger()))
+        can_logger.addHandler(RosLogHandler(self.get_logger()))
         self.can_io = CanIo(self.bus_config, self._on_frame, filters, can_logger)
 
     def _add_device(self, name: str) -> None:
@@ -257,6 +205,7 @@ class BridgeNode(Node):
             raise
         values = self.params.declare_all(f'{name}.', list(getattr(cls, 'PARAMS', [])))
         self.device_params[name].update(values)
+        device.params.update(values)  # devices read their config values (e.g. cell count)
         self.commanders[name] = cls(self, device, name)
 
     def _log_summary(self) -> None:
@@ -432,6 +381,12 @@ class BridgeNode(Node):
         if not self._ready:
             return
         changed = {p.name: self.params.value(p) for p in parameters}
+        for full_name, value in changed.items():
+            # keep device.params in step with '<name>.<key>' (config values, cell counts)
+            prefix, _, key = full_name.partition('.')
+            if prefix in self.devices and key:
+                self.devices[prefix].params[key] = value
+                self.device_params[prefix][key] = value
         if 'commands_enabled' in changed and changed['commands_enabled'] != \
                 self.commands_enabled:
             self.commands_enabled = bool(changed['commands_enabled'])

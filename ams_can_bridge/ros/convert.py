@@ -1,6 +1,7 @@
 """Device reports (plain dataclasses) -> ROS messages."""
 from __future__ import annotations
 
+import logging
 import math
 from typing import Any
 
@@ -110,3 +111,34 @@ def bus_report(status: Any, malformed: int, interface: str) -> DiagnosticReport:
                    if interface == 'replay' else 'off'),
     }
     return DiagnosticReport(level, message, values)
+
+
+class RosLogHandler(logging.Handler):
+    """Forward stdlib logging records (from CanIo) to the node's rclpy logger."""
+
+    def __init__(self, ros_logger: Any) -> None:
+        super().__init__()
+        self.ros_logger = ros_logger
+
+    def emit(self, record: logging.LogRecord) -> None:
+        text = self.format(record)
+        if record.levelno >= logging.ERROR:
+            self.ros_logger.error(text)
+        elif record.levelno >= logging.WARNING:
+            self.ros_logger.warning(text)
+        elif record.levelno >= logging.INFO:
+            self.ros_logger.info(text)
+        else:
+            self.ros_logger.debug(text)
+
+
+def format_ids(ids: frozenset[int] | set[int], extended: bool) -> str:
+    """'0x300-0x301, 0x305' (runs of consecutive IDs collapsed), '(29-bit)' when extended."""
+    runs: list[list[int]] = []
+    for i in sorted(ids):
+        if runs and i == runs[-1][1] + 1:
+            runs[-1][1] = i
+        else:
+            runs.append([i, i])
+    text = ', '.join(f'0x{a:X}' if a == b else f'0x{a:X}-0x{b:X}' for a, b in runs)
+    return text + (' (29-bit)' if extended else '')

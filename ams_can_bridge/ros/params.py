@@ -172,3 +172,26 @@ class ParamRegistry:
         """Return the coerced value of a parameter that passed validate()."""
         spec = self.specs.get(param.name)
         return param.value if spec is None else coerce(param.name, spec, param.value)
+
+
+BUS_PARAMS = [
+    ParamSpec('interface', str, 'socketcan',
+              'python-can interface: socketcan, slcan, pcan, kvaser, virtual, replay, ...'),
+    ParamSpec('channel', str, 'can0', 'python-can channel (for replay: the log file)'),
+    ParamSpec('bitrate', int, 0, 'bit/s; 0 = leave the adapter as it is', low=0,
+              high=10_000_000),
+    ParamSpec('fd', bool, False, 'CAN FD bus'),
+    ParamSpec('options', 'str[]', [], 'extra python-can bus arguments, key=value'),
+    ParamSpec('reconnect_period', float, 1.0, 's between attempts to (re)open the bus',
+              low=0.01, high=3600.0),
+    ParamSpec('replay_rate', float, 1.0, 'replay speed: 1.0 = real time, 0 = fast as possible',
+              low=0.0, high=1000.0),
+    ParamSpec('record', str, '', 'file to record the raw bus into (empty = off)'),
+]
+NODE_PARAMS = [
+    ParamSpec('devices', 'str[]', [], 'device instance names (each has <name>.type)'),
+    ParamSpec('diagnostics_period', float, 1.0, 's between /diagnostics publications',
+              low=0.01, high=3600.0),
+    ParamSpec('commands_enabled', bool, False,
+              'transmit gate: false = pure listener, nothing is ever sent', read_only=False),
+]
