@@ -1,4 +1,4 @@
-"""
+r"""
 A fake USB-CAN adapter speaking slcan (Lawicel ASCII) on a pty, for cross-process tests.
 
 The program under test opens ``peer.channel`` (a stable symlink when one was given, else the
@@ -8,15 +8,15 @@ pty slave path) with python-can's ``slcan`` interface; pass the option
     peer = SlcanPeer(symlink=tmp_path / 'ttyCAN0')
     ... start the bus user on channel str(peer.channel) ...
     peer.wait_open()                       # the user sent 'O'
-    peer.send(Frame(0x100, b'\\x01'))       # towards the bus user
+    peer.send(Frame(0x100, b'\x01'))       # towards the bus user
     peer.wait_received(1)                  # frames the user transmitted
     peer.close()                           # unplug (the symlink disappears too)
     peer.reopen()                          # plug back in (new pty, symlink re-pointed)
     peer.shutdown()
 
 Commands answered as a CANable/Lawicel adapter does (python-can 4.6 sends C, O, L, Sn,
-sxxyy, Yn, V, N): '\\r' for OK, 'V1013\\r' / 'NA123\\r' for version / serial number,
-'F00\\r' for status flags, 'z\\r' / 'Z\\r' after each transmitted frame, BEL for anything
+sxxyy, Yn, V, N): '\r' for OK, 'V1013\r' / 'NA123\r' for version / serial number,
+'F00\r' for status flags, 'z\r' / 'Z\r' after each transmitted frame, BEL for anything
 unknown. Frames are only delivered while the channel is open ('O' or 'L'), like hardware.
 """
 from __future__ import annotations
@@ -84,7 +84,7 @@ class SlcanPeer:
 
     @property
     def channel(self) -> str:
-        """What the bus user opens: the stable symlink if any, else the pty slave path."""
+        """Return what the bus user opens: the stable symlink, else the pty slave path."""
         return str(self.symlink) if self.symlink is not None else self.device_path
 
     @property

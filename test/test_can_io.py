@@ -1,0 +1,304 @@
+"""CanIo on real python-can buses: virtual in-process, slcan over a pty (SlcanPeer)."""
+import logging
+import sys
+import threading
+import time
+import uuid
+
+import can
+import pytest
+
+from ams_can_bridge.can_io import BusConfig, BusStatus, CanIo, CanSendError, parse_options
+from ams_can_bridge.protocols.common import Frame
+
+sys.path.insert(0, __file__.rsplit('/', 1)[0])
+from slcan_peer import SlcanPeer  # noqa: E402, I100
+
+
+def wait_for(predicate, timeout=5.0, what='condition'):
+    """Poll predicate until true; fail the test naming what did not happen."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return
+        time.sleep(0.01)
+    raise AssertionError(f'timed out waiting for {what}')
+
+
+class Sink:
+    """on_frame target that keeps what it got, thread-safely."""
+
+    def __init__(self):
+        self.frames = []
+        self.lock = threading.Lock()
+
+    def __call__(self, arbitration_id, data, extended, stamp):
+        with self.lock:
+            self.frames.append((arbitration_id, data, extended, stamp))
+
+    def ids(self):
+        with self.lock:
+            return [(f[0], f[2]) for f in self.frames]
+
+
+@pytest.fixture
+def channel():
+    return f'test_can_io_{uuid.uuid4().hex[:8]}'
+
+
+@pytest.fixture
+def peer_bus(channel):
+    bus = can.Bus(interface='virtual', channel=channel)
+    yield bus
+    bus.shutdown()
+
+
+def start_virtual(channel, sink, **kwargs):
+    io = CanIo(BusConfig(interface='virtual', channel=channel, reconnect_period=0.1), sink,
+               **kwargs)
+    io.start()
+    wait_for(lambda: io.status().state == 'connected', what='connected')
+    return io
+
+
+def test_parse_options_converts_obvious_types_and_names_bad_entries():
+    assert parse_options(['sleep_after_open=0', 'timeout=0.5', 'rtscts=false', 'x=0x10',
+                          'serial=010', 'name=can-a', 'listen_only=True']) == {
+        'sleep_after_open': 0, 'timeout': 0.5, 'rtscts': False, 'x': 16, 'serial': 10,
+        'name': 'can-a', 'listen_only': True}
+    assert parse_options(None) == {}
+    with pytest.raises(ValueError, match="'bitrate500000'"):
+        parse_options(['bitrate500000'])
+    with pytest.raises(ValueError, match="'=1'"):
+        parse_options(['=1'])
+
+
+def test_bus_config_rejects_bad_values_naming_the_field():
+    with pytest.raises(ValueError, match='can.bitrate'):
+        BusConfig(bitrate=-1)
+    with pytest.raises(ValueError, match='can.reconnect_period'):
+        BusConfig(reconnect_period=0)
+    with pytest.raises(ValueError, match='can.replay_rate'):
+        BusConfig(replay_rate=-1)
+    assert BusConfig(interface='slcan', channel='/dev/ttyACM0').hardware_id == \
+        'slcan:/dev/ttyACM0'
+
+
+def test_frames_in_with_receive_time_filters_and_counters(channel, peer_bus):
+    sink = Sink()
+    io = start_virtual(channel, sink, filters=[(0x100, False), (0x18FF50E5, True)])
+    try:
+        before = time.time()
+        peer_bus.send(can.Message(arbitration_id=0x100, data=b'\x01\x02', is_extended_id=False))
+        peer_bus.send(can.Message(arbitration_id=0x101, data=b'\x03', is_extended_id=False))
+        # Same number, other ID space: must not pass the standard-ID filter.
+        peer_bus.send(can.Message(arbitration_id=0x100, data=b'\x04', is_extended_id=True))
+        peer_bus.send(can.Message(arbitration_id=0x18FF50E5, data=b'\x05',
+                                  is_extended_id=True))
+        peer_bus.send(can.Message(arbitration_id=0x100, is_remote_frame=True, dlc=2,
+                                  is_extended_id=False))
+        peer_bus.send(can.Message(arbitration_id=0x02, is_error_frame=True))
+        wait_for(lambda: io.status().error_frames == 1, what='error frame counted')
+        status = io.status()
+        assert isinstance(status, BusStatus)
+        assert status.state == 'connected'
+        assert status.frames_in == 4          # data frames only (remote/error excluded)
+        assert status.hardware_id == f'virtual:{channel}'
+        assert [(f[0], f[1], f[2]) for f in sink.frames] == [
+            (0x100, b'\x01\x02', False), (0x18FF50E5, b'\x05', True)]
+        for _, data, _, stamp in sink.frames:
+            assert isinstance(data, bytes)
+            assert before - 1 <= stamp <= time.time() + 1
+    finally:
+        io.stop()
+
+
+def test_no_filters_passes_everything(channel, peer_bus):
+    sink = Sink()
+    io = start_virtual(channel, sink)
+    try:
+        for i in range(5):
+            peer_bus.send(can.Message(arbitration_id=0x200 + i, data=bytes([i]),
+                                      is_extended_id=False))
+        wait_for(lambda: len(sink.frames) == 5, what='5 frames')
+        assert sink.ids() == [(0x200 + i, False) for i in range(5)]
+    finally:
+        io.stop()
+
+
+def test_send_reaches_the_bus_and_is_counted(channel, peer_bus):
+    io = start_virtual(channel, Sink())
+    try:
+        io.send(Frame(0x005, b'\x21\x07'))
+        io.send(Frame(0x1F, b'\x01', True))
+        first = peer_bus.recv(2.0)
+        second = peer_bus.recv(2.0)
+        assert (first.arbitration_id, bytes(first.data), first.is_extended_id) == \
+            (0x005, b'\x21\x07', False)
+        assert (second.arbitration_id, second.is_extended_id) == (0x1F, True)
+        assert io.status().frames_out == 2
+        with pytest.raises(CanSendError, match='invalid frame'):
+            io.send(Frame(0x800, b'', False))   # 12 bits in an 11-bit ID
+        assert io.status().frames_dropped_tx == 1
+    finally:
+        io.stop()
+
+
+def test_send_when_not_connected_raises_clear_error():
+    io = CanIo(BusConfig(interface='virtual', channel='x'), Sink())
+    with pytest.raises(CanSendError, match='not connected'):
+        io.send(Frame(0x100, b''))
+    assert io.status().frames_dropped_tx == 1
+    io.stop()   # never started: harmless
+    assert io.status().state == 'stopped'
+
+
+def test_stop_joins_the_thread_and_shuts_the_bus(channel, peer_bus):
+    io = start_virtual(channel, Sink())
+    io.stop()
+    assert not [t for t in threading.enumerate() if t.name == 'can_io-rx' and t.is_alive()]
+    assert io.status().state == 'stopped'
+    with pytest.raises(CanSendError):
+        io.send(Frame(0x100, b''))
+    io.stop()   # twice is fine
+
+
+def test_handler_exception_is_counted_and_receiving_goes_on(channel, peer_bus, caplog):
+    got = []
+
+    def handler(arbitration_id, data, extended, stamp):
+        if data == b'\xff':
+            raise ValueError('bad')
+        got.append(arbitration_id)
+
+    io = start_virtual(channel, handler)
+    try:
+        peer_bus.send(can.Message(arbitration_id=0x10, data=b'\xff', is_extended_id=False))
+        peer_bus.send(can.Message(arbitration_id=0x11, data=b'\x00', is_extended_id=False))
+        wait_for(lambda: got == [0x11], what='frame after the failing one')
+        assert io.status().callback_errors == 1
+        assert 'handler failed' in caplog.text
+    finally:
+        io.stop()
+
+
+def test_bus_off_error_frame_reconnects_and_error_passive_is_reported(channel, peer_bus):
+    io = start_virtual(channel, Sink())
+    try:
+        # SocketCAN encoding: CAN_ERR_CRTL with data[1] = TX passive.
+        peer_bus.send(can.Message(arbitration_id=0x04, is_error_frame=True,
+                                  data=b'\x00\x20\x00\x00\x00\x00\x00\x00'))
+        wait_for(lambda: io.status().state == 'error-passive', what='error-passive')
+        peer_bus.send(can.Message(arbitration_id=0x04, is_error_frame=True,
+                                  data=b'\x00\x40\x00\x00\x00\x00\x00\x00'))
+        wait_for(lambda: io.status().state == 'connected', what='back to active')
+        peer_bus.send(can.Message(arbitration_id=0x40, is_error_frame=True))
+        wait_for(lambda: io.status().reconnects == 1, what='reconnect after bus-off')
+        wait_for(lambda: io.status().state == 'connected', what='connected again')
+        assert 'bus-off' in io.status().reason or io.status().reason == ''
+        assert io.status().error_frames == 3
+    finally:
+        io.stop()
+
+
+def test_unknown_interface_is_an_error_state_not_an_exception():
+    io = CanIo(BusConfig(interface='no_such_interface', channel='x', reconnect_period=0.1),
+               Sink())
+    io.start()
+    try:
+        wait_for(lambda: io.status().state == 'error', what='error state')
+        assert 'no_such_interface' in io.status().reason
+    finally:
+        io.stop()
+
+
+def test_receive_rate_far_above_a_saturated_1mbit_bus(channel, peer_bus):
+    """Drain a pre-filled queue: the consumer alone must beat ~9,000 frames/s."""
+    gate = threading.Event()
+    count = [0]
+    times = [0.0, 0.0]
+
+    def handler(arbitration_id, data, extended, stamp):
+        if count[0] == 0:
+            gate.wait(10)
+            times[0] = time.perf_counter()
+        count[0] += 1
+        times[1] = time.perf_counter()
+
+    io = start_virtual(channel, handler, filters=[(0x100 + i, False) for i in range(40)])
+    try:
+        n = 20000
+        for i in range(n):
+            peer_bus.send(can.Message(arbitration_id=0x100 + i % 40, data=bytes(8),
+                                      is_extended_id=False))
+        gate.set()
+        wait_for(lambda: count[0] == n, timeout=30, what='all frames')
+        rate = (n - 1) / (times[1] - times[0])
+        print(f'CanIo receive rate (virtual, 40 filters): {rate:,.0f} frames/s')
+        assert io.status().frames_in == n
+        assert rate > 9000
+    finally:
+        io.stop()
+
+
+def test_slcan_channel_missing_at_start_then_appears(tmp_path, capfd, caplog):
+    caplog.set_level(logging.INFO)
+    peer = SlcanPeer(symlink=tmp_path / 'ttyCAN0', plugged=False)
+    sink = Sink()
+    io = CanIo(BusConfig(interface='slcan', channel=peer.channel, bitrate=500000,
+                         options={'sleep_after_open': 0}, reconnect_period=0.1), sink)
+    io.start()
+    try:
+        wait_for(lambda: io.status().state == 'error', what='error state')
+        assert 'ttyCAN0' in io.status().reason
+        peer.reopen()
+        peer.wait_open()
+        wait_for(lambda: io.status().state == 'connected', what='connected')
+        assert peer.bitrate_command == 'S6'
+        assert io.status().reconnects == 0   # a first connection is not a reconnect
+        peer.send(Frame(0x123, b'\x01\x02'))
+        peer.send(Frame(0x1234567, b'\xAA', True))
+        wait_for(lambda: len(sink.frames) == 2, what='frames from the adapter')
+        assert sink.ids() == [(0x123, False), (0x1234567, True)]
+        io.send(Frame(0x321, b'\xBE\xEF'))
+        assert peer.wait_received(1) == [Frame(0x321, b'\xBE\xEF', False)]
+        io.stop()
+        # python-can closes the CAN channel ('C') before the port on a clean shutdown.
+        wait_for(lambda: peer.commands[-1] == 'C', what='close command')
+        assert not peer.is_open
+    finally:
+        io.stop()
+        peer.close()
+    assert 'Traceback' not in capfd.readouterr().err
+    assert 'Traceback' not in caplog.text
+
+
+def test_slcan_unplugged_mid_run_reconnects_alone(tmp_path, capfd, caplog):
+    caplog.set_level(logging.INFO)
+    peer = SlcanPeer(symlink=tmp_path / 'ttyCAN0')
+    sink = Sink()
+    io = CanIo(BusConfig(interface='slcan', channel=peer.channel,
+                         options={'sleep_after_open': 0}, reconnect_period=0.1), sink)
+    io.start()
+    try:
+        peer.wait_open()
+        wait_for(lambda: io.status().state == 'connected', what='connected')
+        peer.send(Frame(0x100, b'\x01'))
+        wait_for(lambda: len(sink.frames) == 1, what='first frame')
+        peer.close()                                    # unplugged
+        wait_for(lambda: io.status().state == 'reconnecting', what='reconnecting')
+        with pytest.raises(CanSendError, match='not connected'):
+            io.send(Frame(0x100, b''))
+        peer.reopen()                                   # plugged back in
+        peer.wait_open()
+        wait_for(lambda: io.status().state == 'connected', what='reconnected')
+        assert io.status().reconnects == 1
+        peer.send(Frame(0x101, b'\x02'))
+        wait_for(lambda: len(sink.frames) == 2, what='frame after reconnect')
+        assert sink.ids()[-1] == (0x101, False)
+    finally:
+        io.stop()
+        peer.close()
+    assert 'reconnecting' in caplog.text
+    assert 'Traceback' not in capfd.readouterr().err
+    assert 'Traceback' not in caplog.text
