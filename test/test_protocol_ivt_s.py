@@ -1,6 +1,5 @@
 """IVT-S codec: golden frames written by hand from PROTOCOLS.md section 2, not from the DBC."""
 import math
-import timeit
 
 from hypothesis import given, settings, strategies as st
 import pytest
@@ -160,23 +159,3 @@ def test_big_endian_codec_agrees_with_the_dbc(offset, tail):
     dbc_value = theirs[f'IVT_Result_{name}']
     expected = ours.value * (1000 if offset <= 3 else 1)
     assert dbc_value == pytest.approx(expected, rel=1e-9, abs=1e-6)
-
-
-def test_decode_is_not_slower_than_twice_cantools():
-    # The bus thread decodes every frame: the hand-written codec must keep up with cantools
-    # (target <= 2x its time; measured about 0.25x). min() of repeats tames a noisy machine.
-    db = load_dbc('ivt_s')
-    frames = [BE.encode(IvtResult.from_value(IvtMux(i % 8), i * 1.5 - 300, counter=i % 16))
-              for i in range(400)]
-
-    def ours():
-        for f in frames:
-            BE.decode(f.arbitration_id, f.data)
-
-    def cantools_decode():
-        for f in frames:
-            db.decode_message(f.arbitration_id, f.data)
-
-    t_ours = min(timeit.repeat(ours, number=3, repeat=5))
-    t_cantools = min(timeit.repeat(cantools_decode, number=3, repeat=5))
-    assert t_ours <= 2.0 * t_cantools, f'IVT-S decode {t_ours:.4f} s vs cantools {t_cantools:.4f}'
