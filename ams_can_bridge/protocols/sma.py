@@ -110,6 +110,17 @@ class SmaAlarms:
     alarms: dict[str, SmaFlag] = field(default_factory=_all_not_supported)
     warnings: dict[str, SmaFlag] = field(default_factory=_all_not_supported)
 
+    def __post_init__(self) -> None:
+        # Conditions left out are NOT_SUPPORTED, so a partial dict equals its decoded frame.
+        for kind in ('alarms', 'warnings'):
+            given = getattr(self, kind)
+            unknown = set(given) - set(SMA_CONDITIONS)
+            if unknown:
+                raise EncodeRangeError(f'sma.{kind}', sorted(unknown),
+                                       'condition names ' + ', '.join(SMA_CONDITIONS))
+            object.__setattr__(self, kind, {
+                n: given.get(n, SmaFlag.NOT_SUPPORTED) for n in SMA_CONDITIONS})
+
     @property
     def active_alarms(self) -> tuple[str, ...]:
         """Names of the active alarms, in protocol order."""
@@ -295,10 +306,6 @@ class SmaCodec:
         data = bytearray(8)
         for kind, flags, first in (('alarms', message.alarms, 0),
                                    ('warnings', message.warnings, 4)):
-            for name in flags:
-                if name not in SMA_CONDITIONS:
-                    raise EncodeRangeError(f'sma.{kind}', name,
-                                           'condition names ' + ', '.join(SMA_CONDITIONS))
             for k, name in enumerate(SMA_CONDITIONS):
                 flag = flags.get(name, SmaFlag.NOT_SUPPORTED)
                 if flag not in (0, 1, 2):

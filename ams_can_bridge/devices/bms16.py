@@ -1,0 +1,163 @@
+"""ZEVA BMS16 state: status + cell frames (and its SMA frames) -> BatteryState, diagnostics.
+
+The BMS16 sends its own frames from ``base_id`` (status, cells) and the SMA Sunny Island
+frames 0x351.. at fixed IDs; this device takes both. Its wire current is positive while
+discharging: the report negates it (ROS: negative while discharging).
+The number of cells comes from the ``bms16.config.cells`` parameter (declared with the
+configuration values by the command layer), 16 while that is unset.
+"""
+from __future__ import annotations
+
+import math
+import time
+from typing import Any, Callable, Mapping
+
+from ams_can_bridge.devices.base import (
+    BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, ParamSpec,
+    PowerSupplyHealth)
+from ams_can_bridge.devices.sma import sma_values
+from ams_can_bridge.protocols.bms16 import (
+    BMS16_WARNINGS, Bms16Cells, Bms16Codec, Bms16Error, Bms16Status, CELLS_1, CELLS_3,
+    DEFAULT_BASE_ID, MAX_CELLS)
+from ams_can_bridge.protocols.common import MalformedFrameError
+from ams_can_bridge.protocols.sma import (
+    SMA_IDS, SmaAlarms, SmaBattery, SmaBatteryInfo, SmaCodec, SmaLimits, SmaManufacturer,
+    SmaReading, SmaSoc)
+
+HEALTH = {
+    Bms16Error.NONE: PowerSupplyHealth.GOOD,
+    Bms16Error.LOAD_DISABLED_UNDERVOLTAGE: PowerSupplyHealth.DEAD,
+    Bms16Error.CRITICAL_VOLTAGE: PowerSupplyHealth.DEAD,
+    Bms16Error.CHARGE_DISABLED_OVERVOLTAGE: PowerSupplyHealth.OVERVOLTAGE,
+    Bms16Error.OVERTEMPERATURE: PowerSupplyHealth.OVERHEAT,
+}
+
+
+class Bms16FrameCodec:
+    """The frames a BMS16 sends: its status/cell frames (base..base+3) and the SMA ones."""
+
+    is_extended_id = False
+
+    def __init__(self, base_id: int) -> None:
+        self.bms16 = Bms16Codec(base_id)
+        self.sma = SmaCodec()
+        own = frozenset(range(base_id + 0, base_id + CELLS_3 + 1))
+        if own & SMA_IDS:
+            raise ValueError(f'bms16.base_id {base_id} overlaps the SMA IDs 0x351..0x35F')
+        self._own = own
+        self.arbitration_ids = own | SMA_IDS
+
+    def decode(self, arbitration_id: int, data: bytes) -> Any:
+        """Decode a status / cell frame or an SMA frame."""
+        if arbitration_id in self._own:
+            return self.bms16.decode(arbitration_id, data)
+        if arbitration_id in SMA_IDS:
+            return self.sma.decode(arbitration_id, data)
+        raise MalformedFrameError(arbitration_id, data, 'not a BMS16 ID')
+
+
+class Bms16Device(Device):
+    """One ZEVA BMS16."""
+
+    TYPE = 'bms16'
+    BROADCAST_PERIOD = 0.25
+    DEFAULT_BASE_ID = DEFAULT_BASE_ID
+    PARAMS: list[ParamSpec] = []
+
+    def __init__(self, name: str, params: Mapping[str, Any],
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        super().__init__(name, params, clock)
+        base_id = self.params.get('base_id')
+        self.codec = Bms16FrameCodec(DEFAULT_BASE_ID if base_id is None else int(base_id))
+        self.status: Bms16Status | None = None
+        self.status_stamp = NAN
+        self.cells = [NAN] * MAX_CELLS
+        self.sma: dict[type, SmaReading] = {}
+
+    @property
+    def error(self) -> Bms16Error:
+        """The error code last reported (NONE until the first status frame)."""
+        status = self.status
+        return Bms16Error.NONE if status is None else status.error
+
+    def cell_count(self) -> int:
+        """Cells from the bms16.config.cells parameter, 16 while that is unset."""
+        cells = self.params.get('config.cells')
+        if cells is None:
+            return MAX_CELLS
+        return max(1, min(MAX_CELLS, int(cells)))
+
+    def _handle(self, reading: Any, stamp: float) -> bool:
+        if isinstance(reading, Bms16Status):
+            self.status = reading
+            self.status_stamp = stamp
+            return True
+        if isinstance(reading, Bms16Cells):
+            first = reading.first_cell
+            self.cells[first:first + len(reading.voltages_v)] = reading.voltages_v
+            return False
+        if isinstance(reading, (SmaLimits, SmaSoc, SmaBattery, SmaAlarms, SmaManufacturer,
+                                SmaBatteryInfo)):
+            self.sma[type(reading)] = reading
+        return False
+
+    def _battery_report(self) -> BatteryReport:
+        report = BatteryReport(cell_voltage=list(self.cells[:self.cell_count()]))
+        capacity = self.params.get('config.pack_capacity_ah')
+        if capacity is not None:
+            report.capacity = report.design_capacity = float(capacity)
+        status = self.status
+        if status is None:
+            return report
+        report.stamp = self.status_stamp
+        report.voltage = status.voltage_v
+        report.current = -status.current_a if status.current_a else 0.0
+        report.temperature = float(status.temperature_c)
+        report.percentage = status.soc_pct / 100
+        if not math.isnan(report.capacity):
+            report.charge = report.capacity * report.percentage
+        report.power_supply_status = current_status(report.current)
+        report.power_supply_health = HEALTH.get(status.error, PowerSupplyHealth.UNSPEC_FAILURE)
+        report.present = True
+        return report
+
+    def _diagnostic_report(self) -> DiagnosticReport:
+        status = self.status
+        values: dict[str, str] = {}
+        level = Level.OK
+        parts: list[str] = []
+        if status is None:
+            parts.append('no status frame yet')
+        else:
+            error = status.error
+            if error != Bms16Error.NONE:
+                level = Level.WARN if error in BMS16_WARNINGS else Level.ERROR
+                parts.append(('warning ' if level == Level.WARN else 'error ') + error.name)
+            else:
+                parts.append('OK')
+            parts.append(f'SoC {status.soc_pct} %, {status.voltage_v:.1f} V, '
+                         f'{-status.current_a if status.current_a else 0.0:.1f} A')
+            values.update({
+                'error': error.name, 'error code': str(int(error)),
+                'soc %': str(status.soc_pct), 'voltage V': f'{status.voltage_v:g}',
+                'current A (wire, positive = discharge)': f'{status.current_a:g}',
+                'temperature degC': str(status.temperature_c),
+            })
+        count = self.cell_count()
+        for k in range(count):
+            values[f'cell {k + 1} V'] = f'{self.cells[k]:g}'
+        known = [v for v in self.cells[:count] if not math.isnan(v)]
+        if known:
+            values['cell min V'] = f'{min(known):g}'
+            values['cell max V'] = f'{max(known):g}'
+        values.update(sma_values(self.sma, prefix='sma '))
+        alarms = self.sma.get(SmaAlarms)
+        if alarms is not None:
+            # The SMA flags mirror the BMS16's state: an active one is never downgraded.
+            if alarms.active_alarms:
+                level = max(level, Level.ERROR)
+                parts.append('SMA alarms ' + ', '.join(alarms.active_alarms))
+            if alarms.active_warnings:
+                level = max(level, Level.WARN)
+                parts.append('SMA warnings ' + ', '.join(alarms.active_warnings))
+        return DiagnosticReport(level, '; '.join(parts), values)

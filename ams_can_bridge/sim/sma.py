@@ -1,0 +1,117 @@
+"""Simulated BMS speaking the SMA Sunny Island protocol (a 16-cell LiFePO4 48 V pack).
+
+Periods: 0x351, 0x355, 0x356, 0x35A every 1 s, the rate common SMA-protocol BMSs send at
+(chargers such as the Wakespeed WS500 require 0x351/0x356 at least every 1000 ms, the Sunny
+Island stops after 3 s without 0x351); 0x35E and 0x35F every 5 s. On the wire the current
+is positive while CHARGING (the profile's discharge-positive current is negated).
+
+Faults: ``silent``; ``malformed`` (frames without data: malformed for every SMA ID, where a
+dropped byte may still be a valid DLC); ``extra['alarm']`` / ``extra['warning']``: a
+condition name or a list of them (``protocols.sma.SMA_CONDITIONS``) reported ACTIVE;
+``cell_drift_v``: the pack has no cell frames here, so a drift of 50 mV or more shows as the
+``cell_imbalance`` warning. ``error_code`` has no meaning in this protocol and is ignored.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+from ams_can_bridge.protocols.common import Frame
+from ams_can_bridge.protocols.sma import (
+    SMA_CONDITIONS, SmaAlarms, SmaBattery, SmaBatteryInfo, SmaCodec, SmaFlag, SmaLimits,
+    SmaManufacturer, SmaSoc)
+from ams_can_bridge.sim.base import Periodic, SimDevice
+from ams_can_bridge.sim.bms16 import CELL_RESISTANCE_OHM, lfp_cell_ocv, sma_empty
+from ams_can_bridge.sim.profiles import drive_current_a
+
+CELLS = 16
+# Conditions this BMS reports (the others are sent as NOT_SUPPORTED, as real BMSs do).
+SUPPORTED = ('general', 'high_voltage', 'low_voltage', 'high_temperature', 'low_temperature',
+             'high_discharge_current', 'high_charge_current', 'bms_internal',
+             'cell_imbalance')
+IMBALANCE_WARNING_V = 0.05
+
+
+def _names(value: object) -> set[str]:
+    if not value:
+        return set()
+    names = {value} if isinstance(value, str) else set(value)
+    unknown = names - set(SMA_CONDITIONS)
+    if unknown:
+        raise ValueError(f'unknown SMA condition(s) {sorted(unknown)}: use '
+                         + ', '.join(SMA_CONDITIONS))
+    return names
+
+
+class SmaSimulator(SimDevice):
+    """An SMA-protocol BMS; current_fn(now) -> A, positive = discharge."""
+
+    TYPE = 'sma'
+    PERIOD = 1.0
+    INFO_PERIOD = 5.0
+
+    def __init__(self, name: str | None = None,
+                 current_fn: Callable[[float], float] | None = None,
+                 capacity_ah: float = 100.0, manufacturer: str = 'SIMBMS',
+                 seed: int = 0) -> None:
+        super().__init__(name)
+        self.codec = SmaCodec()
+        self.current_fn = current_fn or drive_current_a
+        self.capacity_ah = capacity_ah
+        self.manufacturer = manufacturer
+        self.seed = seed
+        self.soh_pct = 100 - seed % 5  # a fleet of simulated packs ages differently
+        self.soc_pct = 80.0
+        self.current_a = 0.0  # profile sign: positive = discharge
+        self.temperature_c = 25.0
+        self._periodic = Periodic(self.PERIOD)
+        self._info = Periodic(self.INFO_PERIOD)
+        self._last: float | None = None
+
+    def voltage_v(self) -> float:
+        """Pack terminal voltage."""
+        return CELLS * (lfp_cell_ocv(self.soc_pct) - self.current_a * CELL_RESISTANCE_OHM)
+
+    def alarms(self) -> SmaAlarms:
+        """Alarm / warning flags now: injected ones ACTIVE, other supported ones OK."""
+        alarm = _names(self.faults.extra.get('alarm'))
+        warning = _names(self.faults.extra.get('warning'))
+        if abs(self.faults.cell_drift_v) >= IMBALANCE_WARNING_V:
+            warning.add('cell_imbalance')
+
+        def flags(active: set[str]) -> dict[str, SmaFlag]:
+            result = {n: SmaFlag.OK for n in SUPPORTED}
+            result.update({n: SmaFlag.ACTIVE for n in active})
+            return result
+        return SmaAlarms(flags(alarm), flags(warning))
+
+    def _step(self, now: float) -> None:
+        dt = 0.0 if self._last is None else max(0.0, now - self._last)
+        self._last = now
+        self.current_a = float(self.current_fn(now))
+        self.soc_pct -= self.current_a * dt / 3600.0 / self.capacity_ah * 100.0
+        self.soc_pct = min(100.0, max(0.0, self.soc_pct))
+        target = 25.0 + 0.08 * abs(self.current_a)
+        self.temperature_c += (target - self.temperature_c) * min(1.0, dt / 60.0)
+
+    def tick(self, now: float) -> list[Frame]:
+        """Advance the pack to ``now`` and return the frames due."""
+        self._step(now)
+        messages: list[object] = []
+        if self._periodic.due(now):
+            messages += [
+                SmaLimits(CELLS * 3.45, round(0.5 * self.capacity_ah, 1),
+                          round(1.0 * self.capacity_ah, 1), CELLS * 3.0),
+                SmaSoc(round(self.soc_pct), self.soh_pct, round(self.soc_pct, 2)),
+                SmaBattery(round(self.voltage_v(), 2), round(-self.current_a, 1),
+                           round(self.temperature_c, 1)),
+                self.alarms(),
+            ]
+        if self._info.due(now):
+            messages += [SmaManufacturer(self.manufacturer),
+                         SmaBatteryInfo(1, 0x0100, round(self.capacity_ah))]
+        if self.faults.silent or not messages:
+            return []
+        frames = [self.codec.encode(m) for m in messages]
+        if self.faults.malformed:
+            return [sma_empty(f) for f in frames]
+        return frames
