@@ -1,0 +1,262 @@
+"""
+The bridge node in-process on python-can 'virtual': golden frames in, exact messages out.
+
+Frames are written by hand from PROTOCOLS.md (not through the codecs or the DBC); a real
+subscriber node receives what the bridge publishes. One rclpy context for the module.
+"""
+from __future__ import annotations
+
+import itertools
+import math
+import time
+from typing import Any, Callable
+
+import can
+from diagnostic_msgs.msg import DiagnosticArray
+import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import BatteryState
+
+from ams_can_bridge.protocols.common import Frame
+from ams_can_bridge.ros.bridge_node import BridgeNode, ConfigError
+
+NAN = math.nan
+_ids = itertools.count()
+
+
+@pytest.fixture(scope='module')
+def context():
+    ctx = Context()
+    rclpy.init(context=ctx)
+    yield ctx
+    rclpy.try_shutdown(context=ctx)
+
+
+class Harness:
+    """A bridge node on its own virtual channel and namespace, plus a listening node."""
+
+    def __init__(self, context: Context, params: dict[str, Any],
+                 topics: dict[str, type] = ()) -> None:
+        n = next(_ids)
+        self.ns = f'bridge_test_{n}_{int(time.time() * 1000) % 100000}'
+        self.channel = f'bridge-node-test-{self.ns}'
+        overrides = {'can.interface': 'virtual', 'can.channel': self.channel}
+        overrides.update(params)
+        self.bridge = BridgeNode(
+            context=context, namespace=self.ns,
+            parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
+        self.listener = rclpy.create_node(f'listener_{n}', context=context)
+        self.msgs: dict[str, list[Any]] = {'/diagnostics': []}
+        self.listener.create_subscription(
+            DiagnosticArray, '/diagnostics', self._diag, 50)
+        for topic, msg_type in dict(topics).items():
+            self.msgs[topic] = []
+            self.listener.create_subscription(
+                msg_type, f'/{self.ns}/{topic}',
+                lambda m, t=topic: self.msgs[t].append(m), 50)
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.bridge)
+        self.executor.add_node(self.listener)
+        self.bus = can.Bus(interface='virtual', channel=self.channel)
+
+    def _diag(self, msg: DiagnosticArray) -> None:
+        # other tests (other processes) may publish on /diagnostics too: keep ours only
+        if any(s.hardware_id == f'virtual:{self.channel}' for s in msg.status):
+            self.msgs['/diagnostics'].append(msg)
+
+    def send(self, can_id: int, data: bytes | list[int], extended: bool = False) -> None:
+        self.bus.send(can.Message(arbitration_id=can_id, data=bytes(data),
+                                  is_extended_id=extended))
+
+    def spin_until(self, predicate: Callable[[], Any], timeout: float = 10.0) -> Any:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.05)
+            result = predicate()
+            if result:
+                return result
+        raise AssertionError(f'condition not met within {timeout} s')
+
+    def last(self, topic: str, predicate: Callable[[Any], bool] = lambda m: True,
+             timeout: float = 10.0) -> Any:
+        """Spin until a message on topic satisfies predicate; return the newest such."""
+        def found():
+            hits = [m for m in self.msgs[topic] if predicate(m)]
+            return hits[-1] if hits else None
+        return self.spin_until(found, timeout)
+
+    def status(self, name: str, predicate: Callable[[Any], bool] = lambda s: True,
+               timeout: float = 10.0) -> Any:
+        """Spin until a DiagnosticStatus named '<node>: name' satisfies predicate."""
+        full = f'ams_can_bridge: {name}'
+
+        def found():
+            for array in reversed(self.msgs['/diagnostics']):
+                for status in array.status:
+                    if status.name == full and predicate(status):
+                        return status
+            return None
+        return self.spin_until(found, timeout)
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.bridge.destroy_node()
+        self.listener.destroy_node()
+        self.bus.shutdown()
+
+
+@pytest.fixture
+def harness(context):
+    made: list[Harness] = []
+
+    def make(params: dict[str, Any], topics: dict[str, type] = ()) -> Harness:
+        h = Harness(context, params, topics)
+        made.append(h)
+        return h
+    yield make
+    for h in made:
+        h.close()
+
+
+def values(status) -> dict[str, str]:
+    return {kv.key: kv.value for kv in status.values}
+
+
+def approx_list(expected: list[float]):
+    return [pytest.approx(v, rel=1e-6, nan_ok=True) for v in expected]
+
+
+def level(status) -> int:
+    return status.level[0] if isinstance(status.level, bytes) else int(status.level)
+
+
+# --- CAN bus diagnostics ------------------------------------------------------------------
+def test_can_bus_status_without_devices(harness):
+    h = harness({'diagnostics_period': 0.2})
+    status = h.status('CAN bus', lambda s: values(s).get('state') == 'connected')
+    assert level(status) == 0
+    assert status.hardware_id == f'virtual:{h.channel}'
+    v = values(status)
+    for key in ('state', 'reason', 'frames in', 'frames out', 'malformed frames',
+                'error frames', 'reconnects', 'replay'):
+        assert key in v
+    assert v['replay'] == 'off'
+    assert v['frames out'] == '0'
+
+
+# --- parameters ---------------------------------------------------------------------------
+def test_numeric_parameters_accept_int_and_float_spellings(harness):
+    h = harness({'diagnostics_period': 1, 'can.reconnect_period': 2,
+                 'devices': ['ivt_s'], 'ivt_s.stale_timeout': 3, 'can.bitrate': 500000.0})
+    node = h.bridge
+    assert node.diagnostics_period == 1.0
+    assert node.bus_config.reconnect_period == 2.0
+    assert node.bus_config.bitrate == 500000 and isinstance(node.bus_config.bitrate, int)
+    assert node.devices['ivt_s'].stale_timeout == 3.0
+    # a later set with either spelling works too, and a bad one is refused with a reason
+    ok = node.set_parameters([Parameter('commands_enabled', value=True)])[0]
+    assert ok.successful and node.commands_enabled
+    bad = node.set_parameters([Parameter('commands_enabled', value=3)])[0]
+    assert not bad.successful
+
+
+def test_read_only_and_commands_enabled_gate(harness):
+    h = harness({'devices': ['bms16']})
+    node = h.bridge
+    refused = node.set_parameters([Parameter('can.channel', value='x')])[0]
+    assert not refused.successful
+    ok, message = node.transmit(Frame(506, b''))
+    assert not ok and 'commands_enabled' in message
+    assert node.can_io.status().frames_out == 0
+    assert node.set_parameters([Parameter('commands_enabled', value=True)])[0].successful
+    ok, message = node.transmit(Frame(506, b''))
+    assert ok, message
+    assert node.can_io.status().frames_out == 1
+
+
+@pytest.mark.parametrize('params, words', [
+    ({'devices': ['pack'], 'pack.type': 'zeva'}, ['pack.type', 'bms16']),
+    ({'devices': ['nosuch']}, ['nosuch.type', 'ams']),
+    ({'devices': ['ivt_s'], 'ivt_s.byte_order': 'middle'}, ['ivt_s.byte_order', 'big']),
+    ({'devices': ['ivt_s'], 'ivt_s.stale_timeout': -1.0}, ['ivt_s.stale_timeout', '3600']),
+    ({'can.options': ['novalue']}, ['can.options', 'key=value']),
+    ({'diagnostics_period': 'fast'}, ['diagnostics_period', 'number']),
+])
+def test_bad_parameters_name_what_to_change(context, params, words):
+    overrides = {'can.interface': 'virtual', 'can.channel': f'bad-{next(_ids)}'}
+    overrides.update(params)
+    with pytest.raises(ConfigError) as info:
+        BridgeNode(context=context, namespace=f'bad_{next(_ids)}',
+                   parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
+    for word in words:
+        assert word in str(info.value)
+
+
+# --- IVT-S -------------------------------------------------------------------------------
+def ivt(mux: int, counter: int, value: int) -> bytes:
+    """IVT-S result frame: b0 mux, b1 counter (bits 3..0), b2..5 int32 big-endian."""
+    return bytes([mux, counter & 0x0F]) + value.to_bytes(4, 'big', signed=True)
+
+
+def test_ivt_s_battery_state_sign_and_diagnostics(harness):
+    h = harness({'devices': ['shunt'], 'shunt.type': 'ivt_s', 'shunt.frame_id': 'pack',
+                 'diagnostics_period': 0.2},
+                {'shunt/battery_state': BatteryState})
+    h.send(0x522, ivt(1, 0, 403_500))  # U1 403.5 V
+    h.send(0x527, ivt(6, 0, -36_000))  # -36000 As = 10 Ah discharged (wire: + = discharge)
+    h.send(0x521, ivt(0, 0, 25_000))  # +25 A on the wire = discharging
+    msg = h.last('shunt/battery_state', lambda m: m.present and m.voltage == m.voltage)
+    assert msg.header.frame_id == 'pack'
+    assert msg.current == pytest.approx(-25.0)
+    assert msg.voltage == pytest.approx(403.5)
+    assert msg.charge == pytest.approx(10.0)
+    assert msg.power_supply_status == BatteryState.POWER_SUPPLY_STATUS_DISCHARGING
+    assert math.isnan(msg.percentage) and math.isnan(msg.temperature)
+    assert abs(msg.header.stamp.sec - time.time()) < 60
+    status = h.status('shunt', lambda s: level(s) != 3)
+    assert status.hardware_id == f'virtual:{h.channel}'
+    assert '-25.00 A' in status.message
+    assert values(status)['I raw (mA)'] == '25000'
+
+
+# --- BMS16 -------------------------------------------------------------------------------
+def bms16_status(error: int, soc: int, volts_x10: int, amps_x10: int, temp: int) -> bytes:
+    """ID 500: b0 error, b1 SoC, b2..3 0.1 V LE, b4..5 (raw-32768) 0.1 A LE, b6 degC."""
+    return (bytes([error, soc]) + volts_x10.to_bytes(2, 'little')
+            + (amps_x10 + 32768).to_bytes(2, 'little') + bytes([temp]))
+
+
+def bms16_cells(centivolts: list[int]) -> bytes:
+    """ID 501..503: low 8 bits of each cell, then b6 bit n = 9th bit of cell n."""
+    high = sum(((v >> 8) & 1) << n for n, v in enumerate(centivolts))
+    return bytes(v & 0xFF for v in centivolts) + bytes(6 - len(centivolts)) + bytes([high])
+
+
+def test_bms16_battery_state_and_cells(harness):
+    h = harness({'devices': ['bms16'], 'diagnostics_period': 0.2},
+                {'bms16/battery_state': BatteryState})
+    h.send(501, bms16_cells([330, 331, 250, 255, 256, 420]))
+    h.send(500, bms16_status(0, 80, 523, 125, 25))  # 12.5 A discharging
+    msg = h.last('bms16/battery_state', lambda m: m.present)
+    assert msg.voltage == pytest.approx(52.3)
+    assert msg.current == pytest.approx(-12.5)
+    assert msg.percentage == pytest.approx(0.8)
+    assert msg.temperature == pytest.approx(25.0)
+    assert msg.power_supply_status == BatteryState.POWER_SUPPLY_STATUS_DISCHARGING
+    assert msg.power_supply_health == BatteryState.POWER_SUPPLY_HEALTH_GOOD
+    assert len(msg.cell_voltage) == 16
+    assert list(msg.cell_voltage) == approx_list([3.30, 3.31, 2.50, 2.55, 2.56, 4.20]
+                                                 + [NAN] * 10)
+    status = h.status('bms16', lambda s: level(s) == 0)
+    assert 'SoC 80 %' in status.message
+    assert values(status)['cell 1 V'] == '3.3'
+    # an overvoltage error (3) -> ERROR level, health OVERVOLTAGE, published at once
+    h.send(500, bms16_status(3, 80, 523, -40, 25))  # 4.0 A charging
+    msg = h.last('bms16/battery_state', lambda m: m.power_supply_health == 4)
+    assert msg.current == pytest.approx(4.0)
+    assert msg.power_supply_status == BatteryState.POWER_SUPPLY_STATUS_CHARGING
+    status = h.status('bms16', lambda s: level(s) == 2)
+    assert 'CHARGE_DISABLED_OVERVOLTAGE' in status.message
