@@ -1,0 +1,389 @@
+"""
+Formula-Student AMS state: status, relays, errors, cells and temperatures, counter health.
+
+The primary frame is the AMS status (base + 0x000). Cells (28 per bank), cell temperatures
+(10 per bank) and discharge temperatures (14 per bank) arrive per bank and group every
+second; each group goes back to NaN when it has not been heard for ``CELL_STALE_FACTOR``
+x ``stale_timeout`` (never a stale number shown as live). Pack voltage, current and charge
+come from the attached IVT-S when there is one (the node attaches ``current_sensor``);
+without one the voltage is the sum of the cells once all are received and the current is
+unknown.
+
+Error bookkeeping: an AMS error event (0x014) stays *active* until the AMS next returns
+from ERROR / CHARGE_ERROR to another state, so a short error is not missed between two
+diagnostics publications.
+"""
+from __future__ import annotations
+
+import math
+import time
+from typing import Any, Callable, Mapping
+
+from ams_can_bridge.devices.ams_master import AmsView
+from ams_can_bridge.devices.base import (
+    BatteryReport, current_status, DiagnosticReport, Device, Level, ParamSpec,
+    PowerSupplyHealth, PowerSupplyStatus)
+from ams_can_bridge.protocols import ams as proto
+from ams_can_bridge.protocols.ams import AmsCodec, AmsError, AmsState
+
+NAN = math.nan
+ERROR_STATES = (AmsState.ERROR, AmsState.CHARGE_ERROR)
+# A counter anomaly stays visible (WARN) until this many good status frames followed it.
+COUNTER_RECOVERY_FRAMES = 10
+# Cells/temperatures are sent every 1 s, the status every 0.1 s: a group is stale after
+# this many status stale_timeouts (default 10 x 0.5 s = 5 s = 5 missed cell frames).
+CELL_STALE_FACTOR = 10.0
+HEALTH_OF_ERROR = {
+    AmsError.CELL_VOLTAGE_HIGH: PowerSupplyHealth.OVERVOLTAGE,
+    AmsError.CELL_VOLTAGE_LOW: PowerSupplyHealth.DEAD,
+    AmsError.CELL_TEMP_HIGH: PowerSupplyHealth.OVERHEAT,
+    AmsError.CELL_TEMP_LOW: PowerSupplyHealth.COLD,
+}
+
+
+def _bank_count(value: Any) -> int:
+    """Validate ams.bank_count (int 1..5; 3.0 from YAML is 3)."""
+    try:
+        count = int(value)
+        ok = count == float(value) and 1 <= count <= proto.MAX_BANKS
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise ValueError(f'ams.bank_count = {value!r}: allowed 1..{proto.MAX_BANKS} '
+                         '(banks of 28 cells)')
+    return count
+
+
+def _fmt(value: float, digits: int = 3) -> str:
+    return 'unknown' if value != value else f'{value:.{digits}f}'
+
+
+class _Array:
+    """Values of one kind for all 5 possible banks, by group, with the time each group came."""
+
+    def __init__(self, per_group: int, groups: int) -> None:
+        self.per_group = per_group
+        self.groups = groups
+        self.values = [NAN] * (per_group * groups * proto.MAX_BANKS)
+        self.seen = [-math.inf] * (groups * proto.MAX_BANKS)
+
+    def put(self, bank: int, group: int, values: tuple, now: float) -> None:
+        slot = (bank - 1) * self.groups + group
+        start = slot * self.per_group
+        self.values[start:start + self.per_group] = values
+        self.seen[slot] = now
+
+    def fresh(self, banks: int, now: float, max_age: float) -> list[float]:
+        """Values of banks 1..banks, NaN where the group was never heard or is too old."""
+        out = []
+        for slot in range(banks * self.groups):
+            start = slot * self.per_group
+            if now - self.seen[slot] <= max_age:
+                out.extend(self.values[start:start + self.per_group])
+            else:
+                out.extend([NAN] * self.per_group)
+        return out
+
+
+class AmsDevice(Device):
+    """Formula-Student AMS (accumulator management system), PROTOCOLS.md section 1."""
+
+    TYPE = 'ams'
+    BROADCAST_PERIOD = 0.1
+    DEFAULT_BASE_ID = proto.DEFAULT_BASE_ID
+    PARAMS = [
+        ParamSpec('current_sensor', str, '',
+                  "name of the ivt_s instance whose current/voltage/charge fill this pack's "
+                  "BatteryState ('' = the first ivt_s configured, if any)"),
+        ParamSpec('bank_count', int, 1,
+                  'number of banks (28 cells, 10 temperatures, 14 discharge temperatures '
+                  'each); also sent to the AMS in every car-status heartbeat',
+                  low=1, high=proto.MAX_BANKS, step=1, read_only=False),
+    ]
+
+    def __init__(self, name: str, params: Mapping[str, Any],
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        super().__init__(name, params, clock)
+        base_id = self.params.get('base_id')
+        self.codec = AmsCodec(proto.DEFAULT_BASE_ID if base_id is None else int(base_id))
+        self._banks = _bank_count(self.params.get('bank_count') or 1)
+        self.current_sensor: Any = None  # an IvtSDevice, attached by the node
+        self.state = AmsState.NOT_REPORTED
+        self.status_seq = 0
+        self.error_seq = 0
+        self.last_error: AmsError | None = None
+        self._last_error_tick: int | None = None
+        self._active_errors: list[AmsError] = []
+        self._status: proto.AmsStatus | None = None
+        self._stamp = NAN
+        self._status_seen = -math.inf
+        self._charger: proto.AmsChargerStatus | None = None
+        self._car: proto.CarStatus | None = None
+        self._charger_cmd: proto.ChargerCommand | None = None
+        self._override_current: float | None = None
+        self._override_banks: int | None = None
+        self._stuck_run = 0  # consecutive status frames repeating the counter
+        self._stuck_total = 0
+        self._lost_frames = 0
+        self._since_anomaly = COUNTER_RECOVERY_FRAMES
+        self._beyond_banks = 0
+        self._highest_bank = 0
+        self._cells = _Array(proto.CELLS_PER_GROUP, proto.CELL_GROUPS)
+        self._temps = _Array(proto.TEMPS_PER_GROUP, proto.TEMP_GROUPS)
+        self._discharge = _Array(proto.DISCHARGE_TEMPS_PER_GROUP, proto.TEMP_GROUPS)
+
+    # --- configuration ---------------------------------------------------------------------
+    def attach_current_sensor(self, ivt: Any) -> None:
+        """Use this IVT-S device (current_a/voltage_v/charge_ah) for the pack values."""
+        with self.lock:
+            self.current_sensor = ivt
+
+    @property
+    def bank_count(self) -> int:
+        """Return the configured bank count (follows ams.bank_count when changed)."""
+        try:
+            self._banks = _bank_count(self.params.get('bank_count', self._banks))
+        except ValueError:
+            pass  # the node validates the parameter; keep the last good value
+        return self._banks
+
+    # --- bus thread ------------------------------------------------------------------------
+    def _handle(self, reading: Any, stamp: float) -> bool:
+        now = self.clock()
+        kind = type(reading)
+        if kind is proto.AmsStatus:
+            self._on_status(reading, stamp, now)
+            return True
+        if kind is proto.CellVoltages:
+            self._bank_data(self._cells, reading, now)
+        elif kind is proto.CellTemperatures:
+            self._bank_data(self._temps, reading, now)
+        elif kind is proto.DischargeTemperatures:
+            self._bank_data(self._discharge, reading, now)
+        elif kind is proto.AmsErrorEvent:
+            self.error_seq += 1
+            self.last_error = reading.error
+            self._last_error_tick = reading.time_tick
+            if reading.error in self._active_errors:
+                self._active_errors.remove(reading.error)
+            self._active_errors.append(reading.error)  # most recent last
+        elif kind is proto.AmsChargerStatus:
+            self._charger = reading
+        elif kind is proto.CarStatus:
+            self._car = reading
+        elif kind is proto.ChargerCommand:
+            self._charger_cmd = reading
+        elif kind is proto.OverrideChargeCurrent:
+            self._override_current = reading.current_a
+        elif kind is proto.OverrideBankCount:
+            self._override_banks = reading.bank_count
+        return False
+
+    def _on_status(self, status: proto.AmsStatus, stamp: float, now: float) -> None:
+        previous = self._status
+        # After a silence longer than stale_timeout a restarted counter is no anomaly.
+        if previous is not None and now - self._status_seen <= self.stale_timeout:
+            expected = (previous.counter + 1) & 0xFF
+            if status.counter == previous.counter:
+                self._stuck_run += 1
+                self._stuck_total += 1
+                self._since_anomaly = 0
+            else:
+                self._stuck_run = 0
+                if status.counter != expected:
+                    self._lost_frames += (status.counter - expected) & 0xFF
+                    self._since_anomaly = 0
+                else:
+                    self._since_anomaly += 1
+        else:
+            self._stuck_run = 0
+        new_state = status.status.state
+        if self.state in ERROR_STATES and new_state not in ERROR_STATES:
+            self._active_errors.clear()  # the AMS left its error state: errors are history
+        self.state = new_state
+        self._status = status
+        self._stamp = stamp
+        self._status_seen = now
+        self.status_seq += 1
+
+    def _bank_data(self, array: _Array, reading: Any, now: float) -> None:
+        self._highest_bank = max(self._highest_bank, reading.bank)
+        if reading.bank > self.bank_count:
+            self._beyond_banks += 1
+        array.put(reading.bank, reading.group,
+                  reading.voltages_v if array is self._cells else reading.temperatures_c, now)
+
+    # --- what the commanding part waits on ------------------------------------------------
+    def active_errors(self) -> list[AmsError]:
+        """AMS error events since the AMS last left an error state (oldest first)."""
+        with self.lock:
+            return list(self._active_errors)
+
+    def master_view(self) -> AmsView:
+        """Return the AmsView the AMS master (heartbeat/commands) decides on."""
+        with self.lock:
+            return AmsView(state=int(self.state), status_seq=self.status_seq,
+                           error_seq=self.error_seq, errors=self._error_text(),
+                           stale=self.is_stale())
+
+    # --- executor side (lock held) ---------------------------------------------------------
+    def _max_cell_age(self) -> float:
+        return CELL_STALE_FACTOR * self.stale_timeout
+
+    def _cell_list(self) -> list[float]:
+        return self._cells.fresh(self.bank_count, self.clock(), self._max_cell_age())
+
+    def _temp_list(self) -> list[float]:
+        return self._temps.fresh(self.bank_count, self.clock(), self._max_cell_age())
+
+    def _pack(self) -> tuple[float, float, float]:
+        """Voltage, current (ROS sign), charge: from the IVT-S, else the cell sum."""
+        ivt = self.current_sensor
+        if ivt is not None:
+            return ivt.voltage_v(), ivt.current_a(), ivt.charge_ah()
+        cells = self._cell_list()
+        return (math.fsum(cells) if cells else NAN), NAN, NAN  # any NaN cell -> NaN sum
+
+    def _health(self) -> PowerSupplyHealth:
+        if self._status is None:
+            return PowerSupplyHealth.UNKNOWN
+        if self._active_errors:
+            return HEALTH_OF_ERROR.get(self._active_errors[-1], PowerSupplyHealth.UNSPEC_FAILURE)
+        word = self._status.status
+        if self.state in ERROR_STATES or word.ams_error or word.imd_error:
+            return PowerSupplyHealth.UNSPEC_FAILURE
+        return PowerSupplyHealth.GOOD
+
+    def _battery_report(self) -> BatteryReport:
+        voltage, current, charge = self._pack()
+        temps = [t for t in self._temp_list() if t == t]
+        status = self._status
+        if temps:
+            temperature = float(max(temps))
+        else:
+            temperature = float(status.temp_max_c) if status else NAN
+        soc = status.soc_pct if status else None
+        if self.state is AmsState.CHARGING:
+            supply = PowerSupplyStatus.CHARGING
+        else:
+            supply = current_status(current)
+        return BatteryReport(
+            stamp=self._stamp, voltage=voltage, current=current, charge=charge,
+            temperature=temperature,
+            percentage=soc / 100.0 if soc is not None and soc <= 100 else NAN,
+            power_supply_status=supply, power_supply_health=self._health(),
+            present=status is not None, cell_voltage=self._cell_list())
+
+    def _error_text(self) -> str:
+        return ', '.join(e.name for e in self._active_errors)
+
+    def _relays_text(self) -> str:
+        word = self._status.status
+        return ', '.join(f'{label} {"closed" if closed else "open"}' for label, closed in (
+            ('AIR+', word.air_plus), ('AIR-', word.air_minus), ('precharge', word.precharge)))
+
+    def _diagnostic_report(self) -> DiagnosticReport:
+        status = self._status
+        if status is None:
+            return DiagnosticReport(Level.STALE, 'no AMS status received yet',
+                                    self._values())
+        word = status.status
+        errors, warnings = [], []
+        if self.state in ERROR_STATES:
+            errors.append(f'AMS in {self.state.name}')
+        if self._active_errors:
+            errors.append('errors: ' + self._error_text())
+        if word.ams_error:
+            errors.append('AMS error bit set')
+        if word.imd_error:
+            errors.append('IMD error')
+        if word.warn_volt:
+            warnings.append('cell voltage close to its limits')
+        if word.warn_temp:
+            warnings.append('cell temperature close to its limits')
+        if self._stuck_run:
+            warnings.append(f'status counter stuck at {status.counter} '
+                            f'({self._stuck_run} repeated frames)')
+        elif self._since_anomaly < COUNTER_RECOVERY_FRAMES and self._lost_frames:
+            warnings.append(f'status counter jumped: {self._lost_frames} frames lost so far')
+        if self._beyond_banks:
+            warnings.append(f'{self._beyond_banks} frames from bank(s) up to '
+                            f'{self._highest_bank} beyond ams.bank_count = {self.bank_count}: '
+                            f'set ams.bank_count to {self._highest_bank}')
+        if word.bank_count != self.bank_count:
+            warnings.append(f'AMS reports {word.bank_count} bank(s), '
+                            f'ams.bank_count = {self.bank_count}')
+        if status.soc_pct > 100:
+            warnings.append(f'SOC {status.soc_pct} % out of range (shown as unknown)')
+        level = Level.ERROR if errors else Level.WARN if warnings else Level.OK
+        message = '; '.join([f'{self.state.name}', self._relays_text()] + errors + warnings)
+        return DiagnosticReport(level, message, self._values())
+
+    def _values(self) -> dict[str, str]:
+        values: dict[str, str] = {
+            'state': self.state.name,
+            'status frames': str(self.status_seq),
+            'bank count (configured)': str(self.bank_count),
+            'active errors': self._error_text() or 'none',
+            'last error': (f'{self.last_error.name} at tick {self._last_error_tick}'
+                           if self.last_error else 'none'),
+            'error events': str(self.error_seq),
+            'counter repeats': str(self._stuck_total),
+            'frames lost (counter jumps)': str(self._lost_frames),
+            'frames beyond bank count': str(self._beyond_banks),
+            'current sensor': getattr(self.current_sensor, 'name', '') or 'none',
+        }
+        status = self._status
+        if status is not None:
+            word = status.status
+            for field in ('air_plus', 'air_minus', 'precharge', 'warn_volt', 'warn_temp',
+                          'hvdc_interlock', 'imd_error', 'ams_error'):
+                values[field] = str(getattr(word, field)).lower()
+            values.update({
+                'bank count (AMS)': str(word.bank_count),
+                'volt_min (V)': f'{status.volt_min_v:.2f}',
+                'temp_max (degC)': str(status.temp_max_c),
+                'SOC (%)': str(status.soc_pct),
+                'counter': str(status.counter),
+                'relay error AIR-': str(status.relay_error_air_minus).lower(),
+                'relay error AIR+': str(status.relay_error_air_plus).lower(),
+                'relay error precharge': str(status.relay_error_precharge).lower(),
+            })
+        cells = self._cell_list()
+        known = [c for c in cells if c == c]
+        values['cells received'] = f'{len(known)}/{len(cells)}'
+        if known:
+            values['cell min (V)'] = f'{min(known):.2f}'
+            values['cell max (V)'] = f'{max(known):.2f}'
+            values['cell sum (V)'] = f'{math.fsum(known):.2f}'
+        temps = [t for t in self._temp_list() if t == t]
+        if temps:
+            values['cell temperature min/max (degC)'] = f'{min(temps):g}/{max(temps):g}'
+        if self._charger is not None:
+            values['charger status: SOC (%)'] = str(self._charger.soc_pct)
+            values['charger status: current (A)'] = _fmt(self._charger.charger_current_a, 1)
+            values['charger status: turn on charger'] = str(self._charger.charger_on).lower()
+        if self._car is not None:
+            values['car status: command'] = self._car.command.name
+            values['car status: bank count'] = str(self._car.bank_count)
+            values['car status: counter'] = str(self._car.counter)
+        if self._charger_cmd is not None:
+            values['charger command'] = (f'{self._charger_cmd.start.name} at tick '
+                                         f'{self._charger_cmd.time_tick}')
+        if self._override_current is not None:
+            values['override charge current (A)'] = f'{self._override_current:.1f}'
+        if self._override_banks is not None:
+            values['override bank count'] = str(self._override_banks)
+        return values
+
+    def extra_arrays(self) -> dict[str, tuple[int, int, list[float]]]:
+        """Temperatures and discharge temperatures, bank x sensor, NaN until received."""
+        with self.lock:
+            banks, now, age = self.bank_count, self.clock(), self._max_cell_age()
+            return {
+                'temperatures': (banks, proto.TEMPS_PER_BANK,
+                                 [float(t) for t in self._temps.fresh(banks, now, age)]),
+                'discharge_temperatures': (
+                    banks, proto.DISCHARGE_TEMPS_PER_BANK,
+                    [float(t) for t in self._discharge.fresh(banks, now, age)]),
+            }
