@@ -1,0 +1,205 @@
+"""
+ZEVA EVMS3 and BMS16 services: configuration write, setup mode, error acknowledge, SoC reset.
+
+Every configuration value is a parameter ``<name>.config.<field>`` in physical units, without
+a default: neither device can report its configuration, so writing a guess would overwrite
+the device. ``write_config`` refuses until every value is set and names all missing ones.
+Nothing is sent unless ``commands_enabled`` is true, and a refused call sends nothing: every
+frame of a call is built (and so validated) before the first one is sent.
+"""
+from __future__ import annotations
+
+import threading
+from typing import Any, Callable, Iterable
+
+from std_srvs.srv import SetBool, Trigger
+
+from ams_can_bridge.devices.base import Device, ParamSpec
+from ams_can_bridge.protocols import bms16 as bms16_proto
+from ams_can_bridge.protocols import evms3 as evms3_proto
+from ams_can_bridge.protocols.common import ConfigField, EncodeRangeError, Frame
+from ams_can_bridge.ros.config_params import config_param_specs, ConfigValues
+
+
+def gate_message(node: Any, what: str) -> str:
+    """Return the refusal text while commands are disabled (names the parameter)."""
+    return (f'commands_enabled is false: set the bridge parameter commands_enabled to true to '
+            f'{what} (ros2 param set {node.get_fully_qualified_name()} commands_enabled true); '
+            'nothing was sent')
+
+
+def frame_text(frame: Frame) -> str:
+    """Describe a frame as 'ID 32 (0x20) [01 02 ..]'."""
+    data = frame.data.hex(' ').upper() or 'no data'
+    return f'ID {frame.arbitration_id} (0x{frame.arbitration_id:X}) [{data}]'
+
+
+class _ZevaCommands:
+    """Shared plumbing: config values, the gate, all-or-nothing frame sequences, services."""
+
+    FIELDS: tuple[ConfigField, ...] = ()
+    PARAMS: list[ParamSpec] = []
+
+    def __init__(self, node: Any, device: Device, name: str) -> None:
+        """Load and check the configuration values; raises ParamError naming bad ones."""
+        self.node = node
+        self.device = device
+        self.name = name
+        self.config = ConfigValues(name, self.FIELDS, self._check)
+        self.config.load(node.device_params.get(name, {}))
+        self._mirror()
+        self._send_lock = threading.Lock()  # one call's frames are never interleaved
+        self._services: list[Any] = []
+
+    # --- hooks for the node ------------------------------------------------------------
+    def validate_parameter(self, full_name: str, value: Any) -> str | None:
+        """Refuse an out-of-range / off-step configuration value (reason = allowed range)."""
+        return self.config.reason(full_name, value)
+
+    def on_parameters_changed(self, changed: dict[str, Any]) -> None:
+        """Keep the configuration values (and the device's copy) up to date."""
+        self.config.update(changed)
+        self._mirror()
+
+    def on_commands_enabled(self, enabled: bool) -> None:
+        """Nothing runs in the background here: services check the gate on each call."""
+
+    def destroy(self) -> None:
+        """Remove the services."""
+        for service in self._services:
+            self.node.destroy_service(service)
+        self._services.clear()
+
+    # --- helpers -------------------------------------------------------------------------
+    def _check(self, name: str, value: Any) -> Any:
+        raise NotImplementedError
+
+    def _mirror(self) -> None:
+        # the device uses some values (BMS16 cell count, EVMS3 pack capacity for SoC)
+        with self.device.lock:
+            for name, value in self.config.values.items():
+                self.device.params['config.' + name] = value
+
+    def _service(self, srv_type: Any, suffix: str, handler: Callable) -> None:
+        self._services.append(self.node.create_service(
+            srv_type, f'{self.name}/{suffix}', handler,
+            callback_group=self.node.service_group))
+
+    def _trigger(self, what: str, build: Callable[[], Iterable[Frame]]) -> Callable:
+        """Make a Trigger callback that builds its frames, then sends them all in order."""
+        def callback(request: Any, response: Any) -> Any:
+            response.success, response.message = self._send_frames(what, build)
+            return response
+        return callback
+
+    def _send_frames(self, what: str, build: Callable[[], Iterable[Frame]]) -> tuple[bool, str]:
+        if not self.node.commands_enabled:
+            return False, gate_message(self.node, what)
+        try:
+            frames = list(build())  # validation happens here, before anything is sent
+        except _Refused as exc:
+            return False, f'{self.name}: cannot {what}: {exc}; nothing was sent'
+        except (EncodeRangeError, ValueError, TypeError) as exc:
+            return False, f'{self.name}: cannot {what}: {exc}; nothing was sent'
+        sent = []
+        with self._send_lock:
+            for frame in frames:
+                ok, message = self.node.transmit(frame)
+                if not ok:
+                    done = ', '.join(sent) if sent else 'nothing'
+                    return False, (f'{self.name}: {what} failed at {frame_text(frame)}: '
+                                   f'{message}; sent before it: {done}')
+                sent.append(frame_text(frame))
+        return True, f'{self.name}: {what}: sent ' + ', '.join(sent)
+
+    def _require_config(self, optional: Iterable[str] = ()) -> dict[str, Any]:
+        missing = self.config.missing(optional)
+        if missing:
+            raise _Refused(f'{len(missing)} configuration value(s) unset: '
+                           + ', '.join(missing) + ' (set them all: the device has no '
+                           'read-back, a write overwrites every value)')
+        return self.config.as_mapping()
+
+    def _base_id(self, default: int) -> int:
+        base = self.device.params.get('base_id')
+        return default if base is None else int(base)
+
+
+class _Refused(Exception):
+    """A call that cannot go ahead (the message says what to change)."""
+
+
+class Evms3Commands(_ZevaCommands):
+    """EVMS3: write_config (IDs 32..36), set_setup_mode (31), acknowledge_error (37), reset_soc."""
+
+    FIELDS = evms3_proto.CONFIG_FIELDS
+    PARAMS = config_param_specs(FIELDS)
+
+    def __init__(self, node: Any, device: Device, name: str) -> None:
+        """Create the codec and the services of one EVMS3 instance."""
+        super().__init__(node, device, name)
+        self.codec = evms3_proto.Evms3Codec(self._base_id(30), bms12_modules=0)
+        self._service(Trigger, 'write_config', self._trigger('write the configuration',
+                                                             self._config_frames))
+        self._service(SetBool, 'set_setup_mode', self._set_setup_mode)
+        self._service(Trigger, 'acknowledge_error', self._trigger('acknowledge the error',
+                                                                  self._ack_frames))
+        self._service(Trigger, 'reset_soc', self._trigger(
+            'reset the SoC', lambda: [self.codec.encode(evms3_proto.ResetSoc())]))
+
+    def _check(self, name: str, value: Any) -> Any:
+        return evms3_proto.check_config_value(name, value)
+
+    def _config_frames(self) -> list[Frame]:
+        mode = self.config.values.get('balance_mode')
+        optional = ('balance_v',) if mode in ('dynamic', 'off') else ()
+        values = self._require_config(optional)
+        cells = values.pop('cells_per_module')
+        cfg = evms3_proto.Evms3Config.from_mapping(values)
+        return self.codec.config_frames(cfg) + [
+            self.codec.encode(evms3_proto.BmsCellNumbers(tuple(cells)))]
+
+    def _ack_frames(self) -> list[Frame]:
+        if self.device.is_stale():
+            raise _Refused('the EVMS3 is stale (no status frame within its stale_timeout), so '
+                           'its error is unknown')
+        with self.device.lock:
+            error = getattr(self.device, 'error', None)
+        if error is None or int(error) == 0:
+            raise _Refused('the EVMS3 reports no error to acknowledge')
+        return [self.codec.encode(evms3_proto.AcknowledgeError(
+            evms3_proto.Evms3Error(int(error))))]
+
+    def _set_setup_mode(self, request: Any, response: Any) -> Any:
+        setup = bool(request.data)
+        what = 'enter Setup mode' if setup else 'return to Idle'
+        response.success, response.message = self._send_frames(
+            what, lambda: [self.codec.encode(evms3_proto.SetState(setup))])
+        return response
+
+
+class Bms16Commands(_ZevaCommands):
+    """BMS16: write_config (504, 505), acknowledge_error, reset_soc, power_off (506..508)."""
+
+    FIELDS = bms16_proto.CONFIG_FIELDS
+    PARAMS = config_param_specs(FIELDS)
+
+    def __init__(self, node: Any, device: Device, name: str) -> None:
+        """Create the codec and the services of one BMS16 instance."""
+        super().__init__(node, device, name)
+        self.codec = bms16_proto.Bms16Codec(self._base_id(bms16_proto.DEFAULT_BASE_ID))
+        self._service(Trigger, 'write_config', self._trigger('write the configuration',
+                                                             self._config_frames))
+        self._service(Trigger, 'acknowledge_error', self._trigger(
+            'acknowledge the error', lambda: [self.codec.acknowledge_error()]))
+        self._service(Trigger, 'reset_soc', self._trigger(
+            'reset the SoC', lambda: [self.codec.reset_soc()]))
+        self._service(Trigger, 'power_off', self._trigger(
+            'power the BMS16 off', lambda: [self.codec.power_off()]))
+
+    def _check(self, name: str, value: Any) -> Any:
+        return bms16_proto.check_config_value(name, value)
+
+    def _config_frames(self) -> list[Frame]:
+        values = self._require_config()
+        return self.codec.config_frames(bms16_proto.Bms16Config(**values))
