@@ -64,7 +64,7 @@ class Harness:
 
     def _diag(self, msg: DiagnosticArray) -> None:
         # other tests (other processes) may publish on /diagnostics too: keep ours only
-        if any(s.hardware_id == f'virtual:{self.channel}' for s in msg.status):
+        if any(s.hardware_id == self.bridge.hardware_id for s in msg.status):
             self.msgs['/diagnostics'].append(msg)
 
     def send(self, can_id: int, data: bytes | list[int], extended: bool = False) -> None:

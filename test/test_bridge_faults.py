@@ -1,0 +1,114 @@
+"""
+The bridge under faults: missing adapter, unplugged adapter, malformed frames, silent device.
+
+The adapter is a real slcan peer on a pty (python-can's real slcan driver on the bridge
+side); malformed / silent devices use the virtual bus. Nothing may print a traceback.
+"""
+from __future__ import annotations
+
+import time
+
+from sensor_msgs.msg import BatteryState
+from slcan_peer import SlcanPeer
+from test_bridge_node import bms16_status, context, harness, level, values  # noqa: F401
+
+from ams_can_bridge.protocols.common import Frame
+
+ERROR, STALE = 2, 3
+
+
+def slcan_params(peer: SlcanPeer) -> dict:
+    return {'can.interface': 'slcan', 'can.channel': peer.channel,
+            'can.options': ['sleep_after_open=0'], 'can.reconnect_period': 0.2,
+            'diagnostics_period': 0.2}
+
+
+def test_missing_adapter_then_plugged_in(harness, tmp_path, capfd):
+    peer = SlcanPeer(symlink=tmp_path / 'ttyCAN0', plugged=False)
+    try:
+        h = harness(slcan_params(peer))
+        status = h.status('CAN bus', lambda s: level(s) == ERROR)
+        assert values(status)['state'] == 'error'
+        assert values(status)['reason']
+        assert values(status)['reason'] in status.message
+        peer.reopen()  # plug the adapter in: the node recovers alone
+        status = h.status('CAN bus', lambda s: values(s)['state'] == 'connected')
+        assert level(status) == 0
+        peer.wait_open()
+    finally:
+        peer.shutdown()
+    assert 'Traceback' not in capfd.readouterr().err
+
+
+def test_adapter_unplugged_while_running_reconnects(harness, tmp_path, capfd):
+    peer = SlcanPeer(symlink=tmp_path / 'ttyCAN1')
+    try:
+        h = harness(dict(slcan_params(peer), devices=['bms16']),
+                    {'bms16/battery_state': BatteryState})
+        h.status('CAN bus', lambda s: values(s)['state'] == 'connected')
+        peer.wait_open()
+        peer.close()  # unplugged
+        status = h.status('CAN bus', lambda s: values(s)['state'] == 'reconnecting')
+        assert level(status) == ERROR
+        peer.reopen()
+        status = h.status('CAN bus', lambda s: values(s)['state'] == 'connected'
+                          and int(values(s)['reconnects']) >= 1)
+        assert level(status) == 0
+        peer.wait_open()
+        # data flows again through the new connection
+        h.spin_until(lambda: peer.send(Frame(500, bms16_status(0, 55, 500, 0, 20)))
+                     and any(m.present and abs(m.percentage - 0.55) < 1e-6
+                             for m in h.msgs['bms16/battery_state']))
+    finally:
+        peer.shutdown()
+    assert 'Traceback' not in capfd.readouterr().err
+
+
+def test_malformed_frames_counted_never_published(harness, capfd):
+    h = harness({'devices': ['bms16'], 'diagnostics_period': 0.2},
+                {'bms16/battery_state': BatteryState})
+    for _ in range(3):
+        h.send(500, bytes([0, 99, 1]))  # DLC 3 instead of 7
+    status = h.status('CAN bus', lambda s: values(s)['malformed frames'] == '3')
+    assert level(status) == 0
+    device = h.status('bms16', lambda s: values(s).get('frames malformed') == '3')
+    assert 'DLC 3' in values(device)['last malformed frame']
+    assert not any(m.present for m in h.msgs['bms16/battery_state'])
+    # the node is alive and still decodes good frames
+    h.send(500, bms16_status(0, 42, 480, 0, 21))
+    msg = h.last('bms16/battery_state', lambda m: m.present)
+    assert abs(msg.percentage - 0.42) < 1e-6
+    h.spin_until(lambda: 'malformed frame' in capfd.readouterr().err, timeout=5)
+    # the malformed log is throttled: more bad frames within 5 s add no log line
+    for _ in range(5):
+        h.send(500, bytes([0]))
+    h.status('CAN bus', lambda s: values(s)['malformed frames'] == '8')
+    end = time.monotonic() + 1.0  # several watch periods
+    h.spin_until(lambda: time.monotonic() > end)
+    assert 'malformed frame' not in capfd.readouterr().err
+
+
+def test_silent_device_goes_stale_and_comes_back(harness, capfd):
+    h = harness({'devices': ['bms16'], 'bms16.stale_timeout': 0.5,
+                 'diagnostics_period': 0.2},
+                {'bms16/battery_state': BatteryState})
+    h.send(500, bms16_status(0, 70, 510, 0, 22))
+    h.last('bms16/battery_state', lambda m: m.present)
+    h.status('bms16', lambda s: level(s) == 0)
+    status = h.status('bms16', lambda s: level(s) == STALE)
+    assert 'stale' in status.message
+    # present:false at about 1 Hz while stale
+    first = len(h.msgs['bms16/battery_state'])
+    h.spin_until(lambda: len(h.msgs['bms16/battery_state']) >= first + 2, timeout=6)
+    late = h.msgs['bms16/battery_state'][first:]
+    assert late and not any(m.present for m in late)
+    stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in late]
+    assert stamps == sorted(stamps)
+    h.send(500, bms16_status(0, 71, 510, 0, 22))
+    msg = h.last('bms16/battery_state', lambda m: m.present and m.percentage > 0.705)
+    assert msg.present
+    h.status('bms16', lambda s: level(s) == 0)
+    err = [capfd.readouterr().err]
+    h.spin_until(lambda: err.append(capfd.readouterr().err) or 'receiving again' in ''.join(err))
+    assert 'STALE' in ''.join(err)
+    assert 'Traceback' not in ''.join(err)
