@@ -1,0 +1,245 @@
+"""
+ZEVA EVMS3 state: status (ID 30), battery current (ID 40) and BMS12 cell modules.
+
+The EVMS3 does not send its state of charge: SoC = remaining Ah / ``config.pack_capacity_ah``
+(a configuration value the commanding part declares), NaN while that is unset. The current
+on the wire is positive while discharging; BatteryState wants the opposite sign.
+"""
+from __future__ import annotations
+
+import math
+import time
+from typing import Any, Callable, Mapping
+
+from ams_can_bridge.devices.base import (
+    BatteryReport, current_status, DiagnosticReport, Device, Level, ParamSpec,
+    PowerSupplyHealth, PowerSupplyStatus)
+from ams_can_bridge.protocols.evms3 import (
+    BatteryCurrent, BMS12_MAX_MODULES, Bms12Cells, Bms12Temperatures, Evms3Codec, Evms3Error,
+    Evms3State, Evms3Status, EVMS3_WARNINGS)
+
+NAN = math.nan
+CELLS_PER_BMS12 = 12  # t = 1..3 carry 3 x 4 cells: a module cannot report more
+# The EVMS polls each BMS12 at least once a second (else the module stops balancing):
+# three missed polls make a module's cells unknown, whatever the status stale_timeout is.
+BMS12_STALE_TIMEOUT = 3.0
+
+_HEALTH = {
+    Evms3Error.BMS_SHUTDOWN: PowerSupplyHealth.DEAD,
+    Evms3Error.HIGH_CELL_WARNING: PowerSupplyHealth.OVERVOLTAGE,
+    Evms3Error.BMS_ENDED_CHARGE: PowerSupplyHealth.OVERVOLTAGE,
+    Evms3Error.BMS_OVER_TEMP: PowerSupplyHealth.OVERHEAT,
+    Evms3Error.OVERTEMPERATURE: PowerSupplyHealth.OVERHEAT,
+    Evms3Error.BMS_UNDER_TEMP: PowerSupplyHealth.COLD,
+}
+
+
+def error_health(error: Evms3Error) -> PowerSupplyHealth:
+    """Map an EVMS3 error code to sensor_msgs power_supply_health."""
+    if error in _HEALTH:
+        return _HEALTH[error]
+    if error == Evms3Error.NONE or error in EVMS3_WARNINGS:
+        return PowerSupplyHealth.GOOD
+    return PowerSupplyHealth.UNSPEC_FAILURE
+
+
+def error_text(error: Evms3Error) -> str:
+    """Say 'no error', 'warning NAME (n)' or 'error NAME (n)'."""
+    if error == Evms3Error.NONE:
+        return 'no error'
+    kind = 'warning' if error in EVMS3_WARNINGS else 'error'
+    return f'{kind} {error.name} ({int(error)})'
+
+
+class _Module:
+    """Last readings of one BMS12 module, with when each frame came (Device.clock())."""
+
+    def __init__(self) -> None:
+        self.cells = [NAN] * CELLS_PER_BMS12
+        self.cells_seen = [-math.inf] * 3  # per t = 1..3
+        self.temps = (NAN, NAN)
+        self.temps_seen = -math.inf
+
+    def last_seen(self) -> float:
+        return max(max(self.cells_seen), self.temps_seen)
+
+
+class Evms3Device(Device):
+    """ZEVA EVMS3 (+ BMS12 modules): BatteryState from ID 30/40 and the module cells."""
+
+    TYPE = 'evms3'
+    BROADCAST_PERIOD = 0.25
+    DEFAULT_BASE_ID = 30
+    PARAMS = [
+        ParamSpec('bms12_modules', int, 0,
+                  'how many BMS12 modules (IDs 300 + 10 m) to expect, 0..16; cells per '
+                  'module: 12, or config.cells_per_module when set', low=0, high=16, step=1),
+    ]
+
+    def __init__(self, name: str, params: Mapping[str, Any],
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        super().__init__(name, params, clock)
+        base_id = self.params.get('base_id')
+        self.base_id = self.DEFAULT_BASE_ID if base_id is None else int(base_id)
+        modules = int(self.params.get('bms12_modules') or 0)
+        if not 0 <= modules <= BMS12_MAX_MODULES:
+            raise ValueError(f'{name}.bms12_modules = {modules}: allowed 0..16')
+        self.bms12_modules = modules
+        self.codec = Evms3Codec(self.base_id, bms12_modules=modules)
+        self.module_timeout = max(self.stale_timeout, BMS12_STALE_TIMEOUT)
+        self._status: Evms3Status | None = None
+        self._stamp = NAN
+        self._current_a = NAN  # wire sign: positive = discharge
+        self._current_seen = -math.inf
+        self._modules = [_Module() for _ in range(modules)]
+
+    # --- what the commanding part reads ------------------------------------------------------
+    @property
+    def status(self) -> Evms3Status | None:
+        """Last decoded ID 30 frame (None before the first)."""
+        with self.lock:
+            return self._status
+
+    @property
+    def error(self) -> Evms3Error | None:
+        """Return the error code the EVMS reports now (None before the first status)."""
+        status = self.status
+        return None if status is None else status.error
+
+    @property
+    def state(self) -> Evms3State | None:
+        """EVMS operating mode now (None before the first status frame)."""
+        status = self.status
+        return None if status is None else status.state
+
+    # --- bus thread --------------------------------------------------------------------------
+    def _handle(self, reading: Any, stamp: float) -> bool:
+        if isinstance(reading, Evms3Status):
+            self._status = reading
+            self._stamp = stamp
+            return True
+        if isinstance(reading, BatteryCurrent):
+            self._current_a = reading.current_a
+            self._current_seen = self.clock()
+        elif isinstance(reading, Bms12Cells):
+            module = self._modules[reading.module]
+            module.cells[reading.first_cell:reading.first_cell + 4] = reading.voltages_v
+            module.cells_seen[reading.first_cell // 4] = self.clock()
+        elif isinstance(reading, Bms12Temperatures):
+            module = self._modules[reading.module]
+            module.temps = tuple(float(t) for t in reading.temperatures_c)
+            module.temps_seen = self.clock()
+        # Requests from the EVMS and our own commands seen on the bus carry no state.
+        return False
+
+    # --- helpers (lock held) -----------------------------------------------------------------
+    def _cells_per_module(self) -> list[int]:
+        configured = self.params.get('config.cells_per_module')
+        if configured is not None and len(configured) >= self.bms12_modules:
+            return [min(int(n), CELLS_PER_BMS12) for n in configured[:self.bms12_modules]]
+        return [CELLS_PER_BMS12] * self.bms12_modules
+
+    def _capacity_ah(self) -> float:
+        capacity = self.params.get('config.pack_capacity_ah')
+        if capacity is None or isinstance(capacity, bool):
+            return NAN
+        capacity = float(capacity)
+        return capacity if capacity > 0 else NAN
+
+    def _ros_current(self) -> float:
+        if self.clock() - self._current_seen > self.stale_timeout:
+            return NAN
+        return -self._current_a
+
+    def _module_cells(self, m: int, count: int) -> list[float]:
+        module = self._modules[m]
+        now = self.clock()
+        return [module.cells[i] if now - module.cells_seen[i // 4] <= self.module_timeout
+                else NAN for i in range(count)]
+
+    def _module_temps(self, m: int) -> tuple[float, float]:
+        module = self._modules[m]
+        if self.clock() - module.temps_seen > self.module_timeout:
+            return (NAN, NAN)
+        return module.temps
+
+    def _silent_modules(self) -> list[int]:
+        now = self.clock()
+        return [m for m, module in enumerate(self._modules)
+                if now - module.last_seen() > self.module_timeout]
+
+    # --- executor side -----------------------------------------------------------------------
+    def _battery_report(self) -> BatteryReport:
+        current = self._ros_current()
+        capacity = self._capacity_ah()
+        cells: list[float] = []
+        for m, count in enumerate(self._cells_per_module()):
+            cells += self._module_cells(m, count)
+        report = BatteryReport(current=current, capacity=capacity, design_capacity=capacity,
+                               cell_voltage=cells)
+        status = self._status
+        if status is None:
+            report.power_supply_status = current_status(current)
+            return report
+        report.stamp = self._stamp
+        report.voltage = status.pack_voltage_v
+        report.charge = status.amp_hours_ah
+        if capacity == capacity:  # NaN while config.pack_capacity_ah is unset
+            report.percentage = min(1.0, max(0.0, status.amp_hours_ah / capacity))
+        report.temperature = NAN if status.temperature_c is None else float(status.temperature_c)
+        report.power_supply_status = (PowerSupplyStatus.CHARGING
+                                      if status.state == Evms3State.CHARGING
+                                      else current_status(current))
+        report.power_supply_health = error_health(status.error)
+        report.present = True
+        return report
+
+    def _diagnostic_report(self) -> DiagnosticReport:
+        status = self._status
+        values: dict[str, str] = {}
+        if status is None:
+            return DiagnosticReport(Level.OK, 'no status frame (ID 30) yet', values)
+        capacity = self._capacity_ah()
+        current = self._ros_current()
+        values.update({
+            'state': status.state.name,
+            'error': error_text(status.error),
+            'error code': str(int(status.error)),
+            'amp hours remaining (Ah)': f'{status.amp_hours_ah:.1f}',
+            'state of charge (%)': ('unknown: config.pack_capacity_ah unset'
+                                    if capacity != capacity
+                                    else f'{100 * status.amp_hours_ah / capacity:.1f}'),
+            'pack voltage (V)': f'{status.pack_voltage_v:.1f}',
+            'aux voltage (V)': f'{status.aux_voltage_v:.1f}',
+            'headlights': 'on' if status.headlights else 'off',
+            'isolation (%)': ('not measured' if status.isolation_pct is None
+                              else str(status.isolation_pct)),
+            'temperature (degC)': ('no sensor' if status.temperature_c is None
+                                   else str(status.temperature_c)),
+            'current (A, discharge negative)': ('not received (ID 40)' if current != current
+                                                else f'{current:.3f}'),
+        })
+        for m, count in enumerate(self._cells_per_module()):
+            cells = [v for v in self._module_cells(m, count) if v == v]
+            temps = self._module_temps(m)
+            seen = self._modules[m].last_seen()
+            values[f'module {m} cells'] = f'{len(cells)}/{count} received'
+            if cells:
+                values[f'module {m} cell min (V)'] = f'{min(cells):.3f}'
+                values[f'module {m} cell max (V)'] = f'{max(cells):.3f}'
+            values[f'module {m} temperatures (degC)'] = ', '.join(
+                'unknown' if t != t else f'{t:g}' for t in temps)
+            values[f'module {m} last heard'] = ('never' if seen == -math.inf
+                                                else f'{self.clock() - seen:.1f} s ago')
+        if status.error == Evms3Error.NONE:
+            level = Level.OK
+        elif status.error in EVMS3_WARNINGS:
+            level = Level.WARN
+        else:
+            level = Level.ERROR
+        message = f'{status.state.name}, {error_text(status.error)}'
+        silent = self._silent_modules()
+        if silent:
+            level = max(level, Level.WARN)
+            message += '; BMS12 module(s) silent: ' + ', '.join(str(m) for m in silent)
+        return DiagnosticReport(level, message, values)
