@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import inspect
 import logging
 import signal
 import sys
@@ -89,6 +90,9 @@ def build_devices(types: Sequence[str], ams_banks: int | None = None,
             kwargs['bank_count'] = ams_banks
         elif kind == 'evms3' and bms12_modules is not None:
             kwargs['bms12_modules'] = bms12_modules
+        elif kind == 'bms16' and 'sma' in types and _accepts(cls, 'send_sma'):
+            # The BMS16 also speaks SMA (0x351...): two sources of one ID would clash.
+            kwargs['send_sma'] = False
         elif kind == 'ivt_s':
             if ivt_byte_order is not None:
                 kwargs['byte_order'] = ivt_byte_order
@@ -101,6 +105,13 @@ def build_devices(types: Sequence[str], ams_banks: int | None = None,
             ams = device
         devices.append(device)
     return devices
+
+
+def _accepts(cls: type, name: str) -> bool:
+    try:
+        return name in inspect.signature(cls).parameters
+    except (TypeError, ValueError):
+        return False
 
 
 _FAULT_FIELDS = {'silent': 'silent', 'malformed': 'malformed', 'error': 'error_code',
@@ -144,7 +155,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         devices = build_devices(args.devices, args.ams_banks, args.bms12_modules,
                                 args.ivt_byte_order)
         apply_faults(devices, args.fault)
-    except (ValueError, TypeError) as exc:
+    except (ValueError, TypeError, ImportError) as exc:
         print(f'simulator: {exc}', file=sys.stderr)
         return 2
     try:

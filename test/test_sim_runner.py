@@ -1,0 +1,221 @@
+"""SimRunner on python-can's virtual bus, and the ``simulator`` executable as a process."""
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import time
+import uuid
+
+import can
+import pytest
+
+from ams_can_bridge import registry
+from ams_can_bridge.protocols.common import Frame
+from ams_can_bridge.sim.base import Periodic, SimDevice
+from ams_can_bridge.sim.main import apply_faults, build_devices
+from ams_can_bridge.sim.runner import open_bus, SimRunner
+
+sys.path.insert(0, str(Path(__file__).parent))
+from slcan_peer import SlcanPeer  # noqa: E402, I100
+
+SIMULATOR = str(Path(sys.executable).parent / 'simulator')
+
+
+def wait_for(predicate, timeout=5.0, what='condition'):
+    """Poll predicate until true; fail naming what did not happen."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return
+        time.sleep(0.01)
+    raise AssertionError(f'timed out waiting for {what}')
+
+
+class Counter(SimDevice):
+    """A tiny simulated device: a counter frame every 10 ms, remembers what it hears."""
+
+    TYPE = 'counter'
+
+    def __init__(self, name=None, arbitration_id=0x100, fail=False):
+        super().__init__(name)
+        self.arbitration_id = arbitration_id
+        self.period = Periodic(0.01)
+        self.count = 0
+        self.heard = []
+        self.fail = fail
+
+    def tick(self, now):
+        if self.fail:
+            raise RuntimeError('model bug')
+        if self.faults.silent or not self.period.due(now):
+            return []
+        self.count = (self.count + 1) % 256
+        return [Frame(self.arbitration_id, bytes([self.count]), False)]
+
+    def on_frame(self, frame, now):
+        self.heard.append(frame)
+
+
+@pytest.fixture
+def channel():
+    return f'test_sim_{uuid.uuid4().hex[:8]}'
+
+
+def test_runner_sends_ticks_and_delivers_received_frames(channel):
+    sim_bus = open_bus('virtual', channel)
+    listener = can.Bus(interface='virtual', channel=channel)
+    device = Counter()
+    runner = SimRunner(sim_bus, [device])
+    runner.start()
+    try:
+        seen = []
+        deadline = time.monotonic() + 5
+        while len(seen) < 10 and time.monotonic() < deadline:
+            msg = listener.recv(0.5)
+            if msg is not None:
+                seen.append(msg)
+        assert len(seen) == 10
+        assert {m.arbitration_id for m in seen} == {0x100}
+        counts = [m.data[0] for m in seen]
+        assert counts == list(range(counts[0], counts[0] + 10))  # in order, none lost
+        assert all(not m.is_extended_id for m in seen)
+        listener.send(can.Message(arbitration_id=0x005, data=b'\x21\x00', is_extended_id=False))
+        wait_for(lambda: device.heard, what='device heard the frame')
+        assert device.heard == [Frame(0x005, b'\x21\x00', False)]
+        assert runner.frames_received == 1
+        assert runner.frames_sent >= 10
+        assert runner.ids_by_device == {'counter': {(0x100, False)}}
+    finally:
+        runner.stop()
+        sim_bus.shutdown()
+        listener.shutdown()
+    assert not runner.running
+
+
+def test_runner_survives_device_and_send_errors(channel, caplog):
+    sim_bus = open_bus('virtual', channel)
+    good, bad = Counter('good'), Counter('bad', 0x200, fail=True)
+    runner = SimRunner(sim_bus, [bad, good])
+    runner.start()
+    try:
+        wait_for(lambda: runner.frames_sent >= 5, what='good device keeps sending')
+        assert runner.device_errors > 0
+        assert 'bad.tick failed' in runner.last_error
+        sim_bus.shutdown()   # the adapter goes away under the runner
+        wait_for(lambda: runner.send_errors > 0, what='send errors counted')
+        assert runner.running
+    finally:
+        runner.stop()
+    assert not runner.running
+
+
+def test_shared_ids_are_reported(channel):
+    bus = open_bus('virtual', channel)
+    try:
+        runner = SimRunner(bus, [Counter('a'), Counter('b')])
+        runner.step(0.0)
+        assert runner.shared_ids() == [(0x100, False)]
+    finally:
+        bus.shutdown()
+
+
+def test_tick_period_must_be_positive(channel):
+    bus = open_bus('virtual', channel)
+    try:
+        with pytest.raises(ValueError, match='tick_period'):
+            SimRunner(bus, [], tick_period=0)
+    finally:
+        bus.shutdown()
+
+
+def test_faults_are_applied_by_device_name():
+    devices = [Counter('bms16'), Counter('evms3')]
+    apply_faults(devices, [('bms16', 'silent', True), ('evms3', 'error', 12),
+                           ('evms3', 'drift', 0.3), ('evms3', 'stuck_relay', True)])
+    assert devices[0].faults.silent
+    assert devices[1].faults.error_code == 12
+    assert devices[1].faults.cell_drift_v == 0.3
+    assert devices[1].faults.extra == {'stuck_relay': True}
+    with pytest.raises(ValueError, match="'sma'"):
+        apply_faults(devices, [('sma', 'silent', True)])
+
+
+def available_types():
+    """Return the simulator types whose module exists in this checkout."""
+    types = []
+    for kind, path in registry.SIMULATORS.items():
+        try:
+            registry.load(path)
+        except (ImportError, AttributeError):
+            continue
+        types.append(kind)
+    return types
+
+
+def test_build_devices_gives_each_type_its_options():
+    types = available_types()
+    devices = build_devices(types, ams_banks=2, bms12_modules=3, ivt_byte_order='little')
+    assert [d.name for d in devices] == types
+    for device in devices:
+        assert device.tick(0.0) is not None
+
+
+def run_simulator(*args, timeout=30):
+    return subprocess.run([SIMULATOR, *args], capture_output=True, text=True,
+                          timeout=timeout, env=dict(os.environ))
+
+
+def test_simulator_on_virtual_runs_for_duration_and_exits_0():
+    result = run_simulator('--duration', '1', '--interface', 'virtual',
+                           '--devices', ','.join(available_types()))
+    assert result.returncode == 0, result.stderr
+    assert 'Traceback' not in result.stderr
+    assert 'virtual:ams_can_bridge' in result.stderr        # startup summary
+    assert 'stopped:' in result.stderr
+
+
+def test_simulator_bus_that_cannot_open_exits_2_with_a_clear_message(tmp_path):
+    result = run_simulator('--interface', 'slcan', '--channel', str(tmp_path / 'nothing'),
+                           '--option', 'sleep_after_open=0', '--duration', '1',
+                           '--devices', ','.join(available_types()))
+    assert result.returncode == 2
+    assert 'cannot open CAN bus slcan:' in result.stderr
+    assert 'Traceback' not in result.stderr
+
+
+def test_simulator_bad_arguments_exit_2():
+    assert run_simulator('--devices', 'toaster').returncode == 2
+    result = run_simulator('--fault', 'nobody:silent', '--duration', '0.1',
+                           '--devices', available_types()[0])
+    assert result.returncode == 2
+    assert "'nobody'" in result.stderr
+
+
+def test_simulator_across_processes_on_slcan_and_sigterm(tmp_path):
+    """The simulator's frames reach another process through a (fake) USB-CAN adapter."""
+    types = [t for t in ('bms16', 'ivt_s') if t in available_types()]
+    assert types, 'no simulator available'
+    peer = SlcanPeer(symlink=tmp_path / 'ttyCAN0')
+    proc = subprocess.Popen(
+        [SIMULATOR, '--interface', 'slcan', '--channel', peer.channel, '--bitrate', '500000',
+         '--option', 'sleep_after_open=0', '--devices', ','.join(types)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        peer.wait_open(timeout=20)
+        frames = peer.wait_received(20, timeout=20)
+        ids = {f.arbitration_id for f in frames}
+        if 'bms16' in types:
+            assert 500 in ids          # BMS16 status, 4 Hz
+        if 'ivt_s' in types:
+            assert 0x521 in ids        # IVT-S current
+        assert peer.bitrate_command == 'S6'
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+        peer.close()
+    assert proc.returncode == 0, err
+    assert 'Traceback' not in err
