@@ -19,6 +19,7 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import BatteryState
+from std_msgs.msg import Float32MultiArray
 
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.ros.bridge_node import BridgeNode, ConfigError
@@ -260,3 +261,104 @@ def test_bms16_battery_state_and_cells(harness):
     assert msg.power_supply_status == BatteryState.POWER_SUPPLY_STATUS_CHARGING
     status = h.status('bms16', lambda s: level(s) == 2)
     assert 'CHARGE_DISABLED_OVERVOLTAGE' in status.message
+
+
+# --- AMS (+ IVT-S) -----------------------------------------------------------------------
+def ams_status(word: int, volt_min: int, temp_max: int, soc: int, counter: int) -> bytes:
+    """0x300: b0..1 status word BE, b2 Volt_min 20 mV, b3 Temp_max, b4 SOC, b5 counter, b6."""
+    return word.to_bytes(2, 'big') + bytes([volt_min, temp_max, soc, counter, 0])
+
+
+def bank_group(bank: int, group: int) -> int:
+    return (bank << 5) | group
+
+
+def int8s(values: list[int]) -> bytes:
+    return bytes(v & 0xFF for v in values)
+
+
+AIR_PLUS, AIR_MINUS, DRIVE = 1 << 15, 1 << 14, 4
+
+
+def send_ams_bank(h: Harness) -> None:
+    for group in range(4):  # 28 cells: 3.60 V + 20 mV * (group)
+        h.send(0x311, [bank_group(1, group)] + [180 + group] * 7)
+    h.send(0x312, [bank_group(1, 0)] + [20, 21, 22, 23, 24])
+    h.send(0x312, [bank_group(1, 1)] + list(int8s([25, 26, 27, 28, -5])))
+    h.send(0x313, [bank_group(1, 0)] + [30, 31, 32, 33, 34, 35, 36])
+
+
+def test_ams_without_current_sensor(harness):
+    h = harness({'devices': ['ams'], 'diagnostics_period': 0.2},
+                {'ams/battery_state': BatteryState, 'ams/temperatures': Float32MultiArray,
+                 'ams/discharge_temperatures': Float32MultiArray})
+    send_ams_bank(h)
+    h.send(0x300, ams_status(AIR_PLUS | AIR_MINUS | (1 << 5) | DRIVE, 180, 28, 77, 1))
+    msg = h.last('ams/battery_state', lambda m: m.present)
+    cells = [3.60] * 7 + [3.62] * 7 + [3.64] * 7 + [3.66] * 7
+    assert list(msg.cell_voltage) == approx_list(cells)
+    assert msg.voltage == pytest.approx(sum(cells), rel=1e-5)
+    assert math.isnan(msg.current) and math.isnan(msg.charge)
+    assert msg.percentage == pytest.approx(0.77)
+    assert msg.temperature == pytest.approx(28.0)
+    assert msg.power_supply_health == BatteryState.POWER_SUPPLY_HEALTH_GOOD
+    temps = h.last('ams/temperatures')
+    assert [d.size for d in temps.layout.dim] == [1, 10]
+    assert list(temps.data) == approx_list([20, 21, 22, 23, 24, 25, 26, 27, 28, -5])
+    discharge = h.last('ams/discharge_temperatures')
+    assert [d.size for d in discharge.layout.dim] == [1, 14]
+    assert list(discharge.data) == approx_list([30, 31, 32, 33, 34, 35, 36] + [NAN] * 7)
+    status = h.status('ams', lambda s: level(s) == 0)
+    assert 'DRIVE' in status.message and 'AIR+ closed' in status.message
+    assert values(status)['state'] == 'DRIVE'
+
+
+def test_ams_with_ivt_s_current_sensor(harness):
+    h = harness({'devices': ['ams', 'shunt'], 'shunt.type': 'ivt_s',
+                 'diagnostics_period': 0.2},
+                {'ams/battery_state': BatteryState, 'shunt/battery_state': BatteryState})
+    assert h.bridge.device_params['ams']['current_sensor'] == 'shunt'
+    h.send(0x522, ivt(1, 0, 398_000))
+    h.send(0x527, ivt(6, 0, 7200))
+    h.send(0x521, ivt(0, 0, -30_000))  # -30 A on the wire (discharge positive) = charging
+    h.last('shunt/battery_state', lambda m: m.present)
+    h.send(0x300, ams_status(AIR_PLUS | AIR_MINUS | (1 << 5) | 8, 180, 30, 50, 7))
+    msg = h.last('ams/battery_state', lambda m: m.present)
+    assert msg.voltage == pytest.approx(398.0)
+    assert msg.current == pytest.approx(30.0)
+    assert msg.charge == pytest.approx(-2.0)
+    assert msg.power_supply_status == BatteryState.POWER_SUPPLY_STATUS_CHARGING
+    assert len(msg.cell_voltage) == 28 and all(math.isnan(v) for v in msg.cell_voltage)
+
+
+def test_ams_current_sensor_must_be_an_ivt_s(context):
+    with pytest.raises(ConfigError) as info:
+        BridgeNode(context=context, namespace=f'bad_{next(_ids)}', parameter_overrides=[
+            Parameter('can.interface', value='virtual'),
+            Parameter('can.channel', value=f'bad-{next(_ids)}'),
+            Parameter('devices', value=['ams', 'bms16']),
+            Parameter('ams.current_sensor', value='bms16')])
+    assert 'ams.current_sensor' in str(info.value) and 'ivt_s' in str(info.value)
+
+
+# --- SMA ---------------------------------------------------------------------------------
+def le16(value: int) -> bytes:
+    return (value & 0xFFFF).to_bytes(2, 'little')
+
+
+def test_sma_battery_state(harness):
+    h = harness({'devices': ['sma'], 'diagnostics_period': 0.2},
+                {'sma/battery_state': BatteryState})
+    h.send(0x355, le16(64) + le16(98))  # SoC 64 %, SoH 98 %
+    h.send(0x35A, bytes([0xAA] * 4 + [0xAA] * 4))  # every condition OK
+    h.send(0x356, le16(5120) + le16(-153) + le16(231))  # 51.2 V, -15.3 A, 23.1 degC
+    msg = h.last('sma/battery_state', lambda m: m.present)
+    assert msg.voltage == pytest.approx(51.2)
+    assert msg.current == pytest.approx(-15.3)
+    assert msg.temperature == pytest.approx(23.1)
+    assert msg.percentage == pytest.approx(0.64)
+    assert msg.power_supply_status == BatteryState.POWER_SUPPLY_STATUS_DISCHARGING
+    assert msg.power_supply_health == BatteryState.POWER_SUPPLY_HEALTH_GOOD
+    assert math.isnan(msg.charge)  # capacity (0x35F) not received
+    status = h.status('sma', lambda s: level(s) == 0)
+    assert 'SoC 64' in status.message
