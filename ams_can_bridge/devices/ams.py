@@ -106,7 +106,8 @@ class AmsDevice(Device):
         super().__init__(name, params, clock)
         base_id = self.params.get('base_id')
         self.codec = AmsCodec(proto.DEFAULT_BASE_ID if base_id is None else int(base_id))
-        self._banks = _bank_count(self.params.get('bank_count') or 1)
+        banks = self.params.get('bank_count')
+        self._banks = _bank_count(1 if banks is None else banks)
         self.current_sensor: Any = None  # an IvtSDevice, attached by the node
         self.state = AmsState.NOT_REPORTED
         self.status_seq = 0
