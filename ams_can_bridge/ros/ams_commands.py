@@ -1,0 +1,166 @@
+"""
+AMS services: car commands in the heartbeat (master role) and the charger-role frames.
+
+The heartbeat and the command/wait rules live in ``devices/ams_master.py`` (no ROS); this
+module declares the parameters, offers the services and follows ``commands_enabled``: the
+heartbeat runs exactly while commands are enabled. Service callbacks that wait run in the
+node's reentrant ``service_group`` and only poll the AMS state, so telemetry (other
+callback groups, other executor threads) keeps flowing and ``abort`` can always get in.
+"""
+from __future__ import annotations
+
+import time
+from typing import Any, Callable
+
+from std_srvs.srv import Trigger
+
+from ams_can_bridge.devices.ams_master import AmsMaster, CommandResult
+from ams_can_bridge.devices.base import Device, ParamSpec
+from ams_can_bridge.protocols import ams as proto
+from ams_can_bridge.protocols.ams import (AmsCodec, CarCommand, CarStatus, ChargerCommand,
+                                          ChargerStart, OverrideBankCount,
+                                          OverrideChargeCurrent)
+from ams_can_bridge.protocols.common import EncodeRangeError, Frame
+from ams_can_bridge.ros.zeva_commands import frame_text, gate_message
+
+CAR_COMMANDS = {
+    'enable_sc': (CarCommand.ENABLE_SC, 'enable the safety circuit'),
+    'enable_ts': (CarCommand.ENABLE_TS, 'enable the tractive system'),
+    'enable_drive': (CarCommand.ENABLE_DRIVE, 'enter drive mode'),
+    'abort': (CarCommand.ABORT, 'abort (open TS and SC, back to IDLE)'),
+    'set_bank_count': (CarCommand.SET_BANK_COUNT, 'send SET_BANK_COUNT'),
+    'sync_time': (CarCommand.SYNC_TIME, 'send SYNC_TIME'),
+}
+
+
+class AmsCommands:
+    """Car-command and charger-role services of one AMS instance."""
+
+    PARAMS = [
+        ParamSpec('heartbeat_period', float, 0.05,
+                  's between car-status heartbeats (base + 0x005) while commands_enabled',
+                  low=0.01, high=1.0, read_only=False),
+        ParamSpec('command_timeout', float, 2.0,
+                  's a state command (enable_*, abort) waits for the AMS to report its target '
+                  'state', low=0.1, high=60.0, read_only=False),
+        ParamSpec('charge_current_a', float, None,
+                  'charge current for set_charge_current (base + 0x050), A; no default: '
+                  'unset refuses the call', low=0.0, high=25.5, step=0.1, read_only=False),
+    ]
+
+    def __init__(self, node: Any, device: Device, name: str) -> None:
+        """Build the codec, the (stopped) master and the services."""
+        self.node = node
+        self.device = device
+        self.name = name
+        values = node.device_params.get(name, {})
+        self.command_timeout = float(values.get('command_timeout') or 2.0)
+        self.charge_current_a = values.get('charge_current_a')
+        base = device.params.get('base_id')
+        self.codec = AmsCodec(proto.DEFAULT_BASE_ID if base is None else int(base))
+        self._t0 = time.monotonic()  # origin of the charger-command time tick
+        self.master = AmsMaster(self._encode_heartbeat, node.transmit, device.master_view,
+                                period=float(values.get('heartbeat_period') or 0.05),
+                                bank_count=device.bank_count)
+        self._services = []
+        for suffix, (command, what) in CAR_COMMANDS.items():
+            self._service(suffix, self._car_command(command, what))
+        self._service('start_charging', self._charger(
+            'start charging', lambda: self._charger_frame(ChargerStart.START)))
+        self._service('stop_charging', self._charger(
+            'stop charging', lambda: self._charger_frame(ChargerStart.STOP)))
+        self._service('set_charge_current', self._charger(
+            'set the charge current', self._charge_current_frame))
+        self._service('override_bank_count', self._charger(
+            'override the bank count', lambda: self.codec.encode(
+                OverrideBankCount(self.device.bank_count))))
+        if node.commands_enabled:
+            self.master.start()
+
+    # --- hooks for the node ------------------------------------------------------------
+    def validate_parameter(self, full_name: str, value: Any) -> str | None:
+        """Nothing beyond the declared ranges (the node checks those)."""
+        return None
+
+    def on_parameters_changed(self, changed: dict[str, Any]) -> None:
+        """Follow heartbeat_period, command_timeout, charge_current_a and bank_count."""
+        prefix = self.name + '.'
+        for full_name, value in changed.items():
+            key = full_name[len(prefix):] if full_name.startswith(prefix) else None
+            if key == 'heartbeat_period':
+                self.master.set_period(float(value))
+            elif key == 'command_timeout':
+                self.command_timeout = float(value)
+            elif key == 'charge_current_a':
+                self.charge_current_a = value
+            elif key == 'bank_count':
+                with self.device.lock:
+                    self.device.params['bank_count'] = value
+                self.master.set_bank_count(self.device.bank_count)
+
+    def on_commands_enabled(self, enabled: bool) -> None:
+        """Start the heartbeat when commands are enabled, stop it (at once) when not."""
+        if enabled:
+            self.master.start()
+        else:
+            self.master.stop('commands_enabled was set to false while waiting; the heartbeat '
+                             'stopped')
+
+    def destroy(self) -> None:
+        """Stop the heartbeat and remove the services."""
+        self.master.stop('the bridge is shutting down')
+        for service in self._services:
+            self.node.destroy_service(service)
+        self._services.clear()
+
+    # --- services ----------------------------------------------------------------------
+    def _service(self, suffix: str, callback: Callable) -> None:
+        self._services.append(self.node.create_service(
+            Trigger, f'{self.name}/{suffix}', callback,
+            callback_group=self.node.service_group))
+
+    def _car_command(self, command: CarCommand, what: str) -> Callable:
+        def callback(request: Any, response: Any) -> Any:
+            if not self.node.commands_enabled:
+                result = CommandResult(False, gate_message(self.node, what))
+            else:
+                result = self.master.command(command, self.command_timeout)
+            response.success, response.message = result.success, f'{self.name}: {result.message}'
+            return response
+        return callback
+
+    def _charger(self, what: str, build: Callable[[], Frame]) -> Callable:
+        def callback(request: Any, response: Any) -> Any:
+            response.success, response.message = self._send_one(what, build)
+            return response
+        return callback
+
+    def _send_one(self, what: str, build: Callable[[], Frame]) -> tuple[bool, str]:
+        if not self.node.commands_enabled:
+            return False, gate_message(self.node, what)
+        try:
+            frame = build()
+        except (EncodeRangeError, ValueError) as exc:
+            return False, f'{self.name}: cannot {what}: {exc}; nothing was sent'
+        ok, message = self.node.transmit(frame)
+        if not ok:
+            return False, f'{self.name}: {what} failed: {message}'
+        return True, f'{self.name}: {what}: sent {frame_text(frame)}'
+
+    # --- frames --------------------------------------------------------------------------
+    def _encode_heartbeat(self, command: int, bank_count: int, counter: int) -> Frame:
+        return self.codec.encode(CarStatus(CarCommand(command), bank_count, counter))
+
+    def time_tick(self) -> int:
+        """Return the charger time tick: ms since this node started, modulo 65536."""
+        return int((time.monotonic() - self._t0) * 1000) & 0xFFFF
+
+    def _charger_frame(self, start: ChargerStart) -> Frame:
+        return self.codec.encode(ChargerCommand(start, self.time_tick()))
+
+    def _charge_current_frame(self) -> Frame:
+        current = self.charge_current_a
+        if current is None:
+            raise ValueError(f'{self.name}.charge_current_a is not set: set it to the charge '
+                             'current in A (0..25.5 in steps of 0.1)')
+        return self.codec.encode(OverrideChargeCurrent(float(current)))

@@ -1,0 +1,119 @@
+"""The transmit gate and the AMS heartbeat on a real node and a real (virtual) bus."""
+import os
+import subprocess
+import sys
+import time
+
+import pytest
+from std_srvs.srv import SetBool, Trigger
+
+from command_rig import Rig
+
+AMS_SERVICES = ('enable_sc', 'enable_ts', 'enable_drive', 'abort', 'set_bank_count',
+                'sync_time', 'start_charging', 'stop_charging', 'set_charge_current',
+                'override_bank_count')
+BMS16_SERVICES = ('write_config', 'acknowledge_error', 'reset_soc', 'power_off')
+EVMS3_SERVICES = ('write_config', 'acknowledge_error', 'reset_soc')
+HEARTBEAT_ID = 0x305
+
+
+@pytest.fixture
+def rig_factory():
+    rigs = []
+
+    def make(params):
+        rig = Rig(params)
+        rigs.append(rig)
+        return rig
+    yield make
+    for rig in rigs:
+        rig.close()
+
+
+def all_devices(enabled=False, **extra):
+    params = {'devices': ['ams', 'ivt_s', 'evms3', 'bms16'], 'commands_enabled': enabled,
+              'ams.charge_current_a': 10.0}
+    params.update(extra)
+    return params
+
+
+def test_disabled_bridge_sends_nothing_and_refuses_every_service(rig_factory):
+    rig = rig_factory(all_devices())
+    calls = [(Trigger, f'/ams/{s}', {}) for s in AMS_SERVICES]
+    calls += [(Trigger, f'/bms16/{s}', {}) for s in BMS16_SERVICES]
+    calls += [(Trigger, f'/evms3/{s}', {}) for s in EVMS3_SERVICES]
+    calls += [(SetBool, '/evms3/set_setup_mode', {'data': True}),
+              (SetBool, '/evms3/set_setup_mode', {'data': False})]
+    t0 = time.monotonic()
+    for srv_type, name, fields in calls:
+        response = rig.call(srv_type, name, **fields)
+        assert not response.success, name
+        assert 'commands_enabled' in response.message, (name, response.message)
+        assert 'nothing was sent' in response.message
+    # listen for at least 2 s in all: not a single frame (no heartbeat, no command)
+    remaining = 2.0 - (time.monotonic() - t0)
+    if remaining > 0:
+        rig.capture.wait_for(lambda: False, timeout=remaining)
+    assert rig.capture.since(0) == []
+    assert rig.node.can_io.status().frames_out == 0
+
+
+def test_heartbeat_period_and_counter_and_run_time_gate(rig_factory):
+    rig = rig_factory({'devices': ['ams'], 'ams.heartbeat_period': 0.01, 'ams.bank_count': 3})
+    rig.capture.wait_for(lambda: False, timeout=0.2)
+    assert rig.capture.since(0) == []
+    assert rig.set_param('commands_enabled', True).successful
+    assert rig.capture.wait_for(lambda: len(rig.capture.since(0, HEARTBEAT_ID)) >= 300,
+                                timeout=20)
+    frames = rig.capture.since(0, HEARTBEAT_ID)
+    counters = [f.data[1] for _, f in frames]
+    assert all((b - a) & 0xFF == 1 for a, b in zip(counters, counters[1:])), counters
+    assert any(a == 255 and b == 0 for a, b in zip(counters, counters[1:]))  # wrapped
+    assert all(f.data[0] == 0x30 and len(f.data) == 2 for _, f in frames)  # 3 banks, no cmd
+    times = [t for t, _ in frames]
+    mean = (times[-1] - times[0]) / (len(times) - 1)
+    # absolute schedule: the mean period holds even on a loaded machine (loose bounds)
+    assert 0.008 < mean < 0.014, mean
+    assert rig.set_param('commands_enabled', False).successful
+    rig.capture.wait_for(lambda: False, timeout=0.05)  # a frame already in flight lands
+    mark = rig.capture.mark()
+    rig.capture.wait_for(lambda: False, timeout=0.5)
+    assert rig.capture.since(mark) == []
+    # on again: heartbeats again, the counter continues where it stopped
+    assert rig.set_param('commands_enabled', True).successful
+    assert rig.capture.wait_for(lambda: len(rig.capture.since(mark)) >= 3)
+    assert (rig.capture.since(mark)[0][1].data[1] - counters[-1]) & 0xFF >= 1
+
+
+def test_period_and_bank_count_follow_parameters(rig_factory):
+    rig = rig_factory({'devices': ['ams'], 'commands_enabled': True,
+                       'ams.heartbeat_period': 0.2})
+    assert rig.capture.wait_for(lambda: len(rig.capture.since(0)) >= 1)
+    assert rig.set_param('ams.heartbeat_period', 0.01).successful
+    assert rig.set_param('ams.bank_count', 5).successful
+    mark = rig.capture.mark()
+    t0 = time.monotonic()
+    assert rig.capture.wait_for(lambda: len(rig.capture.since(mark)) >= 50, timeout=10)
+    assert time.monotonic() - t0 < 50 * 0.2 / 2  # clearly the new, faster period
+    assert rig.capture.since(mark)[-1][1].data[0] == 0x50
+    result = rig.set_param('ams.heartbeat_period', 0.001)
+    assert not result.successful and 'ams.heartbeat_period' in result.reason
+
+
+def test_invalid_config_value_in_a_params_file_stops_the_node(tmp_path):
+    params = tmp_path / 'bad.yaml'
+    params.write_text(
+        'ams_can_bridge:\n'
+        '  ros__parameters:\n'
+        '    can.interface: virtual\n'
+        '    can.channel: bad-config\n'
+        '    devices: [bms16]\n'
+        '    bms16.config.shunt_size_a: 250\n')
+    proc = subprocess.run(
+        [sys.executable, '-m', 'ams_can_bridge.ros.bridge_main', '--ros-args',
+         '--params-file', str(params)],
+        capture_output=True, text=True, timeout=60, env=dict(os.environ))
+    assert proc.returncode != 0
+    output = proc.stdout + proc.stderr
+    assert 'bms16.config.shunt_size_a' in output and '250' in output, output
+    assert '100, 200 or 500' in output, output
