@@ -1,0 +1,196 @@
+"""
+Simulated ZEVA EVMS3 with its CAN current sensor and BMS12 cell modules.
+
+What the bus of an EVMS3 conversion carries: the status (ID 30, 4 Hz), the current sensor
+(ID 40, 10 Hz), and every 0.5 s the EVMS polls each BMS12 module (t = 0) which answers with
+its cells (t = 1..3) and temperatures (t = 4). Remaining Ah integrates the current profile;
+pack voltage is the sum of the module cells. Reacts like PROTOCOLS.md section 3 says: 31 set
+state, 32..35 configuration stored only once all four arrived, 36 cell numbers, 37 clears
+the matching error, 38 resets SoC to full, 39 powers off (silent until ``power_on()``).
+"""
+from __future__ import annotations
+
+import random
+from typing import Any, Callable, Sequence
+
+from ams_can_bridge.protocols.common import Frame, ProtocolError
+from ams_can_bridge.protocols.evms3 import (
+    AcknowledgeError, BatteryCurrent, Bms12Cells, Bms12Request, Bms12Temperatures,
+    BmsCellNumbers, Evms3Codec, Evms3Config, Evms3ConfigPart, Evms3Error, Evms3State,
+    Evms3Status, PowerOff, ResetSoc, SetState, ZeroCurrentSensor)
+from ams_can_bridge.sim.base import Periodic, SimDevice
+from ams_can_bridge.sim.profiles import drive_current_a
+
+CELL_RESISTANCE_OHM = 0.0008
+NOMINAL_SERIES_CELLS = 96  # pack voltage when no BMS12 module is simulated
+
+
+def nmc_cell_ocv(soc: float) -> float:
+    """Open-circuit voltage of one NMC-like cell at soc (0..1): 3.30 V empty, 4.15 V full."""
+    return 3.3 + 0.85 * min(1.0, max(0.0, soc))
+
+
+class Evms3Simulator(SimDevice):
+    """An EVMS3 in RUNNING state on a pack; current_fn(t) -> A, positive = discharge."""
+
+    TYPE = 'evms3'
+    STATUS_PERIOD = 0.25
+    CURRENT_PERIOD = 0.1
+    BMS12_PERIOD = 0.5
+
+    def __init__(self, name: str | None = None, base_id: int = 30, bms12_modules: int = 2,
+                 cells_per_module: int | Sequence[int] = 12,
+                 current_fn: Callable[[float], float] | None = None,
+                 capacity_ah: float = 100.0, seed: int = 0) -> None:
+        super().__init__(name)
+        if not 0 <= bms12_modules <= 16:
+            raise ValueError(f'bms12_modules {bms12_modules}: allowed 0..16')
+        counts = ([cells_per_module] * bms12_modules if isinstance(cells_per_module, int)
+                  else list(cells_per_module)[:bms12_modules])
+        if len(counts) != bms12_modules or any(not 0 <= n <= 12 for n in counts):
+            raise ValueError(f'cells_per_module {cells_per_module!r}: 0..12 per module')
+        self.codec = Evms3Codec(base_id, bms12_modules=bms12_modules)
+        self.bms12_modules = bms12_modules
+        self.cells_per_module = counts
+        self.current_fn = current_fn or drive_current_a
+        self.capacity_ah = float(capacity_ah)
+        self.remaining_ah = 0.9 * self.capacity_ah
+        rng = random.Random(seed)
+        self.cell_offsets_v = [[rng.uniform(-0.012, 0.012) for _ in range(12)]
+                               for _ in range(bms12_modules)]
+        self.module_temps_c = [(rng.randint(22, 28), rng.randint(22, 28))
+                               for _ in range(bms12_modules)]
+        self.state = Evms3State.RUNNING
+        self.current_a = 0.0  # wire sign: positive = discharge
+        self.powered = True
+        self.config_parts: dict[int, Evms3ConfigPart] = {}
+        self.stored_config: Evms3Config | None = None
+        self.cell_numbers: tuple[int, ...] | None = None
+        self.received: list[Any] = []  # every command decoded, in order (tests read it)
+        self.malformed_received = 0
+        self._status = Periodic(self.STATUS_PERIOD)
+        self._current = Periodic(self.CURRENT_PERIOD, phase=0.05)
+        self._bms12 = Periodic(self.BMS12_PERIOD, phase=0.1)
+        self._t0: float | None = None
+        self._last: float | None = None
+
+    # --- model --------------------------------------------------------------------
+    def power_on(self) -> None:
+        """Power the EVMS back on after ID 39."""
+        self.powered = True
+
+    @property
+    def soc(self) -> float:
+        """State of charge 0..1 (remaining / capacity)."""
+        return self.remaining_ah / self.capacity_ah if self.capacity_ah > 0 else 0.0
+
+    @property
+    def error(self) -> Evms3Error:
+        """Error code reported now (the error_code fault, until acknowledged)."""
+        code = self.faults.error_code
+        return Evms3Error.NONE if code is None else Evms3Error(code)
+
+    def cell_voltages(self) -> list[list[float]]:
+        """Cell voltages per module (V, rounded to the mV the BMS12 reports)."""
+        base = nmc_cell_ocv(self.soc) - CELL_RESISTANCE_OHM * self.current_a
+        out, index = [], 0
+        for m, count in enumerate(self.cells_per_module):
+            cells = []
+            for c in range(count):
+                v = base + self.cell_offsets_v[m][c]
+                if index == self.faults.drift_cell:
+                    v += self.faults.cell_drift_v
+                cells.append(round(min(65.535, max(0.0, v)), 3))
+                index += 1
+            out.append(cells)
+        return out
+
+    def pack_voltage_v(self) -> float:
+        """Sum of the module cells (or NOMINAL_SERIES_CELLS cells without modules)."""
+        if not any(self.cells_per_module):
+            cell = nmc_cell_ocv(self.soc) - CELL_RESISTANCE_OHM * self.current_a
+            return NOMINAL_SERIES_CELLS * cell
+        return sum(sum(cells) for cells in self.cell_voltages())
+
+    def _advance(self, now: float) -> None:
+        if self._t0 is None:
+            self._t0 = self._last = now
+        dt = max(0.0, now - self._last)
+        self._last = now
+        flowing = self.powered and self.state in (Evms3State.RUNNING, Evms3State.CHARGING)
+        self.current_a = float(self.current_fn(now - self._t0)) if flowing else 0.0
+        self.remaining_ah = min(self.capacity_ah, max(
+            0.0, self.remaining_ah - self.current_a * dt / 3600.0))
+
+    # --- frames out ---------------------------------------------------------------------
+    def status(self) -> Evms3Status:
+        """Build the ID 30 reading the EVMS would send now."""
+        return Evms3Status(
+            self.state, self.error, round(min(6553.5, self.remaining_ah), 1),
+            round(min(6553.5, self.pack_voltage_v()), 1), 13.2, False, 98,
+            round(25 + 0.05 * abs(self.current_a)))
+
+    def tick(self, now: float) -> list[Frame]:
+        """Advance the pack and return the frames due at ``now``."""
+        self._advance(now)
+        frames: list[Frame] = []
+        if self._status.due(now):
+            frames.append(self.codec.encode(self.status()))
+        if self._current.due(now):
+            frames.append(self.codec.encode(BatteryCurrent(round(self.current_a, 3))))
+        if self._bms12.due(now):
+            frames += self._bms12_frames()
+        if not self.powered or self.faults.silent:
+            return []
+        if self.faults.malformed:
+            frames = [self.corrupt(f) for f in frames]
+        return frames
+
+    def _bms12_frames(self) -> list[Frame]:
+        cfg = self.stored_config
+        balance = (None if cfg is None or cfg.balance_mode != 'static'
+                   else int(round(cfg.balance_v * 1000)))
+        frames = []
+        for m, cells in enumerate(self.cell_voltages()):
+            padded = cells + [0.0] * (12 - len(cells))
+            frames.append(self.codec.encode(Bms12Request(m, balance)))
+            for first in (0, 4, 8):
+                frames.append(self.codec.encode(
+                    Bms12Cells(m, first, tuple(padded[first:first + 4]))))
+            frames.append(self.codec.encode(Bms12Temperatures(m, self.module_temps_c[m])))
+        return frames
+
+    # --- frames in ----------------------------------------------------------------------
+    def on_frame(self, frame: Frame, now: float) -> None:
+        """Take commands addressed to the EVMS (IDs 31..39, 41); ignore the rest."""
+        offset = frame.arbitration_id - self.codec.base_id
+        if not frame.is_extended_id or not 1 <= offset <= 11 or offset == 10:
+            return  # not ours, or our own status / current sensor frames
+        try:
+            msg = self.codec.decode(frame.arbitration_id, frame.data)
+        except ProtocolError:
+            self.malformed_received += 1
+            return
+        self.received.append(msg)
+        if not self.powered:
+            return
+        if isinstance(msg, SetState):
+            self.state = Evms3State.SETUP if msg.setup else Evms3State.IDLE
+        elif isinstance(msg, Evms3ConfigPart):
+            self.config_parts[msg.part] = msg
+            if len(self.config_parts) == 4:  # the EVMS stores only a complete set
+                self.stored_config = Evms3Config.from_parts(self.config_parts.values())
+                self.config_parts = {}
+                self.capacity_ah = float(self.stored_config.pack_capacity_ah)
+                self.remaining_ah = min(self.remaining_ah, self.capacity_ah)
+        elif isinstance(msg, BmsCellNumbers):
+            self.cell_numbers = msg.cells_per_module
+        elif isinstance(msg, AcknowledgeError):
+            if self.faults.error_code is not None and msg.error == self.faults.error_code:
+                self.faults.error_code = None
+        elif isinstance(msg, ResetSoc):
+            self.remaining_ah = self.capacity_ah
+        elif isinstance(msg, PowerOff):
+            self.powered = False
+        elif isinstance(msg, ZeroCurrentSensor):
+            pass  # the simulated sensor has no offset to zero
