@@ -1,0 +1,144 @@
+"""
+The installed ``bridge`` executable on slcan over a pty: the test plays the USB-CAN adapter.
+
+The bridge runs as a subprocess (its params file written here), inherits the test's
+ROS_DOMAIN_ID / ROS_AUTOMATIC_DISCOVERY_RANGE, and a subscriber in this process checks the
+topics; SIGINT must end it with exit code 0 and no traceback.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray
+import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from sensor_msgs.msg import BatteryState
+from slcan_peer import SlcanPeer
+
+from ams_can_bridge.protocols.common import Frame
+
+BATTERY = ['ams', 'ivt', 'evms3', 'bms16', 'sma']
+
+
+def bridge_executable() -> str:
+    """The installed console script: next to this Python first (venv), else on PATH."""
+    here = Path(sys.executable).parent / 'bridge'
+    if here.is_file():
+        return str(here)
+    found = shutil.which('bridge')
+    assert found, 'the bridge executable is not installed (pip install -e . / colcon build)'
+    return found
+
+
+def params_file(path: Path, channel: str) -> Path:
+    path.write_text(f"""/**:
+  ros__parameters:
+    can:
+      interface: slcan
+      channel: {channel}
+      bitrate: 500000
+      options: [sleep_after_open=0]
+      reconnect_period: 0.2
+    diagnostics_period: 0.5
+    devices: [ams, ivt, evms3, bms16, sma]
+    ivt:
+      type: ivt_s
+    evms3:
+      stale_timeout: 2
+""")
+    return path
+
+
+# Hand-written frames of PROTOCOLS.md, one set per device type.
+FRAMES = [
+    Frame(0x521, bytes([0, 0]) + (-12_000).to_bytes(4, 'big', signed=True)),  # IVT-S -12 A
+    Frame(0x300, bytes([0xC0, 0x21, 180, 30, 66, 1, 0])),  # AMS IDLE, SOC 66 %
+    # EVMS3 ID 30: Running (2), 123.4 Ah, 345.6 V, 13.1 V aux, 99 % isolation, 25 degC
+    Frame(30, bytes([0x02, 0x04, 0xD2, 0x0D, 0x80, 131, 99, 65]), True),
+    Frame(500, bytes([0, 81, 0x0B, 0x02, 0x7D, 0x80, 25])),  # BMS16 SoC 81 %
+    Frame(0x356, bytes([0x00, 0x14, 0x67, 0xFF, 0xE7, 0x00])),  # SMA 51.2 V -15.3 A
+]
+
+
+@pytest.fixture
+def ros():
+    ctx = Context()
+    rclpy.init(context=ctx)
+    node = rclpy.create_node('slcan_test_listener', context=ctx)
+    executor = SingleThreadedExecutor(context=ctx)
+    executor.add_node(node)
+    yield node, executor
+    executor.shutdown()
+    node.destroy_node()
+    rclpy.try_shutdown(context=ctx)
+
+
+def test_installed_bridge_on_slcan(ros, tmp_path):
+    node, executor = ros
+    ns = f'slcan_{os.getpid()}'
+    got: dict[str, list] = {name: [] for name in BATTERY}
+    diags: list = []
+    for name in BATTERY:
+        node.create_subscription(BatteryState, f'/{ns}/{name}/battery_state',
+                                 lambda m, n=name: got[n].append(m), 50)
+    peer = SlcanPeer(symlink=tmp_path / 'ttyACM_bridge')
+    hardware_id = f'slcan:{peer.channel}'
+    node.create_subscription(
+        DiagnosticArray, '/diagnostics',
+        lambda m: diags.append(m) if any(s.hardware_id == hardware_id for s in m.status)
+        else None, 50)
+    params = params_file(tmp_path / 'bridge.yaml', peer.channel)
+    proc = subprocess.Popen(
+        [bridge_executable(), '--ros-args', '-r', f'__ns:=/{ns}', '--params-file',
+         str(params)],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=dict(os.environ), text=True)
+    try:
+        peer.wait_open(timeout=30)
+        assert peer.bitrate_command == 'S6'  # 500 kbit/s
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and not all(
+                any(m.present for m in msgs) for msgs in got.values()):
+            for frame in FRAMES:
+                peer.send(frame)
+            executor.spin_once(timeout_sec=0.1)
+        missing = [n for n, msgs in got.items() if not any(m.present for m in msgs)]
+        assert not missing, f'no battery_state from {missing}'
+        assert any(abs(m.current - 12.0) < 1e-4 for m in got['ivt'])
+        assert any(abs(m.percentage - 0.66) < 1e-6 for m in got['ams'])
+        assert any(abs(m.voltage - 345.6) < 1e-3 for m in got['evms3'])
+        assert any(abs(m.percentage - 0.81) < 1e-6 for m in got['bms16'])
+        assert any(abs(m.current + 15.3) < 1e-4 for m in got['sma'])
+        while time.monotonic() < deadline and not diags:
+            executor.spin_once(timeout_sec=0.1)
+        names = {s.name for s in diags[-1].status}
+        assert names == {f'ams_can_bridge: {n}' for n in BATTERY + ['CAN bus']}
+        assert proc.poll() is None
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            output = proc.communicate(timeout=20)[0]
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            output = proc.communicate()[0]
+        peer.shutdown()
+    assert proc.returncode == 0, output
+    assert 'Traceback' not in output, output
+    assert 'evms3 (evms3): 0x1E' in output  # startup summary names the devices and IDs
+
+
+def test_bridge_exits_2_on_bad_parameters(tmp_path):
+    params = tmp_path / 'bad.yaml'
+    params.write_text('/**:\n  ros__parameters:\n    devices: [pack]\n    pack:\n'
+                      '      type: zeva\n')
+    proc = subprocess.run([bridge_executable(), '--ros-args', '--params-file', str(params)],
+                          capture_output=True, text=True, timeout=60, env=dict(os.environ))
+    assert proc.returncode == 2
+    assert 'pack.type' in proc.stderr and 'Traceback' not in proc.stderr
