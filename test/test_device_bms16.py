@@ -1,0 +1,175 @@
+"""Bms16Device: frames (hand-written) -> BatteryReport and diagnostics."""
+import math
+
+import pytest
+
+from ams_can_bridge.devices.base import Level, PowerSupplyHealth, PowerSupplyStatus
+from ams_can_bridge.devices.bms16 import Bms16Device
+from ams_can_bridge.protocols.bms16 import Bms16Error
+
+
+class Clock:
+    """A clock the test moves by hand (the device's staleness uses it)."""
+
+    def __init__(self) -> None:
+        self.now = 100.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def status(error=0, soc=80, deci_volts=528, deci_amps=125, temp=25):
+    """Status frame bytes; deci_amps on the wire sign (positive = discharge)."""
+    raw = 32768 + deci_amps
+    return bytes([error, soc, deci_volts & 0xFF, deci_volts >> 8, raw & 0xFF, raw >> 8, temp])
+
+
+def make(params=None):
+    clock = Clock()
+    return Bms16Device('pack', params or {}, clock=clock), clock
+
+
+def test_ids_and_constants():
+    device, _ = make()
+    assert device.TYPE == 'bms16' and device.BROADCAST_PERIOD == 0.25
+    assert device.DEFAULT_BASE_ID == 500
+    assert device.arbitration_ids == {500, 501, 502, 503,
+                                      0x351, 0x355, 0x356, 0x35A, 0x35E, 0x35F}
+    moved, _ = make({'base_id': 0x200})
+    assert {0x200, 0x203} <= moved.arbitration_ids and 500 not in moved.arbitration_ids
+
+
+def test_nothing_received_is_unknown_and_not_present():
+    device, _ = make()
+    report = device.battery_report()
+    assert not report.present
+    assert math.isnan(report.voltage) and math.isnan(report.current)
+    assert len(report.cell_voltage) == 16 and all(map(math.isnan, report.cell_voltage))
+    assert report.power_supply_health == PowerSupplyHealth.UNKNOWN
+    assert device.diagnostic_report().level == Level.STALE
+    assert device.error == Bms16Error.NONE
+
+
+def test_discharge_on_the_wire_is_negative_in_ros():
+    device, _ = make()
+    assert device.handle_frame(500, status(deci_amps=125), 1234.5)
+    report = device.battery_report()
+    assert report.present and report.stamp == 1234.5
+    assert report.voltage == 52.8
+    assert report.current == -12.5
+    assert report.power_supply_status == PowerSupplyStatus.DISCHARGING
+    assert report.percentage == 0.8
+    assert report.temperature == 25.0
+    assert report.power_supply_health == PowerSupplyHealth.GOOD
+    assert math.isnan(report.capacity) and math.isnan(report.charge)
+
+
+@pytest.mark.parametrize('deci_amps, current, state', [
+    (-200, 20.0, PowerSupplyStatus.CHARGING), (0, 0.0, PowerSupplyStatus.NOT_CHARGING)])
+def test_charge_and_idle(deci_amps, current, state):
+    device, _ = make()
+    device.handle_frame(500, status(deci_amps=deci_amps), 1.0)
+    report = device.battery_report()
+    assert report.current == current and math.copysign(1, report.current) == 1
+    assert report.power_supply_status == state
+
+
+def test_cells_nan_until_received_and_count_from_config():
+    device, _ = make()
+    device.handle_frame(500, status(), 1.0)
+    device.handle_frame(501, bytes([0x4A, 0x4B, 0x4C, 0x4D, 0x4E, 0x4F, 0b1]), 1.0)
+    cells = device.battery_report().cell_voltage
+    assert cells[:6] == [3.30, 0.75, 0.76, 0.77, 0.78, 0.79]
+    assert len(cells) == 16 and all(map(math.isnan, cells[6:]))
+    device.handle_frame(503, bytes([0x40, 0x41, 0x42, 0x43, 0, 0, 0b1111]), 1.0)
+    assert device.battery_report().cell_voltage[12:] == [3.20, 3.21, 3.22, 3.23]
+    twelve, _ = make({'config.cells': 12, 'config.pack_capacity_ah': 100.0})
+    twelve.handle_frame(500, status(soc=40), 1.0)
+    twelve.handle_frame(502, bytes([0x40] * 6 + [0x3F]), 1.0)
+    report = twelve.battery_report()
+    assert len(report.cell_voltage) == 12 and report.cell_voltage[6:] == [3.20] * 6
+    assert report.capacity == 100.0 and report.charge == pytest.approx(40.0)
+
+
+def test_unset_config_cells_means_16():
+    device, _ = make({'config.cells': None})
+    assert len(device.battery_report().cell_voltage) == 16
+
+
+@pytest.mark.parametrize('error, health', [
+    (0, PowerSupplyHealth.GOOD), (1, PowerSupplyHealth.UNSPEC_FAILURE),
+    (2, PowerSupplyHealth.DEAD), (3, PowerSupplyHealth.OVERVOLTAGE),
+    (4, PowerSupplyHealth.UNSPEC_FAILURE), (5, PowerSupplyHealth.UNSPEC_FAILURE),
+    (6, PowerSupplyHealth.UNSPEC_FAILURE), (7, PowerSupplyHealth.OVERHEAT),
+    (8, PowerSupplyHealth.DEAD)])
+def test_health_and_level_from_every_error(error, health):
+    device, _ = make()
+    device.handle_frame(500, status(error=error), 1.0)
+    assert device.battery_report().power_supply_health == health
+    assert device.error == Bms16Error(error)
+    diag = device.diagnostic_report()
+    name = Bms16Error(error).name
+    if error == 0:
+        assert diag.level == Level.OK and diag.message.startswith('OK')
+    elif error in (4, 5):
+        assert diag.level == Level.WARN and f'warning {name}' in diag.message
+    else:
+        assert diag.level == Level.ERROR and f'error {name}' in diag.message
+    assert diag.values['error'] == name and diag.values['error code'] == str(error)
+
+
+def test_diagnostic_values_cover_every_field():
+    device, _ = make({'config.cells': 12})
+    device.handle_frame(500, status(deci_amps=-50), 1.0)
+    device.handle_frame(501, bytes([0x4A] * 6 + [1]), 1.0)
+    values = device.diagnostic_report().values
+    assert values['soc %'] == '80' and values['voltage V'] == '52.8'
+    assert values['current A (wire, positive = discharge)'] == '-5'
+    assert values['temperature degC'] == '25'
+    assert values['cell 1 V'] == '3.3' and values['cell 2 V'] == '0.74'
+    assert values['cell 12 V'] == 'nan' and 'cell 13 V' not in values
+    assert values['cell min V'] == '0.74' and values['cell max V'] == '3.3'
+    assert values['frames received'] == '2'
+
+
+def test_sma_frames_feed_diagnostics():
+    device, _ = make()
+    device.handle_frame(500, status(), 1.0)
+    device.handle_frame(0x351, bytes([0x28, 0x02, 0x10, 0x27, 0x10, 0x27, 0xC0, 0x01]), 1.0)
+    device.handle_frame(0x355, bytes([0x50, 0x00, 0x64, 0x00]), 1.0)
+    device.handle_frame(0x35A, bytes([0b1010_0101, 0b1000_0000]), 1.0)
+    diag = device.diagnostic_report()
+    assert diag.values['sma charge voltage limit V'] == '55.2'
+    assert diag.values['sma charge current limit A'] == '1000'
+    assert diag.values['sma discharge voltage limit V'] == '44.8'
+    assert diag.values['sma soh %'] == '100'
+    assert diag.values['sma alarms active'] == 'general, high_voltage'
+    assert diag.values['sma alarm low_voltage'] == 'OK'
+    # An active SMA alarm is an ERROR even while the status frame shows no error.
+    assert diag.level == Level.ERROR and 'SMA alarms general, high_voltage' in diag.message
+    # SMA frames are not the primary frame: they never count as a status.
+    assert not device.handle_frame(0x356, bytes(6), 2.0)
+
+
+def test_stale_after_timeout_and_fresh_again():
+    device, clock = make()
+    device.handle_frame(500, status(), 1.0)
+    clock.now += 1.0
+    assert device.battery_report().present
+    clock.now += 0.5  # past 5 x 0.25 s
+    assert not device.battery_report().present
+    diag = device.diagnostic_report()
+    assert diag.level == Level.STALE and 'silent for 1.5 s' in diag.message
+    device.handle_frame(500, status(), 3.0)
+    assert device.battery_report().present
+
+
+def test_malformed_frames_are_counted_and_change_nothing():
+    device, _ = make()
+    device.handle_frame(500, status(soc=80), 1.0)
+    assert not device.handle_frame(500, status(soc=10)[:6], 2.0)
+    assert not device.handle_frame(0x356, b'', 2.0)
+    assert not device.handle_frame(500, status(error=9), 2.0)
+    assert device.frames_malformed == 3 and device.frames_received == 1
+    assert device.battery_report().percentage == 0.8
+    assert 'error code 9' in device.diagnostic_report().values['last malformed frame']
