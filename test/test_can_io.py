@@ -82,6 +82,10 @@ def test_bus_config_rejects_bad_values_naming_the_field():
         BusConfig(replay_rate=-1)
     assert BusConfig(interface='slcan', channel='/dev/ttyACM0').hardware_id == \
         'slcan:/dev/ttyACM0'
+    # The ROS parameter form (string array) is accepted as is.
+    assert BusConfig(options=['tty_baudrate=921600']).options == {'tty_baudrate': 921600}
+    with pytest.raises(ValueError, match="'oops'"):
+        BusConfig(options=['oops'])
 
 
 def test_frames_in_with_receive_time_filters_and_counters(channel, peer_bus):

@@ -79,6 +79,8 @@ class BusConfig:
 
     def __post_init__(self) -> None:
         """Validate the values a user types, naming the field."""
+        if isinstance(self.options, (list, tuple)):  # the ROS string-array form
+            self.options = parse_options(self.options)
         if not self.interface:
             raise ValueError("can.interface is empty: use e.g. 'socketcan', 'slcan', 'virtual'")
         if self.bitrate < 0:

@@ -170,6 +170,7 @@ class CanIo:
                     return
             self._close_bus()
             self._stop.wait(self.config.reconnect_period)
+        self._state = 'stopped'  # stop() may have given up joining an open that hung
 
     def _open(self) -> can.BusABC | ReplayBus:
         cfg = self.config
