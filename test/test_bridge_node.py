@@ -362,3 +362,32 @@ def test_sma_battery_state(harness):
     assert math.isnan(msg.charge)  # capacity (0x35F) not received
     status = h.status('sma', lambda s: level(s) == 0)
     assert 'SoC 64' in status.message
+
+
+# --- EVMS3 (+ BMS12 modules) ----------------------------------------------------------------
+def be16(*values: int) -> bytes:
+    return b''.join(v.to_bytes(2, 'big') for v in values)
+
+
+def test_evms3_battery_state_with_bms12_cells(harness):
+    h = harness({'devices': ['evms3'], 'evms3.bms12_modules': 1,
+                 'evms3.config.pack_capacity_ah': 200, 'diagnostics_period': 0.2},
+                {'evms3/battery_state': BatteryState})
+    h.send(301, be16(3300, 3310, 3320, 3330), extended=True)  # BMS12 module 0, cells 1-4
+    h.send(302, be16(3340, 3350, 3360, 3370), extended=True)
+    h.send(303, be16(3380, 3390, 3400, 3410), extended=True)
+    h.send(40, (8_388_608 + 20_000).to_bytes(3, 'big'), extended=True)  # 20 A discharge
+    # ID 30: Running, 123.4 Ah, 345.6 V, aux 13.1 V, isolation 99 %, 25 degC
+    h.send(30, bytes([0x02, 0x04, 0xD2, 0x0D, 0x80, 131, 99, 65]), extended=True)
+    msg = h.last('evms3/battery_state', lambda m: m.present and len(m.cell_voltage) == 12
+                 and m.cell_voltage[11] == m.cell_voltage[11])
+    assert msg.voltage == pytest.approx(345.6)
+    assert msg.charge == pytest.approx(123.4)
+    assert msg.capacity == pytest.approx(200.0)
+    assert msg.percentage == pytest.approx(0.617)
+    assert msg.current == pytest.approx(-20.0)
+    assert msg.temperature == pytest.approx(25.0)
+    assert list(msg.cell_voltage) == approx_list([3.30 + 0.01 * k for k in range(12)])
+    assert msg.power_supply_status == BatteryState.POWER_SUPPLY_STATUS_DISCHARGING
+    status = h.status('evms3', lambda s: level(s) == 0)
+    assert status.hardware_id == f'virtual:{h.channel}'

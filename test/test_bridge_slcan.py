@@ -29,7 +29,7 @@ BATTERY = ['ams', 'ivt', 'evms3', 'bms16', 'sma']
 
 
 def bridge_executable() -> str:
-    """The installed console script: next to this Python first (venv), else on PATH."""
+    """Return the installed console script: next to this Python first (venv), else PATH."""
     here = Path(sys.executable).parent / 'bridge'
     if here.is_file():
         return str(here)
