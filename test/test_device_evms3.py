@@ -1,0 +1,235 @@
+"""EVMS3 device state: frames written by hand in, exact BatteryState and diagnostics out."""
+import math
+
+import pytest
+
+from ams_can_bridge.devices.base import Level, PowerSupplyHealth, PowerSupplyStatus
+from ams_can_bridge.devices.evms3 import Evms3Device
+from ams_can_bridge.protocols.evms3 import Evms3Error, Evms3State
+
+# RUNNING, no error, 100.0 Ah, 400.0 V, aux 13.0 V, isolation 100 %, 25 degC
+STATUS_OK = bytes.fromhex('02 03 E8 0F A0 82 64 41')
+CURRENT_10A_DISCHARGE = bytes.fromhex('80 27 10')
+CURRENT_20A5_CHARGE = bytes.fromhex('7F AF EC')
+
+
+class Clock:
+    """A settable monotonic clock (the device takes any callable)."""
+
+    def __init__(self):
+        self.now = 1000.0
+
+    def __call__(self):
+        return self.now
+
+
+def make(clock=None, **params):
+    return Evms3Device('evms3', params, clock=clock or Clock())
+
+
+def status(state=2, error=0, b6=0x64, b7=0x41):
+    return bytes([state | error << 3, 0x03, 0xE8, 0x0F, 0xA0, 0x82, b6, b7])
+
+
+def test_class_contract():
+    device = make(bms12_modules=2)
+    assert (Evms3Device.TYPE, Evms3Device.BROADCAST_PERIOD, Evms3Device.DEFAULT_BASE_ID) == (
+        'evms3', 0.25, 30)
+    assert device.is_extended_id is True
+    assert device.arbitration_ids == frozenset(
+        list(range(30, 42)) + list(range(300, 305)) + list(range(310, 315)))
+    assert make(base_id=100).arbitration_ids == frozenset(range(100, 112))
+    spec = {p.key: p for p in Evms3Device.PARAMS}['bms12_modules']
+    assert (spec.type, spec.default, spec.low, spec.high) == (int, 0, 0, 16)
+    assert device.stale_timeout == pytest.approx(1.25)
+
+
+def test_exact_report_values():
+    device = make(**{'config.pack_capacity_ah': 200})
+    assert device.handle_frame(30, STATUS_OK, 1234.5) is True
+    assert device.handle_frame(40, CURRENT_10A_DISCHARGE, 1234.6) is False
+    report = device.battery_report()
+    assert report.stamp == 1234.5
+    assert report.voltage == 400.0
+    assert report.charge == 100.0
+    assert report.capacity == 200.0 and report.design_capacity == 200.0
+    assert report.percentage == 0.5
+    assert report.temperature == 25.0
+    assert report.current == -10.0  # discharging: negative in ROS
+    assert report.power_supply_status == PowerSupplyStatus.DISCHARGING
+    assert report.power_supply_health == PowerSupplyHealth.GOOD
+    assert report.present is True
+    assert report.cell_voltage == [] and report.cell_temperature == []
+    assert device.state is Evms3State.RUNNING and device.error is Evms3Error.NONE
+
+
+def test_nan_before_anything_and_without_capacity():
+    device = make()
+    report = device.battery_report()
+    assert report.present is False
+    assert all(math.isnan(getattr(report, f)) for f in (
+        'voltage', 'current', 'charge', 'percentage', 'temperature', 'capacity'))
+    assert device.state is None and device.error is None
+    device.handle_frame(30, status(b7=0), 1.0)  # temperature raw 0: no sensor
+    report = device.battery_report()
+    assert report.voltage == 400.0 and report.charge == 100.0
+    assert math.isnan(report.percentage)  # pack capacity not configured
+    assert math.isnan(report.capacity)
+    assert math.isnan(report.temperature)
+    assert math.isnan(report.current)  # no ID 40 yet
+    assert report.power_supply_status == PowerSupplyStatus.UNKNOWN
+    values = device.diagnostic_report().values
+    assert values['temperature (degC)'] == 'no sensor'
+    assert 'pack_capacity_ah' in values['state of charge (%)']
+
+
+def test_percentage_is_clamped_to_one():
+    device = make(**{'config.pack_capacity_ah': 50})  # 100 Ah remaining > 50 Ah capacity
+    device.handle_frame(30, STATUS_OK, 1.0)
+    assert device.battery_report().percentage == 1.0
+
+
+def test_current_sign_and_charging_state():
+    device = make()
+    device.handle_frame(30, STATUS_OK, 1.0)
+    device.handle_frame(40, CURRENT_20A5_CHARGE, 1.0)
+    report = device.battery_report()
+    assert report.current == pytest.approx(20.5)
+    assert report.power_supply_status == PowerSupplyStatus.CHARGING
+    device.handle_frame(30, status(state=3), 1.0)
+    device.handle_frame(40, CURRENT_10A_DISCHARGE, 1.0)
+    # the EVMS state wins over a momentary discharge reading while charging
+    assert device.battery_report().power_supply_status == PowerSupplyStatus.CHARGING
+    device.handle_frame(30, status(state=0), 1.0)
+    device.handle_frame(40, bytes.fromhex('80 00 00'), 1.0)
+    assert device.battery_report().power_supply_status == PowerSupplyStatus.NOT_CHARGING
+
+
+def test_current_goes_nan_when_old():
+    clock = Clock()
+    device = make(clock)
+    device.handle_frame(40, CURRENT_10A_DISCHARGE, 1.0)
+    clock.now += 1.0
+    device.handle_frame(30, STATUS_OK, 2.0)
+    assert device.battery_report().current == -10.0
+    clock.now += 0.5  # 1.5 s since the current, status still fresh
+    device.handle_frame(30, STATUS_OK, 2.5)
+    report = device.battery_report()
+    assert report.present is True and math.isnan(report.current)
+    assert device.diagnostic_report().values['current (A, discharge negative)'].startswith(
+        'not received')
+
+
+@pytest.mark.parametrize('error,health,level', [
+    (0, PowerSupplyHealth.GOOD, Level.OK),
+    (2, PowerSupplyHealth.GOOD, Level.WARN),
+    (4, PowerSupplyHealth.GOOD, Level.WARN),
+    (10, PowerSupplyHealth.GOOD, Level.WARN),
+    (6, PowerSupplyHealth.OVERVOLTAGE, Level.WARN),
+    (7, PowerSupplyHealth.OVERVOLTAGE, Level.ERROR),
+    (5, PowerSupplyHealth.DEAD, Level.ERROR),
+    (8, PowerSupplyHealth.OVERHEAT, Level.ERROR),
+    (11, PowerSupplyHealth.OVERHEAT, Level.ERROR),
+    (9, PowerSupplyHealth.COLD, Level.ERROR),
+    (1, PowerSupplyHealth.UNSPEC_FAILURE, Level.ERROR),
+    (3, PowerSupplyHealth.UNSPEC_FAILURE, Level.ERROR),
+    (12, PowerSupplyHealth.UNSPEC_FAILURE, Level.ERROR),
+    (16, PowerSupplyHealth.UNSPEC_FAILURE, Level.ERROR),
+])
+def test_health_and_level_from_error_code(error, health, level):
+    device = make()
+    device.handle_frame(30, status(error=error), 1.0)
+    assert device.battery_report().power_supply_health == health
+    diag = device.diagnostic_report()
+    assert diag.level == level
+    assert diag.values['error code'] == str(error)
+    assert device.error == error
+
+
+def test_diagnostic_message_and_values():
+    device = make()
+    device.handle_frame(30, status(state=4, error=12, b6=0xE5), 1.0)  # isolation 101
+    diag = device.diagnostic_report()
+    assert diag.level == Level.ERROR
+    assert diag.message == 'STOPPED, error ISOLATION_ERROR (12)'
+    assert diag.values['isolation (%)'] == 'not measured'
+    assert diag.values['headlights'] == 'on'
+    assert diag.values['pack voltage (V)'] == '400.0'
+    assert diag.values['aux voltage (V)'] == '13.0'
+    device.handle_frame(30, status(state=2, error=4), 1.0)
+    diag = device.diagnostic_report()
+    assert (diag.level, diag.message) == (Level.WARN, 'RUNNING, warning LOW_CELL_WARNING (4)')
+
+
+def test_stale_status():
+    clock = Clock()
+    device = make(clock)
+    assert device.diagnostic_report().level == Level.STALE
+    device.handle_frame(30, STATUS_OK, 1.0)
+    assert device.diagnostic_report().level == Level.OK
+    clock.now += 1.3  # default stale_timeout 5 x 0.25 s
+    assert device.diagnostic_report().level == Level.STALE
+    assert device.battery_report().present is False
+
+
+def test_malformed_frames_are_counted_not_applied():
+    device = make()
+    device.handle_frame(30, STATUS_OK, 1.0)
+    assert device.handle_frame(30, bytes([6, 0, 0, 0, 0, 0, 0, 0]), 2.0) is False
+    assert device.handle_frame(40, b'\x80', 2.0) is False
+    assert device.frames_malformed == 2
+    assert device.battery_report().voltage == 400.0
+    assert 'DLC 1, expected 3' in device.diagnostic_report().values['last malformed frame']
+
+
+def cells_frame(first_mv, count=4):
+    return b''.join((first_mv + i).to_bytes(2, 'big') for i in range(count))
+
+
+def test_bms12_cells_nan_until_received():
+    clock = Clock()
+    device = make(clock, bms12_modules=2)
+    device.handle_frame(30, STATUS_OK, 1.0)
+    assert len(device.battery_report().cell_voltage) == 24
+    assert all(math.isnan(v) for v in device.battery_report().cell_voltage)
+    device.handle_frame(311, cells_frame(3300), 1.0)  # module 1, cells 1..4
+    device.handle_frame(302, cells_frame(4000), 1.0)  # module 0, cells 5..8
+    device.handle_frame(314, bytes([65, 0, 0, 0, 0, 0, 0, 0]), 1.0)
+    cells = device.battery_report().cell_voltage
+    assert cells[4:8] == [4.0, 4.001, 4.002, 4.003]
+    assert cells[12:16] == [3.3, 3.301, 3.302, 3.303]
+    assert sum(1 for v in cells if not math.isnan(v)) == 8
+    values = device.diagnostic_report().values
+    assert values['module 1 cells'] == '4/12 received'
+    assert values['module 1 cell min (V)'] == '3.300'
+    assert values['module 1 cell max (V)'] == '3.303'
+    assert values['module 1 temperatures (degC)'] == '25, -40'
+    assert values['module 0 temperatures (degC)'] == 'unknown, unknown'
+
+
+def test_cells_per_module_from_config():
+    device = make(bms12_modules=2, **{'config.cells_per_module': [4, 9] + [0] * 14})
+    device.handle_frame(30, STATUS_OK, 1.0)
+    for aid, mv in ((301, 3000), (302, 3100), (311, 3200), (312, 3300), (313, 3400)):
+        device.handle_frame(aid, cells_frame(mv), 1.0)
+    cells = device.battery_report().cell_voltage
+    assert cells == [3.0, 3.001, 3.002, 3.003,
+                     3.2, 3.201, 3.202, 3.203, 3.3, 3.301, 3.302, 3.303, 3.4]
+
+
+def test_silent_module_warns_and_its_cells_become_unknown():
+    clock = Clock()
+    device = make(clock, bms12_modules=2)
+    for t in range(4):
+        device.handle_frame(30, STATUS_OK, clock.now)
+        for aid in (301, 302, 303, 311, 312, 313):
+            if t == 0 or aid < 310:  # module 1 answers only once
+                device.handle_frame(aid, cells_frame(3500), clock.now)
+        clock.now += 1.0
+    device.handle_frame(30, STATUS_OK, clock.now)
+    diag = device.diagnostic_report()
+    assert diag.level == Level.WARN
+    assert diag.message == 'RUNNING, no error; BMS12 module(s) silent: 1'
+    cells = device.battery_report().cell_voltage
+    assert not any(math.isnan(v) for v in cells[:12])
+    assert all(math.isnan(v) for v in cells[12:])
