@@ -1,4 +1,5 @@
 """EVMS3 and BMS16 services on a real node: exact bytes on the bus, and every refusal."""
+import can
 import pytest
 from std_srvs.srv import SetBool, Trigger
 
@@ -102,6 +103,145 @@ def test_bms16_disabled_refuses_and_sends_nothing(rig_factory):
     mark = rig.capture.mark()
     for service in ('write_config', 'acknowledge_error', 'reset_soc', 'power_off'):
         response = rig.call(Trigger, f'/bms16/{service}')
+        assert not response.success and 'commands_enabled' in response.message
+    rig.capture.wait_for(lambda: False, timeout=0.3)
+    assert sent(rig, mark) == []
+
+
+# --- EVMS3: golden frames written by hand from PROTOCOLS.md section 3 (29-bit IDs) ---------
+EVMS3_CONFIG = {
+    'pack_capacity_ah': 100, 'soc_warning_pct': 20, 'full_voltage_v': 400.0,
+    'warn_current_a': 200, 'trip_current_a': 300, 'temp_warning_c': 60,
+    'min_aux_voltage_v': 11, 'min_isolation_pct': 50,
+    'tacho_ppr': 2, 'fuel_gauge_full_pct': 90, 'fuel_gauge_empty_pct': 10,
+    'temp_gauge_hot_pct': 80, 'temp_gauge_cold_pct': 20, 'bms_min_cell_v': 2.8,
+    'bms_max_cell_v': 3.65, 'balance_v': 3.5, 'balance_mode': 'static',
+    'bms_hysteresis_v': 0.05, 'bms_min_temp_c': 0, 'bms_max_temp_c': 55,
+    'max_charge_voltage_v': 400, 'max_charge_current_a': 12, 'alt_charge_voltage_v': 380,
+    'alt_charge_current_a': 6, 'sleep_delay_min': 5, 'mpi_function': 1, 'mpo1_function': 2,
+    'mpo2_function': 3, 'parallel_strings': 1, 'enable_precharge': True,
+    'stationary_mode': False, 'cells_per_module': [12, 12, 12, 12, 8] + [0] * 11,
+}
+EVMS3_FRAMES = [
+    # capacity 5 Ah/bit, SoC warn, full 2 V/bit, warn/trip 10 A/bit, temp, aux, isolation
+    (32, bytes([20, 20, 200, 20, 30, 60, 11, 50])),
+    # tacho, gauges, min cell 1.50 + 0.01 n, max cell 2.00 + 0.01 n, balance 2.00 + 0.01 n
+    (33, bytes([2, 90, 10, 80, 20, 130, 165, 150])),
+    # hysteresis 0.01 V, temps n - 40, 400 V = 0x190: low 0x90 + bit 7 of 12 A; 380 V = 0x17C
+    (34, bytes([5, 40, 95, 0x90, 0x80 | 12, 0x7C, 0x80 | 6, 5])),
+    (35, bytes([1, 2, 3, 1, 1, 0, 0, 0])),
+    # module 2n in the low nibble of byte n
+    (36, bytes([0xCC, 0xCC, 0x08, 0, 0, 0, 0, 0])),
+]
+
+
+def evms3_params(enabled=True, config=EVMS3_CONFIG, skip=()):
+    params = {'devices': ['evms3'], 'commands_enabled': enabled}
+    params.update({f'evms3.config.{k}': v for k, v in config.items() if k not in skip})
+    return params
+
+
+def evms3_status(rig, state, error):
+    """Put an EVMS3 status frame (ID 30) on the bus, as the EVMS would."""
+    rig.capture.bus.send(can.Message(arbitration_id=30, is_extended_id=True, data=bytes(
+        [state | error << 3, 0x03, 0xE8, 0x0F, 0xA0, 0x8C, 100, 65])))
+
+
+def test_evms3_write_config_sends_32_to_36_in_order(rig_factory):
+    rig = rig_factory(evms3_params())
+    mark = rig.capture.mark()
+    response = rig.call(Trigger, '/evms3/write_config')
+    assert response.success, response.message
+    assert rig.capture.wait_for(lambda: len(sent(rig, mark)) >= 5)
+    assert sent(rig, mark) == [(i, data, True) for i, data in EVMS3_FRAMES]
+
+
+def test_evms3_dynamic_balancing_needs_no_balance_voltage(rig_factory):
+    config = dict(EVMS3_CONFIG, balance_mode='dynamic')
+    rig = rig_factory(evms3_params(config=config, skip=('balance_v',)))
+    mark = rig.capture.mark()
+    response = rig.call(Trigger, '/evms3/write_config')
+    assert response.success, response.message
+    assert rig.capture.wait_for(lambda: len(sent(rig, mark)) >= 5)
+    assert sent(rig, mark)[1][1][7] == 251
+
+
+def test_evms3_write_config_names_every_missing_value_and_sends_nothing(rig_factory):
+    missing = ('pack_capacity_ah', 'balance_v', 'stationary_mode', 'cells_per_module')
+    rig = rig_factory(evms3_params(skip=missing))
+    mark = rig.capture.mark()
+    response = rig.call(Trigger, '/evms3/write_config')
+    assert not response.success
+    for name in missing:
+        assert f'evms3.config.{name}' in response.message, response.message
+    assert '4 configuration value(s) unset' in response.message
+    rig.capture.wait_for(lambda: False, timeout=0.3)
+    assert sent(rig, mark) == []
+
+
+def test_evms3_config_refusals_name_the_allowed_range(rig_factory):
+    rig = rig_factory(evms3_params())
+    for name, value, allowed in (
+            ('pack_capacity_ah', 7, ('step',)), ('full_voltage_v', 504, ('502',)),
+            ('balance_mode', 'fast', ('static', 'dynamic', 'off')),
+            ('cells_per_module', [12] * 15, ('16',)),
+            ('cells_per_module', [16] + [0] * 15, ('15',))):
+        result = rig.set_param(f'evms3.config.{name}', value)
+        assert not result.successful, name
+        assert f'evms3.config.{name}' in result.reason, result.reason
+        assert all(text in result.reason for text in allowed), result.reason
+    assert rig.set_param('evms3.config.full_voltage_v', 402).successful  # 402 = 201 x 2 V
+    mark = rig.capture.mark()
+    assert rig.call(Trigger, '/evms3/write_config').success
+    assert rig.capture.wait_for(lambda: len(sent(rig, mark)) >= 5)
+    assert sent(rig, mark)[0][1][2] == 201
+
+
+@pytest.mark.parametrize('data, payload', [(True, b'\x01'), (False, b'\x00')])
+def test_evms3_set_setup_mode(rig_factory, data, payload):
+    rig = rig_factory(evms3_params(config={}))
+    mark = rig.capture.mark()
+    response = rig.call(SetBool, '/evms3/set_setup_mode', data=data)
+    assert response.success, response.message
+    assert rig.capture.wait_for(lambda: sent(rig, mark))
+    assert sent(rig, mark) == [(31, payload, True)]
+
+
+def test_evms3_reset_soc(rig_factory):
+    rig = rig_factory(evms3_params(config={}))
+    mark = rig.capture.mark()
+    assert rig.call(Trigger, '/evms3/reset_soc').success
+    assert rig.capture.wait_for(lambda: sent(rig, mark))
+    assert sent(rig, mark) == [(38, b'', True)]
+
+
+def test_evms3_acknowledge_error_sends_the_error_reported_now(rig_factory):
+    rig = rig_factory(evms3_params(config={}))
+    mark = rig.capture.mark()
+    response = rig.call(Trigger, '/evms3/acknowledge_error')  # nothing heard yet: stale
+    assert not response.success and 'stale' in response.message
+    evms3_status(rig, state=2, error=0)
+    assert rig.capture.wait_for(lambda: rig.node.devices['evms3'].error is not None)
+    response = rig.call(Trigger, '/evms3/acknowledge_error')
+    assert not response.success and 'no error' in response.message
+    assert sent(rig, mark) == []
+    evms3_status(rig, state=4, error=3)  # stopped, overcurrent shutdown
+    assert rig.capture.wait_for(lambda: int(rig.node.devices['evms3'].error) == 3)
+    response = rig.call(Trigger, '/evms3/acknowledge_error')
+    assert response.success, response.message
+    assert rig.capture.wait_for(lambda: sent(rig, mark))
+    assert sent(rig, mark) == [(37, b'\x03', True)]
+
+
+def test_evms3_disabled_refuses_and_sends_nothing(rig_factory):
+    rig = rig_factory(evms3_params(enabled=False))
+    evms3_status(rig, state=4, error=3)
+    mark = rig.capture.mark()
+    for srv_type, service, fields in ((Trigger, 'write_config', {}),
+                                      (Trigger, 'acknowledge_error', {}),
+                                      (Trigger, 'reset_soc', {}),
+                                      (SetBool, 'set_setup_mode', {'data': True})):
+        response = rig.call(srv_type, f'/evms3/{service}', **fields)
         assert not response.success and 'commands_enabled' in response.message
     rig.capture.wait_for(lambda: False, timeout=0.3)
     assert sent(rig, mark) == []

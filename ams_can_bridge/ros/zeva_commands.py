@@ -163,8 +163,7 @@ class Evms3Commands(_ZevaCommands):
         if self.device.is_stale():
             raise _Refused('the EVMS3 is stale (no status frame within its stale_timeout), so '
                            'its error is unknown')
-        with self.device.lock:
-            error = getattr(self.device, 'error', None)
+        error = getattr(self.device, 'error', None)  # the property takes the device lock
         if error is None or int(error) == 0:
             raise _Refused('the EVMS3 reports no error to acknowledge')
         return [self.codec.encode(evms3_proto.AcknowledgeError(
