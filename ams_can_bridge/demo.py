@@ -1,0 +1,234 @@
+"""
+The ``demo`` executable: the bridge and simulated devices in one process, with a live view.
+
+Simulated AMS (+ IVT-S), EVMS3 (+ BMS12 modules), BMS16 and SMA BMS talk on python-can's
+in-process ``virtual`` bus; the real bridge node reads that bus; a small client node in the
+same process calls the AMS services (enable_sc -> enable_ts -> enable_drive, hold, abort,
+in a loop) and subscribes to the bridge's topics. The terminal view is drawn from those ROS
+messages only, so what it shows is exactly what any other ROS subscriber would see.
+
+Exit code 0 after Ctrl-C, SIGTERM or --duration; 2 when the bridge cannot start.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import signal
+import sys
+import threading
+import time
+from typing import Any
+
+DEVICE_TYPES = {'ams': 'ams', 'ivt_s': 'ivt_s', 'evms3': 'evms3', 'bms16': 'bms16',
+                'sma': 'sma'}
+STEPS = ('enable_sc', 'enable_ts', 'enable_drive')
+SERVICE_TIMEOUT = 10.0  # s to wait for an AMS answer (the bridge answers by command_timeout)
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    """Parse the demo's own options (ROS arguments after --ros-args are left to rclpy)."""
+    parser = argparse.ArgumentParser(
+        prog='demo', description='ams_can_bridge demo: bridge + simulated battery devices on '
+        'an in-process virtual CAN bus, with a live terminal view. Ctrl-C to stop.')
+    parser.add_argument('--duration', type=float, default=0.0,
+                        help='stop after this many seconds (default: run until Ctrl-C)')
+    parser.add_argument('--plain', action='store_true',
+                        help='print plain-text snapshots instead of redrawing in place')
+    parser.add_argument('--interval', type=float, default=None,
+                        help='seconds between snapshots (default 1.0 plain, 0.25 on a terminal)')
+    parser.add_argument('--banks', type=int, default=2, choices=range(1, 6), metavar='1..5',
+                        help='number of simulated AMS banks (28 cells each, default 2)')
+    parser.add_argument('--hold', type=float, default=None,
+                        help='seconds to stay in DRIVE before abort (default 6, shorter with '
+                        'a short --duration)')
+    parser.add_argument('--fault', action='store_true',
+                        help='make the BMS16 fall silent after --fault-after s (shows STALE)')
+    parser.add_argument('--fault-after', type=float, default=20.0,
+                        help='seconds before the --fault starts (default 20)')
+    parser.add_argument('--no-commands', action='store_true',
+                        help='do not drive the AMS (bridge stays a listener)')
+    args = parser.parse_args(argv)
+    if args.duration < 0 or (args.interval is not None and args.interval <= 0):
+        parser.error('--duration must be >= 0 and --interval > 0')
+    if args.hold is None:
+        args.hold = min(6.0, max(1.0, args.duration / 5)) if args.duration else 6.0
+    return args
+
+
+class CommandDriver:
+    """
+    Walk the AMS through its states with real service calls, in a loop, on its own thread.
+
+    enable_sc -> enable_ts -> enable_drive, hold, abort, rest; a refused step aborts the
+    round (abort is always sent) and the loop starts again after the rest.
+    """
+
+    def __init__(self, node: Any, device: str, hold: float, rest: float = 2.0) -> None:
+        from std_srvs.srv import Trigger
+        self.node = node
+        self.hold = hold
+        self.rest = rest
+        self.clients = {step: node.create_client(Trigger, f'{device}/{step}')
+                        for step in STEPS + ('abort',)}
+        self.request_type = Trigger.Request
+        self.lock = threading.Lock()
+        self.last_command = ''
+        self.last_answer = ''
+        self.stop_event = threading.Event()
+        self.thread = threading.Thread(target=self._run, name='demo-commands', daemon=True)
+
+    def start(self) -> None:
+        """Start the command loop."""
+        self.thread.start()
+
+    def stop(self) -> None:
+        """Stop the loop (an answer still in flight is abandoned) and join it."""
+        self.stop_event.set()
+        if self.thread.is_alive():
+            self.thread.join(timeout=SERVICE_TIMEOUT + 1.0)
+
+    def last(self) -> tuple[str, str]:
+        """Return (last command, its answer) for the view."""
+        with self.lock:
+            return self.last_command, self.last_answer
+
+    def _note(self, command: str, answer: str) -> None:
+        with self.lock:
+            self.last_command, self.last_answer = command, answer
+
+    def call(self, step: str) -> bool:
+        """Call one Trigger service and wait for its answer; True on success."""
+        client = self.clients[step]
+        while not client.service_is_ready():
+            self._note(step, 'waiting for the service to appear')
+            if self.stop_event.wait(0.2):
+                return False
+        self._note(step, '...')
+        started = time.monotonic()
+        done = threading.Event()
+        future = client.call_async(self.request_type())
+        future.add_done_callback(lambda _: done.set())
+        while not done.wait(0.1):
+            if self.stop_event.is_set() or time.monotonic() - started > SERVICE_TIMEOUT:
+                client.remove_pending_request(future)
+                self._note(step, 'no answer' if not self.stop_event.is_set() else 'stopped')
+                return False
+        response = future.result()
+        took = time.monotonic() - started
+        verdict = 'OK' if response.success else 'REFUSED'
+        self._note(step, f'{verdict} in {took:.2f} s: {response.message}')
+        return bool(response.success)
+
+    def _run(self) -> None:
+        while not self.stop_event.is_set():
+            reached = all(self.call(step) for step in STEPS)
+            if self.stop_event.is_set():
+                return
+            if reached and self.stop_event.wait(self.hold):
+                return
+            self.call('abort')
+            if self.stop_event.wait(self.rest):
+                return
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the demo; return the process exit code."""
+    # Network rule: DDS stays on this machine and on a domain of the demo's own.
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    os.environ.setdefault('ROS_DOMAIN_ID', str(100 + os.getpid() % 100))
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+    from rclpy.utilities import remove_ros_args
+
+    raw = sys.argv if argv is None else ['demo'] + list(argv)
+    args = parse_args(remove_ros_args(raw)[1:])
+    stop = threading.Event()
+
+    def on_signal(signum: int, frame: Any) -> None:
+        stop.set()
+
+    old_handlers = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+    rclpy.init(args=raw, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        return _run(args, stop)
+    finally:
+        rclpy.try_shutdown()
+        for sig, handler in old_handlers.items():
+            signal.signal(sig, handler)
+
+
+def _run(args: argparse.Namespace, stop: threading.Event) -> int:
+    """Build everything, show the view until stopped, then tear down in reverse order."""
+    from rclpy.executors import MultiThreadedExecutor
+
+    from ams_can_bridge.demo_rig import DemoMonitor, DemoRig
+    from ams_can_bridge.demo_view import render
+    from ams_can_bridge.ros.bridge_node import ConfigError
+
+    tty = sys.stdout.isatty() and not args.plain
+    interval = args.interval or (0.25 if tty else 1.0)
+    unicode = tty and 'utf' in (sys.stdout.encoding or '').lower()
+    try:
+        rig = DemoRig(banks=args.banks, commands=not args.no_commands)
+    except ConfigError as exc:
+        print(f'demo: the bridge cannot start: {exc}', file=sys.stderr)
+        return 2
+    monitor = DemoMonitor(rig)
+    executor = MultiThreadedExecutor(num_threads=4)
+    executor.add_node(rig.bridge)
+    executor.add_node(monitor)
+    spinner = threading.Thread(target=_spin, args=(executor,), name='demo-executor',
+                               daemon=True)
+    spinner.start()
+    driver = None
+    if not args.no_commands:
+        driver = CommandDriver(monitor, 'ams', args.hold)
+        driver.start()
+    started = time.monotonic()
+    faulted = False
+    if tty:
+        sys.stdout.write('\033[?25l\033[2J')  # hide the cursor, clear once
+    try:
+        while True:
+            uptime = time.monotonic() - started
+            if args.fault and not faulted and uptime >= args.fault_after:
+                rig.silence('bms16')
+                faulted = True
+            view = monitor.view(uptime, driver.last() if driver else ('', ''))
+            if args.fault:
+                view.notes.append(f'fault injection: bms16 silent from {args.fault_after:g} s'
+                                  + (' (now)' if faulted else ''))
+            text = render(view, colour=tty, unicode=unicode)
+            if tty:
+                sys.stdout.write('\033[H' + text.replace('\n', '\033[K\n') + '\033[K\033[J')
+            else:
+                sys.stdout.write(f'--- t = {uptime:.1f} s ---\n{text}\n\n')
+            sys.stdout.flush()
+            remaining = args.duration - uptime if args.duration else math.inf
+            if remaining <= 0 or stop.wait(min(interval, max(remaining, 0.01))):
+                break
+    finally:
+        if tty:
+            sys.stdout.write('\033[?25h\n')
+            sys.stdout.flush()
+        if driver is not None:
+            driver.stop()
+        executor.shutdown(timeout_sec=2.0)
+        spinner.join(timeout=3.0)
+        monitor.destroy_node()
+        rig.close()
+    return 0
+
+
+def _spin(executor: Any) -> None:
+    """Spin until the executor is shut down (shutdown during spin is the normal exit)."""
+    from rclpy.executors import ExternalShutdownException
+    try:
+        executor.spin()
+    except (ExternalShutdownException, KeyboardInterrupt):
+        pass
+
+
+if __name__ == '__main__':
+    sys.exit(main())
