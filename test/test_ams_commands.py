@@ -1,0 +1,114 @@
+"""AMS services on a real node: car commands in the heartbeat, charger-role frames."""
+import time
+
+import pytest
+from std_srvs.srv import Trigger
+
+from command_rig import Rig
+
+BASE = 0x300
+HEARTBEAT = BASE + 0x005
+
+
+@pytest.fixture
+def rig_factory():
+    rigs = []
+
+    def make(params, **kw):
+        rig = Rig(params, **kw)
+        rigs.append(rig)
+        return rig
+    yield make
+    for rig in rigs:
+        rig.close()
+
+
+def ams_params(enabled=True, **extra):
+    params = {'devices': ['ams'], 'commands_enabled': enabled, 'ams.bank_count': 3,
+              'ams.heartbeat_period': 0.02, 'ams.command_timeout': 2.0}
+    params.update(extra)
+    return params
+
+
+def commands_sent(rig, mark=0):
+    """Frames other than the heartbeat, as (id, data)."""
+    return [(f.arbitration_id, f.data) for _, f in rig.capture.since(mark)
+            if f.arbitration_id != HEARTBEAT]
+
+
+def heartbeat_commands(rig, mark=0):
+    """Command nibble of every heartbeat since mark."""
+    return [f.data[0] & 0x0F for _, f in rig.capture.since(mark, HEARTBEAT)]
+
+
+# --- charger role: frames written by hand from PROTOCOLS.md section 1 ---------------------
+def test_start_and_stop_charging_carry_start_and_a_millisecond_tick(rig_factory):
+    rig = rig_factory(ams_params())
+    mark = rig.capture.mark()
+    first = rig.call(Trigger, '/ams/start_charging')
+    assert first.success, first.message
+    time.sleep(0.3)
+    second = rig.call(Trigger, '/ams/stop_charging')
+    assert second.success, second.message
+    assert rig.capture.wait_for(lambda: len(commands_sent(rig, mark)) >= 2)
+    (id1, d1), (id2, d2) = commands_sent(rig, mark)
+    assert (id1, id2) == (0x310, 0x310) and len(d1) == len(d2) == 3
+    assert d1[0] == 1 and d2[0] == 2  # 1 = start, 2 = stop
+    tick1, tick2 = d1[1] << 8 | d1[2], d2[1] << 8 | d2[2]  # big-endian time tick
+    assert 250 <= (tick2 - tick1) & 0xFFFF <= 2000  # ms between the two calls
+
+
+def test_set_charge_current_and_override_bank_count(rig_factory):
+    rig = rig_factory(ams_params(**{'ams.charge_current_a': 12.5}))
+    mark = rig.capture.mark()
+    assert rig.call(Trigger, '/ams/set_charge_current').success
+    assert rig.call(Trigger, '/ams/override_bank_count').success
+    assert rig.capture.wait_for(lambda: len(commands_sent(rig, mark)) >= 2)
+    assert commands_sent(rig, mark) == [(0x350, bytes([125])), (0x351, bytes([3]))]
+
+
+def test_charge_current_unset_or_out_of_range_is_refused_and_nothing_sent(rig_factory):
+    rig = rig_factory(ams_params())
+    mark = rig.capture.mark()
+    response = rig.call(Trigger, '/ams/set_charge_current')
+    assert not response.success
+    assert 'ams.charge_current_a is not set' in response.message
+    assert 'nothing was sent' in response.message
+    for value in (25.6, -1.0, 0.15):
+        result = rig.set_param('ams.charge_current_a', value)
+        assert not result.successful and 'ams.charge_current_a' in result.reason
+    assert not rig.set_param('ams.bank_count', 6).successful
+    rig.capture.wait_for(lambda: False, timeout=0.2)
+    assert commands_sent(rig, mark) == []
+
+
+# --- car commands without an AMS on the bus --------------------------------------------
+def test_state_command_times_out_when_no_ams_answers(rig_factory):
+    rig = rig_factory(ams_params(**{'ams.command_timeout': 0.5}))
+    mark = rig.capture.mark()
+    t0 = time.monotonic()
+    response = rig.call(Trigger, '/ams/enable_sc')
+    assert time.monotonic() - t0 >= 0.5
+    assert not response.success
+    assert 'timeout after 0.5 s waiting for SC_ENABLED' in response.message
+    assert 'not reported yet' in response.message
+    commands = heartbeat_commands(rig, mark)
+    assert 1 in commands  # ENABLE_SC was carried while waiting
+    last = max(i for i, c in enumerate(commands) if c == 1)
+    n = len(commands)
+    assert rig.capture.wait_for(lambda: len(heartbeat_commands(rig, mark)) >= n + 3)
+    assert set(heartbeat_commands(rig, mark)[last + 1:]) == {0}  # back to NO_COMMAND
+
+
+def test_one_shot_commands_answer_once_carried(rig_factory):
+    rig = rig_factory(ams_params())
+    mark = rig.capture.mark()
+    for service, command in (('set_bank_count', 5), ('sync_time', 6)):
+        response = rig.call(Trigger, f'/ams/{service}')
+        assert response.success, response.message
+        assert 'sent in the heartbeat' in response.message
+    rig.capture.wait_for(lambda: len(heartbeat_commands(rig, mark)) >= 20)
+    commands = heartbeat_commands(rig, mark)
+    assert commands.count(5) == 1 and commands.count(6) == 1
+    frames = rig.capture.since(mark, HEARTBEAT)
+    assert all(f.data[0] >> 4 == 3 for _, f in frames)  # bank count from ams.bank_count
