@@ -1,0 +1,196 @@
+"""Simulated EVMS3 + BMS12: rates, physics, reactions to commands, faults, and a real bus."""
+import dataclasses
+import uuid
+
+import can
+import pytest
+
+from ams_can_bridge.devices.evms3 import Evms3Device
+from ams_can_bridge.protocols.common import Frame, MalformedFrameError
+from ams_can_bridge.protocols.evms3 import (
+    AcknowledgeError, BatteryCurrent, Bms12Cells, Bms12Request,
+    BmsCellNumbers, Evms3Codec, Evms3Config, Evms3Error, Evms3State, Evms3Status, PowerOff,
+    ResetSoc, SetState)
+from ams_can_bridge.sim.evms3 import Evms3Simulator
+
+CODEC = Evms3Codec()
+CONFIG = Evms3Config(
+    pack_capacity_ah=60, soc_warning_pct=20, full_voltage_v=100, warn_current_a=300,
+    trip_current_a=500, temp_warning_c=60, min_aux_voltage_v=11, min_isolation_pct=50,
+    tacho_ppr=2, fuel_gauge_full_pct=90, fuel_gauge_empty_pct=10, temp_gauge_hot_pct=80,
+    temp_gauge_cold_pct=20, bms_min_cell_v=3.0, bms_max_cell_v=4.2, balance_v=4.1,
+    balance_mode='static', bms_hysteresis_v=0.05, bms_min_temp_c=0, bms_max_temp_c=55,
+    max_charge_voltage_v=300, max_charge_current_a=30, alt_charge_voltage_v=250,
+    alt_charge_current_a=10, sleep_delay_min=3, mpi_function=1, mpo1_function=2,
+    mpo2_function=6, parallel_strings=1, enable_precharge=True, stationary_mode=False)
+
+
+def run(sim, start, stop, step=0.01):
+    """Tick from start to stop; return the decoded readings."""
+    out = []
+    n = int(round((stop - start) / step))
+    for i in range(n + 1):
+        out += [CODEC.decode(f.arbitration_id, f.data) for f in sim.tick(start + i * step)]
+    return out
+
+
+def last(readings, kind):
+    return [r for r in readings if isinstance(r, kind)][-1]
+
+
+def send(sim, msg, now=0.0):
+    sim.on_frame(CODEC.encode(msg), now)
+
+
+def test_frames_and_rates():
+    sim = Evms3Simulator(bms12_modules=2)
+    frames = []
+    for i in range(200):  # 2 s
+        frames += sim.tick(i * 0.01)
+    assert all(f.is_extended_id for f in frames)
+    ids = [f.arbitration_id for f in frames]
+    assert 7 <= ids.count(30) <= 9  # 4 Hz
+    assert 18 <= ids.count(40) <= 21  # 10 Hz
+    for module_base in (300, 310):
+        for t in range(5):
+            assert 3 <= ids.count(module_base + t) <= 5  # every 0.5 s
+    assert not any(320 <= aid < 460 for aid in ids)
+
+
+def test_running_by_default_pack_voltage_is_the_sum_of_the_cells():
+    sim = Evms3Simulator(bms12_modules=3, cells_per_module=10,
+                         current_fn=lambda t: 0.0, seed=3)
+    readings = run(sim, 0.0, 1.0)
+    status = last(readings, Evms3Status)
+    assert status.state is Evms3State.RUNNING and status.error is Evms3Error.NONE
+    cells = [r for r in readings if isinstance(r, Bms12Cells)][-9:]
+    voltages = [v for r in cells for v in r.voltages_v[:10 - r.first_cell]]
+    assert len(voltages) == 30
+    assert all(v == 0.0 for r in cells if r.first_cell == 8 for v in r.voltages_v[2:])
+    assert status.pack_voltage_v == pytest.approx(sum(voltages), abs=0.051)
+    assert last(readings, Bms12Request).balance_mv is None  # no config: no balancing
+
+
+def test_current_sign_and_amp_hours():
+    sim = Evms3Simulator(current_fn=lambda t: 36.0, capacity_ah=100.0)
+    readings = run(sim, 0.0, 10.0)
+    assert last(readings, BatteryCurrent).current_a == 36.0  # wire: positive = discharge
+    # 36 A for 10 s = 0.1 Ah out of 90 Ah
+    assert last(readings, Evms3Status).amp_hours_ah == pytest.approx(89.9, abs=0.11)
+    charging = Evms3Simulator(current_fn=lambda t: -18.0)
+    readings = run(charging, 0.0, 10.0)
+    assert last(readings, BatteryCurrent).current_a == -18.0
+    assert charging.remaining_ah == pytest.approx(90.05, abs=0.001)
+
+
+def test_config_is_stored_only_after_all_four_packets():
+    sim = Evms3Simulator()
+    frames = CODEC.config_frames(CONFIG)
+    for f in (frames[2], frames[0], frames[3]):
+        sim.on_frame(f, 0.0)
+        assert sim.stored_config is None
+    assert sorted(sim.config_parts) == [1, 3, 4]
+    sim.on_frame(frames[1], 0.0)
+    assert sim.stored_config == CONFIG
+    assert sim.config_parts == {}
+    assert sim.capacity_ah == 60.0
+    # one packet of a new configuration changes nothing stored
+    sim.on_frame(CODEC.config_frames(dataclasses.replace(CONFIG, pack_capacity_ah=70))[0], 1.0)
+    assert sim.stored_config == CONFIG
+    readings = run(sim, 1.0, 2.0)
+    assert last(readings, Bms12Request).balance_mv == 4100  # static balance from the config
+
+
+def test_reset_soc_and_cell_numbers():
+    sim = Evms3Simulator(current_fn=lambda t: 360.0)
+    run(sim, 0.0, 10.0)
+    assert sim.remaining_ah == pytest.approx(89.0, abs=0.01)
+    send(sim, ResetSoc(), 10.0)
+    assert last(run(sim, 10.0, 10.3), Evms3Status).amp_hours_ah == pytest.approx(100.0, abs=0.1)
+    send(sim, BmsCellNumbers((12, 10) + (0,) * 14))
+    assert sim.cell_numbers == (12, 10) + (0,) * 14
+
+
+def test_set_state_and_acknowledge_error():
+    sim = Evms3Simulator()
+    sim.faults.error_code = 12
+    assert last(run(sim, 0.0, 0.3), Evms3Status).error is Evms3Error.ISOLATION_ERROR
+    send(sim, AcknowledgeError(Evms3Error.LOW_12V))  # not the reported one: no effect
+    assert last(run(sim, 0.3, 0.6), Evms3Status).error is Evms3Error.ISOLATION_ERROR
+    send(sim, AcknowledgeError(Evms3Error.ISOLATION_ERROR))
+    assert last(run(sim, 0.6, 0.9), Evms3Status).error is Evms3Error.NONE
+    send(sim, SetState(True))
+    readings = run(sim, 0.9, 1.2)
+    assert last(readings, Evms3Status).state is Evms3State.SETUP
+    assert last(readings, BatteryCurrent).current_a == 0.0
+    send(sim, SetState(False))
+    assert last(run(sim, 1.2, 1.5), Evms3Status).state is Evms3State.IDLE
+    assert len(sim.received) == 4
+
+
+def test_power_off_and_bad_commands():
+    sim = Evms3Simulator()
+    sim.on_frame(Frame(31, b'\x07', True), 0.0)  # set state 7: malformed, ignored
+    sim.on_frame(Frame(31, b'\x01', False), 0.0)  # 11-bit ID 31: not the EVMS
+    assert sim.malformed_received == 1 and sim.state is Evms3State.RUNNING
+    send(sim, PowerOff())
+    assert run(sim, 0.0, 1.0) == []
+    sim.power_on()
+    assert run(sim, 1.0, 1.5)
+
+
+def test_faults_silent_malformed_drift():
+    sim = Evms3Simulator()
+    sim.faults.silent = True
+    assert run(sim, 0.0, 1.0) == []
+    sim.faults.silent = False
+    sim.faults.malformed = True
+    frames = [f for i in range(100) for f in sim.tick(1.0 + i * 0.01)]
+    assert frames
+    for f in frames:
+        with pytest.raises(MalformedFrameError):
+            CODEC.decode(f.arbitration_id, f.data)
+    sim.faults.malformed = False
+    sim.faults.cell_drift_v = 0.5
+    sim.faults.drift_cell = 13  # module 1, cell 2
+    cells = sim.cell_voltages()
+    others = cells[1][:1] + cells[1][2:]
+    assert cells[1][1] > max(others) + 0.4
+
+
+def test_deterministic():
+    a, b = Evms3Simulator(seed=7), Evms3Simulator(seed=7)
+    frames_a = [f for i in range(100) for f in a.tick(i * 0.01)]
+    frames_b = [f for i in range(100) for f in b.tick(i * 0.01)]
+    assert frames_a == frames_b
+    c = Evms3Simulator(seed=8)
+    assert [f for i in range(100) for f in c.tick(i * 0.01)] != frames_a
+
+
+def test_over_a_real_python_can_bus_into_the_device():
+    channel = f'evms3-{uuid.uuid4()}'
+    sim_bus = can.Bus(interface='virtual', channel=channel)
+    bridge_bus = can.Bus(interface='virtual', channel=channel)
+    try:
+        sim = Evms3Simulator(bms12_modules=2, current_fn=lambda t: 25.0)
+        device = Evms3Device('evms3', {'bms12_modules': 2, 'config.pack_capacity_ah': 100})
+        for i in range(60):
+            for f in sim.tick(i * 0.01):
+                sim_bus.send(can.Message(arbitration_id=f.arbitration_id, data=f.data,
+                                         is_extended_id=f.is_extended_id))
+        bridge_bus.send(can.Message(arbitration_id=38, data=b'', is_extended_id=True))
+        while (msg := bridge_bus.recv(timeout=0.5)) is not None:
+            assert msg.is_extended_id
+            device.handle_frame(msg.arbitration_id, bytes(msg.data), msg.timestamp)
+        msg = sim_bus.recv(timeout=2.0)
+        sim.on_frame(Frame(msg.arbitration_id, bytes(msg.data), msg.is_extended_id), 0.6)
+        assert sim.remaining_ah == 100.0
+        report = device.battery_report()
+        assert report.present and device.frames_malformed == 0
+        assert report.current == -25.0
+        assert report.percentage == pytest.approx(0.9, abs=0.001)
+        assert len(report.cell_voltage) == 24
+        assert all(3.9 < v < 4.3 for v in report.cell_voltage)
+    finally:
+        sim_bus.shutdown()
+        bridge_bus.shutdown()
