@@ -76,8 +76,8 @@ def test_battery_golden_sign_is_charge_positive():
     assert battery == SmaBattery(51.23, -12.5, 25.3)
     assert CODEC.encode(battery) == Frame(0x356, data)
     # negative temperature: -105 = 0xFF97
-    assert CODEC.decode(0x356, bytes([0, 0, 0x7D, 0, 0x97, 0xFF])) == SmaBattery(0.0, 12.5,
-                                                                                -10.5)
+    cold = CODEC.decode(0x356, bytes([0, 0, 0x7D, 0, 0x97, 0xFF]))
+    assert cold == SmaBattery(0.0, 12.5, -10.5)
 
 
 def test_battery_invalid_markers():

@@ -1,4 +1,5 @@
-"""ZEVA BMS16 state: status + cell frames (and its SMA frames) -> BatteryState, diagnostics.
+"""
+ZEVA BMS16 state: status + cell frames (and its SMA frames) -> BatteryState, diagnostics.
 
 The BMS16 sends its own frames from ``base_id`` (status, cells) and the SMA Sunny Island
 frames 0x351.. at fixed IDs; this device takes both. Its wire current is positive while
@@ -17,7 +18,7 @@ from ams_can_bridge.devices.base import (
     PowerSupplyHealth)
 from ams_can_bridge.devices.sma import sma_values
 from ams_can_bridge.protocols.bms16 import (
-    BMS16_WARNINGS, Bms16Cells, Bms16Codec, Bms16Error, Bms16Status, CELLS_1, CELLS_3,
+    BMS16_WARNINGS, Bms16Cells, Bms16Codec, Bms16Error, Bms16Status, CELLS_3,
     DEFAULT_BASE_ID, MAX_CELLS)
 from ams_can_bridge.protocols.common import MalformedFrameError
 from ams_can_bridge.protocols.sma import (
@@ -76,7 +77,7 @@ class Bms16Device(Device):
 
     @property
     def error(self) -> Bms16Error:
-        """The error code last reported (NONE until the first status frame)."""
+        """Return the error code last reported (NONE until the first status frame)."""
         status = self.status
         return Bms16Error.NONE if status is None else status.error
 

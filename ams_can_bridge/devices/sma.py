@@ -1,4 +1,5 @@
-"""SMA Sunny Island protocol BMS state: 0x351..0x35F -> BatteryState, diagnostics.
+"""
+SMA Sunny Island protocol BMS state: 0x351..0x35F -> BatteryState, diagnostics.
 
 Fixed IDs (no base_id). The primary frame is 0x356 (voltage, current, temperature); SoC comes
 from 0x355 (the high-resolution SoC when the BMS sends one), capacity from 0x35F. The wire

@@ -179,7 +179,8 @@ _PART2 = tuple(f.name for f in fields(Bms16ConfigPart2))
 
 
 def check_config_value(name: str, value: object) -> int:
-    """Validate one configuration value (physical units) and return its wire byte.
+    """
+    Validate one configuration value (physical units) and return its wire byte.
 
     Raises EncodeRangeError naming the field, the value and the allowed range for a value
     out of range, off its step, or not a number; nothing is clamped.
@@ -308,7 +309,7 @@ class Bms16Codec:
 
     # --- encode ---------------------------------------------------------------------
     def frame(self, offset: int, data: bytes) -> Frame:
-        """A frame at base_id + offset."""
+        """Build a frame at base_id + offset."""
         return Frame(self.base_id + offset, bytes(data), False)
 
     def encode(self, message: Bms16Reading) -> Frame:
@@ -330,7 +331,7 @@ class Bms16Codec:
         raise TypeError(f'not a BMS16 message: {message!r}')
 
     def config_frames(self, config: Bms16Config) -> list[Frame]:
-        """The two configuration frames [base + 4, base + 5]; every value is validated."""
+        """Build the two configuration frames [base + 4, base + 5], validating every value."""
         values = {f.name: getattr(config, f.name) for f in fields(Bms16Config)}
         raw = {name: check_config_value(name, value) for name, value in values.items()}
         return [self.frame(CONFIG_1, bytes(raw[n] for n in _PART1)),

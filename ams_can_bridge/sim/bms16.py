@@ -1,4 +1,5 @@
-"""Simulated ZEVA BMS16: status, cells and SMA frames at 4 Hz; takes config and commands.
+"""
+Simulated ZEVA BMS16: status, cells and SMA frames at 4 Hz; takes config and commands.
 
 A LiFePO4 pack (up to 16 cells in series) whose SoC follows the current profile. Reacts like
 the real BMS16 (PROTOCOLS.md s. 4): 504/505 store the configuration (values restricted to the
@@ -40,7 +41,7 @@ def _clamped(name: str, value: float) -> float:
 
 
 def sma_empty(frame: Frame) -> Frame:
-    """An SMA frame with no data: malformed for every SMA ID (a dropped byte may not be)."""
+    """Return the frame without data: malformed for every SMA ID (a dropped byte may not be)."""
     return Frame(frame.arbitration_id, b'', frame.is_extended_id)
 
 
@@ -86,7 +87,7 @@ class Bms16Simulator(SimDevice):
         return [min(5.11, max(0.0, v)) for v in volts]
 
     def error(self) -> Bms16Error:
-        """The error the unit reports: the injected one, else low SoC against its warning."""
+        """Return the error reported: the injected one, else low SoC against its warning."""
         if self.faults.error_code is not None:
             return Bms16Error(self.faults.error_code)
         if self.config1 is not None and self.soc_pct < self.config1.soc_warning_pct:
@@ -151,7 +152,7 @@ class Bms16Simulator(SimDevice):
             alarms)]
 
     def on_frame(self, frame: Frame, now: float) -> None:
-        """Configuration and commands addressed to this unit (ignored while off)."""
+        """Take configuration and commands addressed to this unit (ignored while off)."""
         if not self.powered or frame.arbitration_id not in self.codec.arbitration_ids:
             return
         try:

@@ -1,4 +1,5 @@
-"""Simulated BMS speaking the SMA Sunny Island protocol (a 16-cell LiFePO4 48 V pack).
+"""
+Simulated BMS speaking the SMA Sunny Island protocol (a 16-cell LiFePO4 48 V pack).
 
 Periods: 0x351, 0x355, 0x356, 0x35A every 1 s, the rate common SMA-protocol BMSs send at
 (chargers such as the Wakespeed WS500 require 0x351/0x356 at least every 1000 ms, the Sunny
