@@ -1,10 +1,15 @@
 """AMS services on a real node: car commands in the heartbeat, charger-role frames."""
+import threading
 import time
 
+import can
 import pytest
+from sensor_msgs.msg import BatteryState
 from std_srvs.srv import Trigger
 
-from command_rig import Rig
+from ams_can_bridge.sim.ams import AmsSimulator
+from ams_can_bridge.sim.runner import SimRunner
+from command_rig import Rig, unique_channel
 
 BASE = 0x300
 HEARTBEAT = BASE + 0x005
@@ -21,6 +26,27 @@ def rig_factory():
     yield make
     for rig in rigs:
         rig.close()
+
+
+@pytest.fixture
+def with_ams(rig_factory):
+    """Node + simulated AMS (3 banks) on one virtual channel, commands enabled."""
+    runners = []
+
+    def make(precharge_time=0.3, **params):
+        channel = unique_channel('ams')
+        sim = AmsSimulator(bank_count=3, precharge_time=precharge_time)
+        runner = SimRunner(can.Bus(interface='virtual', channel=channel), [sim])
+        runners.append(runner)
+        runner.start()
+        rig = rig_factory(ams_params(**params), channel=channel)
+        device = rig.node.devices['ams']
+        assert rig.capture.wait_for(lambda: device.master_view().state == 1), 'no AMS IDLE'
+        return rig, sim
+    yield make
+    for runner in runners:
+        runner.stop()
+        runner.bus.shutdown()
 
 
 def ams_params(enabled=True, **extra):
@@ -112,3 +138,83 @@ def test_one_shot_commands_answer_once_carried(rig_factory):
     assert commands.count(5) == 1 and commands.count(6) == 1
     frames = rig.capture.since(mark, HEARTBEAT)
     assert all(f.data[0] >> 4 == 3 for _, f in frames)  # bank count from ams.bank_count
+
+
+# --- car commands against the simulated AMS ----------------------------------------------
+def test_full_sequence_sc_ts_drive_abort(with_ams):
+    rig, sim = with_ams()
+    for service, target in (('enable_sc', 'SC_ENABLED'), ('enable_ts', 'TS_ACTIVE'),
+                            ('enable_drive', 'DRIVE'), ('abort', 'IDLE')):
+        response = rig.call(Trigger, f'/ams/{service}')
+        assert response.success, response.message
+        assert f'AMS reports {target}' in response.message
+        assert sim.state.name == target
+    # TS_ACTIVE came after PRECHARGING, as the AMS reported it on the bus
+    states = [f.data[1] & 0x1F for _, f in rig.capture.since(0, BASE)]
+    assert 7 in states and states.index(7) < states.index(3)
+
+
+def test_silent_ams_times_out(with_ams):
+    rig, sim = with_ams(**{'ams.command_timeout': 0.5})
+    sim.faults.silent = True
+    response = rig.call(Trigger, '/ams/enable_sc')
+    assert not response.success
+    assert 'timeout after 0.5 s waiting for SC_ENABLED' in response.message
+    assert 'AMS state: IDLE' in response.message  # the last state it reported
+
+
+def test_ams_error_answers_failure_with_state_and_error_names(with_ams):
+    rig, sim = with_ams(precharge_time=10.0)
+    assert rig.call(Trigger, '/ams/enable_sc').success
+    call = rig.call_in_thread(Trigger, '/ams/enable_ts')
+    assert rig.capture.wait_for(lambda: sim.state.name == 'PRECHARGING')
+    sim.faults.error_code = 15  # PRE_TIMEOUT
+    call['thread'].join(5)
+    response = call['response']
+    assert not response.success
+    assert 'failed' in response.message and 'PRE_TIMEOUT' in response.message
+    assert 'ERROR' in response.message
+
+
+def test_abort_during_a_waiting_enable_ts(with_ams):
+    rig, sim = with_ams(precharge_time=10.0, **{'ams.command_timeout': 5.0})
+    assert rig.call(Trigger, '/ams/enable_sc').success
+    mark = rig.capture.mark()
+    call = rig.call_in_thread(Trigger, '/ams/enable_ts')
+    assert rig.capture.wait_for(lambda: sim.state.name == 'PRECHARGING')
+    abort = rig.call(Trigger, '/ams/abort')
+    call['thread'].join(5)
+    assert abort.success and 'AMS reports IDLE' in abort.message, abort.message
+    enable = call['response']
+    assert not enable.success and 'aborted' in enable.message
+    commands = heartbeat_commands(rig, mark)
+    first_abort = commands.index(4)
+    # ABORT replaced ENABLE_TS in the very next heartbeat: ...2, 2, 4... with no gap,
+    # and no ENABLE_TS ever after it
+    assert commands[first_abort - 1] == 2, commands
+    assert 2 not in commands[first_abort:]
+    assert sim.state.name == 'IDLE'
+    n = len(commands)
+    assert rig.capture.wait_for(lambda: len(heartbeat_commands(rig, mark)) >= n + 3)
+    assert heartbeat_commands(rig, mark)[-1] == 0  # ABORT ends once IDLE was reported
+
+
+def test_telemetry_flows_while_a_command_waits(with_ams):
+    rig, sim = with_ams(precharge_time=10.0, **{'ams.command_timeout': 1.5})
+    stamps = []
+    lock = threading.Lock()
+
+    def on_msg(msg):
+        with lock:
+            stamps.append(time.monotonic())
+    rig.client.create_subscription(BatteryState, '/ams/battery_state', on_msg, 50)
+    assert rig.capture.wait_for(lambda: len(stamps) >= 2)
+    assert rig.call(Trigger, '/ams/enable_sc').success
+    t0 = time.monotonic()
+    response = rig.call(Trigger, '/ams/enable_ts')  # waits in PRECHARGING until the timeout
+    t1 = time.monotonic()
+    assert not response.success and 'PRECHARGING' in response.message
+    with lock:
+        during = [t for t in stamps if t0 < t < t1]
+    # the AMS status comes at 10 Hz: most of ~15 messages must arrive while the call waits
+    assert len(during) >= 7, len(during)
