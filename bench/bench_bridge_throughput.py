@@ -1,5 +1,5 @@
 """
-Bridge receive throughput on python-can 'virtual': can it keep up with a saturated bus?
+Measure the bridge receive throughput on python-can virtual: does it keep up with a full bus.
 
 A saturated 1 Mbit/s bus carries about 9,000 frames/s. The bridge node (every device type
 configured) runs on a MultiThreadedExecutor, publishing as usual; a sender thread in the
