@@ -391,7 +391,7 @@ def test_config_round_trip(cfg):
     assert Evms3Config.from_parts(CODEC.decode(f.arbitration_id, f.data) for f in frames) == cfg
 
 
-# --- the DBC reads the same frames the same way ---------------------------------------------------
+# --- the DBC reads the same frames the same way -------------------------------------------------
 @pytest.fixture(scope='module')
 def dbc():
     return cantools.database.load_file(str(msg_defs_dir() / 'evms3.dbc'), strict=True)

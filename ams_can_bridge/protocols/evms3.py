@@ -485,7 +485,7 @@ class Evms3Codec:
         return Frame(self.base_id + offset, bytes(data), True)
 
     def config_frames(self, cfg: Evms3Config) -> list[Frame]:
-        """Build the IDs 32, 33, 34, 35 frames in that order; EncodeRangeError before anything is built."""
+        """Build the frames of IDs 32, 33, 34, 35 in that order (EncodeRangeError first)."""
         return [self._frame(CONFIG1 + i, p) for i, p in enumerate(_config_payloads(cfg))]
 
     def encode(self, msg: Any) -> Frame:
