@@ -251,11 +251,15 @@ class SmaCodec:
     @staticmethod
     def _alarms(data: bytes) -> SmaAlarms:
         padded = data + bytes(8 - len(data))  # bytes not sent: conditions not supported
-        return SmaAlarms(
-            {name: _FLAGS[(padded[k >> 2] >> ((k & 3) << 1)) & 3]
-             for k, name in enumerate(SMA_CONDITIONS)},
-            {name: _FLAGS[(padded[4 + (k >> 2)] >> ((k & 3) << 1)) & 3]
-             for k, name in enumerate(SMA_CONDITIONS)})
+        # Built complete here, so skip __post_init__'s normalising (hot path).
+        alarms = object.__new__(SmaAlarms)
+        object.__setattr__(alarms, 'alarms', {
+            name: _FLAGS[(padded[k >> 2] >> ((k & 3) << 1)) & 3]
+            for k, name in enumerate(SMA_CONDITIONS)})
+        object.__setattr__(alarms, 'warnings', {
+            name: _FLAGS[(padded[4 + (k >> 2)] >> ((k & 3) << 1)) & 3]
+            for k, name in enumerate(SMA_CONDITIONS)})
+        return alarms
 
     @staticmethod
     def _manufacturer(data: bytes) -> SmaManufacturer:
