@@ -1,12 +1,13 @@
 """AMS device state: frames in (built by hand from the spec) -> exact reports out."""
 import math
 
+import pytest
+
 from ams_can_bridge import registry
 from ams_can_bridge.devices.ams import AmsDevice
 from ams_can_bridge.devices.base import Level, PowerSupplyHealth, PowerSupplyStatus
 from ams_can_bridge.devices.ivt_s import IvtSDevice
 from ams_can_bridge.protocols.ams import AmsError, AmsState
-import pytest
 
 STAMP = 1.7e9
 

@@ -1,13 +1,14 @@
 """AMS codec: golden frames written by hand from PROTOCOLS.md section 1 (not from the DBC)."""
 import math
 
+from hypothesis import given, settings, strategies as st
+import pytest
+
 from ams_can_bridge.protocols.ams import (
     AmsChargerStatus, AmsCodec, AmsError, AmsErrorEvent, AmsState, AmsStatus, AmsStatusWord,
     CarCommand, CarStatus, CellTemperatures, CellVoltages, ChargerCommand, ChargerStart,
     DischargeTemperatures, OverrideBankCount, OverrideChargeCurrent)
 from ams_can_bridge.protocols.common import EncodeRangeError, Frame, MalformedFrameError
-from hypothesis import given, settings, strategies as st
-import pytest
 
 CODEC = AmsCodec()
 WORD_DRIVE = AmsStatusWord(air_plus=True, air_minus=True, bank_count=2, state=AmsState.DRIVE)

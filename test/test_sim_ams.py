@@ -6,7 +6,8 @@ from ams_can_bridge.devices.ams import AmsDevice
 from ams_can_bridge.devices.base import Level
 from ams_can_bridge.protocols.ams import (
     AmsChargerStatus, AmsCodec, AmsError, AmsErrorEvent, AmsState, AmsStatus, CarCommand,
-    CarStatus, CellVoltages, ChargerCommand, ChargerStart, OverrideBankCount, OverrideChargeCurrent)
+    CarStatus, CellVoltages, ChargerCommand, ChargerStart, OverrideBankCount,
+    OverrideChargeCurrent)
 from ams_can_bridge.protocols.common import Frame, MalformedFrameError
 from ams_can_bridge.sim.ams import AmsSimulator
 
