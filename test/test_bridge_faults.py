@@ -10,11 +10,15 @@ import time
 
 from sensor_msgs.msg import BatteryState
 from slcan_peer import SlcanPeer
-from test_bridge_node import bms16_status, context, harness, level, values  # noqa: F401
+import test_bridge_node
+from test_bridge_node import bms16_status, level, values
 
 from ams_can_bridge.protocols.common import Frame
 
 ERROR, STALE = 2, 3
+# the same fixtures as the node tests: one rclpy context for this module, harness per test
+context = test_bridge_node.context
+harness = test_bridge_node.harness
 
 
 def slcan_params(peer: SlcanPeer) -> dict:

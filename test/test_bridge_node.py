@@ -391,3 +391,14 @@ def test_evms3_battery_state_with_bms12_cells(harness):
     assert msg.power_supply_status == BatteryState.POWER_SUPPLY_STATUS_DISCHARGING
     status = h.status('evms3', lambda s: level(s) == 0)
     assert status.hardware_id == f'virtual:{h.channel}'
+
+
+def test_commander_seam_validates_and_syncs_device_params(harness):
+    h = harness({'devices': ['evms3']})
+    node = h.bridge
+    assert 'evms3' in node.commanders
+    refused = node.set_parameters([Parameter('evms3.config.pack_capacity_ah', value=3)])[0]
+    assert not refused.successful and 'pack_capacity_ah' in refused.reason
+    accepted = node.set_parameters([Parameter('evms3.config.pack_capacity_ah', value=100)])[0]
+    assert accepted.successful, accepted.reason
+    assert node.devices['evms3'].params['config.pack_capacity_ah'] == 100
