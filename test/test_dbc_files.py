@@ -42,9 +42,10 @@ def test_loads_in_canmatrix_without_warnings(path, caplog):
     assert not problems, f'canmatrix warned on {path.name}: {problems}'
     matrix = next(iter(matrices.values()))
     cantools_db = cantools.database.load_file(str(path))
-    assert {f.arbitration_id.id for f in matrix.frames} == {
-        m.frame_id for m in cantools_db.messages}
+    assert {(f.arbitration_id.id, f.arbitration_id.extended) for f in matrix.frames} == {
+        (m.frame_id, m.is_extended_frame) for m in cantools_db.messages}
     for frame in matrix.frames:
-        cantools_msg = cantools_db.get_message_by_frame_id(frame.arbitration_id.id)
+        cantools_msg = cantools_db.get_message_by_frame_id(
+            frame.arbitration_id.id, force_extended_id=frame.arbitration_id.extended)
         assert frame.arbitration_id.extended == cantools_msg.is_extended_frame, frame.name
         assert {s.name for s in frame.signals} == {s.name for s in cantools_msg.signals}
