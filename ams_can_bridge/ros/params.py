@@ -126,6 +126,7 @@ class ParamRegistry:
     def __init__(self, node: Node) -> None:
         self.node = node
         self.specs: dict[str, ParamSpec] = {}
+        self.last_reason = ''  # of the last refused value (rclpy wraps it in its exception)
 
     def declare(self, name: str, spec: ParamSpec) -> Any:
         """
@@ -147,7 +148,9 @@ class ParamRegistry:
         except ParamError:
             raise
         except Exception as exc:  # rclpy's type/range exceptions: reword for the user
-            raise ParamError(f'parameter {name}: {exc}') from None
+            reason = self.last_reason if self.last_reason.startswith(name) else str(exc)
+            raise ParamError(reason if reason.startswith(name) else f'{name}: {reason}') \
+                from None
         value = coerce(name, spec, param.value)
         if value is None and spec.type in ('int[]', 'str[]', 'float[]') and spec.default == []:
             return []
@@ -165,7 +168,8 @@ class ParamRegistry:
         try:
             coerce(param.name, spec, param.value)
         except ParamError as exc:
-            return str(exc)
+            self.last_reason = str(exc)
+            return self.last_reason
         return None
 
     def value(self, param: Parameter) -> Any:
