@@ -393,3 +393,9 @@ def test_pack_values_from_the_real_ivt_s(clock):
     clock.now += 0.2  # the IVT-S went silent, the AMS did not
     report = device.battery_report()
     assert report.present and math.isnan(report.current) and math.isnan(report.voltage)
+
+
+def test_override_frames_are_not_consumed_so_sma_0x351_can_share_the_bus():
+    device = AmsDevice('ams', {})
+    assert 0x351 not in device.arbitration_ids and 0x350 not in device.arbitration_ids
+    assert {0x300, 0x301, 0x311, 0x312, 0x313, 0x314} <= device.arbitration_ids

@@ -133,6 +133,19 @@ class AmsDevice(Device):
         self._temps = _Array(proto.TEMPS_PER_GROUP, proto.TEMP_GROUPS)
         self._discharge = _Array(proto.DISCHARGE_TEMPS_PER_GROUP, proto.TEMP_GROUPS)
 
+    @property
+    def arbitration_ids(self) -> frozenset[int]:
+        """
+        Return the IDs this device listens to: all but the two override frames.
+
+        The charger's aperiodic overrides (base + 0x050/0x051) are commands *to* the AMS,
+        and at the default base 0x351 is also the SMA protocol's limits frame: a BMS
+        speaking SMA on the same bus would otherwise count as malformed AMS frames.
+        """
+        return self.codec.arbitration_ids - {
+            self.codec.id_of(proto.OVERRIDE_CHARGE_CURRENT),
+            self.codec.id_of(proto.OVERRIDE_BANK_COUNT)}
+
     # --- configuration ---------------------------------------------------------------------
     def attach_current_sensor(self, ivt: Any) -> None:
         """Use this IVT-S device (current_a/voltage_v/charge_ah) for the pack values."""
