@@ -83,10 +83,10 @@ class CommandDriver:
         self.thread.start()
 
     def stop(self) -> None:
-        """Stop the loop (an answer still in flight is abandoned) and join it."""
+        """Stop the loop (abort, wait for the answers in flight) and join it."""
         self.stop_event.set()
         if self.thread.is_alive():
-            self.thread.join(timeout=SERVICE_TIMEOUT + 1.0)
+            self.thread.join(timeout=2 * SERVICE_TIMEOUT + 1.0)
 
     def last(self) -> tuple[str, str]:
         """Return (last command, its answer) for the view."""
@@ -98,7 +98,13 @@ class CommandDriver:
             self.last_command, self.last_answer = command, answer
 
     def call(self, step: str) -> bool:
-        """Call one Trigger service and wait for its answer; True on success."""
+        """
+        Call one Trigger service and wait for its answer; True on success.
+
+        When the demo stops during a wait, abort is sent (it cancels the waiting command
+        in the bridge) and the answer is still awaited: no request is left behind in a
+        node being destroyed, and the AMS is left in IDLE.
+        """
         client = self.clients[step]
         while not client.service_is_ready():
             self._note(step, 'waiting for the service to appear')
@@ -109,10 +115,14 @@ class CommandDriver:
         done = threading.Event()
         future = client.call_async(self.request_type())
         future.add_done_callback(lambda _: done.set())
+        aborting = step == 'abort'
         while not done.wait(0.1):
-            if self.stop_event.is_set() or time.monotonic() - started > SERVICE_TIMEOUT:
+            if self.stop_event.is_set() and not aborting:
+                aborting = True
+                self.clients['abort'].call_async(self.request_type())
+            if time.monotonic() - started > SERVICE_TIMEOUT:
                 client.remove_pending_request(future)
-                self._note(step, 'no answer' if not self.stop_event.is_set() else 'stopped')
+                self._note(step, f'no answer within {SERVICE_TIMEOUT:g} s')
                 return False
         response = future.result()
         took = time.monotonic() - started
@@ -121,15 +131,18 @@ class CommandDriver:
         return bool(response.success)
 
     def _run(self) -> None:
-        while not self.stop_event.is_set():
-            reached = all(self.call(step) for step in STEPS)
-            if self.stop_event.is_set():
-                return
-            if reached and self.stop_event.wait(self.hold):
-                return
-            self.call('abort')
-            if self.stop_event.wait(self.rest):
-                return
+        try:
+            while not self.stop_event.is_set():
+                reached = all(self.call(step) for step in STEPS)
+                if self.stop_event.is_set() or (reached and self.stop_event.wait(self.hold)):
+                    return
+                self.call('abort')
+                if self.stop_event.wait(self.rest):
+                    return
+        finally:
+            # Leave the AMS as a driver would: tractive system off.
+            if self.clients['abort'].service_is_ready():
+                self.call('abort')
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -26,9 +26,10 @@ BMS12_MODULES = 2
 # The default AMS base 0x300 puts its charger override frames on 0x350/0x351, where the
 # SMA protocol sends: on a bus with both, the AMS would count every SMA 0x351 as malformed.
 AMS_BASE_ID = 0x200
+PRECHARGE_S = 1.5
 EVMS3_CAPACITY_AH = 100.0  # the SoC of the EVMS3 needs the pack capacity configured
 # Keys of diagnostics values that hold a device's state or status name, best first.
-STATE_KEYS = ('state', 'ams state', 'ams_state', 'evms state', 'status', 'error')
+STATE_KEYS = ('state', 'ams state', 'evms state', 'status')
 
 
 def device_parameters(banks: int = 2) -> dict[str, Any]:
@@ -36,6 +37,7 @@ def device_parameters(banks: int = 2) -> dict[str, Any]:
     return {
         'ams.bank_count': banks,
         'ams.base_id': AMS_BASE_ID,
+        'ams.command_timeout': PRECHARGE_S + 3.0,
         'evms3.bms12_modules': BMS12_MODULES,
         'evms3.config.pack_capacity_ah': EVMS3_CAPACITY_AH,
     }
@@ -58,7 +60,9 @@ def build_simulators(banks: int = 2, names: tuple[str, ...] = DEVICES) -> dict[s
     """Build the simulated devices of the demo (or those of ``names``), keyed by name."""
     sims: dict[str, Any] = {}
     if 'ams' in names:
-        sims['ams'] = load(SIMULATORS['ams'])(name='ams', banks=banks, base_id=AMS_BASE_ID)
+        # A precharge long enough to be seen in the view (a real one takes about a second).
+        sims['ams'] = load(SIMULATORS['ams'])(name='ams', bank_count=banks, base_id=AMS_BASE_ID,
+                                              precharge_time=PRECHARGE_S)
     if 'ivt_s' in names:
         ams = sims.get('ams')
         sims['ivt_s'] = load(SIMULATORS['ivt_s'])(
@@ -162,7 +166,7 @@ def device_row(name: str, msg: BatteryState | None, status: Any) -> DeviceRow:
         values = {kv.key: kv.value for kv in status.values}
         row.level = level_name(status.level)
         row.message = status.message
-        row.state = state_of(values, status.message)
+        row.state = state_of(values, status.message, row.level)
     if msg is not None:
         row.voltage = msg.voltage
         row.current = msg.current
@@ -172,14 +176,22 @@ def device_row(name: str, msg: BatteryState | None, status: Any) -> DeviceRow:
     return row
 
 
-def state_of(values: dict[str, str], message: str) -> str:
-    """Return the state or status name a device reports, from its diagnostics values."""
-    lowered = {key.lower(): value for key, value in values.items()}
-    for key in STATE_KEYS:
-        if lowered.get(key):
-            return lowered[key]
-    head = message.split(',')[0].split(':')[0].strip()
-    return head if 0 < len(head) <= 16 else ''
+def state_of(values: dict[str, str], message: str, level: str = '') -> str:
+    """
+    Return the state or status name a device reports, from its diagnostics.
+
+    AMS and EVMS3 report a 'state' value; the others lead their message with their status
+    ('OK', 'error LOW_CELL', 'alarms ...'); the IVT-S has no state: it is measuring.
+    """
+    for key, value in values.items():
+        if key.lower() in STATE_KEYS and value:
+            return value
+    if level == 'STALE':
+        return 'silent'
+    head = message.split(';')[0].strip()
+    if head[:1] in tuple('-+0123456789'):
+        return 'measuring'
+    return head if len(head) <= 16 else head[:15] + '.'
 
 
 def _int(text: str | None) -> int | None:

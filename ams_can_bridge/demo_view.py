@@ -86,6 +86,8 @@ def fmt_value(value: float | None, unit: str, digits: int, missing: str) -> str:
     """Format a number with its unit, or the missing marker for None/NaN/inf."""
     if value is None or not isinstance(value, (int, float)) or not math.isfinite(value):
         return missing
+    if round(value, digits) == 0:
+        value = 0.0  # '-0.0 A' would suggest a direction where there is none
     return f'{value:.{digits}f} {unit}'.rstrip()
 
 

@@ -1,0 +1,277 @@
+"""
+Replay equals live: a recorded bus played back into a fresh bridge publishes the same data.
+
+Live: the simulators run on a virtual bus, a bridge records it (can.record, candump .log).
+Replay: fresh bridges play the recording (can.interface replay) in real time and as fast as
+possible, from the .log and from a .blf copy. Reference: the real device classes fed the
+recorded frames one by one, without ROS (the state after every frame, in order).
+
+What must hold for every device, live and replayed alike: each published BatteryState
+equals a state of the reference, in the reference's order (nothing invented, nothing out of
+order, NaN where unknown), the final frames' values were published, and almost every
+primary frame gave a message. Exact one-to-one equality of two runs is not asserted: the
+bridge publishes the device state when the executor gets to it, so a non-primary frame
+that lands in between (IVT-S voltage after its current) or a second primary frame (replay
+at full speed) is already in it; the reference contains all those states.
+"""
+import math
+import os
+import struct
+import threading
+import time
+
+import can
+from diagnostic_msgs.msg import DiagnosticArray
+import pytest
+import rclpy
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import BatteryState
+
+from ams_can_bridge import registry
+from ams_can_bridge.demo_rig import build_simulators, device_parameters
+from ams_can_bridge.demo_rig import DEVICES
+from ams_can_bridge.devices.base import common_params
+from ams_can_bridge.ros.bridge_node import BridgeNode
+from ams_can_bridge.sim.runner import SimRunner
+
+RECORD_S = 3.0
+BANKS = 2
+QOS_DEPTH = 10000
+
+
+def bridge_params(**bus) -> list[Parameter]:
+    values = {'devices': list(DEVICES), **device_parameters(BANKS)}
+    values.update({f'can.{key}': value for key, value in bus.items()})
+    return [Parameter(name, value=value) for name, value in values.items()]
+
+
+def f32(value: float) -> float:
+    """Round as the float32 fields of BatteryState do on the wire."""
+    return struct.unpack('<f', struct.pack('<f', value))[0]
+
+
+def values_of(msg_or_report) -> tuple:
+    """Return the published values of a BatteryState or BatteryReport (no stamp)."""
+    m = msg_or_report
+    return (f32(m.voltage), f32(m.current), f32(m.charge), f32(m.capacity),
+            f32(m.design_capacity), f32(m.percentage), f32(m.temperature),
+            int(m.power_supply_status), int(m.power_supply_health),
+            int(m.power_supply_technology), bool(m.present),
+            tuple(f32(v) for v in m.cell_voltage),
+            tuple(f32(v) for v in m.cell_temperature))
+
+
+def same(a, b) -> bool:
+    """Compare nested tuples of values, NaN equal to NaN."""
+    if isinstance(a, tuple):
+        return (isinstance(b, tuple) and len(a) == len(b)
+                and all(same(x, y) for x, y in zip(a, b)))
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    return a == b
+
+
+def dedup(seq: list) -> list:
+    out = []
+    for item in seq:
+        if not out or not same(out[-1], item):
+            out.append(item)
+    return out
+
+
+def embed(published: list, reference: list) -> list[int] | None:
+    """Return the reference index of each published item (in order), None if impossible."""
+    indices, j = [], 0
+    for item in published:
+        while j < len(reference) and not same(reference[j], item):
+            j += 1
+        if j == len(reference):
+            return None
+        indices.append(j)
+    return indices
+
+
+class Collector(Node):
+    """Record every BatteryState value of each device and the last CAN bus diagnostics."""
+
+    def __init__(self) -> None:
+        super().__init__('replay_test_collector')
+        self.lock = threading.Lock()
+        self.values: dict[str, list] = {name: [] for name in DEVICES}
+        self.bus_values: dict[str, str] = {}
+        for name in DEVICES:
+            self.create_subscription(BatteryState, f'{name}/battery_state',
+                                     lambda msg, n=name: self._battery(n, msg), QOS_DEPTH)
+        self.create_subscription(DiagnosticArray, '/diagnostics', self._diagnostics, 100)
+
+    def _battery(self, name: str, msg: BatteryState) -> None:
+        if msg.present:  # present: false = the 1 Hz stale heartbeat, no frame behind it
+            with self.lock:
+                self.values[name].append(values_of(msg))
+
+    def _diagnostics(self, msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            if status.name.endswith(': CAN bus'):
+                with self.lock:
+                    self.bus_values = {kv.key: kv.value for kv in status.values}
+
+    def count(self) -> int:
+        with self.lock:
+            return sum(len(v) for v in self.values.values())
+
+
+def wait_for(predicate, timeout: float, what: str) -> None:
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        assert time.monotonic() < deadline, f'timed out after {timeout} s waiting for {what}'
+        time.sleep(0.05)
+
+
+def wait_settled(collector: Collector, quiet: float = 0.6, timeout: float = 20.0) -> None:
+    """Wait until no new message came for ``quiet`` seconds."""
+    deadline = time.monotonic() + timeout
+    last, since = collector.count(), time.monotonic()
+    while time.monotonic() - since < quiet:
+        assert time.monotonic() < deadline, 'the bridge kept publishing'
+        time.sleep(0.05)
+        now = collector.count()
+        if now != last:
+            last, since = now, time.monotonic()
+
+
+class Session:
+    """A bridge and a collector spinning on their own executor thread."""
+
+    def __init__(self, **bus) -> None:
+        self.bridge = BridgeNode(parameter_overrides=bridge_params(**bus))
+        self.collector = Collector()
+        self.executor = MultiThreadedExecutor(num_threads=3)
+        self.executor.add_node(self.bridge)
+        self.executor.add_node(self.collector)
+        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self.thread.start()
+
+    def close(self) -> tuple[dict[str, list], dict[str, int]]:
+        """Stop; return the published values (repeats merged) and the message counts."""
+        self.executor.shutdown(timeout_sec=2.0)
+        self.thread.join(timeout=3.0)
+        self.bridge.destroy_node()  # closes the recording
+        self.collector.destroy_node()
+        values = self.collector.values
+        return ({name: dedup(seq) for name, seq in values.items()},
+                {name: len(seq) for name, seq in values.items()})
+
+
+@pytest.fixture(scope='module')
+def ros():
+    rclpy.init()
+    yield
+    rclpy.shutdown()
+
+
+def reference(path: str) -> tuple[dict[str, list], dict[str, int], dict[str, int]]:
+    """
+    Feed the log to the real device classes: every state, primaries, last primary index.
+
+    The clock of the devices is the log's timestamps, so staleness follows the recording.
+    """
+    now = [0.0]
+    devices = {}
+    for name in DEVICES:
+        cls = registry.device_class(name)
+        params = {spec.key: spec.default for spec in common_params(cls) + list(cls.PARAMS)}
+        params.update({key[len(name) + 1:]: value
+                       for key, value in device_parameters(BANKS).items()
+                       if key.startswith(name + '.')})
+        devices[name] = cls(name, params, clock=lambda: now[0])
+    if 'ams' in devices and 'ivt_s' in devices:
+        devices['ams'].attach_current_sensor(devices['ivt_s'])
+    states: dict[str, list] = {name: [] for name in DEVICES}
+    primaries = {name: 0 for name in DEVICES}
+    last_primary = {name: -1 for name in DEVICES}
+    with can.LogReader(path) as reader:
+        for msg in reader:
+            now[0] = msg.timestamp
+            for name, device in devices.items():
+                if (msg.arbitration_id in device.arbitration_ids
+                        and msg.is_extended_id == device.is_extended_id):
+                    if device.handle_frame(msg.arbitration_id, bytes(msg.data), now[0]):
+                        primaries[name] += 1
+                        last_primary[name] = -2  # mark: resolve after the append below
+            for name, device in devices.items():
+                report = device.battery_report()
+                if report.present:
+                    value = values_of(report)
+                    if not states[name] or not same(states[name][-1], value):
+                        states[name].append(value)
+                if last_primary[name] == -2:
+                    last_primary[name] = len(states[name]) - 1
+    return states, primaries, last_primary
+
+
+def check_faithful(label: str, published: dict[str, list], counts: dict[str, int],
+                   states: dict[str, list],
+                   primaries: dict[str, int], last_primary: dict[str, int],
+                   min_coverage: float) -> None:
+    for name in DEVICES:
+        seq = published[name]
+        assert seq, f'{label}: {name} published nothing'
+        indices = embed(seq, states[name])
+        assert indices is not None, (
+            f'{label}: {name} published values that no frame sequence of the log gives '
+            f'(or out of order): first published {seq[0]}')
+        assert indices[-1] >= last_primary[name], (
+            f'{label}: {name} never published the state of its last primary frame')
+        assert counts[name] >= min_coverage * primaries[name], (
+            f'{label}: {name}: {counts[name]} messages for {primaries[name]} primary frames')
+
+
+@pytest.mark.slow
+def test_replay_publishes_what_live_published(ros, tmp_path):
+    live_log = str(tmp_path / 'live.log')
+    channel = f'replay_test_{os.getpid()}'
+    sim_bus = can.Bus(interface='virtual', channel=channel)
+    runner = SimRunner(sim_bus, list(build_simulators(BANKS, DEVICES).values()))
+    live = Session(interface='virtual', channel=channel, record=live_log)
+    try:
+        wait_for(lambda: live.bridge.can_io.status().connected, 10.0, 'the live bus')
+        runner.start()
+        time.sleep(RECORD_S)  # the length of the recording, not a timing assertion
+        runner.stop()
+        wait_settled(live.collector)
+    finally:
+        runner.stop()
+        live_values, live_counts = live.close()
+        sim_bus.shutdown()
+
+    states, primaries, last_primary = reference(live_log)
+    for name in DEVICES:
+        assert primaries[name] >= 2, f'the recording has {primaries[name]} {name} frames'
+    check_faithful('live', live_values, live_counts, states, primaries, last_primary, 0.7)
+
+    with can.LogReader(live_log) as reader:
+        frames = sum(1 for _ in reader)
+    blf = str(tmp_path / 'live.blf')
+    with can.LogReader(live_log) as reader, can.Logger(blf) as writer:
+        for msg in reader:
+            writer.on_message_received(msg)
+
+    for path, rate, coverage in ((live_log, 1.0, 0.7), (live_log, 0.0, 0.0), (blf, 0.0, 0.0)):
+        label = f'replay of {os.path.basename(path)} at rate {rate:g}'
+        session = Session(interface='replay', channel=path, replay_rate=rate)
+        try:
+            wait_for(lambda: session.collector.bus_values.get('state') == 'replay finished',
+                     RECORD_S / max(rate, 0.1) + 20.0, f'{label} to finish')
+            wait_settled(session.collector)
+            bus = dict(session.collector.bus_values)
+        finally:
+            replayed, counts = session.close()
+        assert bus['replay'] == 'finished' and bus['frames in'] == str(frames), (label, bus)
+        check_faithful(label, replayed, counts, states, primaries, last_primary, coverage)
+        if rate == 1.0:
+            # In real time nearly every primary frame gives its own message, live and replay.
+            for name in DEVICES:
+                common = [v for v in replayed[name] if any(same(v, w) for w in live_values[name])]
+                assert len(common) >= 0.6 * len(live_values[name]), (label, name)
