@@ -227,6 +227,8 @@ def _run(args: argparse.Namespace, stop: threading.Event) -> int:
             sys.stdout.flush()
         if driver is not None:
             driver.stop()
+            command, answer = driver.last()
+            print(f'demo stopped; last command: {command} -> {answer}', flush=True)
         executor.shutdown(timeout_sec=2.0)
         spinner.join(timeout=3.0)
         monitor.destroy_node()
