@@ -246,25 +246,32 @@ class AmsMaster:
                     return
                 ok, message = ((False, self.stats.last_error) if frame is None
                                else self._send(frame))
-            sent_at = self._clock()
-            view = self._view() if ok and request is not None else None
-            with self._cond:
-                if ok:
-                    self.stats.frames_sent += 1
-                    if self._record:
-                        self.stats.send_times.append(sent_at)
-                    if request is not None and not request.done and not request.cancelled:
-                        if request.carried == 0:
-                            request.first_counter = self.counter
-                            request.status_seq_at_send = view.status_seq
-                        request.carried += 1
-                        if request.command in ONE_SHOT and self._request is request:
-                            self._request = None  # exactly one heartbeat carries it
-                    self.counter = (self.counter + 1) & 0xFF
-                else:
-                    self.stats.send_failures += 1
-                    self.stats.last_error = message
-                self._cond.notify_all()
+                sent_at = self._clock()
+                view = self._view() if ok and request is not None else None
+                # still under the send lock: a stop()/start() cannot slip a frame with the
+                # same counter in between this send and its counter increment
+                with self._cond:
+                    self._account(ok, message, request, view, sent_at)
+
+    def _account(self, ok: bool, message: str, request: _Request | None,
+                 view: AmsView | None, sent_at: float) -> None:
+        """Book one send attempt (self._cond held)."""
+        if ok:
+            self.stats.frames_sent += 1
+            if self._record:
+                self.stats.send_times.append(sent_at)
+            if request is not None and not request.done and not request.cancelled:
+                if request.carried == 0:
+                    request.first_counter = self.counter
+                    request.status_seq_at_send = view.status_seq
+                request.carried += 1
+                if request.command in ONE_SHOT and self._request is request:
+                    self._request = None  # exactly one heartbeat carries it
+            self.counter = (self.counter + 1) & 0xFF
+        else:
+            self.stats.send_failures += 1
+            self.stats.last_error = message
+        self._cond.notify_all()
 
     # --- commands ------------------------------------------------------------------------
     def command(self, command: CarCommand, timeout: float) -> CommandResult:
