@@ -219,3 +219,20 @@ def test_simulator_across_processes_on_slcan_and_sigterm(tmp_path):
         peer.close()
     assert proc.returncode == 0, err
     assert 'Traceback' not in err
+
+
+def test_simulator_ctrl_c_exits_0_without_traceback():
+    proc = subprocess.Popen([SIMULATOR, '--devices', available_types()[0]],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        line = proc.stderr.readline()          # the startup summary: it is running
+        assert 'device(s) on virtual:ams_can_bridge' in line
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 0, err
+    assert 'Traceback' not in err
+    assert 'stopped:' in err

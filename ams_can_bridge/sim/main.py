@@ -136,7 +136,8 @@ def apply_faults(devices: Sequence[SimDevice], faults: Sequence[tuple[str, str, 
 def _ids(runner: SimRunner) -> str:
     parts = []
     for name, ids in runner.ids_by_device.items():
-        text = ','.join(f'0x{i:X}' + ('x' if ext else '') for i, ext in sorted(ids)[:12])
+        # Extended IDs in 8 hex digits, as candump shows them.
+        text = ','.join(f'0x{i:08X}' if ext else f'0x{i:03X}' for i, ext in sorted(ids)[:12])
         more = f'+{len(ids) - 12}' if len(ids) > 12 else ''
         parts.append(f'{name}[{text or "-"}{more}]')
     return ' '.join(parts)
@@ -167,8 +168,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     done = threading.Event()
     try:
+        # An event rather than KeyboardInterrupt: Ctrl-C cannot land half-way through the
+        # shutdown, and it works even when started with SIGINT ignored (background job).
         signal.signal(signal.SIGTERM, lambda *_: done.set())
-    except ValueError:  # not the main thread (called from a test): Ctrl-C/duration only
+        signal.signal(signal.SIGINT, lambda *_: done.set())
+    except ValueError:  # not the main thread (called from a test): --duration only
         pass
     runner = SimRunner(bus, devices, tick_period=args.tick)
     say = (lambda text: None) if args.quiet else (
