@@ -90,6 +90,11 @@ class Rig:
         self.node = BridgeNode(
             context=self.context,
             parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
+        # A virtual bus delivers only to buses open at send time: wait for the bridge's.
+        deadline = time.monotonic() + 10.0
+        while not self.node.can_io.status().connected:
+            assert time.monotonic() < deadline, 'the bridge never opened its virtual bus'
+            time.sleep(0.01)
         self.client = rclpy.create_node('command_test_client', context=self.context)
         self.executor = MultiThreadedExecutor(num_threads=4, context=self.context)
         self.executor.add_node(self.node)

@@ -62,6 +62,12 @@ class Harness:
         self.executor.add_node(self.bridge)
         self.executor.add_node(self.listener)
         self.bus = can.Bus(interface='virtual', channel=self.channel)
+        # A virtual bus delivers only to buses open at send time: wait for the bridge's.
+        deadline = time.monotonic() + 10.0
+        virtual = overrides['can.interface'] == 'virtual'
+        while virtual and not self.bridge.can_io.status().connected:
+            assert time.monotonic() < deadline, 'the bridge never opened its virtual bus'
+            time.sleep(0.01)
 
     def _diag(self, msg: DiagnosticArray) -> None:
         # other tests (other processes) may publish on /diagnostics too: keep ours only

@@ -2,9 +2,13 @@
 The ``bridge`` node: CAN frames -> device state -> BatteryState, arrays and /diagnostics.
 
 Threads: the CanIo receive thread decodes every frame into its devices (``handle_frame``)
-and never calls rclpy per frame; a primary status frame only marks its device as due and
-wakes the executor through a guard condition (primary frames are <= 10 Hz per device, and
-a burst of them costs one wake-up). Publishing happens on the executor, in
+and never calls rclpy per frame. On a primary status frame it takes a snapshot of the
+device's report (plain dataclasses) into an ordered queue and wakes the executor through a
+guard condition, so every primary frame becomes exactly one message with the values of
+that moment, even when frames come faster than the executor runs (a replay at rate 0).
+During a replay a full queue makes the replay wait (nothing lost); on a live bus the
+receive thread never waits: the oldest snapshots are dropped and counted in the CAN bus
+diagnostics. Publishing happens on the executor, in
 ``telemetry_group``; services that wait go in ``service_group`` (reentrant), so telemetry
 keeps flowing while a command waits for the device.
 
@@ -27,6 +31,7 @@ shutdown. A missing commander module is skipped with a debug log.
 """
 from __future__ import annotations
 
+from collections import deque
 import logging
 import math
 import threading
@@ -53,6 +58,10 @@ NODE_NAME = 'ams_can_bridge'
 MALFORMED_LOG_PERIOD = 5.0  # s between malformed-frame log lines per device
 STALE_PUBLISH_PERIOD = 1.0  # s, battery_state present:false while stale
 WATCH_PERIOD = 0.2  # s, how fast bus state / staleness transitions are noticed
+PENDING_LIMIT = 10_000  # snapshots queued for the executor on a live bus
+# A replay waits above this many, so no burst outruns the publishers' history (depth).
+REPLAY_PENDING_LIMIT = 50
+TELEMETRY_DEPTH = 100  # history of battery_state / array publishers
 
 
 class ConfigError(ValueError):
@@ -72,8 +81,11 @@ class BridgeNode(Node):
         self.commands_enabled = False
         self.can_io: CanIo | None = None
         self._ready = False
-        self._due: set[str] = set()
-        self._due_lock = threading.Lock()
+        # (device name, BatteryReport, extra arrays) per primary frame, oldest first.
+        self._pending: deque[tuple[str, Any, dict]] = deque()
+        self._pending_cv = threading.Condition()
+        self.snapshots_dropped = 0
+        self._replaying = False
         self._levels: dict[str, int] = {}
         self._malformed_logged: dict[str, tuple[int, float]] = {}
         self._bus_state = ''
@@ -110,6 +122,7 @@ class BridgeNode(Node):
         except ValueError as exc:
             raise ConfigError(str(exc)) from None
         self.hardware_id = f"{bus['interface']}:{bus['channel']}"
+        self._replaying = bus['interface'] == 'replay'
         self.device_params: dict[str, dict[str, Any]] = {}
         names = node['devices']
         if len(set(names)) != len(names):
@@ -180,9 +193,10 @@ class BridgeNode(Node):
         self.array_pubs: dict[str, dict[str, Any]] = {}
         for name, device in self.devices.items():
             self.battery_pubs[name] = self.create_publisher(
-                BatteryState, f'{name}/battery_state', 10)
+                BatteryState, f'{name}/battery_state', TELEMETRY_DEPTH)
             self.array_pubs[name] = {
-                suffix: self.create_publisher(Float32MultiArray, f'{name}/{suffix}', 10)
+                suffix: self.create_publisher(
+                    Float32MultiArray, f'{name}/{suffix}', TELEMETRY_DEPTH)
                 for suffix in device.extra_arrays()}
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self._wake = self.create_guard_condition(self._publish_due, self.telemetry_group)
@@ -231,27 +245,41 @@ class BridgeNode(Node):
             return
         for device in devices:
             if device.handle_frame(arbitration_id, data, wall_time):
-                with self._due_lock:
-                    wake = not self._due
-                    self._due.add(device.name)
-                if wake:
-                    self._wake.trigger()
+                self._queue_snapshot(device)
+
+    def _queue_snapshot(self, device: Device) -> None:
+        snapshot = (device.name, device.battery_report(), device.extra_arrays())
+        with self._pending_cv:
+            if self._replaying and len(self._pending) >= REPLAY_PENDING_LIMIT:
+                # A replay must not lose data: wait for the executor to catch up.
+                self._pending_cv.wait_for(
+                    lambda: len(self._pending) < REPLAY_PENDING_LIMIT or not self._ready)
+            elif len(self._pending) >= PENDING_LIMIT:
+                self._pending.popleft()  # live bus: never stall the receive thread
+                self.snapshots_dropped += 1
+            wake = not self._pending
+            self._pending.append(snapshot)
+        if wake:
+            self._wake.trigger()
 
     # --- executor: publishing -------------------------------------------------------------
     def _publish_due(self) -> None:
-        with self._due_lock:
-            due, self._due = self._due, set()
-        for name in due:
-            self._publish_battery(name)
+        with self._pending_cv:
+            due, self._pending = self._pending, deque()
+            self._pending_cv.notify_all()
+        for name, report, arrays in due:
+            self._publish_report(name, report, arrays)
         if due and self._levels_changed():
             self.publish_diagnostics()
 
     def _publish_battery(self, name: str) -> None:
         device = self.devices[name]
-        report = device.battery_report()
+        self._publish_report(name, device.battery_report(), device.extra_arrays())
+
+    def _publish_report(self, name: str, report: Any, arrays: dict) -> None:
         frame_id = self.device_params[name].get('frame_id', '')
         self.battery_pubs[name].publish(convert.battery_state(report, frame_id, time.time()))
-        for suffix, (rows, cols, data) in device.extra_arrays().items():
+        for suffix, (rows, cols, data) in arrays.items():
             pub = self.array_pubs[name].get(suffix)
             if pub is not None:
                 pub.publish(convert.multi_array(rows, cols, data))
@@ -269,7 +297,9 @@ class BridgeNode(Node):
     def _bus_report(self) -> Any:
         status = self.can_io.status()
         malformed = sum(d.frames_malformed for d in self.devices.values())
-        return convert.bus_report(status, malformed, self.bus_config.interface)
+        report = convert.bus_report(status, malformed, self.bus_config.interface)
+        report.values['telemetry snapshots dropped'] = str(self.snapshots_dropped)
+        return report
 
     def _levels_changed(self) -> bool:
         levels = {name: int(r.level) for name, r in self._statuses()}
@@ -406,6 +436,8 @@ class BridgeNode(Node):
     def destroy_node(self) -> None:
         """Stop the commanders and the bus thread (closes the bus), then the node."""
         self._ready = False
+        with self._pending_cv:
+            self._pending_cv.notify_all()  # release a replay waiting for the executor
         for commander in self.commanders.values():
             hook = getattr(commander, 'destroy', None)
             if hook:
