@@ -167,11 +167,14 @@ def run_simulator(*args, timeout=30):
 
 
 def test_simulator_on_virtual_runs_for_duration_and_exits_0():
-    result = run_simulator('--duration', '1', '--interface', 'virtual',
-                           '--devices', ','.join(available_types()))
+    result = run_simulator('--duration', '1', '--interface', 'virtual')
     assert result.returncode == 0, result.stderr
     assert 'Traceback' not in result.stderr
-    assert 'virtual:ams_can_bridge' in result.stderr        # startup summary
+    assert '5 device(s) on virtual:ams_can_bridge' in result.stderr   # startup summary
+    for name, first_id in (('ams', '0x300'), ('ivt_s', '0x521'), ('evms3', '0x0000001E'),
+                           ('bms16', '0x1F4'), ('sma', '0x351')):
+        assert f'{name}[{first_id}' in result.stderr
+    assert 'same ID' not in result.stderr                   # defaults do not clash
     assert 'stopped:' in result.stderr
 
 
@@ -190,12 +193,14 @@ def test_simulator_bad_arguments_exit_2():
                            '--devices', available_types()[0])
     assert result.returncode == 2
     assert "'nobody'" in result.stderr
+    result = run_simulator('--devices', 'ams', '--ams-banks', '9', '--duration', '0.1')
+    assert result.returncode == 2
+    assert 'bank_count' in result.stderr and 'Traceback' not in result.stderr
 
 
 def test_simulator_across_processes_on_slcan_and_sigterm(tmp_path):
     """The simulator's frames reach another process through a (fake) USB-CAN adapter."""
-    types = [t for t in ('bms16', 'ivt_s') if t in available_types()]
-    assert types, 'no simulator available'
+    types = ['ams', 'ivt_s', 'bms16']
     peer = SlcanPeer(symlink=tmp_path / 'ttyCAN0')
     proc = subprocess.Popen(
         [SIMULATOR, '--interface', 'slcan', '--channel', peer.channel, '--bitrate', '500000',
@@ -203,12 +208,11 @@ def test_simulator_across_processes_on_slcan_and_sigterm(tmp_path):
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         peer.wait_open(timeout=20)
-        frames = peer.wait_received(20, timeout=20)
+        frames = peer.wait_received(40, timeout=20)
         ids = {f.arbitration_id for f in frames}
-        if 'bms16' in types:
-            assert 500 in ids          # BMS16 status, 4 Hz
-        if 'ivt_s' in types:
-            assert 0x521 in ids        # IVT-S current
+        assert 0x300 in ids        # AMS status (car), base 0x300
+        assert 500 in ids          # BMS16 status, 4 Hz
+        assert 0x521 in ids        # IVT-S current
         assert peer.bitrate_command == 'S6'
         proc.send_signal(signal.SIGTERM)
         _, err = proc.communicate(timeout=10)
