@@ -216,31 +216,19 @@ def test_unknown_interface_is_an_error_state_not_an_exception():
         io.stop()
 
 
-def test_receive_rate_far_above_a_saturated_1mbit_bus(channel, peer_bus):
-    """Drain a pre-filled queue: the consumer alone must beat ~9,000 frames/s."""
-    gate = threading.Event()
-    count = [0]
-    times = [0.0, 0.0]
-
-    def handler(arbitration_id, data, extended, stamp):
-        if count[0] == 0:
-            gate.wait(10)
-            times[0] = time.perf_counter()
-        count[0] += 1
-        times[1] = time.perf_counter()
-
-    io = start_virtual(channel, handler, filters=[(0x100 + i, False) for i in range(40)])
+def test_a_burst_of_20000_frames_arrives_complete(channel, peer_bus):
+    """A queue filled faster than it is drained loses nothing (rate: bench/)."""
+    seen = []
+    io = start_virtual(channel, lambda i, d, e, t: seen.append(i),
+                       filters=[(0x100 + i, False) for i in range(40)])
     try:
         n = 20000
         for i in range(n):
             peer_bus.send(can.Message(arbitration_id=0x100 + i % 40, data=bytes(8),
                                       is_extended_id=False))
-        gate.set()
-        wait_for(lambda: count[0] == n, timeout=30, what='all frames')
-        rate = (n - 1) / (times[1] - times[0])
-        print(f'CanIo receive rate (virtual, 40 filters): {rate:,.0f} frames/s')
+        wait_for(lambda: len(seen) == n, timeout=30, what='all frames')
         assert io.status().frames_in == n
-        assert rate > 9000
+        assert seen == [0x100 + i % 40 for i in range(n)]  # in order
     finally:
         io.stop()
 
