@@ -6,7 +6,7 @@ import math
 
 def drive_current_a(t: float) -> float:
     """
-    A lap-like discharge current (A, positive = discharge): accelerate, brake, recuperate.
+    Give a lap-like discharge current (A, positive = discharge): accelerate, brake, regen.
 
     Periodic over 20 s, between about -30 A (regeneration) and 120 A (full throttle),
     so SoC falls steadily while the signs of both directions show up in a short demo.
