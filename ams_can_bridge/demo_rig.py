@@ -23,9 +23,6 @@ from ams_can_bridge.ros.bridge_node import BridgeNode, NODE_NAME
 
 DEVICES = ('ams', 'ivt_s', 'evms3', 'bms16', 'sma')
 BMS12_MODULES = 2
-# The default AMS base 0x300 puts its charger override frames on 0x350/0x351, where the
-# SMA protocol sends: on a bus with both, the AMS would count every SMA 0x351 as malformed.
-AMS_BASE_ID = 0x200
 PRECHARGE_S = 1.5
 EVMS3_CAPACITY_AH = 100.0  # the SoC of the EVMS3 needs the pack capacity configured
 # Keys of diagnostics values that hold a device's state or status name, best first.
@@ -36,7 +33,6 @@ def device_parameters(banks: int = 2) -> dict[str, Any]:
     """Return the bridge's device parameters that match the simulators (name.key: value)."""
     return {
         'ams.bank_count': banks,
-        'ams.base_id': AMS_BASE_ID,
         'ams.command_timeout': PRECHARGE_S + 3.0,
         'evms3.bms12_modules': BMS12_MODULES,
         'evms3.config.pack_capacity_ah': EVMS3_CAPACITY_AH,
@@ -61,7 +57,7 @@ def build_simulators(banks: int = 2, names: tuple[str, ...] = DEVICES) -> dict[s
     sims: dict[str, Any] = {}
     if 'ams' in names:
         # A precharge long enough to be seen in the view (a real one takes about a second).
-        sims['ams'] = load(SIMULATORS['ams'])(name='ams', bank_count=banks, base_id=AMS_BASE_ID,
+        sims['ams'] = load(SIMULATORS['ams'])(name='ams', bank_count=banks,
                                               precharge_time=PRECHARGE_S)
     if 'ivt_s' in names:
         ams = sims.get('ams')

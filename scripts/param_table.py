@@ -1,0 +1,99 @@
+"""
+Print the bridge's parameters as Markdown tables, from the specs the node declares.
+
+Usage: python scripts/param_table.py > /tmp/params.md (paste into README.md). The test
+test/test_readme.py checks that README names every parameter the node declares.
+"""
+from ams_can_bridge import registry
+from ams_can_bridge.devices.base import common_params
+from ams_can_bridge.ros.params import BUS_PARAMS, NODE_PARAMS
+
+
+COMMON = ('frame_id', 'location', 'serial_number', 'stale_timeout', 'base_id')
+
+
+def device_specs(device_type: str) -> list:
+    """Return the specs of one device type: its own, then its commander's."""
+    cls = registry.device_class(device_type)
+    specs = common_params(cls) + list(cls.PARAMS)
+    if device_type in registry.COMMANDERS:
+        specs += list(registry.load(registry.COMMANDERS[device_type]).PARAMS)
+    return specs
+
+
+def fmt_type(spec) -> str:
+    """Return the type as a user writes it in YAML."""
+    return spec.type if isinstance(spec.type, str) else spec.type.__name__
+
+
+def fmt_number(value: float, key: str) -> str:
+    """Return a number as a user would write it (CAN IDs in hex)."""
+    if key == 'base_id':
+        return f'0x{int(value):X}'
+    return f'{value:g}' if isinstance(value, float) else str(value)
+
+
+def fmt_range(spec) -> str:
+    """Return the allowed values."""
+    if spec.choices:
+        return ' \\| '.join(spec.choices)
+    if spec.low is None and spec.high is None:
+        return ''
+    text = f'{fmt_number(spec.low, spec.key)}..{fmt_number(spec.high, spec.key)}'
+    return text + (f' step {spec.step:g}' if spec.step and spec.step != 1 else '')
+
+
+def fmt_default(spec) -> str:
+    """Return the default, or (unset)."""
+    if spec.default is None:
+        return '(unset)'
+    if isinstance(spec.default, (int, float)) and not isinstance(spec.default, bool):
+        return fmt_number(spec.default, spec.key)
+    return repr(spec.default).replace("'", '')
+
+
+def row(name: str, spec) -> str:
+    """Return one table row."""
+    return (f'| `{name}` | {fmt_type(spec)} | {fmt_default(spec)} | {fmt_range(spec)} '
+            f'| {spec.description} |')
+
+
+def main() -> None:
+    """Print the tables: bus and node, every device, each device type."""
+    head = '| parameter | type | default | range | description |\n|---|---|---|---|---|'
+    print(head)
+    for prefix, specs in (('can.', BUS_PARAMS), ('', NODE_PARAMS)):
+        for spec in specs:
+            print(row(prefix + spec.key, spec))
+    print('\nEvery device instance `<name>` (defaults per type below):\n')
+    print(head)
+    common = {spec.key: spec for spec in device_specs('ams') + device_specs('evms3')}
+    print(row('<name>.type', type('S', (), dict(
+        key='type', type=str, default=None, choices=registry.DEVICE_TYPES,
+        low=None, high=None, step=None,
+        description='device type; default: the instance name itself'))))
+    for key in COMMON:
+        line = row(f'<name>.{key}', common[key])
+        if key in ('stale_timeout', 'base_id'):
+            line = line.replace(f'| {fmt_default(common[key])} |', '| per type |', 1)
+        print(line)
+    print('\nPer type (shown for an instance named after its type):\n')
+    print(head)
+    for device_type in registry.DEVICE_TYPES:
+        for spec in device_specs(device_type):
+            if spec.key in COMMON and spec.key not in ('stale_timeout', 'base_id'):
+                continue
+            if spec.key.startswith('config.'):
+                continue
+            print(row(f'{device_type}.{spec.key}', spec))
+    for device_type in registry.COMMANDERS:
+        config = [s for s in device_specs(device_type) if s.key.startswith('config.')]
+        if config:
+            print(f'\n`{device_type}.config.*` (no defaults; `write_config` needs them all):\n')
+            print(head)
+            for spec in config:
+                print(row(f'{device_type}.{spec.key}', spec))
+
+
+if __name__ == '__main__':
+    main()
