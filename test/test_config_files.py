@@ -5,13 +5,12 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-import rclpy
-from rclpy.context import Context
 from rclpy.exceptions import ParameterUninitializedException
 import yaml
 
 from ams_can_bridge import registry
 from ams_can_bridge.ros.bridge_node import BridgeNode
+from helpers import ros_context
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config'
 FILES = sorted(CONFIG.glob('*.yaml'))
@@ -19,10 +18,8 @@ FILES = sorted(CONFIG.glob('*.yaml'))
 
 @pytest.fixture(scope='module')
 def context():
-    ctx = Context()
-    rclpy.init(context=ctx)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
+    with ros_context() as ctx:
+        yield ctx
 
 
 def flatten(tree: dict[str, Any], prefix: str = '') -> dict[str, Any]:
@@ -66,5 +63,20 @@ def test_config_file_loads_in_the_node(context, path):
             assert device.TYPE in registry.DEVICE_TYPES
             assert device.TYPE == expected.get(f'{name}.type', name)
         assert node.commands_enabled is False  # examples never transmit out of the box
+    finally:
+        node.destroy_node()
+
+
+@pytest.mark.parametrize('name', ['evms3', 'bms16'])
+def test_zeva_examples_hold_a_complete_configuration(context, name):
+    """The example sets every config value, so write_config would not refuse it."""
+    path = CONFIG / f'{name}.yaml'
+    in_file = {key for key in flatten(yaml.safe_load(path.read_text())['/**']['ros__parameters'])
+               if key.startswith(f'{name}.config.')}
+    node = BridgeNode(context=context, namespace=f'cfg_full_{name}',
+                      cli_args=['--ros-args', '--params-file', str(path)])
+    try:
+        declared = {key for key in node._parameters if key.startswith(f'{name}.config.')}
+        assert declared and in_file == declared, declared ^ in_file
     finally:
         node.destroy_node()
