@@ -204,7 +204,7 @@ class IvtSDevice(Device):
             warnings.append(f'result stopped ({", ".join(silent)})')
         level = Level.ERROR if errors else Level.WARN if warnings else Level.OK
         current, voltage = self._current_a(), self._valid(IvtMux.U1)
-        summary = f'{current:.2f} A, {voltage:.1f} V'
+        summary = f'{round(current, 2) + 0.0:.2f} A, {voltage:.1f} V'  # never '-0.00'
         message = '; '.join(errors + warnings + [summary])
         return DiagnosticReport(level, message, self._values(current))
 
