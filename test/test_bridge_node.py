@@ -23,6 +23,7 @@ from std_msgs.msg import Float32MultiArray
 
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.ros.bridge_node import BridgeNode, ConfigError
+from helpers import ros_context
 
 NAN = math.nan
 _ids = itertools.count()
@@ -30,10 +31,8 @@ _ids = itertools.count()
 
 @pytest.fixture(scope='module')
 def context():
-    ctx = Context()
-    rclpy.init(context=ctx)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
+    with ros_context() as ctx:
+        yield ctx
 
 
 class Harness:

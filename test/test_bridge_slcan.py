@@ -18,12 +18,12 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray
 import pytest
 import rclpy
-from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from sensor_msgs.msg import BatteryState
-from slcan_peer import SlcanPeer
 
 from ams_can_bridge.protocols.common import Frame
+from helpers import ros_context
+from slcan_peer import SlcanPeer
 
 BATTERY = ['ams', 'ivt', 'evms3', 'bms16', 'sma']
 
@@ -70,15 +70,13 @@ FRAMES = [
 
 @pytest.fixture
 def ros():
-    ctx = Context()
-    rclpy.init(context=ctx)
-    node = rclpy.create_node('slcan_test_listener', context=ctx)
-    executor = SingleThreadedExecutor(context=ctx)
-    executor.add_node(node)
-    yield node, executor
-    executor.shutdown()
-    node.destroy_node()
-    rclpy.try_shutdown(context=ctx)
+    with ros_context() as ctx:
+        node = rclpy.create_node('slcan_test_listener', context=ctx)
+        executor = SingleThreadedExecutor(context=ctx)
+        executor.add_node(node)
+        yield node, executor
+        executor.shutdown()
+        node.destroy_node()
 
 
 def test_installed_bridge_on_slcan(ros, tmp_path):

@@ -12,17 +12,8 @@ from ams_can_bridge.can_io import BusConfig, BusStatus, CanIo, CanSendError, par
 from ams_can_bridge.protocols.common import Frame
 
 sys.path.insert(0, __file__.rsplit('/', 1)[0])
+from helpers import wait_for  # noqa: E402, I100
 from slcan_peer import SlcanPeer  # noqa: E402, I100
-
-
-def wait_for(predicate, timeout=5.0, what='condition'):
-    """Poll predicate until true; fail the test naming what did not happen."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return
-        time.sleep(0.01)
-    raise AssertionError(f'timed out waiting for {what}')
 
 
 class Sink:

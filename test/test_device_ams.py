@@ -8,23 +8,14 @@ from ams_can_bridge.devices.ams import AmsDevice
 from ams_can_bridge.devices.base import Level, PowerSupplyHealth, PowerSupplyStatus
 from ams_can_bridge.devices.ivt_s import IvtSDevice
 from ams_can_bridge.protocols.ams import AmsError, AmsState
+from helpers import Clock
 
 STAMP = 1.7e9
 
 
-class Clock:
-    """A hand-driven monotonic clock, so staleness is tested without sleeping."""
-
-    def __init__(self) -> None:
-        self.now = 50.0
-
-    def __call__(self) -> float:
-        return self.now
-
-
 @pytest.fixture
 def clock():
-    return Clock()
+    return Clock(50.0)
 
 
 def make(clock, **params):

@@ -6,16 +6,7 @@ import pytest
 from ams_can_bridge.devices.base import Level, PowerSupplyHealth, PowerSupplyStatus
 from ams_can_bridge.devices.bms16 import Bms16Device
 from ams_can_bridge.protocols.bms16 import Bms16Error
-
-
-class Clock:
-    """A clock the test moves by hand (the device's staleness uses it)."""
-
-    def __init__(self) -> None:
-        self.now = 100.0
-
-    def __call__(self) -> float:
-        return self.now
+from helpers import Clock
 
 
 def status(error=0, soc=80, deci_volts=528, deci_amps=125, temp=25):

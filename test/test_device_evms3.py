@@ -6,6 +6,7 @@ import pytest
 from ams_can_bridge.devices.base import Level, PowerSupplyHealth, PowerSupplyStatus
 from ams_can_bridge.devices.evms3 import Evms3Device
 from ams_can_bridge.protocols.evms3 import Evms3Error, Evms3State
+from helpers import Clock
 
 # RUNNING, no error, 100.0 Ah, 400.0 V, aux 13.0 V, isolation 100 %, 25 degC
 STATUS_OK = bytes.fromhex('02 03 E8 0F A0 82 64 41')
@@ -13,18 +14,8 @@ CURRENT_10A_DISCHARGE = bytes.fromhex('80 27 10')
 CURRENT_20A5_CHARGE = bytes.fromhex('7F AF EC')
 
 
-class Clock:
-    """A settable monotonic clock (the device takes any callable)."""
-
-    def __init__(self):
-        self.now = 1000.0
-
-    def __call__(self):
-        return self.now
-
-
 def make(clock=None, **params):
-    return Evms3Device('evms3', params, clock=clock or Clock())
+    return Evms3Device('evms3', params, clock=clock or Clock(1000.0))
 
 
 def status(state=2, error=0, b6=0x64, b7=0x41):
@@ -106,7 +97,7 @@ def test_current_sign_and_charging_state():
 
 
 def test_current_goes_nan_when_old():
-    clock = Clock()
+    clock = Clock(1000.0)
     device = make(clock)
     device.handle_frame(40, CURRENT_10A_DISCHARGE, 1.0)
     clock.now += 1.0
@@ -162,7 +153,7 @@ def test_diagnostic_message_and_values():
 
 
 def test_stale_status():
-    clock = Clock()
+    clock = Clock(1000.0)
     device = make(clock)
     assert device.diagnostic_report().level == Level.STALE
     device.handle_frame(30, STATUS_OK, 1.0)
@@ -187,7 +178,7 @@ def cells_frame(first_mv, count=4):
 
 
 def test_bms12_cells_nan_until_received():
-    clock = Clock()
+    clock = Clock(1000.0)
     device = make(clock, bms12_modules=2)
     device.handle_frame(30, STATUS_OK, 1.0)
     assert len(device.battery_report().cell_voltage) == 24
@@ -218,7 +209,7 @@ def test_cells_per_module_from_config():
 
 
 def test_silent_module_warns_and_its_cells_become_unknown():
-    clock = Clock()
+    clock = Clock(1000.0)
     device = make(clock, bms12_modules=2)
     for t in range(4):
         device.handle_frame(30, STATUS_OK, clock.now)

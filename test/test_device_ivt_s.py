@@ -7,16 +7,7 @@ from ams_can_bridge import registry
 from ams_can_bridge.devices.base import Level, PowerSupplyHealth, PowerSupplyStatus
 from ams_can_bridge.devices.ivt_s import IvtSDevice
 from ams_can_bridge.protocols.ivt_s import IvtMux, IvtResult, IvtSCodec
-
-
-class Clock:
-    """A hand-driven monotonic clock, so staleness is tested without sleeping."""
-
-    def __init__(self) -> None:
-        self.now = 100.0
-
-    def __call__(self) -> float:
-        return self.now
+from helpers import Clock
 
 
 @pytest.fixture

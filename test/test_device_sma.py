@@ -6,20 +6,11 @@ import pytest
 from ams_can_bridge.devices.base import Level, PowerSupplyHealth, PowerSupplyStatus
 from ams_can_bridge.devices.sma import SmaDevice
 from ams_can_bridge.protocols.sma import SMA_CONDITIONS
-
-
-class Clock:
-    """A clock the test moves by hand (the device's staleness uses it)."""
-
-    def __init__(self) -> None:
-        self.now = 50.0
-
-    def __call__(self) -> float:
-        return self.now
+from helpers import Clock
 
 
 def make():
-    clock = Clock()
+    clock = Clock(50.0)
     return SmaDevice('sma', {}, clock=clock), clock
 
 

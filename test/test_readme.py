@@ -3,11 +3,11 @@ import itertools
 from pathlib import Path
 
 import pytest
-import rclpy
 from rclpy.parameter import Parameter
 
 from ams_can_bridge import registry
 from ams_can_bridge.ros.bridge_node import BridgeNode
+from helpers import ros_context
 
 README = (Path(__file__).resolve().parents[1] / 'README.md').read_text()
 ROS_BUILTIN = {'use_sim_time', 'start_type_description_service'}
@@ -17,15 +17,13 @@ _n = itertools.count()
 
 @pytest.fixture(scope='module')
 def node():
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    bridge = BridgeNode(context=context, parameter_overrides=[
-        Parameter('devices', value=list(registry.DEVICE_TYPES)),
-        Parameter('can.interface', value='virtual'),
-        Parameter('can.channel', value=f'readme-test-{next(_n)}')])
-    yield bridge
-    bridge.destroy_node()
-    rclpy.try_shutdown(context=context)
+    with ros_context() as context:
+        bridge = BridgeNode(context=context, parameter_overrides=[
+            Parameter('devices', value=list(registry.DEVICE_TYPES)),
+            Parameter('can.interface', value='virtual'),
+            Parameter('can.channel', value=f'readme-test-{next(_n)}')])
+        yield bridge
+        bridge.destroy_node()
 
 
 def test_readme_names_every_parameter(node):

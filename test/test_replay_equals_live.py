@@ -32,6 +32,7 @@ from ams_can_bridge.demo_rig import DEVICES
 from ams_can_bridge.devices.base import common_params
 from ams_can_bridge.ros.bridge_node import BridgeNode
 from ams_can_bridge.sim.runner import SimRunner
+from helpers import wait_for
 
 RECORD_S = 3.0
 BANKS = 2
@@ -97,13 +98,6 @@ class Collector(Node):
     def count(self) -> int:
         with self.lock:
             return sum(len(v) for v in self.values.values())
-
-
-def wait_for(predicate, timeout: float, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        assert time.monotonic() < deadline, f'timed out after {timeout} s waiting for {what}'
-        time.sleep(0.05)
 
 
 def wait_settled(collector: Collector, quiet: float = 0.6, timeout: float = 20.0) -> None:

@@ -7,6 +7,7 @@ import pytest
 
 from ams_can_bridge.can_io import BusConfig, CanIo, CanSendError
 from ams_can_bridge.protocols.common import Frame
+from helpers import wait_for
 
 # A known sequence: (offset s, id, extended, data); 0.1 s apart, 0.5 s in all.
 SEQUENCE = [
@@ -17,16 +18,6 @@ SEQUENCE = [
     (0.4, 0x311, False, b'\x21' + bytes(7)),
     (0.5, 0x300, False, b'\xFF'),
 ]
-
-
-def wait_for(predicate, timeout=5.0, what='condition'):
-    """Poll predicate until true; fail naming what did not happen."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return
-        time.sleep(0.01)
-    raise AssertionError(f'timed out waiting for {what}')
 
 
 def write_log(path, sequence=SEQUENCE, start=1_700_000_000.0):

@@ -17,19 +17,10 @@ from ams_can_bridge.sim.main import apply_faults, build_devices
 from ams_can_bridge.sim.runner import open_bus, SimRunner
 
 sys.path.insert(0, str(Path(__file__).parent))
+from helpers import wait_for  # noqa: E402, I100
 from slcan_peer import SlcanPeer  # noqa: E402, I100
 
 SIMULATOR = str(Path(sys.executable).parent / 'simulator')
-
-
-def wait_for(predicate, timeout=5.0, what='condition'):
-    """Poll predicate until true; fail naming what did not happen."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return
-        time.sleep(0.01)
-    raise AssertionError(f'timed out waiting for {what}')
 
 
 class Counter(SimDevice):
