@@ -6,11 +6,12 @@ would see); a client node calls the services through ROS, like a user would.
 """
 from __future__ import annotations
 
+import contextlib
 import itertools
 import os
 import threading
 import time
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 import can
 import rclpy
@@ -145,3 +146,19 @@ class Rig:
         rclpy.try_shutdown(context=self.context)
         self._spin.join(2)
         self.capture.close()
+
+
+@contextlib.contextmanager
+def rigs() -> Iterator[Callable[[dict[str, Any]], Rig]]:
+    """Yield a maker of Rigs (called with the parameter overrides); close them all on exit."""
+    made: list[Rig] = []
+
+    def make(params: dict[str, Any]) -> Rig:
+        rig = Rig(params)
+        made.append(rig)
+        return rig
+    try:
+        yield make
+    finally:
+        for rig in made:
+            rig.close()

@@ -7,7 +7,7 @@ import time
 import pytest
 from std_srvs.srv import SetBool, Trigger
 
-from command_rig import Rig
+from command_rig import rigs
 
 AMS_SERVICES = ('enable_sc', 'enable_ts', 'enable_drive', 'abort', 'set_bank_count',
                 'sync_time', 'start_charging', 'stop_charging', 'set_charge_current',
@@ -19,15 +19,8 @@ HEARTBEAT_ID = 0x305
 
 @pytest.fixture
 def rig_factory():
-    rigs = []
-
-    def make(params):
-        rig = Rig(params)
-        rigs.append(rig)
-        return rig
-    yield make
-    for rig in rigs:
-        rig.close()
+    with rigs() as make:
+        yield make
 
 
 def all_devices(enabled=False, **extra):

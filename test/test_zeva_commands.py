@@ -3,7 +3,7 @@ import can
 import pytest
 from std_srvs.srv import SetBool, Trigger
 
-from command_rig import Rig
+from command_rig import rigs
 
 # --- BMS16: golden frames written by hand from PROTOCOLS.md section 4 ---------------------
 BMS16_CONFIG = {
@@ -32,15 +32,8 @@ def bms16_params(enabled=True, config=BMS16_CONFIG, skip=()):
 
 @pytest.fixture
 def rig_factory():
-    rigs = []
-
-    def make(params):
-        rig = Rig(params)
-        rigs.append(rig)
-        return rig
-    yield make
-    for rig in rigs:
-        rig.close()
+    with rigs() as make:
+        yield make
 
 
 def sent(rig, mark):
