@@ -43,6 +43,7 @@ from ams_can_bridge.protocols.ams import (
     DischargeTemperatures, OverrideBankCount, OverrideChargeCurrent)
 from ams_can_bridge.protocols.common import Frame, ProtocolError
 from ams_can_bridge.sim.base import Periodic, SimDevice
+from ams_can_bridge.sim.pack import Elapsed, integrate_soc, thermal_lag
 from ams_can_bridge.sim.profiles import drive_current_a
 
 CAR_STATES = (AmsState.SC_ENABLED, AmsState.TS_ACTIVE, AmsState.DRIVE)
@@ -56,7 +57,6 @@ CELL_HIGH_WARN_V, CELL_LOW_WARN_V = 4.18, 3.3
 TEMP_HIGH_ERROR_C, TEMP_LOW_ERROR_C, TEMP_WARN_C = 60.0, -10.0, 50.0
 AMBIENT_C = 25.0
 HEATING_C_PER_A2 = 0.001
-THERMAL_TAU_S = 60.0
 
 
 def open_circuit_v(soc: float) -> float:
@@ -114,7 +114,7 @@ class AmsSimulator(SimDevice):
         self._last_car: float | None = None
         self._last_charger: float | None = None
         self._tick_origin = 0.0
-        self._last_now: float | None = None
+        self._elapsed = Elapsed()
         self._injected: int | None = None
         self._limit_error: AmsError | None = None
         self._pending: list[Frame] = []  # event frames (errors) not yet sent
@@ -256,16 +256,15 @@ class AmsSimulator(SimDevice):
 
     # --- physics ---------------------------------------------------------------------------
     def _step(self, now: float) -> None:
-        dt = 0.0 if self._last_now is None else max(0.0, now - self._last_now)
-        self._last_now = now
+        dt = self._elapsed(now)
         current = self.pack_current_a(now)
-        self.soc = min(1.0, max(0.0, self.soc - current * dt / 3600.0 / self.capacity_ah))
+        self.soc = integrate_soc(self.soc, current, dt, self.capacity_ah, full=1.0)
         ocv = open_circuit_v(self.soc) - CELL_R_OHM * current
         self.cell_v = [ocv + s for s in self._cell_spread]
         if 0 <= self.faults.drift_cell < len(self.cell_v):
             self.cell_v[self.faults.drift_cell] += self.faults.cell_drift_v
         target = AMBIENT_C + HEATING_C_PER_A2 * current ** 2
-        self.temperature_c += (target - self.temperature_c) * min(1.0, dt / THERMAL_TAU_S)
+        self.temperature_c = thermal_lag(self.temperature_c, target, dt)
 
     # --- frames ----------------------------------------------------------------------------
     def _word(self) -> AmsStatusWord:

@@ -19,6 +19,7 @@ from ams_can_bridge.protocols.common import Frame, ProtocolError
 from ams_can_bridge.protocols.sma import (
     SmaAlarms, SmaBattery, SmaCodec, SmaFlag, SmaLimits, SmaSoc)
 from ams_can_bridge.sim.base import Periodic, SimDevice
+from ams_can_bridge.sim.pack import Elapsed, integrate_soc, thermal_lag
 from ams_can_bridge.sim.profiles import drive_current_a
 
 # LiFePO4 open-circuit voltage per cell against SoC (%): flat middle, steep ends.
@@ -71,7 +72,7 @@ class Bms16Simulator(SimDevice):
         self.powered = True
         self.acknowledged = False
         self._periodic = Periodic(self.PERIOD)
-        self._last: float | None = None
+        self._elapsed = Elapsed()
 
     # --- model --------------------------------------------------------------------
     def power_on(self) -> None:
@@ -95,13 +96,11 @@ class Bms16Simulator(SimDevice):
         return Bms16Error.NONE
 
     def _step(self, now: float) -> None:
-        dt = 0.0 if self._last is None else max(0.0, now - self._last)
-        self._last = now
+        dt = self._elapsed(now)
         self.current_a = float(self.current_fn(now)) if self.powered else 0.0
-        self.soc_pct -= self.current_a * dt / 3600.0 / self.capacity_ah * 100.0
-        self.soc_pct = min(100.0, max(0.0, self.soc_pct))
-        target = 25.0 + 0.08 * abs(self.current_a)
-        self.temperature_c += (target - self.temperature_c) * min(1.0, dt / 60.0)
+        self.soc_pct = integrate_soc(self.soc_pct, self.current_a, dt, self.capacity_ah)
+        self.temperature_c = thermal_lag(
+            self.temperature_c, 25.0 + 0.08 * abs(self.current_a), dt)
 
     # --- bus side -----------------------------------------------------------------
     def tick(self, now: float) -> list[Frame]:

@@ -19,6 +19,7 @@ from ams_can_bridge.protocols.evms3 import (
     BmsCellNumbers, Evms3Codec, Evms3Config, Evms3ConfigPart, Evms3Error, Evms3State,
     Evms3Status, PowerOff, ResetSoc, SetState, ZeroCurrentSensor)
 from ams_can_bridge.sim.base import Periodic, SimDevice
+from ams_can_bridge.sim.pack import Elapsed
 from ams_can_bridge.sim.profiles import drive_current_a
 
 CELL_RESISTANCE_OHM = 0.0008
@@ -72,7 +73,7 @@ class Evms3Simulator(SimDevice):
         self._current = Periodic(self.CURRENT_PERIOD, phase=0.05)
         self._bms12 = Periodic(self.BMS12_PERIOD, phase=0.1)
         self._t0: float | None = None
-        self._last: float | None = None
+        self._elapsed = Elapsed()
 
     # --- model --------------------------------------------------------------------
     def power_on(self) -> None:
@@ -114,9 +115,8 @@ class Evms3Simulator(SimDevice):
 
     def _advance(self, now: float) -> None:
         if self._t0 is None:
-            self._t0 = self._last = now
-        dt = max(0.0, now - self._last)
-        self._last = now
+            self._t0 = now
+        dt = self._elapsed(now)
         flowing = self.powered and self.state in (Evms3State.RUNNING, Evms3State.CHARGING)
         self.current_a = float(self.current_fn(now - self._t0)) if flowing else 0.0
         self.remaining_ah = min(self.capacity_ah, max(

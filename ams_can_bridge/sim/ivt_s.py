@@ -15,11 +15,11 @@ from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.ivt_s import (
     DEFAULT_BASE_ID, DIVISOR, INT32_MAX, INT32_MIN, IvtMux, IvtResult, IvtSCodec)
 from ams_can_bridge.sim.base import Periodic, SimDevice
+from ams_can_bridge.sim.pack import Elapsed, thermal_lag
 from ams_can_bridge.sim.profiles import drive_current_a
 
 AMBIENT_C = 25.0
 HEATING_C_PER_A2 = 0.0008  # steady-state rise: 120 A -> about +11.5 degC
-THERMAL_TAU_S = 60.0
 
 
 class IvtSSimulator(SimDevice):
@@ -48,7 +48,7 @@ class IvtSSimulator(SimDevice):
         self.period = period
         self._periodic = Periodic(period)
         self._counters = [0] * len(IvtMux)
-        self._last_now: float | None = None
+        self._elapsed = Elapsed()
         # Pack-side state, positive = discharge.
         self.current_a = 0.0
         self.voltage_v = self.open_circuit_v
@@ -58,8 +58,7 @@ class IvtSSimulator(SimDevice):
         self.temperature_c = AMBIENT_C
 
     def _step(self, now: float) -> None:
-        dt = 0.0 if self._last_now is None else max(0.0, now - self._last_now)
-        self._last_now = now
+        dt = self._elapsed(now)
         self.current_a = float(self.current_fn(now))
         self.voltage_v = (float(self.voltage_fn()) if self.voltage_fn is not None else
                           self.open_circuit_v - self.internal_resistance_ohm * self.current_a)
@@ -69,7 +68,7 @@ class IvtSSimulator(SimDevice):
         self.charge_as += self.current_a * dt
         self.energy_wh += self.power_w * dt / 3600.0
         target = AMBIENT_C + HEATING_C_PER_A2 * self.current_a ** 2
-        self.temperature_c += (target - self.temperature_c) * min(1.0, dt / THERMAL_TAU_S)
+        self.temperature_c = thermal_lag(self.temperature_c, target, dt)
 
     def wire_values(self) -> dict[IvtMux, float]:
         """Return the SI values as the sensor reports them (mounting sign applied)."""

@@ -22,6 +22,7 @@ from ams_can_bridge.protocols.sma import (
     SmaManufacturer, SmaSoc)
 from ams_can_bridge.sim.base import Periodic, SimDevice
 from ams_can_bridge.sim.bms16 import CELL_RESISTANCE_OHM, lfp_cell_ocv, sma_empty
+from ams_can_bridge.sim.pack import Elapsed, integrate_soc, thermal_lag
 from ams_can_bridge.sim.profiles import drive_current_a
 
 CELLS = 16
@@ -66,7 +67,7 @@ class SmaSimulator(SimDevice):
         self.temperature_c = 25.0
         self._periodic = Periodic(self.PERIOD)
         self._info = Periodic(self.INFO_PERIOD)
-        self._last: float | None = None
+        self._elapsed = Elapsed()
 
     def voltage_v(self) -> float:
         """Pack terminal voltage."""
@@ -86,13 +87,11 @@ class SmaSimulator(SimDevice):
         return SmaAlarms(flags(alarm), flags(warning))
 
     def _step(self, now: float) -> None:
-        dt = 0.0 if self._last is None else max(0.0, now - self._last)
-        self._last = now
+        dt = self._elapsed(now)
         self.current_a = float(self.current_fn(now))
-        self.soc_pct -= self.current_a * dt / 3600.0 / self.capacity_ah * 100.0
-        self.soc_pct = min(100.0, max(0.0, self.soc_pct))
-        target = 25.0 + 0.08 * abs(self.current_a)
-        self.temperature_c += (target - self.temperature_c) * min(1.0, dt / 60.0)
+        self.soc_pct = integrate_soc(self.soc_pct, self.current_a, dt, self.capacity_ah)
+        self.temperature_c = thermal_lag(
+            self.temperature_c, 25.0 + 0.08 * abs(self.current_a), dt)
 
     def tick(self, now: float) -> list[Frame]:
         """Advance the pack to ``now`` and return the frames due."""
