@@ -1,4 +1,4 @@
-"""Helpers shared by the tests: a hand-driven clock, polling with a timeout, a ROS context."""
+"""Helpers shared by the tests: a hand-driven clock, polling, a ROS context, frame fuzzing."""
 from __future__ import annotations
 
 import contextlib
@@ -7,6 +7,8 @@ from typing import Callable, Iterator
 
 import rclpy
 from rclpy.context import Context
+
+from ams_can_bridge.protocols.common import MalformedFrameError
 
 
 class Clock:
@@ -39,3 +41,13 @@ def ros_context() -> Iterator[Context]:
         yield ctx
     finally:
         rclpy.try_shutdown(context=ctx)
+
+
+def assert_decodes_or_malformed(codec: object, frame_id: int, data: bytes) -> None:
+    """Assert that codec reads the frame, or refuses it with a MalformedFrameError naming it."""
+    try:
+        reading = codec.decode(frame_id, data)
+    except MalformedFrameError as exc:
+        assert exc.arbitration_id == frame_id, (exc.arbitration_id, frame_id)
+    else:
+        assert reading is not None, f'0x{frame_id:X} {data.hex()} decoded to None'
