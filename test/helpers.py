@@ -1,10 +1,14 @@
-"""Helpers shared by the tests: a hand-driven clock, polling, a ROS context, frame fuzzing."""
+"""Helpers shared by the tests: hand-driven clock, polling, ROS context, DBC and codec checks."""
 from __future__ import annotations
 
 import contextlib
+import logging
 import time
-from typing import Callable, Iterator
+from typing import Any, Callable, Iterator
+import warnings
 
+import canmatrix.formats
+import cantools
 import rclpy
 from rclpy.context import Context
 
@@ -51,3 +55,18 @@ def assert_decodes_or_malformed(codec: object, frame_id: int, data: bytes) -> No
         assert exc.arbitration_id == frame_id, (exc.arbitration_id, frame_id)
     else:
         assert reading is not None, f'0x{frame_id:X} {data.hex()} decoded to None'
+
+
+def load_dbc_strictly(path: str, caplog: Any) -> tuple[Any, Any]:
+    """
+    Load a DBC in cantools (strict) and in canmatrix; fail on any warning of either.
+
+    Return (the cantools database, the canmatrix matrix). caplog is pytest's fixture.
+    """
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        db = cantools.database.load_file(path, strict=True)
+        with caplog.at_level(logging.WARNING):
+            matrix = canmatrix.formats.loadp_flat(path)
+    assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
+    return db, matrix

@@ -1,8 +1,4 @@
 """ZEVA BMS16 codec: golden frames written by hand from PROTOCOLS.md s. 4, both ways."""
-import logging
-import warnings
-
-import canmatrix.formats
 import cantools
 from hypothesis import given, settings, strategies as st
 import pytest
@@ -13,7 +9,7 @@ from ams_can_bridge.protocols.bms16 import (
     ResetSoc)
 from ams_can_bridge.protocols.common import (
     EncodeRangeError, Frame, MalformedFrameError, msg_defs_dir)
-from helpers import assert_decodes_or_malformed
+from helpers import assert_decodes_or_malformed, load_dbc_strictly
 
 CODEC = Bms16Codec()
 GOOD_CONFIG = dict(cells=16, pack_capacity_ah=100, soc_warning_pct=20, full_voltage_v=58,
@@ -27,13 +23,7 @@ GOOD_505 = bytes([73, 2, 69, 2])
 
 
 def test_dbc_loads_strictly_in_cantools_and_canmatrix_without_warnings(caplog):
-    path = str(msg_defs_dir() / 'bms16.dbc')
-    with warnings.catch_warnings():
-        warnings.simplefilter('error')
-        db = cantools.database.load_file(path, strict=True)
-        with caplog.at_level(logging.WARNING):
-            matrix = canmatrix.formats.loadp_flat(path)
-    assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
+    db, matrix = load_dbc_strictly(str(msg_defs_dir() / 'bms16.dbc'), caplog)
     assert sorted(m.frame_id for m in db.messages) == list(range(500, 509))
     assert len(matrix.frames) == 9
     assert db.get_message_by_frame_id(500).get_signal_by_name('Error').choices[3] == \

@@ -1,9 +1,4 @@
 """SMA Sunny Island BMS codec: golden frames written by hand from PROTOCOLS.md s. 5."""
-import logging
-import warnings
-
-import canmatrix.formats
-import cantools
 from hypothesis import given, settings, strategies as st
 import pytest
 
@@ -12,19 +7,14 @@ from ams_can_bridge.protocols.common import (
 from ams_can_bridge.protocols.sma import (
     SMA_CONDITIONS, SMA_IDS, SmaAlarms, SmaBattery, SmaBatteryInfo, SmaCodec, SmaFlag,
     SmaLimits, SmaManufacturer, SmaSoc)
-from helpers import assert_decodes_or_malformed
+from helpers import assert_decodes_or_malformed, load_dbc_strictly
 
 CODEC = SmaCodec()
 DBC = str(msg_defs_dir() / 'sma.dbc')
 
 
 def test_dbc_loads_strictly_in_cantools_and_canmatrix_without_warnings(caplog):
-    with warnings.catch_warnings():
-        warnings.simplefilter('error')
-        db = cantools.database.load_file(DBC, strict=True)
-        with caplog.at_level(logging.WARNING):
-            matrix = canmatrix.formats.loadp_flat(DBC)
-    assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
+    db, matrix = load_dbc_strictly(DBC, caplog)
     assert {m.frame_id for m in db.messages} == set(SMA_IDS)
     assert len(matrix.frames) == 6
     flags = db.get_message_by_frame_id(0x35A)
