@@ -27,6 +27,10 @@ _CAN_ERR_CRTL_ACTIVE = 0x40
 _SOCKETCAN_ERRORS = ('socketcan', 'virtual')
 
 
+# Log format of bus state changes (the node filters these: it logs its own).
+STATE_CHANGE_FORMAT = 'CAN bus %s: %s%s'
+
+
 class _BusLost(Exception):
     """Raised inside the receive loop when the bus must be closed and re-opened."""
 
@@ -144,7 +148,7 @@ class CanIo:
     # ---------------------------------------------------------------------------- thread
     def _set_state(self, state: str, reason: str, level: int = logging.INFO) -> None:
         if state != self._state or reason != self._reason:
-            self._log.log(level, 'CAN bus %s: %s%s', self.config.hardware_id, state,
+            self._log.log(level, STATE_CHANGE_FORMAT, self.config.hardware_id, state,
                           f' ({reason})' if reason else '')
         self._state = state
         self._reason = reason
@@ -284,6 +288,9 @@ class CanIo:
                 self._set_state('connected', '')
 
     def _record(self, msg: can.Message) -> None:
+        # One bus, one recording: the driver's channel object (a name, a path, a number)
+        # means nothing in the file, and BLF cannot even store a name with big digits.
+        msg.channel = None
         with self._rec_lock:
             recorder = self._recorder
             if recorder is None:
@@ -293,6 +300,10 @@ class CanIo:
             except Exception as exc:  # disk full: stop recording, keep the bus alive
                 self._recorder = None
                 self._log.error('CAN recording to %s stopped: %s', self.config.record, exc)
+                try:
+                    recorder.stop()  # keep what was written readable
+                except Exception:  # the disk that failed may fail again: nothing to add
+                    pass
 
     def _callback_failed(self, msg: can.Message, exc: Exception) -> None:
         self.callback_errors += 1
