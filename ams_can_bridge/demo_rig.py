@@ -46,7 +46,7 @@ def _bridge_parameters(channel: str, banks: int, commands: bool) -> list[Paramet
         'can.channel': channel,
         'devices': list(DEVICES),
         'commands_enabled': commands,
-        'diagnostics_period': 0.5,
+        'diagnostics_period': 0.25,  # the view redraws at 4 Hz: states keep up
         **device_parameters(banks),
     }
     return [Parameter(name, value=value) for name, value in values.items()]

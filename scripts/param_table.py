@@ -76,6 +76,9 @@ def main() -> None:
         line = row(f'<name>.{key}', common[key])
         if key in ('stale_timeout', 'base_id'):
             line = line.replace(f'| {fmt_default(common[key])} |', '| per type |', 1)
+        if key == 'base_id':
+            line = line.replace(common[key].description, 'first CAN ID of the device')
+            line = line.replace(fmt_range(common[key]), '0x0..0x7FF (29-bit: 0x0..0x1FFFFFFF)')
         print(line)
     print('\nPer type (shown for an instance named after its type):\n')
     print(head)

@@ -140,3 +140,22 @@ def test_bridge_exits_2_on_bad_parameters(tmp_path):
                           capture_output=True, text=True, timeout=60, env=dict(os.environ))
     assert proc.returncode == 2
     assert 'pack.type' in proc.stderr and 'Traceback' not in proc.stderr
+
+
+def test_bridge_names_every_bad_start_value_at_once(tmp_path):
+    params = tmp_path / 'bad.yaml'
+    params.write_text(
+        '/**:\n  ros__parameters:\n    devices: [evms3, bms16]\n'
+        '    can: {interface: virtual, channel: bad_values}\n'
+        '    evms3:\n      config: {pack_capacity_ah: 7, balance_mode: sometimes}\n'
+        '    bms16:\n      base_id: 5000\n      config: {shunt_size_a: 250}\n')
+    proc = subprocess.run([bridge_executable(), '--ros-args', '--params-file', str(params)],
+                          capture_output=True, text=True, timeout=60, env=dict(os.environ))
+    assert proc.returncode == 2 and 'Traceback' not in proc.stderr
+    assert '4 parameters need a change' in proc.stderr
+    for reason in ('bms16.base_id = 5000 is out of range: allowed 0x0..0x7FF',
+                   'evms3.config.pack_capacity_ah = 7 is off the step: allowed 5..1250 in '
+                   'steps of 5',
+                   "evms3.config.balance_mode = 'sometimes' is not allowed",
+                   'bms16.config.shunt_size_a = 250 refused'):
+        assert reason in proc.stderr, (reason, proc.stderr)

@@ -130,7 +130,8 @@ def common_params(device_cls: type['Device']) -> list[ParamSpec]:
     if device_cls.DEFAULT_BASE_ID is not None:
         specs.append(ParamSpec('base_id', int, device_cls.DEFAULT_BASE_ID,
                                f'first CAN ID of the device (default {device_cls.DEFAULT_BASE_ID}'
-                               f' = 0x{device_cls.DEFAULT_BASE_ID:X})', low=0, high=0x1FFFFFFF))
+                               f' = 0x{device_cls.DEFAULT_BASE_ID:X})', low=0,
+                               high=(1 << device_cls.ID_BITS) - 1))
     if device_cls.EXTENDED_ID_CHOICE:
         specs.append(ParamSpec('extended_id', bool, device_cls.DEFAULT_EXTENDED_ID,
                                'use 29-bit (extended) CAN IDs'))
@@ -149,6 +150,7 @@ class Device:
     TYPE: ClassVar[str] = ''
     BROADCAST_PERIOD: ClassVar[float] = 1.0  # s, of the primary status frame
     DEFAULT_BASE_ID: ClassVar[int | None] = None
+    ID_BITS: ClassVar[int] = 11  # 29 for devices on extended (CAN 2.0B) IDs
     EXTENDED_ID_CHOICE: ClassVar[bool] = False
     DEFAULT_EXTENDED_ID: ClassVar[bool] = False
     PARAMS: ClassVar[list[ParamSpec]] = []  # type-specific, besides common_params()

@@ -68,6 +68,7 @@ class Evms3Device(Device):
     """ZEVA EVMS3 (+ BMS12 modules): BatteryState from ID 30/40 and the module cells."""
 
     TYPE = 'evms3'
+    ID_BITS = 29
     BROADCAST_PERIOD = 0.25
     DEFAULT_BASE_ID = 30
     PARAMS = [

@@ -137,7 +137,7 @@ class AmsCommands:
 
     def _send_one(self, what: str, build: Callable[[], Frame]) -> tuple[bool, str]:
         if not self.node.commands_enabled:
-            return False, gate_message(self.node, what)
+            return False, f'{self.name}: {gate_message(self.node, what)}'
         try:
             frame = build()
         except (EncodeRangeError, ValueError) as exc:

@@ -48,6 +48,7 @@ from std_msgs.msg import Float32MultiArray
 
 from ams_can_bridge import registry
 from ams_can_bridge.can_io import BusConfig, CanIo, CanSendError, parse_options
+from ams_can_bridge.can_io.core import STATE_CHANGE_FORMAT
 from ams_can_bridge.devices.base import Device, ParamSpec, common_params
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.ros import convert
@@ -97,7 +98,15 @@ class BridgeNode(Node):
         self.add_post_set_parameters_callback(self._after_set_parameters)
         try:
             self._configure()
+            self.params.raise_errors()
         except (ParamError, ConfigError) as exc:
+            if self.params.errors:  # the values the user wrote come first, all of them
+                if not any(str(exc).startswith(e.split(' ', 1)[0]) for e in self.params.errors):
+                    self.params.errors.append(str(exc))
+                try:
+                    self.params.raise_errors()
+                except ParamError as every:
+                    exc = every
             self.destroy_node()
             raise ConfigError(str(exc)) from None
         self._ready = True
@@ -143,8 +152,10 @@ class BridgeNode(Node):
             self._add_commander(name, device)
         can_logger = logging.getLogger(f'{NODE_NAME}.can_io.{id(self)}')
         can_logger.propagate = False
-        # CanIo logs every state change; the node logs the user-facing transitions itself.
+        # CanIo logs every state change; the node logs the user-facing transitions itself
+        # (once per change, with what happens next), so only CanIo's other problems pass.
         can_logger.setLevel(logging.WARNING)
+        can_logger.addFilter(lambda record: record.msg != STATE_CHANGE_FORMAT)
         can_logger.addHandler(RosLogHandler(self.get_logger()))
         self.can_io = CanIo(self.bus_config, self._on_frame, filters, can_logger)
 

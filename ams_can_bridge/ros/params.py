@@ -43,10 +43,17 @@ def spec_from_config_field(field: ConfigField, key_prefix: str = 'config.',
                      read_only=read_only)
 
 
+def _number(value: float, key: str = '') -> str:
+    """Format a range bound as a user writes it: CAN IDs in hex, whole numbers exactly."""
+    if key.endswith('base_id'):
+        return f'0x{int(value):X}'
+    return str(int(value)) if float(value).is_integer() else f'{value:g}'
+
+
 def _allowed(spec: ParamSpec) -> str:
     parts = []
     if spec.low is not None and spec.high is not None:
-        parts.append(f'{spec.low:g}..{spec.high:g}')
+        parts.append(f'{_number(spec.low, spec.key)}..{_number(spec.high, spec.key)}')
     if spec.step:
         parts.append(f'in steps of {spec.step:g}')
     if spec.choices:
@@ -127,6 +134,15 @@ class ParamRegistry:
         self.node = node
         self.specs: dict[str, ParamSpec] = {}
         self.last_reason = ''  # of the last refused value (rclpy wraps it in its exception)
+        self.errors: list[str] = []  # unusable values given at start, all of them
+
+    def raise_errors(self) -> None:
+        """Raise one ParamError listing every unusable start value, if there was any."""
+        if len(self.errors) == 1:
+            raise ParamError(self.errors[0])
+        if self.errors:
+            raise ParamError(f'{len(self.errors)} parameters need a change:\n  - '
+                             + '\n  - '.join(self.errors))
 
     def declare(self, name: str, spec: ParamSpec) -> Any:
         """
@@ -136,15 +152,26 @@ class ParamRegistry:
         """
         self.specs[name] = spec
         desc = descriptor(spec)
+        # Check the value from the params file / overrides with our own rules first, so the
+        # user gets our message, and every bad value at once (rclpy stops at the first).
+        ignore = False
+        override = self.node._parameter_overrides.get(name)  # rclpy has no public getter
+        if override is not None and override.type_ != Parameter.Type.NOT_SET:
+            try:
+                coerce(name, spec, override.value)
+            except ParamError as exc:
+                self.errors.append(str(exc))
+                ignore = True  # declare with the default; raise_errors() reports it
         try:
             if spec.type in (int, float):
                 default = None if spec.default is None else spec.type(spec.default)
-                param = self.node.declare_parameter(name, default, desc)
+                param = self.node.declare_parameter(name, default, desc, ignore)
             elif spec.default is None or spec.default == []:
                 # an empty list cannot carry its element type, and YAML [] arrives unset
-                param = self.node.declare_parameter(name, _STATIC_TYPES[spec.type], desc)
+                param = self.node.declare_parameter(
+                    name, _STATIC_TYPES[spec.type], desc, ignore)
             else:
-                param = self.node.declare_parameter(name, spec.default, desc)
+                param = self.node.declare_parameter(name, spec.default, desc, ignore)
         except ParamError:
             raise
         except Exception as exc:  # rclpy's type/range exceptions: reword for the user

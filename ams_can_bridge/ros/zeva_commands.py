@@ -94,7 +94,7 @@ class _ZevaCommands:
 
     def _send_frames(self, what: str, build: Callable[[], Iterable[Frame]]) -> tuple[bool, str]:
         if not self.node.commands_enabled:
-            return False, gate_message(self.node, what)
+            return False, f'{self.name}: {gate_message(self.node, what)}'
         try:
             frames = list(build())  # validation happens here, before anything is sent
         except _Refused as exc:
