@@ -23,7 +23,7 @@ from std_msgs.msg import Float32MultiArray
 
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.ros.bridge_node import BridgeNode, ConfigError
-from helpers import ros_context
+from helpers import ros_context, wait_for
 
 NAN = math.nan
 _ids = itertools.count()
@@ -407,3 +407,72 @@ def test_commander_seam_validates_and_syncs_device_params(harness):
     accepted = node.set_parameters([Parameter('evms3.config.pack_capacity_ah', value=100)])[0]
     assert accepted.successful, accepted.reason
     assert node.devices['evms3'].params['config.pack_capacity_ah'] == 100
+
+
+# --- header, stamps, diagnostics on change -------------------------------------------------
+def stamp_seconds(msg: BatteryState) -> float:
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+
+def test_location_serial_number_and_frame_id_parameters_reach_battery_state(harness):
+    h = harness({'devices': ['bms16'], 'bms16.location': 'rear rack, slot 2',
+                 'bms16.serial_number': 'SN-0042', 'bms16.frame_id': 'battery_link'},
+                {'bms16/battery_state': BatteryState})
+    h.send(500, bms16_status(0, 70, 520, 10, 24))
+    msg = h.last('bms16/battery_state', lambda m: m.present)
+    assert msg.location == 'rear rack, slot 2'
+    assert msg.serial_number == 'SN-0042'
+    assert msg.header.frame_id == 'battery_link'
+
+
+def test_stamp_is_the_receive_time_and_stale_messages_keep_the_last_one(harness):
+    h = harness({'devices': ['bms16'], 'bms16.stale_timeout': 0.8},
+                {'bms16/battery_state': BatteryState})
+    # Before any frame the 1 Hz stale message has no receive time: it is stamped 'now'.
+    created = time.time()
+    never = h.last('bms16/battery_state', lambda m: not m.present)
+    assert created - 0.05 <= stamp_seconds(never) <= time.time()
+
+    def send_soc(soc: int) -> tuple[float, float, BatteryState]:
+        before = time.time()
+        h.send(500, bms16_status(0, soc, 520, 10, 24))
+        msg = h.last('bms16/battery_state',
+                     lambda m: m.present and m.percentage == pytest.approx(soc / 100))
+        return before, time.time(), msg
+
+    before1, after1, first = send_soc(61)
+    assert before1 - 0.05 <= stamp_seconds(first) <= after1
+    h.spin_until(lambda: time.time() >= after1 + 0.3, timeout=5.0)
+    before2, after2, second = send_soc(62)
+    assert before2 - 0.05 <= stamp_seconds(second) <= after2
+    gap = stamp_seconds(second) - stamp_seconds(first)
+    assert 0.15 <= gap <= after2 - before1 + 0.05, gap
+    # Published later than received (executor held back): still the receive time.
+    frames_in = h.bridge.can_io.status().frames_in
+    h.send(500, bms16_status(0, 63, 520, 10, 24))
+    wait_for(lambda: h.bridge.can_io.status().frames_in > frames_in, what='frame received')
+    received_by = time.time()
+    time.sleep(0.3)  # the executor does not spin: publishing waits
+    third = h.last('bms16/battery_state',
+                   lambda m: m.present and m.percentage == pytest.approx(0.63))
+    assert stamp_seconds(third) <= received_by
+    # Once stale, present:false repeats the last frame's receive time, never a newer one.
+    count = len(h.msgs['bms16/battery_state'])
+    stale = h.spin_until(lambda: [m for m in h.msgs['bms16/battery_state'][count:]
+                                  if not m.present], timeout=10.0)
+    for msg in stale:
+        assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (
+            third.header.stamp.sec, third.header.stamp.nanosec)
+
+
+def test_diagnostics_published_at_once_when_a_level_changes(harness):
+    # A 30 s period: only the at-once rule can explain arrays within seconds.
+    h = harness({'devices': ['bms16'], 'bms16.stale_timeout': 60.0,
+                 'diagnostics_period': 30.0})
+    h.spin_until(lambda: h.msgs['/diagnostics'], timeout=5.0)
+    assert level(h.status('bms16', timeout=0.1)) == 3  # never heard: STALE
+    h.send(500, bms16_status(0, 80, 523, 125, 25))
+    h.status('bms16', lambda s: level(s) == 0, timeout=3.0)
+    h.send(500, bms16_status(3, 80, 523, 125, 25))  # overvoltage
+    status = h.status('bms16', lambda s: level(s) == 2, timeout=3.0)
+    assert 'CHARGE_DISABLED_OVERVOLTAGE' in status.message
