@@ -6,6 +6,7 @@ side); malformed / silent devices use the virtual bus. Nothing may print a trace
 """
 from __future__ import annotations
 
+import math
 import time
 
 from sensor_msgs.msg import BatteryState
@@ -106,6 +107,9 @@ def test_silent_device_goes_stale_and_comes_back(harness, capfd):
     h.spin_until(lambda: len(h.msgs['bms16/battery_state']) >= first + 2, timeout=6)
     late = h.msgs['bms16/battery_state'][first:]
     assert late and not any(m.present for m in late)
+    # no stale numbers: a silent device's messages carry NaN, not its last values
+    assert all(math.isnan(m.voltage) and math.isnan(m.current) and math.isnan(m.percentage)
+               and all(math.isnan(v) for v in m.cell_voltage) for m in late)
     stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in late]
     assert stamps == sorted(stamps)
     h.send(500, bms16_status(0, 71, 510, 0, 22))

@@ -282,7 +282,9 @@ def test_stale(clock):
     clock.now += 0.2  # 0.6 s > stale_timeout 0.5 s
     report = device.battery_report()
     assert not report.present
-    assert not math.isnan(report.voltage)  # the cells themselves are still recent
+    # silent status frame: no measurement at all, even from recent cells (no flat line
+    # in a plot that looks alive); the last real values were in the last present message
+    assert math.isnan(report.voltage) and all(math.isnan(v) for v in report.cell_voltage)
     diag = device.diagnostic_report()
     assert diag.level == Level.STALE and 'silent for 0.6 s' in diag.message
     # a restart after the silence: the new counter is no jump

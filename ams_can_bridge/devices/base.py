@@ -210,10 +210,18 @@ class Device:
         return self.last_seen is None or self.clock() - self.last_seen > self.stale_timeout
 
     def battery_report(self) -> BatteryReport:
-        """Build the BatteryState to publish now (present False while stale)."""
+        """
+        Build the BatteryState to publish now.
+
+        While the device is stale the report says present False and carries no
+        measurement: NaN, not the last values, so a plot shows a gap instead of a flat
+        line that looks alive (the last real values are in the last present message).
+        Configured values (capacity, technology, location) stay.
+        """
         with self.lock:
             report = self._battery_report()
-        report.present = report.present and not self.is_stale()
+        if self.is_stale():
+            report = stale_report(report)
         report.location = str(self.params.get('location', ''))
         report.serial_number = str(self.params.get('serial_number', ''))
         return report
@@ -242,6 +250,15 @@ class Device:
     def extra_arrays(self) -> dict[str, tuple[int, int, list[float]]]:
         """List extra Float32MultiArray topics: '<suffix>' -> (rows, cols, row-major data)."""
         return {}
+
+
+def stale_report(report: BatteryReport) -> BatteryReport:
+    """Return the report of a silent device: present False, every measurement NaN."""
+    return BatteryReport(
+        stamp=report.stamp, capacity=report.capacity, design_capacity=report.design_capacity,
+        power_supply_technology=report.power_supply_technology, present=False,
+        cell_voltage=[NAN] * len(report.cell_voltage),
+        cell_temperature=[NAN] * len(report.cell_temperature))
 
 
 def current_status(current_a: float, idle_band_a: float = 0.05) -> PowerSupplyStatus:
