@@ -9,6 +9,7 @@ import can
 import pytest
 
 from ams_can_bridge.can_io import BusConfig, BusStatus, CanIo, CanSendError, parse_options
+from ams_can_bridge.can_io.core import STATE_CHANGE_FORMAT
 from ams_can_bridge.protocols.common import Frame
 
 sys.path.insert(0, __file__.rsplit('/', 1)[0])
@@ -177,21 +178,49 @@ def test_handler_exception_is_counted_and_receiving_goes_on(channel, peer_bus, c
         io.stop()
 
 
+class StateLog(logging.Handler):
+    """Every bus state CanIo reports through its logger, as (state, reason), in order."""
+
+    def __init__(self):
+        super().__init__()
+        self.states = []
+
+    def emit(self, record):
+        if record.msg == STATE_CHANGE_FORMAT:
+            _, state, reason = record.args
+            self.states.append((state, reason))  # emit runs under the handler's lock
+
+    def names(self):
+        with self.lock:  # logging.Handler's own lock, the one emit runs under
+            return [state for state, _ in self.states]
+
+
 def test_bus_off_error_frame_reconnects_and_error_passive_is_reported(channel, peer_bus):
-    io = start_virtual(channel, Sink())
+    states = StateLog()
+    logger = logging.getLogger(f'test_can_io.bus_off.{channel}')
+    logger.propagate = False
+    logger.setLevel(logging.DEBUG)
+    logger.addHandler(states)
+    io = start_virtual(channel, Sink(), logger=logger)
     try:
         # SocketCAN encoding: CAN_ERR_CRTL with data[1] = TX passive.
         peer_bus.send(can.Message(arbitration_id=0x04, is_error_frame=True,
                                   data=b'\x00\x20\x00\x00\x00\x00\x00\x00'))
         wait_for(lambda: io.status().state == 'error-passive', what='error-passive')
+        assert 'error-passive' in io.status().reason
         peer_bus.send(can.Message(arbitration_id=0x04, is_error_frame=True,
                                   data=b'\x00\x40\x00\x00\x00\x00\x00\x00'))
         wait_for(lambda: io.status().state == 'connected', what='back to active')
         peer_bus.send(can.Message(arbitration_id=0x40, is_error_frame=True))
         wait_for(lambda: io.status().reconnects == 1, what='reconnect after bus-off')
         wait_for(lambda: io.status().state == 'connected', what='connected again')
-        assert 'bus-off' in io.status().reason or io.status().reason == ''
         assert io.status().error_frames == 3
+        names = states.names()
+        # active -> passive -> active -> bus-off -> re-opened, each reported in this order
+        assert names == ['connecting', 'connected', 'error-passive', 'connected', 'bus-off',
+                         'connected'], names
+        bus_off_reason = dict(states.states)['bus-off']
+        assert 'bus-off' in bus_off_reason, bus_off_reason
     finally:
         io.stop()
 
