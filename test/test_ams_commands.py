@@ -3,6 +3,7 @@ import threading
 import time
 
 import can
+from diagnostic_msgs.msg import DiagnosticArray
 import pytest
 from sensor_msgs.msg import BatteryState
 from std_srvs.srv import Trigger
@@ -200,15 +201,25 @@ def test_abort_during_a_waiting_enable_ts(with_ams):
 
 
 def test_telemetry_flows_while_a_command_waits(with_ams):
-    rig, sim = with_ams(precharge_time=10.0, **{'ams.command_timeout': 1.5})
+    rig, sim = with_ams(precharge_time=10.0, **{'ams.command_timeout': 1.5,
+                                                'diagnostics_period': 0.2})
     stamps = []
+    diag_stamps = []
     lock = threading.Lock()
+    hardware_id = f'virtual:{rig.channel}'
 
     def on_msg(msg):
         with lock:
             stamps.append(time.monotonic())
+
+    def on_diag(msg):
+        # other processes may publish /diagnostics too: count this node's arrays only
+        if any(s.hardware_id == hardware_id for s in msg.status):
+            with lock:
+                diag_stamps.append(time.monotonic())
     rig.client.create_subscription(BatteryState, '/ams/battery_state', on_msg, 50)
-    assert rig.capture.wait_for(lambda: len(stamps) >= 2)
+    rig.client.create_subscription(DiagnosticArray, '/diagnostics', on_diag, 50)
+    assert rig.capture.wait_for(lambda: len(stamps) >= 2 and len(diag_stamps) >= 1)
     assert rig.call(Trigger, '/ams/enable_sc').success
     t0 = time.monotonic()
     response = rig.call(Trigger, '/ams/enable_ts')  # waits in PRECHARGING until the timeout
@@ -216,5 +227,8 @@ def test_telemetry_flows_while_a_command_waits(with_ams):
     assert not response.success and 'PRECHARGING' in response.message
     with lock:
         during = [t for t in stamps if t0 < t < t1]
+        diag_during = [t for t in diag_stamps if t0 < t < t1]
     # the AMS status comes at 10 Hz: most of ~15 messages must arrive while the call waits
     assert len(during) >= 7, len(during)
+    # diagnostics every 0.2 s: ~7 arrays in 1.5 s; at least 3 prove they did not pause
+    assert len(diag_during) >= 3, len(diag_during)
