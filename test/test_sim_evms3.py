@@ -1,5 +1,6 @@
 """Simulated EVMS3 + BMS12: rates, physics, reactions to commands, faults, and a real bus."""
 import dataclasses
+import math
 import uuid
 
 import can
@@ -194,3 +195,43 @@ def test_over_a_real_python_can_bus_into_the_device():
     finally:
         sim_bus.shutdown()
         bridge_bus.shutdown()
+
+
+def test_device_fed_by_the_simulator_reports_a_plausible_pack():
+    """Every simulated frame through a real Evms3Device (clock = simulated time)."""
+    step_at = 10.0  # discharge 180 A, then charge 180 A (wire sign: + = discharge)
+    sim = Evms3Simulator(bms12_modules=2, current_fn=lambda t: 180.0 if t < step_at else -180.0,
+                         capacity_ah=100.0, seed=5)
+    now = [0.0]
+    device = Evms3Device('evms3', {'bms12_modules': 2, 'config.pack_capacity_ah': 100},
+                         clock=lambda: now[0])
+    reports = []  # (time, report) at every primary frame (ID 30), as the node publishes
+    for i in range(2001):  # 20 s of simulated time
+        now[0] = i * 0.01
+        for f in sim.tick(now[0]):
+            if device.handle_frame(f.arbitration_id, f.data, now[0]):
+                reports.append((now[0], device.battery_report()))
+    assert device.frames_malformed == 0
+    # Once every BMS12 frame came round (0.5 s), each report has all 24 cells, no NaN, and
+    # the pack voltage is their sum (0.1 V resolution on the wire) - except right after the
+    # current step, while the cells (0.5 s period) still show the old current's IR drop.
+    checked = [(t, r) for t, r in reports if t >= 0.6 and not step_at <= t < step_at + 0.6]
+    assert len(checked) > 60
+    for t, report in checked:
+        assert report.present
+        assert len(report.cell_voltage) == 24
+        assert not any(math.isnan(v) for v in report.cell_voltage), t
+        assert report.voltage == pytest.approx(sum(report.cell_voltage), abs=0.1), t
+    # Charge and SoC follow the current: down while discharging, back up while charging.
+    discharging = [r for t, r in checked if t < step_at]
+    charging = [r for t, r in checked if t > step_at]
+    assert all(r.current == -180.0 for r in discharging)
+    assert all(r.current == 180.0 for r in charging)
+    assert discharging[-1].charge < discharging[0].charge  # 180 A * ~9 s = 0.45 Ah out
+    assert discharging[-1].percentage < discharging[0].percentage
+    assert charging[-1].charge > charging[0].charge
+    assert charging[-1].percentage > charging[0].percentage
+    assert [r.charge for r in discharging] == sorted((r.charge for r in discharging),
+                                                     reverse=True)
+    assert [r.charge for r in charging] == sorted(r.charge for r in charging)
+    assert charging[-1].percentage == pytest.approx(charging[-1].charge / 100.0)
