@@ -7,6 +7,7 @@ topics; SIGINT must end it with exit code 0 and no traceback.
 """
 from __future__ import annotations
 
+import itertools
 import os
 from pathlib import Path
 import shutil
@@ -22,7 +23,7 @@ from rclpy.executors import SingleThreadedExecutor
 from sensor_msgs.msg import BatteryState
 
 from ams_can_bridge.protocols.common import Frame
-from helpers import ros_context
+from helpers import ros_context, wait_for
 from slcan_peer import SlcanPeer
 
 BATTERY = ['ams', 'ivt', 'evms3', 'bms16', 'sma']
@@ -68,6 +69,14 @@ FRAMES = [
 ]
 
 
+def frames_round(n: int) -> list[Frame]:
+    """Return FRAMES with the IVT-S and AMS message counters at n: live devices count up."""
+    ivt, ams = FRAMES[0], FRAMES[1]
+    return [Frame(ivt.arbitration_id, ivt.data[:1] + bytes([n & 0x0F]) + ivt.data[2:]),
+            Frame(ams.arbitration_id, ams.data[:5] + bytes([n & 0xFF]) + ams.data[6:])
+            ] + FRAMES[2:]
+
+
 @pytest.fixture
 def ros():
     with ros_context() as ctx:
@@ -102,9 +111,10 @@ def test_installed_bridge_on_slcan(ros, tmp_path):
         peer.wait_open(timeout=30)
         assert peer.bitrate_command == 'S6'  # 500 kbit/s
         deadline = time.monotonic() + 30
+        rounds = itertools.count()
         while time.monotonic() < deadline and not all(
                 any(m.present for m in msgs) for msgs in got.values()):
-            for frame in FRAMES:
+            for frame in frames_round(next(rounds)):
                 peer.send(frame)
             executor.spin_once(timeout_sec=0.1)
         missing = [n for n, msgs in got.items() if not any(m.present for m in msgs)]
@@ -114,10 +124,24 @@ def test_installed_bridge_on_slcan(ros, tmp_path):
         assert any(abs(m.voltage - 345.6) < 1e-3 for m in got['evms3'])
         assert any(abs(m.percentage - 0.81) < 1e-6 for m in got['bms16'])
         assert any(abs(m.current + 15.3) < 1e-4 for m in got['sma'])
-        while time.monotonic() < deadline and not diags:
+        # Every device healthy (level OK) and saying its state in its message; the frames
+        # keep coming meanwhile, so no device goes stale while we wait.
+        expected = {'ams': 'IDLE', 'ivt': '12.00 A', 'evms3': 'RUNNING', 'bms16': 'SoC 81 %',
+                    'sma': '51.2 V', 'CAN bus': 'connected'}
+
+        def healthy(array) -> bool:
+            statuses = {s.name: s for s in array.status}
+            return set(statuses) == {f'ams_can_bridge: {n}' for n in expected} and all(
+                statuses[f'ams_can_bridge: {n}'].level == b'\x00'
+                and word in statuses[f'ams_can_bridge: {n}'].message
+                for n, word in expected.items())
+        while time.monotonic() < deadline and not any(healthy(a) for a in diags):
+            for frame in frames_round(next(rounds)):
+                peer.send(frame)
             executor.spin_once(timeout_sec=0.1)
-        names = {s.name for s in diags[-1].status}
-        assert names == {f'ams_can_bridge: {n}' for n in BATTERY + ['CAN bus']}
+        assert diags, 'no /diagnostics from the bridge'
+        assert any(healthy(a) for a in diags), [
+            (s.name, s.level, s.message) for s in diags[-1].status]
         assert proc.poll() is None
     finally:
         proc.send_signal(signal.SIGINT)
@@ -159,3 +183,50 @@ def test_bridge_names_every_bad_start_value_at_once(tmp_path):
                    "evms3.config.balance_mode = 'sometimes' is not allowed",
                    'bms16.config.shunt_size_a = 250 refused'):
         assert reason in proc.stderr, (reason, proc.stderr)
+
+
+@pytest.mark.parametrize('when', ['running', 'starting'])
+def test_sigterm_closes_the_channel_and_exits_0(ros, tmp_path, when):
+    node, executor = ros
+    peer = SlcanPeer(symlink=tmp_path / 'ttyACM_term')
+    diags: list = []
+    node.create_subscription(
+        DiagnosticArray, '/diagnostics',
+        lambda m: diags.append(m) if any(s.hardware_id == f'slcan:{peer.channel}'
+                                         for s in m.status) else None, 10)
+    params = tmp_path / 'term.yaml'
+    params.write_text('/**:\n  ros__parameters:\n    devices: [bms16]\n'
+                      '    diagnostics_period: 0.2\n'
+                      f'    can: {{interface: slcan, channel: {peer.channel}, bitrate: 500000,'
+                      ' options: [sleep_after_open=0]}\n')
+    proc = subprocess.Popen(
+        [bridge_executable(), '--ros-args', '-r', f'__ns:=/term_{os.getpid()}',
+         '--params-file', str(params)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=dict(os.environ), text=True)
+    try:
+        # 'starting': the bus opens inside the node's constructor, before the executor
+        # exists; a signal right then must end the bridge as cleanly as one while it runs.
+        peer.wait_open(timeout=30)
+        opened = max(i for i, c in enumerate(peer.commands) if c[0] in 'OL')
+        if when == 'running':
+            deadline = time.monotonic() + 30
+            while time.monotonic() < deadline and not diags:
+                executor.spin_once(timeout_sec=0.1)
+            assert diags, 'the bridge never published /diagnostics'
+        proc.send_signal(signal.SIGTERM)
+        try:
+            stdout, stderr = proc.communicate(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            stdout, stderr = proc.communicate()
+        # the adapter was told to close the channel ('C') after it had been opened
+        wait_for(lambda: 'C' in peer.commands[opened + 1:], timeout=5.0,
+                 what=f"'C' after 'O' (commands: {peer.commands})")
+        assert not peer.is_open
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+        peer.shutdown()
+    assert proc.returncode == 0, stdout + stderr
+    assert 'Traceback' not in stderr, stderr

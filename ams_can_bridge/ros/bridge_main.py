@@ -30,6 +30,8 @@ def main(args: list[str] | None = None) -> int:
             rclpy.logging.get_logger(NODE_NAME).error(
                 f'cannot start: {exc}')
             return 2
+        if not rclpy.ok():
+            return 0  # Ctrl-C / SIGTERM came while the node started: nothing to spin
         executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
         executor.add_node(node)
         try:
@@ -38,6 +40,11 @@ def main(args: list[str] | None = None) -> int:
             executor.shutdown(timeout_sec=2.0)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except Exception:
+        # A signal during start-up shuts the context down under the node or executor being
+        # built (RCLError: context is not valid): that is a requested stop, not a crash.
+        if rclpy.ok():
+            raise
     finally:
         if node is not None:
             node.destroy_node()
