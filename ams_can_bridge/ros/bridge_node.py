@@ -52,6 +52,7 @@ from ams_can_bridge.can_io.core import STATE_CHANGE_FORMAT
 from ams_can_bridge.devices.base import Device, ParamSpec, common_params
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.ros import convert
+from ams_can_bridge.ros.bus_log import BusStateLog
 from ams_can_bridge.ros.convert import format_ids, RosLogHandler
 from ams_can_bridge.ros.params import BUS_PARAMS, NODE_PARAMS, ParamError, ParamRegistry
 
@@ -89,9 +90,6 @@ class BridgeNode(Node):
         self._replaying = False
         self._levels: dict[str, int] = {}
         self._malformed_logged: dict[str, tuple[int, float]] = {}
-        self._bus_state = ''
-        self._bus_lost_at: float | None = None
-        self._bus_ever_connected = False
         self._stale: dict[str, bool] = {}
         self._heard: set[str] = set()
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -131,6 +129,8 @@ class BridgeNode(Node):
         except ValueError as exc:
             raise ConfigError(str(exc)) from None
         self.hardware_id = f"{bus['interface']}:{bus['channel']}"
+        self._bus_log = BusStateLog(self.get_logger(), self.hardware_id, bus['channel'],
+                                    bus['reconnect_period'])
         self._replaying = bus['interface'] == 'replay'
         self.device_params: dict[str, dict[str, Any]] = {}
         names = node['devices']
@@ -329,7 +329,7 @@ class BridgeNode(Node):
         self.diag_pub.publish(msg)
 
     def _watch(self) -> None:
-        self._watch_bus()
+        self._bus_log.update(self.can_io.status())
         now = time.monotonic()
         for name, device in self.devices.items():
             stale = device.is_stale()
@@ -353,38 +353,6 @@ class BridgeNode(Node):
                     f'{device.last_malformed}')
         if self._levels_changed():
             self.publish_diagnostics()
-
-    def _watch_bus(self) -> None:
-        status = self.can_io.status()
-        state = str(status.state)
-        if state == self._bus_state:
-            return
-        previous, self._bus_state = self._bus_state, state
-        log = self.get_logger()
-        reason = f': {status.reason}' if status.reason else ''
-        was_up = previous in ('connected', 'error-passive')
-        if state == 'connected':
-            if self._bus_lost_at is not None and self._bus_ever_connected:
-                log.info(f'CAN bus {self.hardware_id} reconnected after '
-                         f'{time.monotonic() - self._bus_lost_at:.1f} s')
-            elif not was_up:
-                log.info(f'CAN bus {self.hardware_id} connected')
-            self._bus_ever_connected = True
-            self._bus_lost_at = None
-        elif state == 'error-passive':
-            log.warning(f'CAN bus {self.hardware_id} error-passive{reason}')
-        elif state == 'replay finished':
-            log.info(f'replay of {self.bus_config.channel} finished')
-        elif state in ('connecting', 'stopped'):
-            log.debug(f'CAN bus {self.hardware_id}: {state}')
-        elif was_up or self._bus_lost_at is None:
-            # log the transition to "down" once, not every retry of the reconnect loop
-            self._bus_lost_at = time.monotonic()
-            what = 'lost' if self._bus_ever_connected else 'cannot be opened'
-            log.error(f'CAN bus {self.hardware_id} {what} ({state}{reason}); retrying every '
-                      f'{self.bus_config.reconnect_period:g} s')
-        else:
-            log.debug(f'CAN bus {self.hardware_id}: {state}{reason}')
 
     # --- commands seam --------------------------------------------------------------------
     def transmit(self, frame: Frame) -> tuple[bool, str]:
