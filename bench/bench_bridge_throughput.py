@@ -13,6 +13,7 @@ bridge, so the numbers are a lower bound of what a separate adapter would allow.
 from __future__ import annotations
 
 import argparse
+import os
 import threading
 import time
 
@@ -22,6 +23,10 @@ from rclpy.executors import MultiThreadedExecutor
 from rclpy.parameter import Parameter
 
 from ams_can_bridge.ros.bridge_node import BridgeNode
+
+# Network rule: DDS discovery stays on this machine (read at rclpy.init, not import).
+os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+os.environ.setdefault('ROS_DOMAIN_ID', str(150 + os.getpid() % 50))
 
 
 def ivt(mux: int, counter: int, value: int) -> bytes:

@@ -28,6 +28,7 @@ from std_srvs.srv import Trigger
 from ams_can_bridge.ros.bridge_node import BridgeNode
 
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+os.environ.setdefault('ROS_DOMAIN_ID', str(150 + os.getpid() % 50))
 HEARTBEAT, CHARGE_CURRENT = 0x305, 0x350
 
 
