@@ -6,7 +6,7 @@ test/test_readme.py checks that README names every parameter the node declares.
 """
 from ams_can_bridge import registry
 from ams_can_bridge.devices.base import common_params
-from ams_can_bridge.ros.params import BUS_PARAMS, NODE_PARAMS
+from ams_can_bridge.ros.params import allowed_text, BUS_PARAMS, format_number, NODE_PARAMS
 
 
 COMMON = ('frame_id', 'location', 'serial_number', 'stale_timeout', 'base_id')
@@ -26,21 +26,9 @@ def fmt_type(spec) -> str:
     return spec.type if isinstance(spec.type, str) else spec.type.__name__
 
 
-def fmt_number(value: float, key: str) -> str:
-    """Return a number as a user would write it (CAN IDs in hex)."""
-    if key == 'base_id':
-        return f'0x{int(value):X}'
-    return f'{value:g}' if isinstance(value, float) else str(value)
-
-
 def fmt_range(spec) -> str:
-    """Return the allowed values."""
-    if spec.choices:
-        return ' \\| '.join(spec.choices)
-    if spec.low is None and spec.high is None:
-        return ''
-    text = f'{fmt_number(spec.low, spec.key)}..{fmt_number(spec.high, spec.key)}'
-    return text + (f' step {spec.step:g}' if spec.step and spec.step != 1 else '')
+    """Return the allowed values, worded as the node's descriptors and errors word them."""
+    return allowed_text(spec).replace('|', '\\|')
 
 
 def fmt_default(spec) -> str:
@@ -48,7 +36,7 @@ def fmt_default(spec) -> str:
     if spec.default is None:
         return '(unset)'
     if isinstance(spec.default, (int, float)) and not isinstance(spec.default, bool):
-        return fmt_number(spec.default, spec.key)
+        return format_number(spec.default, spec.key)
     return repr(spec.default).replace("'", '')
 
 

@@ -43,18 +43,19 @@ def spec_from_config_field(field: ConfigField, key_prefix: str = 'config.',
                      read_only=read_only)
 
 
-def _number(value: float, key: str = '') -> str:
+def format_number(value: float, key: str = '') -> str:
     """Format a range bound as a user writes it: CAN IDs in hex, whole numbers exactly."""
     if key.endswith('base_id'):
         return f'0x{int(value):X}'
     return str(int(value)) if float(value).is_integer() else f'{value:g}'
 
 
-def _allowed(spec: ParamSpec) -> str:
+def allowed_text(spec: ParamSpec) -> str:
+    """Describe the values a spec allows, as error messages, descriptors and README say it."""
     parts = []
     if spec.low is not None and spec.high is not None:
-        parts.append(f'{_number(spec.low, spec.key)}..{_number(spec.high, spec.key)}')
-    if spec.step:
+        parts.append(f'{format_number(spec.low, spec.key)}..{format_number(spec.high, spec.key)}')
+    if spec.step and not (spec.type is int and spec.step == 1):  # whole numbers: implied
         parts.append(f'in steps of {spec.step:g}')
     if spec.choices:
         parts.append('one of ' + ', '.join(spec.choices))
@@ -64,11 +65,11 @@ def _allowed(spec: ParamSpec) -> str:
 def _check_range(name: str, spec: ParamSpec, value: float) -> None:
     if spec.low is not None and spec.high is not None:
         if value != value or not spec.low - 1e-9 <= value <= spec.high + 1e-9:
-            raise ParamError(f'{name} = {value!r} is out of range: allowed {_allowed(spec)}')
+            raise ParamError(f'{name} = {value!r} is out of range: allowed {allowed_text(spec)}')
     if spec.step and spec.low is not None:
         n = (value - spec.low) / spec.step
         if abs(n - round(n)) > 1e-6:
-            raise ParamError(f'{name} = {value!r} is off the step: allowed {_allowed(spec)}')
+            raise ParamError(f'{name} = {value!r} is off the step: allowed {allowed_text(spec)}')
 
 
 def coerce(name: str, spec: ParamSpec, value: Any) -> Any:
@@ -110,7 +111,7 @@ def coerce(name: str, spec: ParamSpec, value: Any) -> Any:
 def descriptor(spec: ParamSpec) -> ParameterDescriptor:
     """Build the ParameterDescriptor of a spec (description, range, read-only, typing)."""
     desc = ParameterDescriptor(description=spec.description, read_only=spec.read_only)
-    constraints = _allowed(spec)
+    constraints = allowed_text(spec)
     if constraints:
         desc.additional_constraints = constraints
     if spec.type in (int, float):
