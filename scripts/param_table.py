@@ -5,8 +5,8 @@ Usage: python scripts/param_table.py > /tmp/params.md (paste into README.md). Th
 test/test_readme.py checks that README names every parameter the node declares.
 """
 from ams_can_bridge import registry
-from ams_can_bridge.devices.base import common_params
-from ams_can_bridge.ros.params import allowed_text, BUS_PARAMS, format_number, NODE_PARAMS
+from ams_can_bridge.devices.base import device_params
+from ams_can_bridge.parameters import allowed_text, BUS_PARAMS, format_number, NODE_PARAMS
 
 
 COMMON = ('frame_id', 'location', 'serial_number', 'stale_timeout', 'base_id')
@@ -15,10 +15,7 @@ COMMON = ('frame_id', 'location', 'serial_number', 'stale_timeout', 'base_id')
 def device_specs(device_type: str) -> list:
     """Return the specs of one device type: its own, then its commander's."""
     cls = registry.device_class(device_type)
-    specs = common_params(cls) + list(cls.PARAMS)
-    if device_type in registry.COMMANDERS:
-        specs += list(registry.load(registry.COMMANDERS[device_type]).PARAMS)
-    return specs
+    return device_params(cls)
 
 
 def fmt_type(spec) -> str:

@@ -66,6 +66,8 @@ class BusConfig:
     bitrate 0 leaves the adapter as it is; interface 'replay' plays the log file named by
     channel at replay_rate (1.0 = real time, 0 = as fast as possible); record = path of a
     log file (format by extension, as can.Logger) that receives every frame in and out.
+    use_bus_time stamps each frame with the driver's receive time (``Message.timestamp``)
+    instead of the host clock; a replay always stamps with the log's own timestamps.
     """
 
     interface: str = 'socketcan'
@@ -76,6 +78,7 @@ class BusConfig:
     reconnect_period: float = 1.0
     replay_rate: float = 1.0
     record: str = ''
+    use_bus_time: bool = False
 
     def __post_init__(self) -> None:
         """Validate the values a user types, naming the field."""

@@ -44,9 +44,12 @@ class CanIo:
     """
     One CAN bus: a receive thread that never dies, thread-safe send, optional recording.
 
-    ``on_frame(arbitration_id, data, is_extended_id, receive_wall_time)`` is called on the
-    receive thread for every data frame whose (id, extended) is in ``filters`` (all frames
-    when filters is None). Error frames are counted, remote frames ignored.
+    ``on_frame(arbitration_id, data, is_extended_id, stamp)`` is called on the receive
+    thread for every data frame whose (id, extended) is in ``filters`` (all frames when
+    filters is None). Error frames are counted, remote frames ignored. ``stamp`` is the
+    moment the frame was on the bus, in s since the epoch: the host clock at receive, the
+    driver's timestamp with ``use_bus_time``, the log's timestamp in a replay.
+    ``last_stamp`` holds the stamp of the last frame (a replay's log time, for /clock).
     """
 
     def __init__(self, config: BusConfig, on_frame: OnFrame,
@@ -74,6 +77,7 @@ class CanIo:
         self.error_frames = 0
         self.reconnects = 0
         self.callback_errors = 0
+        self.last_stamp = float('nan')
         self._last_callback_log = 0.0
 
     # ----------------------------------------------------------------------------- public
@@ -234,6 +238,7 @@ class CanIo:
                       and type(bus).state is not can.BusABC.state)
         replay = bus if isinstance(bus, ReplayBus) else None
         decode_errors = self.config.interface in _SOCKETCAN_ERRORS
+        bus_time = replay is not None or self.config.use_bus_time
         next_poll = wall() + _STATE_POLL
         while not stop():
             msg = recv(_RECV_TIMEOUT)
@@ -245,14 +250,17 @@ class CanIo:
                         self._error_frame(msg)
                 elif not msg.is_remote_frame:
                     self.frames_in += 1
+                    # A driver without timestamps leaves 0.0: the host clock is all we have.
+                    stamp = msg.timestamp if bus_time and msg.timestamp > 0 else now
+                    self.last_stamp = stamp
                     if self._recorder is not None:
-                        msg.timestamp = now
+                        msg.timestamp = stamp
                         self._record(msg)
                     if not filtering or msg.arbitration_id in (
                             ext_ids if msg.is_extended_id else std_ids):
                         try:
                             on_frame(msg.arbitration_id, bytes(msg.data), msg.is_extended_id,
-                                     now)
+                                     stamp)
                         except Exception as exc:
                             self._callback_failed(msg, exc)
             elif replay is not None and replay.finished:

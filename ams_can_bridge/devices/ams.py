@@ -101,6 +101,18 @@ class AmsDevice(Device):
                   low=1, high=proto.MAX_BANKS, step=1, read_only=False),
     ]
 
+    COMMAND_PARAMS = [
+        ParamSpec('heartbeat_period', float, 0.05,
+                  's between car-status heartbeats (base + 0x005) while commands_enabled',
+                  low=0.01, high=1.0, read_only=False),
+        ParamSpec('command_timeout', float, 2.0,
+                  's a state command (enable_*, abort) waits for the AMS to report its target '
+                  'state', low=0.1, high=60.0, read_only=False),
+        ParamSpec('charge_current_a', float, None,
+                  'charge current for set_charge_current (base + 0x050), A; no default: '
+                  'unset refuses the call', low=0.0, high=25.5, step=0.1, read_only=False),
+    ]
+
     def __init__(self, name: str, params: Mapping[str, Any],
                  clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__(name, params, clock)

@@ -117,6 +117,12 @@ class ParamSpec:
     read_only: bool = True
 
 
+def device_params(device_cls: type['Device']) -> list[ParamSpec]:
+    """List every parameter of a device type: common, its own, its command services'."""
+    return (common_params(device_cls) + list(device_cls.PARAMS)
+            + list(device_cls.COMMAND_PARAMS))
+
+
 def common_params(device_cls: type['Device']) -> list[ParamSpec]:
     """List the parameters every device instance has, with the device type's defaults."""
     specs = [
@@ -154,6 +160,9 @@ class Device:
     EXTENDED_ID_CHOICE: ClassVar[bool] = False
     DEFAULT_EXTENDED_ID: ClassVar[bool] = False
     PARAMS: ClassVar[list[ParamSpec]] = []  # type-specific, besides common_params()
+    # What the device's command services use (declared with the device, passed in params
+    # like PARAMS: the device itself reads some, e.g. a pack capacity or cell counts).
+    COMMAND_PARAMS: ClassVar[list[ParamSpec]] = []
 
     def __init__(self, name: str, params: Mapping[str, Any],
                  clock: Callable[[], float] = time.monotonic) -> None:

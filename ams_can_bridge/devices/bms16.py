@@ -17,6 +17,8 @@ from ams_can_bridge.devices.base import (
     BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, ParamSpec,
     PowerSupplyHealth)
 from ams_can_bridge.devices.sma import sma_values
+from ams_can_bridge.parameters import config_param_specs
+from ams_can_bridge.protocols import bms16 as bms16_proto
 from ams_can_bridge.protocols.bms16 import (
     BMS16_WARNINGS, Bms16Cells, Bms16Codec, Bms16Error, Bms16Status, CELLS_3,
     DEFAULT_BASE_ID, MAX_CELLS)
@@ -64,6 +66,8 @@ class Bms16Device(Device):
     BROADCAST_PERIOD = 0.25
     DEFAULT_BASE_ID = DEFAULT_BASE_ID
     PARAMS: list[ParamSpec] = []
+
+    COMMAND_PARAMS = config_param_specs(bms16_proto.CONFIG_FIELDS)
 
     def __init__(self, name: str, params: Mapping[str, Any],
                  clock: Callable[[], float] = time.monotonic) -> None:

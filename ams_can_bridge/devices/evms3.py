@@ -14,6 +14,8 @@ from typing import Any, Callable, Mapping
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, Level, ParamSpec,
     PowerSupplyHealth, PowerSupplyStatus)
+from ams_can_bridge.parameters import config_param_specs
+from ams_can_bridge.protocols import evms3 as evms3_proto
 from ams_can_bridge.protocols.evms3 import (
     BatteryCurrent, BMS12_MAX_MODULES, Bms12Cells, Bms12Temperatures, Evms3Codec, Evms3Error,
     Evms3State, Evms3Status, EVMS3_WARNINGS)
@@ -76,6 +78,8 @@ class Evms3Device(Device):
                   'how many BMS12 modules (IDs 300 + 10 m) to expect, 0..16; cells per '
                   'module: 12, or config.cells_per_module when set', low=0, high=16, step=1),
     ]
+
+    COMMAND_PARAMS = config_param_specs(evms3_proto.CONFIG_FIELDS)
 
     def __init__(self, name: str, params: Mapping[str, Any],
                  clock: Callable[[], float] = time.monotonic) -> None:

@@ -15,7 +15,8 @@ from typing import Any, Callable
 from std_srvs.srv import Trigger
 
 from ams_can_bridge.devices.ams_master import AmsMaster, CommandResult
-from ams_can_bridge.devices.base import Device, ParamSpec
+from ams_can_bridge.devices.ams import AmsDevice
+from ams_can_bridge.devices.base import Device
 from ams_can_bridge.protocols import ams as proto
 from ams_can_bridge.protocols.ams import (AmsCodec, CarCommand, CarStatus, ChargerCommand,
                                           ChargerStart, OverrideBankCount,
@@ -36,17 +37,7 @@ CAR_COMMANDS = {
 class AmsCommands:
     """Car-command and charger-role services of one AMS instance."""
 
-    PARAMS = [
-        ParamSpec('heartbeat_period', float, 0.05,
-                  's between car-status heartbeats (base + 0x005) while commands_enabled',
-                  low=0.01, high=1.0, read_only=False),
-        ParamSpec('command_timeout', float, 2.0,
-                  's a state command (enable_*, abort) waits for the AMS to report its target '
-                  'state', low=0.1, high=60.0, read_only=False),
-        ParamSpec('charge_current_a', float, None,
-                  'charge current for set_charge_current (base + 0x050), A; no default: '
-                  'unset refuses the call', low=0.0, high=25.5, step=0.1, read_only=False),
-    ]
+    PARAMS = AmsDevice.COMMAND_PARAMS  # declared by the node with the device
 
     def __init__(self, node: Any, device: Device, name: str) -> None:
         """Build the codec, the (stopped) master and the services."""

@@ -13,9 +13,9 @@ diagnostics. Publishing happens on the executor, in
 keeps flowing while a command waits for the device.
 
 COMMANDERS seam (the command services live in other modules). For each device instance
-whose type is in ``ams_can_bridge.registry.COMMANDERS`` and whose module imports, the node
-declares ``cls.PARAMS`` (ParamSpec list, as '<name>.<key>', validated like every device
-parameter) and then builds ``cls(node, device, name)``. A commander may use:
+whose type is in ``ams_can_bridge.registry.COMMANDERS`` the node builds ``cls(node, device,
+name)``; the parameters its services use are the device type's ``COMMAND_PARAMS``, declared
+with the device (``DeviceSet``). A commander may use:
 
 - ``node.commands_enabled`` (bool, follows the ``commands_enabled`` parameter);
 - ``node.transmit(frame) -> (ok, message)``: refuses with a message naming
@@ -40,6 +40,7 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import SetParametersResult
+from rosgraph_msgs.msg import Clock
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -49,7 +50,9 @@ from std_msgs.msg import Float32MultiArray
 from ams_can_bridge import registry
 from ams_can_bridge.can_io import BusConfig, CanIo, CanSendError, parse_options
 from ams_can_bridge.can_io.core import STATE_CHANGE_FORMAT
-from ams_can_bridge.devices.base import Device, ParamSpec, common_params
+from ams_can_bridge.device_set import DeviceSet
+from ams_can_bridge.devices.base import Device
+from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.ros import convert
 from ams_can_bridge.ros.bus_log import BusStateLog
@@ -64,10 +67,9 @@ PENDING_LIMIT = 10_000  # snapshots queued for the executor on a live bus
 # A replay waits above this many, so no burst outruns the publishers' history (depth).
 REPLAY_PENDING_LIMIT = 50
 TELEMETRY_DEPTH = 100  # history of battery_state / array publishers
+CLOCK_PERIOD = 0.01  # s between /clock messages of a replay (can.replay_clock)
 
-
-class ConfigError(ValueError):
-    """The node cannot start with these parameters (the message says what to change)."""
+__all__ = ['BridgeNode', 'ConfigError', 'NODE_NAME']
 
 
 class BridgeNode(Node):
@@ -125,28 +127,24 @@ class BridgeNode(Node):
             self.bus_config = BusConfig(
                 interface=bus['interface'], channel=bus['channel'], bitrate=bus['bitrate'],
                 fd=bus['fd'], options=options, reconnect_period=bus['reconnect_period'],
-                replay_rate=bus['replay_rate'], record=bus['record'])
+                replay_rate=bus['replay_rate'], record=bus['record'],
+                use_bus_time=bus['use_bus_time'])
         except ValueError as exc:
             raise ConfigError(str(exc)) from None
         self.hardware_id = f"{bus['interface']}:{bus['channel']}"
         self._bus_log = BusStateLog(self.get_logger(), self.hardware_id, bus['channel'],
                                     bus['reconnect_period'])
         self._replaying = bus['interface'] == 'replay'
-        self.device_params: dict[str, dict[str, Any]] = {}
-        names = node['devices']
-        if len(set(names)) != len(names):
-            raise ConfigError(f'devices = {names}: instance names must be unique')
-        for name in names:
-            self._add_device(name)
-        self._attach_current_sensors()
-        self._dispatch_std: dict[int, tuple[Device, ...]] = {}
-        self._dispatch_ext: dict[int, tuple[Device, ...]] = {}
-        for device in self.devices.values():
-            table = self._dispatch_ext if device.is_extended_id else self._dispatch_std
-            for can_id in device.arbitration_ids:
-                table[can_id] = table.get(can_id, ()) + (device,)
-        filters = ([(i, False) for i in sorted(self._dispatch_std)]
-                   + [(i, True) for i in sorted(self._dispatch_ext)])
+        self._replay_clock = bus['replay_clock']
+        if self._replay_clock and not self._replaying:
+            raise ConfigError('can.replay_clock is true but can.interface is '
+                              f"{bus['interface']!r}: /clock comes from a replayed log only "
+                              "(set can.interface to 'replay', or replay_clock to false)")
+        self.device_set = DeviceSet(node['devices'], self.params.declare)
+        self.devices = self.device_set.devices
+        self.device_params = self.device_set.params
+        self._stale = {name: True for name in self.devices}
+        filters = self.device_set.filters
         self._make_publishers()
         for name, device in self.devices.items():
             self._add_commander(name, device)
@@ -158,46 +156,6 @@ class BridgeNode(Node):
         can_logger.addFilter(lambda record: record.msg != STATE_CHANGE_FORMAT)
         can_logger.addHandler(RosLogHandler(self.get_logger()))
         self.can_io = CanIo(self.bus_config, self._on_frame, filters, can_logger)
-
-    def _add_device(self, name: str) -> None:
-        if not name or '/' in name or '.' in name or name != name.strip():
-            raise ConfigError(f'devices: {name!r} is not a usable instance name '
-                              '(no empty names, dots, slashes or spaces)')
-        type_spec = ParamSpec('type', str, name, 'device type: ' + ', '.join(
-            registry.DEVICE_TYPES), choices=registry.DEVICE_TYPES)
-        try:
-            device_type = self.params.declare(f'{name}.type', type_spec)
-        except ParamError:
-            raise ConfigError(
-                f'{name}.type: unknown device type for instance {name!r}; set {name}.type to '
-                'one of ' + ', '.join(registry.DEVICE_TYPES)) from None
-        cls = registry.device_class(device_type)
-        values = self.params.declare_all(f'{name}.', common_params(cls) + list(cls.PARAMS))
-        try:
-            device = cls(name, values)
-        except (ValueError, TypeError) as exc:
-            raise ConfigError(f'device {name!r} ({device_type}): {exc}') from None
-        self.devices[name] = device
-        self.device_params[name] = values
-        self._stale[name] = True
-
-    def _attach_current_sensors(self) -> None:
-        ivts = [n for n, d in self.devices.items() if d.TYPE == 'ivt_s']
-        for name, device in self.devices.items():
-            if device.TYPE != 'ams':
-                continue
-            wanted = self.device_params[name].get('current_sensor') or ''
-            if not wanted:
-                if not ivts:
-                    continue
-                wanted = ivts[0]
-            elif wanted not in ivts:
-                raise ConfigError(
-                    f'{name}.current_sensor = {wanted!r} is not an ivt_s instance: set it to '
-                    + (' or '.join(repr(i) for i in ivts) if ivts else "'' (none configured)")
-                    + ' or add it to devices with type ivt_s')
-            device.attach_current_sensor(self.devices[wanted])
-            self.device_params[name]['current_sensor'] = wanted
 
     def _make_publishers(self) -> None:
         self.battery_pubs = {}
@@ -215,6 +173,10 @@ class BridgeNode(Node):
                           self.telemetry_group)
         self.create_timer(STALE_PUBLISH_PERIOD, self._publish_stale, self.telemetry_group)
         self.create_timer(WATCH_PERIOD, self._watch, self.telemetry_group)
+        if self._replay_clock:
+            self.clock_pub = self.create_publisher(Clock, '/clock', 10)
+            self._clock_sent = math.nan
+            self.create_timer(CLOCK_PERIOD, self._publish_clock, self.telemetry_group)
 
     def _add_commander(self, name: str, device: Device) -> None:
         path = registry.COMMANDERS.get(device.TYPE)
@@ -228,9 +190,6 @@ class BridgeNode(Node):
                 self.get_logger().debug(f'{name}: no command module {module} yet, no services')
                 return
             raise
-        values = self.params.declare_all(f'{name}.', list(getattr(cls, 'PARAMS', [])))
-        self.device_params[name].update(values)
-        device.params.update(values)  # devices read their config values (e.g. cell count)
         self.commanders[name] = cls(self, device, name)
 
     def _log_summary(self) -> None:
@@ -249,14 +208,10 @@ class BridgeNode(Node):
 
     # --- receive thread -------------------------------------------------------------------
     def _on_frame(self, arbitration_id: int, data: bytes, is_extended_id: bool,
-                  wall_time: float) -> None:
-        table = self._dispatch_ext if is_extended_id else self._dispatch_std
-        devices = table.get(arbitration_id)
-        if devices is None:
-            return
-        for device in devices:
-            if device.handle_frame(arbitration_id, data, wall_time):
-                self._queue_snapshot(device)
+                  stamp: float) -> None:
+        for device in self.device_set.handle_frame(arbitration_id, data, is_extended_id,
+                                                   stamp):
+            self._queue_snapshot(device)
 
     def _queue_snapshot(self, device: Device) -> None:
         snapshot = (device.name, device.battery_report(), device.extra_arrays())
@@ -289,7 +244,7 @@ class BridgeNode(Node):
 
     def _publish_report(self, name: str, report: Any, arrays: dict) -> None:
         frame_id = self.device_params[name].get('frame_id', '')
-        self.battery_pubs[name].publish(convert.battery_state(report, frame_id, time.time()))
+        self.battery_pubs[name].publish(convert.battery_state(report, frame_id, self._now()))
         for suffix, (rows, cols, data) in arrays.items():
             pub = self.array_pubs[name].get(suffix)
             if pub is not None:
@@ -319,7 +274,7 @@ class BridgeNode(Node):
     def publish_diagnostics(self) -> None:
         """Publish one DiagnosticArray: every device plus the CAN bus."""
         msg = DiagnosticArray()
-        msg.header.stamp = convert.stamp_msg(time.time())
+        msg.header.stamp = convert.stamp_msg(self._now())
         levels = {}
         for name, report in self._statuses():
             levels[name] = int(report.level)
@@ -327,6 +282,20 @@ class BridgeNode(Node):
                 report, f'{self.get_name()}: {name}', self.hardware_id))
         self._levels = levels
         self.diag_pub.publish(msg)
+
+    def _now(self) -> float:
+        """Return the time to stamp with when no frame gives one: a replay's log time."""
+        if self._replaying and self.can_io is not None:
+            stamp = self.can_io.last_stamp
+            if math.isfinite(stamp):
+                return stamp
+        return time.time()
+
+    def _publish_clock(self) -> None:
+        stamp = self.can_io.last_stamp if self.can_io is not None else math.nan
+        if math.isfinite(stamp) and stamp != self._clock_sent:
+            self._clock_sent = stamp
+            self.clock_pub.publish(Clock(clock=convert.stamp_msg(stamp)))
 
     def _watch(self) -> None:
         self._bus_log.update(self.can_io.status())

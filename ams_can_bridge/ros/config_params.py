@@ -12,16 +12,10 @@ from __future__ import annotations
 
 from typing import Any, Callable, Iterable, Mapping
 
-from ams_can_bridge.devices.base import ParamSpec
 from ams_can_bridge.protocols.common import ConfigField, EncodeRangeError
-from ams_can_bridge.ros.params import ParamError, spec_from_config_field
-
-CONFIG_PREFIX = 'config.'
-
-
-def config_param_specs(fields: Iterable[ConfigField]) -> list[ParamSpec]:
-    """Return one writable ParamSpec per field, key 'config.<field>', without a default."""
-    return [spec_from_config_field(f, CONFIG_PREFIX, read_only=False) for f in fields]
+from ams_can_bridge.errors import ParamError
+from ams_can_bridge.parameters import (  # noqa: F401 (config_param_specs: re-exported)
+    CONFIG_PREFIX, config_param_specs)
 
 
 class ConfigValues:

@@ -8,7 +8,6 @@ every later set, with a reason that names the parameter, the value and what is a
 """
 from __future__ import annotations
 
-import math
 from typing import Any, Iterable
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
@@ -16,7 +15,9 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from ams_can_bridge.devices.base import ParamSpec
-from ams_can_bridge.protocols.common import ConfigField
+from ams_can_bridge.errors import ParamError  # noqa: F401 (re-exported)
+from ams_can_bridge.parameters import (  # noqa: F401 (re-exported: the node's names)
+    allowed_text, BUS_PARAMS, coerce, format_number, NODE_PARAMS, spec_from_config_field)
 
 _STATIC_TYPES = {
     bool: Parameter.Type.BOOL,
@@ -25,87 +26,6 @@ _STATIC_TYPES = {
     'str[]': Parameter.Type.STRING_ARRAY,
     'float[]': Parameter.Type.DOUBLE_ARRAY,
 }
-
-
-class ParamError(ValueError):
-    """A parameter value that the bridge cannot use (the message says what to change)."""
-
-
-def spec_from_config_field(field: ConfigField, key_prefix: str = 'config.',
-                           read_only: bool = False) -> ParamSpec:
-    """Turn a protocol ConfigField into a ParamSpec with no default (key = prefix + name)."""
-    unit = f' [{field.unit}]' if field.unit else ''
-    description = (field.description or field.name) + unit
-    if field.type == 'int[]' and field.length:
-        description += f' ({field.length} values)'
-    return ParamSpec(key_prefix + field.name, field.type, None, description, low=field.low,
-                     high=field.high, step=field.step, choices=field.choices,
-                     read_only=read_only)
-
-
-def format_number(value: float, key: str = '') -> str:
-    """Format a range bound as a user writes it: CAN IDs in hex, whole numbers exactly."""
-    if key.endswith('base_id'):
-        return f'0x{int(value):X}'
-    return str(int(value)) if float(value).is_integer() else f'{value:g}'
-
-
-def allowed_text(spec: ParamSpec) -> str:
-    """Describe the values a spec allows, as error messages, descriptors and README say it."""
-    parts = []
-    if spec.low is not None and spec.high is not None:
-        parts.append(f'{format_number(spec.low, spec.key)}..{format_number(spec.high, spec.key)}')
-    if spec.step and not (spec.type is int and spec.step == 1):  # whole numbers: implied
-        parts.append(f'in steps of {spec.step:g}')
-    if spec.choices:
-        parts.append('one of ' + ', '.join(spec.choices))
-    return ' '.join(parts)
-
-
-def _check_range(name: str, spec: ParamSpec, value: float) -> None:
-    if spec.low is not None and spec.high is not None:
-        if value != value or not spec.low - 1e-9 <= value <= spec.high + 1e-9:
-            raise ParamError(f'{name} = {value!r} is out of range: allowed {allowed_text(spec)}')
-    if spec.step and spec.low is not None:
-        n = (value - spec.low) / spec.step
-        if abs(n - round(n)) > 1e-6:
-            raise ParamError(f'{name} = {value!r} is off the step: allowed {allowed_text(spec)}')
-
-
-def coerce(name: str, spec: ParamSpec, value: Any) -> Any:
-    """Return value as spec.type (None stays None = unset) or raise ParamError saying why."""
-    if value is None:
-        return None
-    if spec.type is float or spec.type is int:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ParamError(f'{name} = {value!r} must be a number')
-        if spec.type is int:
-            if isinstance(value, float) and (not math.isfinite(value) or value != int(value)):
-                raise ParamError(f'{name} = {value!r} must be a whole number')
-            value = int(value)
-        else:
-            value = float(value)
-        _check_range(name, spec, value)
-        return value
-    if spec.type is bool:
-        if not isinstance(value, bool):
-            raise ParamError(f'{name} = {value!r} must be true or false')
-        return value
-    if spec.type is str:
-        if not isinstance(value, str):
-            raise ParamError(f'{name} = {value!r} must be a string')
-        if spec.choices and value not in spec.choices:
-            raise ParamError(f'{name} = {value!r} is not allowed: use one of '
-                             + ', '.join(spec.choices))
-        return value
-    if spec.type in ('int[]', 'str[]', 'float[]'):
-        if not isinstance(value, (list, tuple)):
-            raise ParamError(f'{name} = {value!r} must be a list')
-        element = {'int[]': int, 'str[]': str, 'float[]': float}[spec.type]
-        element_spec = ParamSpec(spec.key, element, None, '', spec.low, spec.high, spec.step,
-                                 spec.choices)
-        return [coerce(f'{name}[{i}]', element_spec, v) for i, v in enumerate(value)]
-    raise ParamError(f'{name}: unsupported parameter type {spec.type!r}')
 
 
 def descriptor(spec: ParamSpec) -> ParameterDescriptor:
@@ -204,26 +124,3 @@ class ParamRegistry:
         """Return the coerced value of a parameter that passed validate()."""
         spec = self.specs.get(param.name)
         return param.value if spec is None else coerce(param.name, spec, param.value)
-
-
-BUS_PARAMS = [
-    ParamSpec('interface', str, 'socketcan',
-              'python-can interface: socketcan, slcan, pcan, kvaser, virtual, replay, ...'),
-    ParamSpec('channel', str, 'can0', 'python-can channel (for replay: the log file)'),
-    ParamSpec('bitrate', int, 0, 'bit/s; 0 = leave the adapter as it is', low=0,
-              high=10_000_000),
-    ParamSpec('fd', bool, False, 'CAN FD bus'),
-    ParamSpec('options', 'str[]', [], 'extra python-can bus arguments, key=value'),
-    ParamSpec('reconnect_period', float, 1.0, 's between attempts to (re)open the bus',
-              low=0.01, high=3600.0),
-    ParamSpec('replay_rate', float, 1.0, 'replay speed: 1.0 = real time, 0 = fast as possible',
-              low=0.0, high=1000.0),
-    ParamSpec('record', str, '', 'file to record the raw bus into (empty = off)'),
-]
-NODE_PARAMS = [
-    ParamSpec('devices', 'str[]', [], 'device instance names (each has <name>.type)'),
-    ParamSpec('diagnostics_period', float, 1.0, 's between /diagnostics publications',
-              low=0.01, high=3600.0),
-    ParamSpec('commands_enabled', bool, False,
-              'transmit gate: false = pure listener, nothing is ever sent', read_only=False),
-]

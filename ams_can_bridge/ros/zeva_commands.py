@@ -14,11 +14,11 @@ from typing import Any, Callable, Iterable
 
 from std_srvs.srv import SetBool, Trigger
 
-from ams_can_bridge.devices.base import Device, ParamSpec
+from ams_can_bridge.devices.base import Device
 from ams_can_bridge.protocols import bms16 as bms16_proto
 from ams_can_bridge.protocols import evms3 as evms3_proto
 from ams_can_bridge.protocols.common import ConfigField, EncodeRangeError, Frame
-from ams_can_bridge.ros.config_params import config_param_specs, ConfigValues
+from ams_can_bridge.ros.config_params import ConfigValues
 
 
 def gate_message(node: Any, what: str) -> str:
@@ -38,7 +38,6 @@ class _ZevaCommands:
     """Shared plumbing: config values, the gate, all-or-nothing frame sequences, services."""
 
     FIELDS: tuple[ConfigField, ...] = ()
-    PARAMS: list[ParamSpec] = []
 
     def __init__(self, node: Any, device: Device, name: str) -> None:
         """Load and check the configuration values; raises ParamError naming bad ones."""
@@ -133,7 +132,6 @@ class Evms3Commands(_ZevaCommands):
     """EVMS3: write_config (IDs 32..36), set_setup_mode (31), acknowledge_error (37), reset_soc."""
 
     FIELDS = evms3_proto.CONFIG_FIELDS
-    PARAMS = config_param_specs(FIELDS)
 
     def __init__(self, node: Any, device: Device, name: str) -> None:
         """Create the codec and the services of one EVMS3 instance."""
@@ -181,7 +179,6 @@ class Bms16Commands(_ZevaCommands):
     """BMS16: write_config (504, 505), acknowledge_error, reset_soc, power_off (506..508)."""
 
     FIELDS = bms16_proto.CONFIG_FIELDS
-    PARAMS = config_param_specs(FIELDS)
 
     def __init__(self, node: Any, device: Device, name: str) -> None:
         """Create the codec and the services of one BMS16 instance."""

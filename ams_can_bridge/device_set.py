@@ -1,0 +1,95 @@
+"""
+The devices of one bus, built from parameters without ROS: the bridge node and log2bag both.
+
+``declare(full_name, spec) -> value`` supplies each parameter: the node declares it as a ROS
+parameter, log2bag reads it from the parameters file. Either way every value passes the same
+checks (``parameters.coerce``), and the same instances, current-sensor links and dispatch
+tables come out, so an offline conversion decodes exactly what the live bridge decodes.
+"""
+from __future__ import annotations
+
+import time
+from typing import Any, Callable, Iterable
+
+from ams_can_bridge import registry
+from ams_can_bridge.devices.base import Device, device_params, ParamSpec
+from ams_can_bridge.errors import ConfigError, ParamError
+
+Declare = Callable[[str, ParamSpec], Any]
+
+
+class DeviceSet:
+    """Device instances by name, their parameter values and the (id, extended) dispatch."""
+
+    def __init__(self, names: Iterable[str], declare: Declare,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        """Build every instance of ``names``; raise ConfigError saying what to change."""
+        names = list(names)
+        if len(set(names)) != len(names):
+            raise ConfigError(f'devices = {names}: instance names must be unique')
+        self.devices: dict[str, Device] = {}
+        self.params: dict[str, dict[str, Any]] = {}
+        for name in names:
+            self._add(name, declare, clock)
+        self._attach_current_sensors()
+        self.std: dict[int, tuple[Device, ...]] = {}
+        self.ext: dict[int, tuple[Device, ...]] = {}
+        for device in self.devices.values():
+            table = self.ext if device.is_extended_id else self.std
+            for can_id in device.arbitration_ids:
+                table[can_id] = table.get(can_id, ()) + (device,)
+
+    @property
+    def filters(self) -> list[tuple[int, bool]]:
+        """Return every (arbitration_id, is_extended_id) some device consumes, sorted."""
+        return ([(i, False) for i in sorted(self.std)]
+                + [(i, True) for i in sorted(self.ext)])
+
+    def handle_frame(self, arbitration_id: int, data: bytes, is_extended_id: bool,
+                     stamp: float) -> list[Device]:
+        """Give a frame to the devices of its ID; return those for which it was primary."""
+        devices = (self.ext if is_extended_id else self.std).get(arbitration_id)
+        if devices is None:
+            return []
+        return [d for d in devices if d.handle_frame(arbitration_id, data, stamp)]
+
+    def _add(self, name: str, declare: Declare, clock: Callable[[], float]) -> None:
+        if not name or '/' in name or '.' in name or name != name.strip():
+            raise ConfigError(f'devices: {name!r} is not a usable instance name '
+                              '(no empty names, dots, slashes or spaces)')
+        type_spec = ParamSpec('type', str, name, 'device type: ' + ', '.join(
+            registry.DEVICE_TYPES), choices=registry.DEVICE_TYPES)
+        try:
+            device_type = declare(f'{name}.type', type_spec)
+        except ParamError:
+            device_type = None
+        if device_type not in registry.DEVICE_TYPES:
+            raise ConfigError(
+                f'{name}.type: unknown device type for instance {name!r}; set {name}.type to '
+                'one of ' + ', '.join(registry.DEVICE_TYPES))
+        cls = registry.device_class(device_type)
+        values = {spec.key: declare(f'{name}.{spec.key}', spec) for spec in device_params(cls)}
+        try:
+            device = cls(name, values, clock)
+        except (ValueError, TypeError) as exc:
+            raise ConfigError(f'device {name!r} ({device_type}): {exc}') from None
+        self.devices[name] = device
+        self.params[name] = values
+
+    def _attach_current_sensors(self) -> None:
+        ivts = [n for n, d in self.devices.items() if d.TYPE == 'ivt_s']
+        for name, device in self.devices.items():
+            if device.TYPE != 'ams':
+                continue
+            wanted = self.params[name].get('current_sensor') or ''
+            if not wanted:
+                if not ivts:
+                    continue
+                wanted = ivts[0]
+            elif wanted not in ivts:
+                raise ConfigError(
+                    f'{name}.current_sensor = {wanted!r} is not an ivt_s instance: set it to '
+                    + (' or '.join(repr(i) for i in ivts) if ivts else "'' (none configured)")
+                    + ' or add it to devices with type ivt_s')
+            device.attach_current_sensor(self.devices[wanted])
+            self.params[name]['current_sensor'] = wanted
