@@ -94,6 +94,15 @@ def coerce(name: str, spec: ParamSpec, value: Any) -> Any:
     raise ParamError(f'{name}: unsupported parameter type {spec.type!r}')
 
 
+def raise_param_errors(errors: list[str]) -> None:
+    """Raise one ParamError listing every unusable value given at start, if any."""
+    if len(errors) == 1:
+        raise ParamError(errors[0])
+    if errors:
+        raise ParamError(f'{len(errors)} parameters need a change:\n  - '
+                         + '\n  - '.join(errors))
+
+
 def config_param_specs(fields: Iterable[ConfigField]) -> list[ParamSpec]:
     """Return one writable ParamSpec per field, key 'config.<field>', without a default."""
     return [spec_from_config_field(f, CONFIG_PREFIX, read_only=False) for f in fields]

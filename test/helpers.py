@@ -3,8 +3,10 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import math
+import struct
 import time
-from typing import Any, Callable, Iterator
+from typing import Any, Callable, Iterable, Iterator
 import warnings
 
 import canmatrix.formats
@@ -12,7 +14,70 @@ import cantools
 import rclpy
 from rclpy.context import Context
 
+from ams_can_bridge import registry
+from ams_can_bridge.can_io.replay import open_log
+from ams_can_bridge.devices.base import device_params
 from ams_can_bridge.protocols.common import MalformedFrameError
+
+
+def f32(value: float) -> float:
+    """Round as the float32 fields of BatteryState do on the wire."""
+    return struct.unpack('<f', struct.pack('<f', value))[0]
+
+
+def values_of(msg_or_report: Any) -> tuple:
+    """Return the published values of a BatteryState or BatteryReport (no stamp)."""
+    m = msg_or_report
+    return (f32(m.voltage), f32(m.current), f32(m.charge), f32(m.capacity),
+            f32(m.design_capacity), f32(m.percentage), f32(m.temperature),
+            int(m.power_supply_status), int(m.power_supply_health),
+            int(m.power_supply_technology), bool(m.present),
+            tuple(f32(v) for v in m.cell_voltage),
+            tuple(f32(v) for v in m.cell_temperature))
+
+
+def same(a: Any, b: Any) -> bool:
+    """Compare nested tuples of values, NaN equal to NaN."""
+    if isinstance(a, tuple):
+        return (isinstance(b, tuple) and len(a) == len(b)
+                and all(same(x, y) for x, y in zip(a, b)))
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    return a == b
+
+
+def device_reference(path: str, names: Iterable[str],
+                     parameters: dict[str, Any]) -> dict[str, list[tuple[float, tuple]]]:
+    """
+    Feed a log to the real device classes, without ROS: (stamp, values) per primary frame.
+
+    Each device gets its type's defaults and the '<name>.<key>' entries of parameters; its
+    clock is the log's timestamps, so staleness follows the recording. The independent
+    reference of what the bridge, a replay and log2bag must publish.
+    """
+    now = [0.0]
+    devices = {}
+    for name in names:
+        cls = registry.device_class(name)
+        params = {spec.key: spec.default for spec in device_params(cls)}
+        params.update({key[len(name) + 1:]: value for key, value in parameters.items()
+                       if key.startswith(name + '.')})
+        devices[name] = cls(name, params, clock=lambda: now[0])
+    if 'ams' in devices and 'ivt_s' in devices:
+        devices['ams'].attach_current_sensor(devices['ivt_s'])
+    states: dict[str, list] = {name: [] for name in devices}
+    reader = open_log(path)
+    try:
+        for msg in reader:
+            now[0] = msg.timestamp
+            for name, device in devices.items():
+                if (msg.arbitration_id in device.arbitration_ids
+                        and msg.is_extended_id == device.is_extended_id
+                        and device.handle_frame(msg.arbitration_id, bytes(msg.data), now[0])):
+                    states[name].append((msg.timestamp, values_of(device.battery_report())))
+    finally:
+        reader.stop()
+    return states
 
 
 class Clock:

@@ -13,7 +13,8 @@ from ams_can_bridge.ros.bridge_node import BridgeNode
 from helpers import ros_context
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config'
-FILES = sorted(CONFIG.glob('*.yaml'))
+# The bridge's parameter files (diagnostics_aggregator.yaml configures another node).
+FILES = sorted(p for p in CONFIG.glob('*.yaml') if p.name != 'diagnostics_aggregator.yaml')
 
 
 @pytest.fixture(scope='module')
@@ -80,3 +81,60 @@ def test_zeva_examples_hold_a_complete_configuration(context, name):
         assert declared and in_file == declared, declared ^ in_file
     finally:
         node.destroy_node()
+
+
+@pytest.mark.parametrize('path', FILES, ids=lambda p: p.name)
+def test_config_file_loads_in_log2bag(path, tmp_path):
+    """log2bag reads the same files without ROS, with the same values and checks."""
+    from ams_can_bridge.offline.log2bag import Converter
+    from ams_can_bridge.offline.params_file import load_parameters
+    converter = Converter(load_parameters(str(path), 'ams_can_bridge'), None, 'replay:x')
+    expected = flatten(yaml.safe_load(path.read_text())['/**']['ros__parameters'])
+    assert list(converter.devices.devices) == expected['devices']
+
+
+def bridge_status_names() -> set[str]:
+    names = {'ams_can_bridge: CAN bus'}
+    for path in FILES:
+        devices = yaml.safe_load(path.read_text())['/**']['ros__parameters']['devices']
+        names |= {f'ams_can_bridge: {name}' for name in devices}
+    return names
+
+
+def test_diagnostics_aggregator_groups_every_status_of_the_examples():
+    analyzers = yaml.safe_load((CONFIG / 'diagnostics_aggregator.yaml').read_text())
+    groups = analyzers['analyzers']['ros__parameters']
+    assert isinstance(groups.pop('path'), str)
+    matched = {}
+    for key, group in groups.items():
+        assert group['type'] == 'diagnostic_aggregator/GenericAnalyzer' and group['path'], key
+        for name in bridge_status_names():
+            if name in group.get('expected', []) or any(
+                    name.startswith(prefix) for prefix in group.get('startswith', [])):
+                matched.setdefault(name, []).append(key)
+    assert set(matched) == bridge_status_names()
+    assert all(len(keys) == 1 for keys in matched.values()), matched
+
+
+def test_foxglove_layout_uses_the_bridges_topics_and_fields():
+    import json
+
+    from sensor_msgs.msg import BatteryState
+    layout = json.loads((CONFIG / 'foxglove_layout.json').read_text())
+    topics = {name.split(': ')[1] for name in bridge_status_names()} - {'CAN bus'}
+    paths = [p['value'] for panel in layout['configById'].values()
+             for p in panel.get('paths', [])]
+    assert paths
+    fields = BatteryState.get_fields_and_field_types()
+    for path in paths:
+        topic, _, field = path.partition('.')
+        device, leaf = topic.strip('/').split('/')
+        assert device in topics and leaf == 'battery_state', path
+        assert field.split('[')[0] in fields, path
+    rendered = {panel.get('topicToRender') for panel in layout['configById'].values()}
+    assert '/diagnostics' in rendered
+
+    def leaves(node):
+        return [node] if isinstance(node, str) else leaves(node['first']) + leaves(
+            node['second'])
+    assert sorted(leaves(layout['layout'])) == sorted(layout['configById'])

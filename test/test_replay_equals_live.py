@@ -11,9 +11,7 @@ published BatteryStates are exactly the reference's, one per primary frame, in o
 for value (NaN where unknown). The bridge snapshots the device state at each primary frame,
 so neither a later frame nor a fast replay can change or merge what a message carries.
 """
-import math
 import os
-import struct
 import threading
 import time
 
@@ -26,13 +24,11 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import BatteryState
 
-from ams_can_bridge import registry
 from ams_can_bridge.demo_rig import build_simulators, device_parameters
 from ams_can_bridge.demo_rig import DEVICES
-from ams_can_bridge.devices.base import common_params
 from ams_can_bridge.ros.bridge_node import BridgeNode
 from ams_can_bridge.sim.runner import SimRunner
-from helpers import wait_for
+from helpers import device_reference, same, values_of, wait_for
 
 RECORD_S = 3.0
 BANKS = 2
@@ -43,32 +39,6 @@ def bridge_params(**bus) -> list[Parameter]:
     values = {'devices': list(DEVICES), **device_parameters(BANKS)}
     values.update({f'can.{key}': value for key, value in bus.items()})
     return [Parameter(name, value=value) for name, value in values.items()]
-
-
-def f32(value: float) -> float:
-    """Round as the float32 fields of BatteryState do on the wire."""
-    return struct.unpack('<f', struct.pack('<f', value))[0]
-
-
-def values_of(msg_or_report) -> tuple:
-    """Return the published values of a BatteryState or BatteryReport (no stamp)."""
-    m = msg_or_report
-    return (f32(m.voltage), f32(m.current), f32(m.charge), f32(m.capacity),
-            f32(m.design_capacity), f32(m.percentage), f32(m.temperature),
-            int(m.power_supply_status), int(m.power_supply_health),
-            int(m.power_supply_technology), bool(m.present),
-            tuple(f32(v) for v in m.cell_voltage),
-            tuple(f32(v) for v in m.cell_temperature))
-
-
-def same(a, b) -> bool:
-    """Compare nested tuples of values, NaN equal to NaN."""
-    if isinstance(a, tuple):
-        return (isinstance(b, tuple) and len(a) == len(b)
-                and all(same(x, y) for x, y in zip(a, b)))
-    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
-        return True
-    return a == b
 
 
 class Collector(Node):
@@ -141,32 +111,9 @@ def ros():
 
 
 def reference(path: str) -> dict[str, list]:
-    """
-    Feed the log to the real device classes: the report after each primary frame.
-
-    The clock of the devices is the log's timestamps, so staleness follows the recording.
-    """
-    now = [0.0]
-    devices = {}
-    for name in DEVICES:
-        cls = registry.device_class(name)
-        params = {spec.key: spec.default for spec in common_params(cls) + list(cls.PARAMS)}
-        params.update({key[len(name) + 1:]: value
-                       for key, value in device_parameters(BANKS).items()
-                       if key.startswith(name + '.')})
-        devices[name] = cls(name, params, clock=lambda: now[0])
-    if 'ams' in devices and 'ivt_s' in devices:
-        devices['ams'].attach_current_sensor(devices['ivt_s'])
-    states: dict[str, list] = {name: [] for name in DEVICES}
-    with can.LogReader(path) as reader:
-        for msg in reader:
-            now[0] = msg.timestamp
-            for name, device in devices.items():
-                if (msg.arbitration_id in device.arbitration_ids
-                        and msg.is_extended_id == device.is_extended_id
-                        and device.handle_frame(msg.arbitration_id, bytes(msg.data), now[0])):
-                    states[name].append(values_of(device.battery_report()))
-    return states
+    """Feed the log to the real device classes: the values after each primary frame."""
+    states = device_reference(path, DEVICES, device_parameters(BANKS))
+    return {name: [values for _stamp, values in seq] for name, seq in states.items()}
 
 
 def check_equal(label: str, published: dict[str, list], states: dict[str, list]) -> None:

@@ -8,6 +8,19 @@ from typing import Iterator
 import can
 
 
+def open_log(path: str) -> can.io.generic.MessageReader:
+    """
+    Open a log with python-can's reader for its suffix, timestamps as the log has them.
+
+    An .asc file counts its times from the "date" line of its header: read them absolute
+    (python-can's ASCReader defaults to times relative to the start), so that every format
+    gives the moment the frame was on the bus.
+    """
+    if path.lower().endswith('.asc'):
+        return can.LogReader(path, relative_timestamp=False)
+    return can.LogReader(path)
+
+
 class ReplayBus:
     """
     Plays a log file that can.LogReader reads, keeping its timing scaled by ``rate``.
@@ -28,7 +41,7 @@ class ReplayBus:
         self.path = path
         self.rate = rate
         # LogReader picks the format from the extension and raises ValueError for others.
-        self._reader = can.LogReader(path)
+        self._reader = open_log(path)
         self._messages: Iterator[can.Message] = iter(self._reader)
         self._pending: can.Message | None = None
         self._log_start: float | None = None

@@ -17,7 +17,8 @@ from rclpy.parameter import Parameter
 from ams_can_bridge.devices.base import ParamSpec
 from ams_can_bridge.errors import ParamError  # noqa: F401 (re-exported)
 from ams_can_bridge.parameters import (  # noqa: F401 (re-exported: the node's names)
-    allowed_text, BUS_PARAMS, coerce, format_number, NODE_PARAMS, spec_from_config_field)
+    allowed_text, BUS_PARAMS, coerce, format_number, NODE_PARAMS, raise_param_errors,
+    spec_from_config_field)
 
 _STATIC_TYPES = {
     bool: Parameter.Type.BOOL,
@@ -59,11 +60,7 @@ class ParamRegistry:
 
     def raise_errors(self) -> None:
         """Raise one ParamError listing every unusable start value, if there was any."""
-        if len(self.errors) == 1:
-            raise ParamError(self.errors[0])
-        if self.errors:
-            raise ParamError(f'{len(self.errors)} parameters need a change:\n  - '
-                             + '\n  - '.join(self.errors))
+        raise_param_errors(self.errors)
 
     def declare(self, name: str, spec: ParamSpec) -> Any:
         """

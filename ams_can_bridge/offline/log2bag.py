@@ -1,0 +1,263 @@
+"""
+``log2bag``: a CAN log -> a rosbag2 of what the bridge would have published, offline.
+
+The log is decoded by the same devices with the same parameters file as the bridge
+(``DeviceSet``). Each primary frame becomes one ``<device>/battery_state`` (and the device's
+arrays), ``/diagnostics`` is written every ``diagnostics_period`` of log time, and every
+header stamp and bag time is the log's timestamp of the frame: the moment it was on the bus.
+The devices' clock is the log time too, so staleness follows the recording.
+
+Frames before ``--start`` are decoded but not written (the first message in the window
+carries the state the bus had built up); reading stops at ``--end``. Both are seconds from
+the first frame of the log.
+"""
+from __future__ import annotations
+
+import argparse
+from dataclasses import dataclass, field
+import math
+import os
+import sys
+import time
+from typing import Sequence, TextIO
+
+from ams_can_bridge.can_io.config import BusStatus
+from ams_can_bridge.device_set import DeviceSet
+from ams_can_bridge.errors import ConfigError
+from ams_can_bridge.offline.bag import BagOut, STORAGES
+from ams_can_bridge.offline.log_frames import LogFileError, LogFrames
+from ams_can_bridge.offline.params_file import FileParams, load_parameters
+from ams_can_bridge.parameters import BUS_PARAMS, NODE_PARAMS
+from ams_can_bridge.reports import bus_report
+
+NODE_NAME = 'ams_can_bridge'  # the bridge's default node name: its entry in params files
+PROGRESS_PERIOD = 0.2  # s between progress-bar redraws
+PROGRESS_EVERY = 0x3FF  # look at the clock once per 1024 frames (mask)
+
+
+@dataclass
+class Summary:
+    """What a conversion read and wrote."""
+
+    frames_read: int = 0
+    bad_entries: int = 0
+    stopped: str = ''
+    first_stamp: float = math.nan
+    last_stamp: float = math.nan
+    malformed: dict[str, int] = field(default_factory=dict)
+    messages: dict[str, int] = field(default_factory=dict)
+    seconds: float = 0.0
+
+    def text(self) -> str:
+        """Return the summary as the command prints it."""
+        span = self.last_stamp - self.first_stamp if self.frames_read else 0.0
+        rate = self.frames_read / self.seconds if self.seconds > 0 else 0.0
+        lines = [f'frames read: {self.frames_read} in {self.seconds:.2f} s ({rate:,.0f}/s)',
+                 f'log time span: {span:.3f} s'
+                 + (f' (from {time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime(self.first_stamp))}'
+                    ' UTC)' if self.frames_read else ''),
+                 f'bad log entries skipped: {self.bad_entries}'
+                 + (f'; {self.stopped}' if self.stopped else '')]
+        for name, count in self.malformed.items():
+            lines.append(f'{name}: {count} malformed frame(s) dropped')
+        lines.append('messages written:')
+        lines += [f'  {topic}: {count}' for topic, count in sorted(self.messages.items())]
+        return '\n'.join(lines)
+
+
+class Converter:
+    """Decode frames into the devices and write what the bridge would publish."""
+
+    def __init__(self, parameters: dict, bag: BagOut | None, hardware_id: str) -> None:
+        """Build the devices from flat parameter values; raise ConfigError naming bad ones."""
+        params = FileParams(parameters)
+        params.declare_all('can.', BUS_PARAMS)  # checked like the bridge's, not used
+        node = params.declare_all('', NODE_PARAMS)
+        self.now = math.nan
+        self.devices = DeviceSet(node['devices'], params.declare, clock=lambda: self.now)
+        params.raise_errors()
+        self.diagnostics_period = node['diagnostics_period']
+        self.bag = bag
+        self.hardware_id = hardware_id
+        self.frames_in = 0
+        self.error_frames = 0
+        self._next_diagnostics = math.nan
+
+    def frame(self, arbitration_id: int, data: bytes, is_extended_id: bool, stamp: float,
+              write: bool) -> None:
+        """Apply one frame at log time stamp; write its messages when write is true."""
+        if write and not stamp < self._next_diagnostics:  # NaN: the first written frame
+            self._diagnostics_until(stamp)
+        self.now = stamp
+        self.frames_in += 1
+        for device in self.devices.handle_frame(arbitration_id, data, is_extended_id, stamp):
+            if write:
+                self._write_device(device.name, stamp)
+
+    def _write_device(self, name: str, stamp: float) -> None:
+        device = self.devices.devices[name]
+        frame_id = self.devices.params[name].get('frame_id', '')
+        self.bag.battery_state(f'/{name}/battery_state', device.battery_report(), frame_id,
+                               stamp)
+        for suffix, (rows, cols, data) in device.extra_arrays().items():
+            self.bag.multi_array(f'/{name}/{suffix}', rows, cols, data, stamp)
+
+    def _diagnostics_until(self, stamp: float) -> None:
+        """Write the diagnostics due up to stamp, each at its own moment of log time."""
+        if math.isnan(self._next_diagnostics):
+            self._next_diagnostics = stamp + self.diagnostics_period
+            return
+        while stamp >= self._next_diagnostics:
+            self.now = self._next_diagnostics
+            self.write_diagnostics(self.now)
+            self._next_diagnostics += self.diagnostics_period
+
+    def write_diagnostics(self, stamp: float, state: str = 'connected') -> None:
+        """Write one /diagnostics: every device and the (replayed) CAN bus, as the bridge."""
+        statuses = [(f'{NODE_NAME}: {name}', device.diagnostic_report())
+                    for name, device in self.devices.devices.items()]
+        malformed = sum(d.frames_malformed for d in self.devices.devices.values())
+        status = BusStatus(state=state, reason='', frames_in=self.frames_in, frames_out=0,
+                           frames_dropped_tx=0, error_frames=self.error_frames, reconnects=0,
+                           hardware_id=self.hardware_id)
+        statuses.append((f'{NODE_NAME}: CAN bus', bus_report(status, malformed, 'replay')))
+        self.bag.diagnostics(statuses, self.hardware_id, stamp)
+
+
+class Progress:
+    """A one-line progress bar on a terminal: frames done of total, rate, time left."""
+
+    def __init__(self, total: int | None, stream: TextIO) -> None:
+        """Draw on stream only when it is a terminal."""
+        self.total = total
+        self.stream = stream
+        self.enabled = stream.isatty()
+        self.started = time.monotonic()
+        self._drawn = 0.0
+
+    def update(self, done: int, force: bool = False) -> None:
+        """Redraw at most every PROGRESS_PERIOD (or now when force)."""
+        if not self.enabled:
+            return
+        now = time.monotonic()
+        if not force and now - self._drawn < PROGRESS_PERIOD:
+            return
+        self._drawn = now
+        elapsed = max(now - self.started, 1e-9)
+        rate = done / elapsed
+        if self.total:
+            share = min(done / self.total, 1.0)
+            bar = '#' * int(share * 30)
+            left = (self.total - done) / rate if rate > 0 and done < self.total else 0.0
+            text = (f'\r[{bar:<30}] {done:,} of ~{self.total:,} frames  {rate:,.0f}/s  '
+                    f'{left:.1f} s left ')
+        else:
+            text = f'\r{done:,} frames  {rate:,.0f}/s '
+        self.stream.write(text)
+        self.stream.flush()
+
+    def finish(self, done: int) -> None:
+        """Draw the final state and end the line."""
+        if self.enabled:
+            self.update(done, force=True)
+            self.stream.write('\n')
+
+
+def convert(log: str, output: str, parameters: dict, storage: str = 'mcap',
+            start: float | None = None, end: float | None = None,
+            progress_stream: TextIO | None = None) -> Summary:
+    """Convert one log into one bag; raise ConfigError/LogFileError on unusable input."""
+    if os.path.exists(output):
+        raise ConfigError(f'output {output!r} exists: rosbag2 writes a new directory '
+                          '(remove it or choose another name)')
+    converter = Converter(parameters, None, f'replay:{log}')  # bad parameters: no bag
+    frames = LogFrames(log)
+    bag = converter.bag = BagOut(output, storage)
+    summary = Summary()
+    progress = Progress(frames.total, progress_stream or sys.stderr)
+    started = time.monotonic()
+    try:
+        first = math.nan
+        last = math.nan
+        for msg in frames:
+            stamp = msg.timestamp
+            if math.isnan(first):
+                first = stamp
+            offset = stamp - first
+            if end is not None and offset > end:
+                break
+            summary.frames_read += 1
+            if not summary.frames_read & PROGRESS_EVERY:
+                progress.update(summary.frames_read)
+            if msg.is_error_frame:
+                converter.error_frames += 1
+                continue
+            if msg.is_remote_frame:
+                continue
+            write = start is None or offset >= start
+            if write and math.isnan(summary.first_stamp):
+                summary.first_stamp = stamp
+            converter.frame(msg.arbitration_id, bytes(msg.data), msg.is_extended_id, stamp,
+                            write)
+            last = stamp
+        if math.isfinite(summary.first_stamp):
+            converter.write_diagnostics(last, state='replay finished')
+        summary.last_stamp = last
+    finally:
+        frames.close()
+        bag.close()
+    progress.finish(summary.frames_read)
+    summary.bad_entries = frames.bad
+    summary.stopped = frames.stopped
+    summary.malformed = {name: d.frames_malformed
+                         for name, d in converter.devices.devices.items() if d.frames_malformed}
+    summary.messages = dict(bag.counts)
+    summary.seconds = time.monotonic() - started
+    return summary
+
+
+def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
+    """Parse the command line."""
+    parser = argparse.ArgumentParser(
+        prog='log2bag', description='Convert a CAN log (.log .asc .blf .trc .csv) into a '
+        'rosbag2 of the topics the bridge publishes, stamped with the log time.')
+    parser.add_argument('log', help='CAN log file that python-can reads')
+    parser.add_argument('output', help='bag directory to create (must not exist)')
+    parser.add_argument('--params-file', required=True,
+                        help="the bridge's parameters file (devices and their parameters)")
+    parser.add_argument('--storage', choices=sorted(STORAGES), default='mcap',
+                        help='rosbag2 storage (default mcap)')
+    parser.add_argument('--start', type=float, default=None,
+                        help='s after the first frame: write from here (earlier frames are '
+                        'decoded, not written)')
+    parser.add_argument('--end', type=float, default=None,
+                        help='s after the first frame: stop here')
+    parser.add_argument('--node-name', default=NODE_NAME,
+                        help='node name whose entry of the parameters file applies '
+                        f'(default {NODE_NAME}; /** applies to every name)')
+    args = parser.parse_args(argv)
+    if args.start is not None and args.end is not None and args.end < args.start:
+        parser.error(f'--end {args.end:g} is before --start {args.start:g}')
+    return args
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run log2bag; exit 0 on success, 2 on unusable input (the message says what)."""
+    args = parse_args(argv)
+    try:
+        parameters = load_parameters(args.params_file, args.node_name)
+        summary = convert(args.log, args.output, parameters, args.storage, args.start,
+                          args.end)
+    except (ConfigError, LogFileError) as exc:
+        print(f'log2bag: {exc}', file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print('log2bag: interrupted; the bag holds what was written so far', file=sys.stderr)
+        return 130
+    print(f'wrote {args.output} ({args.storage})')
+    print(summary.text())
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,92 @@
+"""
+Device reports -> the fields of ROS messages, without ROS.
+
+``ros/convert.py`` fills rclpy messages from these and ``log2bag`` fills rosbags messages
+from the same, so a bag written offline holds exactly what the live bridge publishes.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from ams_can_bridge.devices.base import BatteryReport, DiagnosticReport, Level
+
+
+def stamp_parts(stamp: float) -> tuple[int, int]:
+    """Return (sec, nanosec) of seconds since the epoch (NaN/negative -> (0, 0))."""
+    if not math.isfinite(stamp) or stamp < 0:
+        return 0, 0
+    sec = int(stamp)
+    nanosec = int(round((stamp - sec) * 1e9))
+    if nanosec >= 1_000_000_000:
+        sec, nanosec = sec + 1, nanosec - 1_000_000_000
+    return sec, nanosec
+
+
+def report_stamp(report: BatteryReport, fallback: float | None = None) -> float:
+    """Return the stamp of a report: its primary frame's time, else fallback (or NaN)."""
+    if not math.isfinite(report.stamp) and fallback is not None:
+        return fallback
+    return report.stamp
+
+
+def battery_fields(report: BatteryReport) -> dict[str, Any]:
+    """Return the sensor_msgs/BatteryState fields of a report, header excepted."""
+    return {
+        'voltage': float(report.voltage),
+        'temperature': float(report.temperature),
+        'current': float(report.current),
+        'charge': float(report.charge),
+        'capacity': float(report.capacity),
+        'design_capacity': float(report.design_capacity),
+        'percentage': float(report.percentage),
+        'power_supply_status': int(report.power_supply_status),
+        'power_supply_health': int(report.power_supply_health),
+        'power_supply_technology': int(report.power_supply_technology),
+        'present': bool(report.present),
+        'cell_voltage': [float(v) for v in report.cell_voltage],
+        'cell_temperature': [float(v) for v in report.cell_temperature],
+        'location': report.location,
+        'serial_number': report.serial_number,
+    }
+
+
+def array_dims(rows: int, cols: int,
+               labels: tuple[str, str] = ('bank', 'sensor')) -> list[tuple[str, int, int]]:
+    """Return the (label, size, stride) of a row-major rows x cols Float32MultiArray."""
+    return [(labels[0], rows, rows * cols), (labels[1], cols, cols)]
+
+
+_BUS_LEVELS = {
+    'connected': Level.OK,
+    'error-passive': Level.WARN,
+    'connecting': Level.WARN,  # the first attempt is still under way
+    'replay finished': Level.OK,  # a replay that reached the end of its file
+}
+
+
+def bus_report(status: Any, malformed: int, interface: str) -> DiagnosticReport:
+    """
+    Build the CAN bus DiagnosticReport from a CanIo BusStatus and the devices' counters.
+
+    OK when connected (or a replay that finished), WARN on error-passive, ERROR otherwise
+    (error, bus-off, reconnecting, cannot open) with the reason in the message.
+    """
+    state = str(status.state)
+    level = _BUS_LEVELS.get(state, Level.ERROR)
+    reason = str(status.reason or '')
+    message = state + (f': {reason}' if reason and level != Level.OK else '')
+    values = {
+        'state': state,
+        'reason': reason,
+        'frames in': str(status.frames_in),
+        'frames out': str(status.frames_out),
+        'frames dropped (tx)': str(getattr(status, 'frames_dropped_tx', 0)),
+        'malformed frames': str(malformed),
+        'error frames': str(status.error_frames),
+        'reconnects': str(status.reconnects),
+        'adapter': str(getattr(status, 'hardware_id', '') or ''),
+        'replay': (('finished' if state == 'replay finished' else 'playing')
+                   if interface == 'replay' else 'off'),
+    }
+    return DiagnosticReport(level, message, values)
