@@ -39,6 +39,7 @@ mkdir -p "$pkg"
    > "$scratch/colcon.log" 2>&1) || { tail -40 "$scratch/colcon.log"; fail "colcon build"; }
 inst="$scratch/ws/install/ams_can_bridge"
 for f in lib/ams_can_bridge/bridge lib/ams_can_bridge/simulator lib/ams_can_bridge/demo \
+         lib/ams_can_bridge/log2bag share/ams_can_bridge/config/foxglove_layout.json \
          share/ams_can_bridge/package.xml share/ams_can_bridge/launch/bridge.launch.py \
          share/ament_index/resource_index/packages/ams_can_bridge; do
   [ -e "$inst/$f" ] || fail "colcon install lacks $f"
@@ -61,9 +62,11 @@ echo "== pip install . into a fresh venv"
   || fail "pip install ."
 (cd "$scratch" && "$scratch/venv/bin/python" -c "$probe" "$scratch/venv") \
   || fail "pip-installed package does not find its msg_defs"
-for exe in bridge simulator demo; do
+for exe in bridge simulator demo log2bag; do
   [ -x "$scratch/venv/bin/$exe" ] || fail "pip install lacks the $exe executable"
 done
 (cd "$scratch" && timeout 60 "$scratch/venv/bin/simulator" --help >/dev/null) \
   || fail "pip-installed simulator --help"
+(cd "$scratch" && timeout 60 "$scratch/venv/bin/log2bag" --help >/dev/null) \
+  || fail "pip-installed log2bag --help"
 echo "pip install: OK ($scratch/venv)"
