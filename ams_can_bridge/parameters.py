@@ -128,6 +128,9 @@ BUS_PARAMS = [
               "stamp messages with the interface's receive timestamp (python-can "
               'Message.timestamp; the kernel\'s for SocketCAN) instead of the host clock; '
               'a replay always stamps with the log time'),
+    ParamSpec('connect_wait', float, 5.0,
+              's a command waits for a bus that is still opening or reconnecting '
+              '(0 = fail at once)', low=0.0, high=3600.0),
 ]
 NODE_PARAMS = [
     ParamSpec('devices', 'str[]', [], 'device instance names (each has <name>.type)'),

@@ -81,8 +81,14 @@ class Capture:
 class Rig:
     """Context, bridge node, client node, executor thread and bus capture."""
 
-    def __init__(self, params: dict[str, Any], channel: str | None = None) -> None:
-        """Start the node with these parameter overrides on a fresh virtual channel."""
+    def __init__(self, params: dict[str, Any], channel: str | None = None,
+                 wait_connected: bool = True) -> None:
+        """
+        Start the node with these parameter overrides on a fresh virtual channel.
+
+        params may name another bus (can.interface / can.channel); wait_connected=False
+        returns while the bridge is still opening it (the capture then sees nothing).
+        """
         self.channel = channel or unique_channel('rig')
         self.capture = Capture(self.channel)
         self.context = rclpy.Context()
@@ -93,7 +99,7 @@ class Rig:
             parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
         # A virtual bus delivers only to buses open at send time: wait for the bridge's.
         deadline = time.monotonic() + 10.0
-        while not self.node.can_io.status().connected:
+        while wait_connected and not self.node.can_io.status().connected:
             assert time.monotonic() < deadline, 'the bridge never opened its virtual bus'
             time.sleep(0.01)
         self.client = rclpy.create_node('command_test_client', context=self.context)
@@ -149,12 +155,12 @@ class Rig:
 
 
 @contextlib.contextmanager
-def rigs() -> Iterator[Callable[[dict[str, Any]], Rig]]:
-    """Yield a maker of Rigs (called with the parameter overrides); close them all on exit."""
+def rigs() -> Iterator[Callable[..., Rig]]:
+    """Yield a maker of Rigs (called as Rig is); close them all on exit."""
     made: list[Rig] = []
 
-    def make(params: dict[str, Any]) -> Rig:
-        rig = Rig(params)
+    def make(params: dict[str, Any], **kwargs: Any) -> Rig:
+        rig = Rig(params, **kwargs)
         made.append(rig)
         return rig
     try:

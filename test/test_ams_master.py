@@ -229,3 +229,37 @@ def test_period_change_at_run_time(rig):
     t0 = time.monotonic()
     ams.wait_frames(n + 40)
     assert time.monotonic() - t0 < 40 * 0.05 * 0.8  # clearly faster than the old period
+
+
+def test_bus_down_while_waiting_fails_the_call_and_nothing_stale_is_replayed(rig):
+    ams, master = rig('never')
+    down = threading.Event()
+    sent_ok = []
+
+    def send(frame):
+        if down.is_set():
+            return False, 'CAN bus virtual:x is not connected (reconnecting: unplugged)'
+        sent_ok.append(frame)
+        return ams.send(frame)
+    master._send = send  # the bus between master and AMS, which we can pull out
+    master.start()
+    ams.wait_frames(3)
+    answers = []
+    waiter = threading.Thread(
+        target=lambda: answers.append(master.command(CarCommand.ENABLE_TS, 5.0)))
+    waiter.start()
+    while 2 not in ams.commands():
+        time.sleep(0.002)
+    down.set()
+    waiter.join(2)
+    assert answers and not answers[0].success
+    assert 'not connected (reconnecting: unplugged)' in answers[0].message
+    assert 'will not be sent later' in answers[0].message
+    assert master.current_command() == CarCommand.NO_COMMAND
+    before = len(sent_ok)
+    down.clear()  # the bus returns: heartbeats again, with NO_COMMAND only
+    ams.wait_frames(len(ams.frames) + 5)
+    after = [f for f in sent_ok[before:]]
+    assert after and all(f.data[0] & 0x0F == 0 for f in after)
+    # the counter goes on from the last frame actually sent (lost slots are not counted)
+    assert (after[0].data[1] - sent_ok[before - 1].data[1]) & 0xFF == 1

@@ -6,6 +6,8 @@ import re
 
 STATES = ('connecting', 'connected', 'reconnecting', 'error', 'bus-off', 'error-passive',
           'replay finished', 'stopped')
+# States in which the receive thread is still (re)opening the bus: it may come back alone.
+RETRY_STATES = ('connecting', 'reconnecting', 'error', 'bus-off')
 
 _INT = re.compile(r'[+-]?(0x[0-9a-fA-F]+|0o[0-7]+|0b[01]+|\d+)$')
 _FLOAT = re.compile(r'[+-]?(\d+\.\d*|\.\d+|\d+)([eE][+-]?\d+)?$')

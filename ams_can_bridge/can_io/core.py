@@ -8,7 +8,7 @@ from typing import Callable
 
 import can
 
-from ams_can_bridge.can_io.config import BusConfig, BusStatus, CanSendError
+from ams_can_bridge.can_io.config import BusConfig, BusStatus, CanSendError, RETRY_STATES
 from ams_can_bridge.can_io.replay import ReplayBus
 from ams_can_bridge.protocols.common import Frame
 
@@ -66,6 +66,7 @@ class CanIo:
         self._thread: threading.Thread | None = None
         self._tx_lock = threading.Lock()
         self._rec_lock = threading.Lock()
+        self._state_cv = threading.Condition()  # wakes callers waiting for 'connected'
         self._bus: can.BusABC | ReplayBus | None = None
         self._recorder: can.Listener | None = None
         self._state = 'stopped'
@@ -111,7 +112,23 @@ class CanIo:
             except Exception as exc:  # a full disk must not turn shutdown into a traceback
                 self._log.error('CAN recording %s not closed cleanly: %s',
                                 self.config.record, exc)
-        self._state = 'stopped'
+        self._set_state('stopped', '', logging.DEBUG)
+
+    def wait_connected(self, timeout: float) -> BusStatus:
+        """
+        Wait up to timeout s while the bus is being (re)opened; return the status then.
+
+        Returns at once when frames flow, or when the bus will not come back by itself
+        (stopped, replay finished); the caller reads ``status().connected``.
+        """
+        deadline = time.monotonic() + max(0.0, timeout)
+        with self._state_cv:
+            while self._state in RETRY_STATES:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    break
+                self._state_cv.wait(left)
+        return self.status()
 
     def status(self) -> BusStatus:
         """Return a snapshot of state and counters."""
@@ -154,8 +171,10 @@ class CanIo:
         if state != self._state or reason != self._reason:
             self._log.log(level, STATE_CHANGE_FORMAT, self.config.hardware_id, state,
                           f' ({reason})' if reason else '')
-        self._state = state
-        self._reason = reason
+        with self._state_cv:
+            self._state = state
+            self._reason = reason
+            self._state_cv.notify_all()
 
     def _run(self) -> None:
         while not self._stop.is_set():
@@ -178,7 +197,8 @@ class CanIo:
                     return
             self._close_bus()
             self._stop.wait(self.config.reconnect_period)
-        self._state = 'stopped'  # stop() may have given up joining an open that hung
+        # stop() may have given up joining an open that hung
+        self._set_state('stopped', '', logging.DEBUG)
 
     def _open(self) -> can.BusABC | ReplayBus:
         cfg = self.config

@@ -17,6 +17,8 @@ The command field carries at most one request at a time (the bus frame has one f
   passes, then NO_COMMAND. A stale ENABLE_* is never sent after an abort.
 - SET_BANK_COUNT / SYNC_TIME are one-shot: carried by exactly one heartbeat; the call
   answers once that frame was sent.
+- A heartbeat that cannot be sent (bus down) ends the waiting call with failure and the
+  reason, and drops the request: the command is never replayed when the bus returns.
 
 Only AMS status frames received *after* the request was first carried count as an answer,
 so a state reported before the request can never confirm it.
@@ -271,11 +273,23 @@ class AmsMaster:
         else:
             self.stats.send_failures += 1
             self.stats.last_error = message
+            if request is not None and self._request is request and not request.done:
+                # A command is carried by an unbroken run of heartbeats: once one is lost
+                # (bus down) the call fails, and nothing stale goes out when the bus returns.
+                request.cancelled = (f'the heartbeat carrying it was not sent ({message}); '
+                                     'the command was dropped and will not be sent later')
+                self._request = None
         self._cond.notify_all()
 
     # --- commands ------------------------------------------------------------------------
-    def command(self, command: CarCommand, timeout: float) -> CommandResult:
-        """Carry a command in the heartbeat and wait for its answer (see module docstring)."""
+    def command(self, command: CarCommand, timeout: float,
+                started: float | None = None) -> CommandResult:
+        """
+        Carry a command in the heartbeat and wait for its answer (see module docstring).
+
+        timeout counts from started (this master's clock; default now), so a caller that
+        first waited for the bus keeps timeout as the call's total bound.
+        """
         command = CarCommand(command)
         with self._cond:
             if not self._running:
@@ -287,7 +301,8 @@ class AmsMaster:
                                      'still in progress (wait for its answer, or call abort)')
             if current is not None:
                 current.cancelled = 'aborted'
-            request = _Request(command, self._clock(), error_seq_at_start=self._view().error_seq)
+            request = _Request(command, self._clock() if started is None else started,
+                               error_seq_at_start=self._view().error_seq)
             self._request = request
             self._cond.notify_all()
             return self._wait(request, timeout)

@@ -50,7 +50,10 @@ class AmsCommands:
         base = device.params.get('base_id')
         self.codec = AmsCodec(proto.DEFAULT_BASE_ID if base is None else int(base))
         self._t0 = time.monotonic()  # origin of the charger-command time tick
-        self.master = AmsMaster(self._encode_heartbeat, node.transmit, device.master_view,
+        # The heartbeat never waits for the bus: a late heartbeat is a wrong heartbeat.
+        self.master = AmsMaster(self._encode_heartbeat,
+                                lambda frame: node.transmit(frame, wait=False),
+                                device.master_view,
                                 period=float(values.get('heartbeat_period') or 0.05),
                                 bank_count=device.bank_count)
         self._services = []
@@ -112,10 +115,16 @@ class AmsCommands:
 
     def _car_command(self, command: CarCommand, what: str) -> Callable:
         def callback(request: Any, response: Any) -> Any:
+            timeout = self.command_timeout  # the total bound, waiting for the bus included
+            started = time.monotonic()
             if not self.node.commands_enabled:
                 result = CommandResult(False, gate_message(self.node, what))
             else:
-                result = self.master.command(command, self.command_timeout)
+                ok, message = self.node.wait_for_bus(limit=timeout)
+                if not ok:
+                    result = CommandResult(False, f'{command.name} not sent: {message}')
+                else:
+                    result = self.master.command(command, timeout, started)
             response.success, response.message = result.success, f'{self.name}: {result.message}'
             return response
         return callback

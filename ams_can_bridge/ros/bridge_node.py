@@ -18,9 +18,12 @@ name)``; the parameters its services use are the device type's ``COMMAND_PARAMS`
 with the device (``DeviceSet``). A commander may use:
 
 - ``node.commands_enabled`` (bool, follows the ``commands_enabled`` parameter);
-- ``node.transmit(frame) -> (ok, message)``: refuses with a message naming
+- ``node.transmit(frame, wait=True) -> (ok, message)``: refuses with a message naming
   ``commands_enabled`` while commands are disabled, else sends through CanIo
-  (``(False, reason)`` when the bus refuses);
+  (``(False, reason)`` when the bus refuses); with ``wait`` a bus that is still opening or
+  reconnecting is waited for (``wait_for_bus``), without it (a heartbeat) it fails at once;
+- ``node.wait_for_bus(limit=None) -> (ok, message)``: wait up to ``can.connect_wait`` (and
+  at most ``limit`` s) for a bus that is (re)opening; the message names the state and reason;
 - ``node.service_group`` for its services, ``node.params`` (ParamRegistry), ``node.devices``.
 
 and the node calls on it (each optional): ``validate_parameter(full_name, value) -> str |
@@ -49,6 +52,7 @@ from std_msgs.msg import Float32MultiArray
 
 from ams_can_bridge import registry
 from ams_can_bridge.can_io import BusConfig, CanIo, CanSendError, parse_options
+from ams_can_bridge.can_io.config import RETRY_STATES
 from ams_can_bridge.can_io.core import STATE_CHANGE_FORMAT
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.devices.base import Device
@@ -132,6 +136,7 @@ class BridgeNode(Node):
         except ValueError as exc:
             raise ConfigError(str(exc)) from None
         self.hardware_id = f"{bus['interface']}:{bus['channel']}"
+        self.connect_wait = bus['connect_wait']
         self._bus_log = BusStateLog(self.get_logger(), self.hardware_id, bus['channel'],
                                     bus['reconnect_period'])
         self._replaying = bus['interface'] == 'replay'
@@ -324,11 +329,49 @@ class BridgeNode(Node):
             self.publish_diagnostics()
 
     # --- commands seam --------------------------------------------------------------------
-    def transmit(self, frame: Frame) -> tuple[bool, str]:
+    def wait_for_bus(self, limit: float | None = None) -> tuple[bool, str]:
+        """
+        Wait for a bus that is opening or reconnecting: (connected, why not) - never raises.
+
+        Waits at most ``can.connect_wait`` s (and at most ``limit`` s, a state command's own
+        timeout); returns early when commands are disabled meanwhile.
+        """
+        can_io = self.can_io
+        if can_io is None:
+            return False, f'CAN bus {self.hardware_id} is closed: the bridge is shutting down'
+        status = can_io.status()
+        if status.connected:
+            return True, ''
+        wait = self.connect_wait if limit is None else min(self.connect_wait, limit)
+        deadline = time.monotonic() + wait
+        while status.state in RETRY_STATES and self.commands_enabled:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                break
+            # in slices, so that switching commands_enabled off ends the wait at once
+            status = can_io.wait_connected(min(left, 0.05))
+            if status.connected:
+                return True, ''
+        if not self.commands_enabled:
+            return False, 'commands_enabled was set to false while waiting for the CAN bus'
+        reason = f': {status.reason}' if status.reason else ''
+        waited = ''
+        if status.state in RETRY_STATES:
+            waited = (f' after waiting {wait:g} s (can.connect_wait {self.connect_wait:g} s'
+                      + (f', command timeout {limit:g} s)' if limit is not None else ')')
+                      if wait > 0 else ' (can.connect_wait is 0: commands do not wait)')
+        return False, (f'CAN bus {self.hardware_id} is not connected ({status.state}{reason})'
+                       f'{waited}')
+
+    def transmit(self, frame: Frame, wait: bool = True) -> tuple[bool, str]:
         """Send one frame if commands are enabled; (ok, message) - never raises."""
         if not self.commands_enabled:
             return False, ('commands are disabled: set the parameter commands_enabled to true '
                            '(ros2 param set /ams_can_bridge commands_enabled true) to transmit')
+        if wait:
+            ok, message = self.wait_for_bus()
+            if not ok:
+                return False, message
         try:
             result = self.can_io.send(frame)
         except CanSendError as exc:

@@ -102,8 +102,13 @@ class _ZevaCommands:
             return False, f'{self.name}: cannot {what}: {exc}; nothing was sent'
         sent = []
         with self._send_lock:
+            # A bus still opening (or reconnecting) is waited for once, before the first
+            # frame: the frames of one call then go out on one connection, or not at all.
+            ok, message = self.node.wait_for_bus()
+            if not ok:
+                return False, f'{self.name}: cannot {what}: {message}; nothing was sent'
             for frame in frames:
-                ok, message = self.node.transmit(frame)
+                ok, message = self.node.transmit(frame, wait=False)
                 if not ok:
                     done = ', '.join(sent) if sent else 'nothing'
                     return False, (f'{self.name}: {what} failed at {frame_text(frame)}: '
