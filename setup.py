@@ -15,6 +15,7 @@ setup(
         ('share/' + PACKAGE + '/msg_defs', sorted(glob('msg_defs/*.dbc'))),
         ('share/' + PACKAGE + '/config', sorted(glob('config/*.yaml') + glob('config/*.json'))),
         ('share/' + PACKAGE + '/launch', sorted(glob('launch/*.py'))),
+        ('share/' + PACKAGE + '/security', ['security/policy.xml']),
     ],
     python_requires='>=3.11',
     install_requires=['setuptools', 'python-can>=4.4', 'cantools>=39', 'pyserial', 'pyyaml',

@@ -45,6 +45,7 @@ def _bridge_parameters(channel: str, banks: int, commands: bool) -> list[Paramet
         'can.interface': 'virtual',
         'can.channel': channel,
         'devices': list(DEVICES),
+        'commands_allowed': commands,  # the demo arms itself: both keys at launch
         'commands_enabled': commands,
         'diagnostics_period': 0.25,  # the view redraws at 4 Hz: states keep up
         **device_parameters(banks),

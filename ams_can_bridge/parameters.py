@@ -136,6 +136,10 @@ NODE_PARAMS = [
     ParamSpec('devices', 'str[]', [], 'device instance names (each has <name>.type)'),
     ParamSpec('diagnostics_period', float, 1.0, 's between /diagnostics publications',
               low=0.01, high=3600.0),
+    ParamSpec('commands_allowed', bool, False,
+              'first key of the transmit gate, set only at launch: commands_enabled can '
+              'become true only while this is true'),
     ParamSpec('commands_enabled', bool, False,
-              'transmit gate: false = pure listener, nothing is ever sent', read_only=False),
+              'transmit gate: false = pure listener, nothing is ever sent; true only with '
+              'commands_allowed', read_only=False),
 ]

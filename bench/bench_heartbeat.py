@@ -136,7 +136,7 @@ def main() -> None:
         Parameter('devices', value=['ams']), Parameter('ams.bank_count', value=1),
         Parameter('ams.heartbeat_period', value=args.period),
         Parameter('ams.charge_current_a', value=10.0),
-        Parameter('commands_enabled', value=True)])
+        Parameter('commands_allowed', value=True), Parameter('commands_enabled', value=True)])
     client = rclpy.create_node('bench_heartbeat_client', context=context)
     executor = MultiThreadedExecutor(num_threads=4, context=context)
     executor.add_node(node)

@@ -51,7 +51,8 @@ def with_ams(rig_factory):
 
 
 def ams_params(enabled=True, **extra):
-    params = {'devices': ['ams'], 'commands_enabled': enabled, 'ams.bank_count': 3,
+    params = {'devices': ['ams'], 'commands_allowed': True, 'commands_enabled': enabled,
+              'ams.bank_count': 3,
               'ams.heartbeat_period': 0.02, 'ams.command_timeout': 2.0}
     params.update(extra)
     return params

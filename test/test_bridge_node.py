@@ -156,7 +156,8 @@ def test_can_bus_status_without_devices(harness):
 # --- parameters ---------------------------------------------------------------------------
 def test_numeric_parameters_accept_int_and_float_spellings(harness):
     h = harness({'diagnostics_period': 1, 'can.reconnect_period': 2,
-                 'devices': ['ivt_s'], 'ivt_s.stale_timeout': 3, 'can.bitrate': 500000.0})
+                 'devices': ['ivt_s'], 'ivt_s.stale_timeout': 3, 'can.bitrate': 500000.0,
+                 'commands_allowed': True})
     node = h.bridge
     assert node.diagnostics_period == 1.0
     assert node.bus_config.reconnect_period == 2.0
@@ -170,7 +171,7 @@ def test_numeric_parameters_accept_int_and_float_spellings(harness):
 
 
 def test_read_only_and_commands_enabled_gate(harness):
-    h = harness({'devices': ['bms16']})
+    h = harness({'devices': ['bms16'], 'commands_allowed': True})
     node = h.bridge
     refused = node.set_parameters([Parameter('can.channel', value='x')])[0]
     assert not refused.successful

@@ -24,7 +24,8 @@ def rig_factory():
 
 
 def all_devices(enabled=False, **extra):
-    params = {'devices': ['ams', 'ivt_s', 'evms3', 'bms16'], 'commands_enabled': enabled,
+    params = {'devices': ['ams', 'ivt_s', 'evms3', 'bms16'], 'commands_allowed': True,
+              'commands_enabled': enabled,
               'ams.charge_current_a': 10.0}
     params.update(extra)
     return params
@@ -52,7 +53,8 @@ def test_disabled_bridge_sends_nothing_and_refuses_every_service(rig_factory):
 
 
 def test_heartbeat_period_and_counter_and_run_time_gate(rig_factory):
-    rig = rig_factory({'devices': ['ams'], 'ams.heartbeat_period': 0.01, 'ams.bank_count': 3})
+    rig = rig_factory({'devices': ['ams'], 'ams.heartbeat_period': 0.01, 'ams.bank_count': 3,
+                       'commands_allowed': True})
     rig.capture.wait_for(lambda: False, timeout=0.2)
     assert rig.capture.since(0) == []
     assert rig.set_param('commands_enabled', True).successful
@@ -79,7 +81,7 @@ def test_heartbeat_period_and_counter_and_run_time_gate(rig_factory):
 
 
 def test_period_and_bank_count_follow_parameters(rig_factory):
-    rig = rig_factory({'devices': ['ams'], 'commands_enabled': True,
+    rig = rig_factory({'devices': ['ams'], 'commands_allowed': True, 'commands_enabled': True,
                        'ams.heartbeat_period': 0.2})
     assert rig.capture.wait_for(lambda: len(rig.capture.since(0)) >= 1)
     assert rig.set_param('ams.heartbeat_period', 0.01).successful
@@ -110,3 +112,49 @@ def test_invalid_config_value_in_a_params_file_stops_the_node(tmp_path):
     output = proc.stdout + proc.stderr
     assert 'bms16.config.shunt_size_a' in output and '250' in output, output
     assert '100, 200 or 500' in output, output
+
+
+def test_commands_enabled_needs_commands_allowed_at_run_time(rig_factory, capfd):
+    rig = rig_factory({'devices': ['ams', 'bms16'], 'ams.heartbeat_period': 0.01})
+    result = rig.set_param('commands_enabled', True)
+    assert not result.successful
+    assert 'commands_allowed is false' in result.reason and 'launch' in result.reason
+    assert rig.node.commands_enabled is False
+    assert rig.node.get_parameter('commands_enabled').value is False
+    # the first key cannot be turned at run time: it is read-only
+    assert not rig.set_param('commands_allowed', True).successful
+    assert rig.node.commands_allowed is False
+    response = rig.call(Trigger, '/bms16/reset_soc')
+    assert not response.success and 'commands_allowed' in response.message
+    rig.capture.wait_for(lambda: False, timeout=0.3)
+    assert rig.capture.since(0) == []  # no heartbeat, no command
+    assert 'refused: commands_enabled = true refused' in capfd.readouterr().err
+
+
+def test_commands_enabled_at_launch_without_commands_allowed_stops_the_bridge():
+    from rclpy.parameter import Parameter
+
+    from ams_can_bridge.ros.bridge_node import BridgeNode, ConfigError
+    from helpers import ros_context
+    with ros_context() as context:
+        with pytest.raises(ConfigError) as error:
+            BridgeNode(context=context, parameter_overrides=[
+                Parameter('can.interface', value='virtual'),
+                Parameter('can.channel', value=f'gate-launch-{os.getpid()}'),
+                Parameter('devices', value=['ams']),
+                Parameter('commands_enabled', value=True)])
+    assert 'commands_allowed is false' in str(error.value)
+
+
+def test_every_change_of_commands_enabled_is_logged_and_counted(rig_factory, capfd):
+    rig = rig_factory({'devices': ['bms16'], 'commands_allowed': True})
+    assert rig.set_param('commands_enabled', True).successful
+    assert rig.set_param('commands_enabled', True).successful  # no change: nothing logged
+    assert rig.set_param('commands_enabled', False).successful
+    err = capfd.readouterr().err
+    assert err.count('commands_enabled false -> true') == 1, err
+    assert err.count('commands_enabled true -> false') == 1, err
+    assert 'the caller is not known to the node' in err
+    values = rig.node._bus_report().values
+    assert values['commands_enabled changes'] == '2'
+    assert values['commands_allowed'] == 'true' and values['commands_enabled'] == 'false'

@@ -25,7 +25,7 @@ BMS16_505 = bytes([73, 2, 70, 2])
 
 
 def bms16_params(enabled=True, config=BMS16_CONFIG, skip=()):
-    params = {'devices': ['bms16'], 'commands_enabled': enabled}
+    params = {'devices': ['bms16'], 'commands_allowed': True, 'commands_enabled': enabled}
     params.update({f'bms16.config.{k}': v for k, v in config.items() if k not in skip})
     return params
 
@@ -129,7 +129,7 @@ EVMS3_FRAMES = [
 
 
 def evms3_params(enabled=True, config=EVMS3_CONFIG, skip=()):
-    params = {'devices': ['evms3'], 'commands_enabled': enabled}
+    params = {'devices': ['evms3'], 'commands_allowed': True, 'commands_enabled': enabled}
     params.update({f'evms3.config.{k}': v for k, v in config.items() if k not in skip})
     return params
 

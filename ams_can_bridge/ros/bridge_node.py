@@ -76,6 +76,13 @@ CLOCK_PERIOD = 0.01  # s between /clock messages of a replay (can.replay_clock)
 __all__ = ['BridgeNode', 'ConfigError', 'NODE_NAME']
 
 
+def arming_refused() -> str:
+    """Return the reason a commands_enabled = true is refused without commands_allowed."""
+    return ('commands_enabled = true refused: commands_allowed is false. commands_allowed is '
+            'read-only, set only at launch: start the bridge with commands_allowed: true '
+            '(params file or --ros-args -p commands_allowed:=true) to let commands be enabled')
+
+
 class BridgeNode(Node):
     """Bridge battery-management CAN devices to ROS topics and diagnostics."""
 
@@ -87,6 +94,8 @@ class BridgeNode(Node):
         self.devices: dict[str, Device] = {}
         self.commanders: dict[str, Any] = {}
         self.commands_enabled = False
+        self.commands_allowed = False
+        self.commands_changes = 0  # run-time changes of commands_enabled (diagnostics)
         self.can_io: CanIo | None = None
         self._ready = False
         # (device name, BatteryReport, extra arrays) per primary frame, oldest first.
@@ -122,7 +131,11 @@ class BridgeNode(Node):
         bus = self.params.declare_all('can.', BUS_PARAMS)
         node = self.params.declare_all('', NODE_PARAMS)
         self.diagnostics_period = node['diagnostics_period']
+        self.commands_allowed = node['commands_allowed']
         self.commands_enabled = node['commands_enabled']
+        if self.commands_enabled and not self.commands_allowed:
+            self.params.errors.append(arming_refused())
+            self.commands_enabled = False
         try:
             options = parse_options(bus['options'])
         except ValueError as exc:
@@ -203,7 +216,10 @@ class BridgeNode(Node):
         lines = [f'CAN bus {self.hardware_id}{rate}'
                  + (' (FD)' if cfg.fd else '')
                  + (f', recording to {cfg.record}' if cfg.record else '')
-                 + (', commands ENABLED' if self.commands_enabled else ', listen only')]
+                 + (', commands ENABLED (commands_enabled set at launch)'
+                    if self.commands_enabled else ', listen only')
+                 + ('' if self.commands_allowed else
+                    ' (commands_allowed is false: commands cannot be enabled)')]
         for name, device in self.devices.items():
             lines.append(f'  {name} ({device.TYPE}): '
                          + format_ids(device.arbitration_ids, device.is_extended_id))
@@ -270,6 +286,9 @@ class BridgeNode(Node):
         malformed = sum(d.frames_malformed for d in self.devices.values())
         report = convert.bus_report(status, malformed, self.bus_config.interface)
         report.values['telemetry snapshots dropped'] = str(self.snapshots_dropped)
+        report.values['commands_allowed'] = str(self.commands_allowed).lower()
+        report.values['commands_enabled'] = str(self.commands_enabled).lower()
+        report.values['commands_enabled changes'] = str(self.commands_changes)
         return report
 
     def _levels_changed(self) -> bool:
@@ -387,6 +406,10 @@ class BridgeNode(Node):
     def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         for param in parameters:
             reason = self.params.validate(param)
+            if (reason is None and self._ready and param.name == 'commands_enabled'
+                    and param.value is True and not self.commands_allowed):
+                reason = arming_refused()
+                self.get_logger().warning(f'refused: {reason}')
             if reason is None and self._ready:
                 value = self.params.value(param)
                 for commander in self.commanders.values():
@@ -411,9 +434,17 @@ class BridgeNode(Node):
         if 'commands_enabled' in changed and changed['commands_enabled'] != \
                 self.commands_enabled:
             self.commands_enabled = bool(changed['commands_enabled'])
-            self.get_logger().warning('commands ENABLED: the bridge may transmit'
-                                      if self.commands_enabled else
-                                      'commands disabled: listen only')
+            self.commands_changes += 1
+            # Who: ROS 2 hands the node the new value, never the caller (the parameter
+            # event names this node); only SROS2 decides who may make this call at all.
+            who = ('set at run time through the parameter services; the caller is not known '
+                   'to the node (restrict who may set it with SROS2: security/policy.xml)')
+            if self.commands_enabled:
+                self.get_logger().warning(f'commands_enabled false -> true ({who}): commands '
+                                          'ENABLED, the bridge may transmit')
+            else:
+                self.get_logger().warning(f'commands_enabled true -> false ({who}): commands '
+                                          'disabled, listen only')
             for commander in self.commanders.values():
                 hook = getattr(commander, 'on_commands_enabled', None)
                 if hook:

@@ -22,7 +22,11 @@ from ams_can_bridge.ros.config_params import ConfigValues
 
 
 def gate_message(node: Any, what: str) -> str:
-    """Return the refusal text while commands are disabled (names the parameter)."""
+    """Return the refusal text while commands are disabled (names the parameter(s))."""
+    if not getattr(node, 'commands_allowed', True):
+        return (f'commands_enabled is false and commands_allowed is false: to {what}, start '
+                'the bridge with commands_allowed: true (read-only, launch only), then set '
+                'commands_enabled to true; nothing was sent')
     return (f'commands_enabled is false: set the bridge parameter commands_enabled to true to '
             f'{what} (ros2 param set {node.get_fully_qualified_name()} commands_enabled true); '
             'nothing was sent')
