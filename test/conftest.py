@@ -1,7 +1,28 @@
-"""Test-wide settings: DDS stays on this machine, each run on its own domain."""
+"""
+Test-wide settings: DDS stays on this machine, each run on its own domain; hypothesis profiles.
+
+Hypothesis: the ``ci`` profile (default) is derandomized, a fixed seed, so a CI run is
+reproducible; ``HYPOTHESIS_PROFILE=long ./dev test`` draws new random examples, many more
+of them (``examples(n)`` scales the explicit counts of the slow node-level fuzz tests).
+"""
 import os
 import random
+
+from hypothesis import HealthCheck, settings
 
 # Network rule: never let DDS discovery leave the machine, and keep test runs apart.
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.Random(os.getpid()).randint(100, 200)))
+
+settings.register_profile('ci', derandomize=True, deadline=None, database=None,
+                          print_blob=True)
+settings.register_profile('long', deadline=None, max_examples=1000,
+                          suppress_health_check=[HealthCheck.too_slow])
+PROFILE = os.environ.get('HYPOTHESIS_PROFILE', 'ci')
+settings.load_profile(PROFILE)
+LONG_FACTOR = 20  # how many more examples the long profile runs in the node-level fuzz
+
+
+def examples(n: int) -> int:
+    """Return n examples in CI, LONG_FACTOR x n with HYPOTHESIS_PROFILE=long."""
+    return n * LONG_FACTOR if PROFILE == 'long' else n

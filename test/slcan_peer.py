@@ -150,6 +150,14 @@ class SlcanPeer:
             return False
         return self._write(frame_to_slcan(frame))
 
+    def send_remote(self, arbitration_id: int, dlc: int, extended: bool = False) -> bool:
+        """Deliver a remote frame ('r' / 'R' line) to the bus user."""
+        if not self.is_open or self._master < 0:
+            self.dropped += 1
+            return False
+        head = f'R{arbitration_id:08X}' if extended else f'r{arbitration_id:03X}'
+        return self._write(f'{head}{dlc:d}'.encode() + OK)
+
     def received(self, clear: bool = False) -> list[Frame]:
         """Return the frames the user transmitted so far (optionally forgetting them)."""
         with self._cond:

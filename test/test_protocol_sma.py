@@ -179,7 +179,12 @@ def test_any_frame_decodes_or_is_malformed(frame_id, data):
 @given(st.binary(min_size=8, max_size=8))
 def test_limits_and_battery_round_trip(data):
     assert CODEC.encode(CODEC.decode(0x351, data)).data == data
-    assert CODEC.encode(CODEC.decode(0x356, data[:6])).data == data[:6]
+    temperature = int.from_bytes(data[4:6], 'little', signed=True)
+    if temperature < -2731.5 and temperature != -0x8000:  # below absolute zero: no reading
+        with pytest.raises(MalformedFrameError, match='below absolute zero'):
+            CODEC.decode(0x356, data[:6])
+    else:
+        assert CODEC.encode(CODEC.decode(0x356, data[:6])).data == data[:6]
 
 
 @settings(max_examples=200, deadline=None)
@@ -197,3 +202,21 @@ def test_flags_round_trip(pairs):
 def test_soc_round_trip(soc, soh, hires):
     message = SmaSoc(soc, soh, hires)
     assert CODEC.decode(0x355, CODEC.encode(message).data) == message
+
+
+@pytest.mark.parametrize('data, reason', [
+    (bytes([101, 0, 100, 0]), 'SoC 101 % is above 100 %'),
+    (bytes([50, 0, 100, 0, 0x11, 0x27]), 'high-resolution SoC 100.01 % is above 100 %'),
+])
+def test_a_state_of_charge_above_100_percent_is_malformed(data, reason):
+    with pytest.raises(MalformedFrameError, match=reason):
+        CODEC.decode(0x355, data)
+    assert CODEC.decode(0x355, bytes([100, 0, 100, 0, 0x10, 0x27])).soc_hires_pct == 100.0
+
+
+def test_a_temperature_below_absolute_zero_is_malformed():
+    with pytest.raises(MalformedFrameError, match='-273.2 degC is below absolute zero'):
+        CODEC.decode(0x356, bytes([0, 0, 0, 0]) + (-2732).to_bytes(2, 'little', signed=True))
+    reading = CODEC.decode(0x356, bytes([0, 0, 0, 0]) + (-2731).to_bytes(2, 'little',
+                                                                         signed=True))
+    assert reading.temperature_c == pytest.approx(-273.1)

@@ -151,6 +151,9 @@ class SmaBatteryInfo:
 SmaReading = Union[SmaLimits, SmaSoc, SmaBattery, SmaAlarms, SmaManufacturer, SmaBatteryInfo]
 
 
+ABSOLUTE_ZERO_C = -273.15
+
+
 def _u16(data: bytes, i: int, scale: int = 1) -> float | int | None:
     if len(data) < i + 2:
         return None
@@ -242,11 +245,20 @@ class SmaCodec:
 
     @staticmethod
     def _soc(data: bytes) -> SmaSoc:
-        return SmaSoc(_u16(data, 0), _u16(data, 2), _u16(data, 4, 100))
+        soc = SmaSoc(_u16(data, 0), _u16(data, 2), _u16(data, 4, 100))
+        # A state of charge above 100 % is no reading: it would publish percentage > 1.
+        for name, value in (('SoC', soc.soc_pct), ('high-resolution SoC', soc.soc_hires_pct)):
+            if value is not None and value > 100:
+                raise MalformedFrameError(SOC_ID, data, f'{name} {value:g} % is above 100 %')
+        return soc
 
     @staticmethod
     def _battery(data: bytes) -> SmaBattery:
-        return SmaBattery(_s16(data, 0, 100), _s16(data, 2, 10), _s16(data, 4, 10))
+        battery = SmaBattery(_s16(data, 0, 100), _s16(data, 2, 10), _s16(data, 4, 10))
+        if battery.temperature_c is not None and battery.temperature_c < ABSOLUTE_ZERO_C:
+            raise MalformedFrameError(BATTERY_ID, data, f'temperature {battery.temperature_c:g} '
+                                      'degC is below absolute zero')
+        return battery
 
     @staticmethod
     def _alarms(data: bytes) -> SmaAlarms:
