@@ -36,7 +36,7 @@ CAN_ERR_BUSOFF = 0x40  # would make the bridge reopen the bus: bus faults are te
 
 
 def replica() -> DeviceSet:
-    """The devices of PARAMS, built without ROS exactly as the node builds its own."""
+    """Build the devices of PARAMS without ROS, exactly as the node builds its own."""
     return DeviceSet(DEVICES, lambda name, spec: PARAMS.get(name, spec.default))
 
 
@@ -44,7 +44,7 @@ IDS = replica().filters
 
 
 def marker(soc: int) -> Frame:
-    """A valid BMS16 status frame whose SoC identifies the end of a stream."""
+    """Return a valid BMS16 status frame whose SoC identifies the end of a stream."""
     return Frame(BMS16_STATUS, bytes([0, soc, 0x0B, 0x02, 0x7D, 0x80, 25]))
 
 
