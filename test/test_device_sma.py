@@ -30,7 +30,8 @@ DISCHARGING = bytes([0x03, 0x14, 0x83, 0xFF, 0xFD, 0x00])
 def test_ids_and_constants():
     device, _ = make()
     assert device.TYPE == 'sma' and device.DEFAULT_BASE_ID is None
-    assert device.arbitration_ids == {0x351, 0x355, 0x356, 0x35A, 0x35E, 0x35F}
+    assert device.arbitration_ids == {0x351, 0x355, 0x356, 0x35A, 0x35E, 0x35F,
+                                      0x359, 0x35C, *range(0x370, 0x378)}
     assert device.stale_timeout == 5 * device.BROADCAST_PERIOD
 
 

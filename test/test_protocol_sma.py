@@ -7,6 +7,7 @@ from ams_can_bridge.protocols.common import (
 from ams_can_bridge.protocols.sma import (
     SMA_CONDITIONS, SMA_IDS, SmaAlarms, SmaBattery, SmaBatteryInfo, SmaCodec, SmaFlag,
     SmaLimits, SmaManufacturer, SmaSoc)
+from ams_can_bridge.protocols.sma_dialects import DIALECT_IDS
 from helpers import assert_decodes_or_malformed, load_dbc_strictly
 
 CODEC = SmaCodec()
@@ -15,8 +16,8 @@ DBC = str(msg_defs_dir() / 'sma.dbc')
 
 def test_dbc_loads_strictly_in_cantools_and_canmatrix_without_warnings(caplog):
     db, matrix = load_dbc_strictly(DBC, caplog)
-    assert {m.frame_id for m in db.messages} == set(SMA_IDS)
-    assert len(matrix.frames) == 6
+    assert {m.frame_id for m in db.messages} == set(SMA_IDS) | set(DIALECT_IDS)
+    assert len(matrix.frames) == 16
     flags = db.get_message_by_frame_id(0x35A)
     assert len(flags.signals) == 32
     assert flags.get_signal_by_name('Warning_CellImbalance').choices == {
@@ -24,7 +25,8 @@ def test_dbc_loads_strictly_in_cantools_and_canmatrix_without_warnings(caplog):
 
 
 def test_ids_are_fixed():
-    assert CODEC.arbitration_ids == {0x351, 0x355, 0x356, 0x35A, 0x35E, 0x35F}
+    assert CODEC.arbitration_ids == {0x351, 0x355, 0x356, 0x35A, 0x35E, 0x35F,
+                                     0x359, 0x35C, *range(0x370, 0x378)}
 
 
 def test_limits_golden():
@@ -170,7 +172,7 @@ def test_encoders_refuse_what_the_wire_cannot_carry():
 
 
 @settings(max_examples=200, deadline=None)
-@given(st.sampled_from(sorted(SMA_IDS)), st.binary(max_size=8))
+@given(st.sampled_from(sorted(SMA_IDS | DIALECT_IDS)), st.binary(max_size=8))
 def test_any_frame_decodes_or_is_malformed(frame_id, data):
     assert_decodes_or_malformed(CODEC, frame_id, data)
 

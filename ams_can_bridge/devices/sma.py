@@ -1,22 +1,39 @@
 """
-SMA Sunny Island protocol BMS state: 0x351..0x35F -> BatteryState, diagnostics.
+SMA Sunny Island protocol BMS state: 0x351..0x35F and its dialects -> BatteryState, diagnostics.
 
 Fixed IDs (no base_id). The primary frame is 0x356 (voltage, current, temperature); SoC comes
 from 0x355 (the high-resolution SoC when the BMS sends one), capacity from 0x35F. The wire
 current is already positive while charging, the ROS sign. "Not available" markers become NaN.
+
+Dialects (``protocols.sma_dialects``): Pylontech-style BMSs send their alarms in 0x359
+instead of 0x35A; an active 0x359 alarm is ERROR and a warning WARN, exactly as in 0x35A,
+and both feed the health. 0x35C (charge / discharge enable), the module counts (0x359, 0x372)
+and the Victron name and cell ids are diagnostics values. Victron's 0x373 (min/max cell
+voltage and temperature) is shown in V and degC and gives BatteryState.temperature (the
+hottest cell) when 0x356 carries none.
+
+Every frame (group) expires on its own: a value older than ``stale_timeout`` is unknown
+again (NaN, left out of the diagnostics values and listed under 'frames expired'), so a BMS
+that keeps sending 0x356 but stops sending 0x35A never shows old alarms as current. The
+identity frames (0x35E, 0x35F, 0x370, 0x371) come slowly and keep for IDENTITY_TIMEOUT.
 """
 from __future__ import annotations
 
 import math
 import time
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Hashable, Mapping
 
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, ParamSpec,
     PowerSupplyHealth)
 from ams_can_bridge.protocols.sma import (
-    SmaAlarms, SmaBattery, SmaBatteryInfo, SmaCodec, SmaLimits, SmaManufacturer, SmaReading,
-    SmaSoc)
+    ALARMS_ID, BATTERY_ID, INFO_ID, LIMITS_ID, MANUFACTURER_ID, SmaAlarms, SmaBattery,
+    SmaBatteryInfo, SmaCodec, SmaLimits, SmaManufacturer, SmaReading, SmaSoc, SOC_ID)
+from ams_can_bridge.protocols.sma_dialects import (
+    CELL_ID_KINDS, PYLONTECH_ALARMS_ID, PYLONTECH_CONDITION_NAMES, PYLONTECH_REQUEST_ID,
+    PylontechAlarms, PylontechRequest, VICTRON_BMS_NAME1_ID, VICTRON_CELL_EXTREMES_ID,
+    VICTRON_MIN_VOLTAGE_CELL_ID, VICTRON_MODULES_ID, VictronBmsName, VictronCellExtremes,
+    VictronCellId, VictronModules)
 
 # Alarm -> BatteryState health, first match wins (the most specific health first).
 ALARM_HEALTH = (
@@ -27,6 +44,32 @@ ALARM_HEALTH = (
     ('low_temperature', PowerSupplyHealth.COLD),
     ('low_temperature_charge', PowerSupplyHealth.COLD),
 )
+# s: names and battery info are sent every few seconds, often less often than the rest.
+IDENTITY_TIMEOUT = 30.0
+
+# group key -> CAN ID (a group is one frame; the Victron texts share a type, so the key
+# adds the part / kind).
+GROUP_IDS: dict[Hashable, int] = {
+    SmaLimits: LIMITS_ID, SmaSoc: SOC_ID, SmaBattery: BATTERY_ID, SmaAlarms: ALARMS_ID,
+    SmaManufacturer: MANUFACTURER_ID, SmaBatteryInfo: INFO_ID,
+    PylontechAlarms: PYLONTECH_ALARMS_ID, PylontechRequest: PYLONTECH_REQUEST_ID,
+    (VictronBmsName, 1): VICTRON_BMS_NAME1_ID, (VictronBmsName, 2): VICTRON_BMS_NAME1_ID + 1,
+    VictronModules: VICTRON_MODULES_ID, VictronCellExtremes: VICTRON_CELL_EXTREMES_ID,
+    **{(VictronCellId, kind): VICTRON_MIN_VOLTAGE_CELL_ID + k
+       for k, kind in enumerate(CELL_ID_KINDS)},
+}
+IDENTITY_GROUPS = frozenset({SmaManufacturer, SmaBatteryInfo, (VictronBmsName, 1),
+                             (VictronBmsName, 2)})
+ALARM_GROUPS = (SmaAlarms, PylontechAlarms)
+
+
+def group_key(reading: Any) -> Hashable:
+    """Return the key a reading is kept under: its type, with the part for Victron texts."""
+    if isinstance(reading, VictronBmsName):
+        return (VictronBmsName, reading.part)
+    if isinstance(reading, VictronCellId):
+        return (VictronCellId, reading.kind)
+    return type(reading)
 
 
 def _fmt(value: float | int | None, unit: str = '') -> str:
@@ -35,12 +78,20 @@ def _fmt(value: float | int | None, unit: str = '') -> str:
     return f'{value:g}' + (f' {unit}' if unit else '')
 
 
+def _fixed(value: float | None, decimals: int) -> str:
+    return 'not available' if value is None else f'{value:.{decimals}f}'
+
+
 def _nan(value: float | int | None) -> float:
     return NAN if value is None else float(value)
 
 
-def sma_values(readings: Mapping[type, SmaReading], prefix: str = '') -> dict[str, str]:
-    """Diagnostic values of every SMA message received so far (keyed by reading type)."""
+def _yes(flag: bool) -> str:
+    return 'yes' if flag else 'no'
+
+
+def sma_values(readings: Mapping[Hashable, SmaReading], prefix: str = '') -> dict[str, str]:
+    """Diagnostic values of every SMA message in readings (keyed by ``group_key``)."""
     values: dict[str, str] = {}
     limits = readings.get(SmaLimits)
     if limits is not None:
@@ -74,11 +125,49 @@ def sma_values(readings: Mapping[type, SmaReading], prefix: str = '') -> dict[st
         values[prefix + 'battery type'] = _fmt(info.battery_type)
         values[prefix + 'bms version'] = _fmt(info.bms_version)
         values[prefix + 'capacity Ah'] = _fmt(info.capacity_ah)
+    values.update(_dialect_values(readings, prefix))
+    return values
+
+
+def _dialect_values(readings: Mapping[Hashable, Any], prefix: str) -> dict[str, str]:
+    values: dict[str, str] = {}
+    pylon = readings.get(PylontechAlarms)
+    if pylon is not None:
+        values[prefix + 'alarms active (0x359)'] = ', '.join(pylon.active_alarms) or 'none'
+        values[prefix + 'warnings active (0x359)'] = ', '.join(pylon.active_warnings) or 'none'
+        for name in PYLONTECH_CONDITION_NAMES:
+            for kind, active in (('alarm', pylon.alarms), ('warning', pylon.warnings)):
+                values[f'{prefix}{kind} {name} (0x359)'] = 'ACTIVE' if name in active else 'OK'
+        values[prefix + 'module count'] = _fmt(pylon.module_count)
+    request = readings.get(PylontechRequest)
+    if request is not None:
+        values[prefix + 'charge enable'] = _yes(request.charge_enable)
+        values[prefix + 'discharge enable'] = _yes(request.discharge_enable)
+        values[prefix + 'request charge immediately'] = _yes(request.request_charge_immediately)
+    parts = [readings.get((VictronBmsName, p)) for p in (1, 2)]
+    if any(parts):
+        values[prefix + 'bms name'] = ''.join(p.text if p else '' for p in parts)
+    modules = readings.get(VictronModules)
+    if modules is not None:
+        values[prefix + 'modules OK'] = _fmt(modules.ok)
+        values[prefix + 'modules blocking charge'] = _fmt(modules.blocking_charge)
+        values[prefix + 'modules blocking discharge'] = _fmt(modules.blocking_discharge)
+        values[prefix + 'modules offline'] = _fmt(modules.offline)
+    cells = readings.get(VictronCellExtremes)
+    if cells is not None:
+        values[prefix + 'min cell voltage V'] = _fixed(cells.min_cell_v, 3)
+        values[prefix + 'max cell voltage V'] = _fixed(cells.max_cell_v, 3)
+        values[prefix + 'min cell temperature degC'] = _fixed(cells.min_temperature_c, 2)
+        values[prefix + 'max cell temperature degC'] = _fixed(cells.max_temperature_c, 2)
+    for kind in CELL_ID_KINDS:
+        cell_id = readings.get((VictronCellId, kind))
+        if cell_id is not None:
+            values[f'{prefix}{kind.replace("_", " cell ")} id'] = cell_id.text
     return values
 
 
 class SmaDevice(Device):
-    """One BMS speaking the SMA Sunny Island protocol (fixed IDs 0x351..0x35F)."""
+    """One BMS speaking the SMA Sunny Island protocol or its Pylontech / Victron dialects."""
 
     TYPE = 'sma'
     # Typical SMA-protocol BMSs send every 1 s (the BMS16 at 4 Hz): the default stale
@@ -91,66 +180,112 @@ class SmaDevice(Device):
                  clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__(name, params, clock)
         self.codec = SmaCodec()
-        self.readings: dict[type, SmaReading] = {}
+        self.readings: dict[Hashable, SmaReading] = {}
+        self.seen: dict[Hashable, float] = {}  # group key -> clock() of its last frame
         self.battery_stamp = NAN
 
     def _handle(self, reading: Any, stamp: float) -> bool:
-        self.readings[type(reading)] = reading
+        key = group_key(reading)
+        self.readings[key] = reading
+        self.seen[key] = self.clock()
         if isinstance(reading, SmaBattery):
             self.battery_stamp = stamp
             return True
         return False
 
+    def group_timeout(self, key: Hashable) -> float:
+        """Seconds a group's values stay valid after its frame."""
+        if key in IDENTITY_GROUPS:
+            return max(self.stale_timeout, IDENTITY_TIMEOUT)
+        return self.stale_timeout
+
+    def _fresh(self) -> tuple[dict[Hashable, Any], dict[Hashable, float]]:
+        """Split the readings (lock held): (fresh ones, {expired key: seconds silent})."""
+        now = self.clock()
+        fresh, expired = {}, {}
+        for key, reading in self.readings.items():
+            silent = now - self.seen[key]
+            if silent > self.group_timeout(key):
+                expired[key] = silent
+            else:
+                fresh[key] = reading
+        return fresh, expired
+
     def _battery_report(self) -> BatteryReport:
+        readings, _ = self._fresh()
         report = BatteryReport()
-        soc = self.readings.get(SmaSoc)
+        soc = readings.get(SmaSoc)
         if soc is not None:
             pct = soc.soc_hires_pct if soc.soc_hires_pct is not None else soc.soc_pct
             report.percentage = _nan(pct) / 100
-        info = self.readings.get(SmaBatteryInfo)
+        info = readings.get(SmaBatteryInfo)
         if info is not None:
             report.capacity = report.design_capacity = _nan(info.capacity_ah)
             if not math.isnan(report.capacity):
                 report.charge = report.capacity * report.percentage
-        alarms = self.readings.get(SmaAlarms)
-        if alarms is not None:
-            report.power_supply_health = self._health(alarms)
-        battery = self.readings.get(SmaBattery)
+        if any(k in readings for k in ALARM_GROUPS):
+            report.power_supply_health = self._health(readings)
+        battery = readings.get(SmaBattery)
         if battery is None:
             return report
         report.stamp = self.battery_stamp
         report.voltage = _nan(battery.voltage_v)
         report.current = _nan(battery.current_a)
         report.temperature = _nan(battery.temperature_c)
+        cells = readings.get(VictronCellExtremes)
+        if math.isnan(report.temperature) and cells is not None:
+            report.temperature = _nan(cells.max_temperature_c)  # the hottest cell
         report.power_supply_status = current_status(report.current)
         report.present = True
         return report
 
     @staticmethod
-    def _health(alarms: SmaAlarms) -> PowerSupplyHealth:
-        active = alarms.active_alarms
+    def _active(readings: Mapping[Hashable, Any]) -> tuple[list[str], list[str]]:
+        """Active alarm and warning names of 0x35A and 0x359 together, without repeats."""
+        alarms: list[str] = []
+        warnings: list[str] = []
+        for key in ALARM_GROUPS:
+            flags = readings.get(key)
+            if flags is not None:
+                alarms += [n for n in flags.active_alarms if n not in alarms]
+                warnings += [n for n in flags.active_warnings if n not in warnings]
+        return alarms, warnings
+
+    def _health(self, readings: Mapping[Hashable, Any]) -> PowerSupplyHealth:
+        active, _ = self._active(readings)
         for name, health in ALARM_HEALTH:
             if name in active:
                 return health
         return PowerSupplyHealth.UNSPEC_FAILURE if active else PowerSupplyHealth.GOOD
 
     def _diagnostic_report(self) -> DiagnosticReport:
-        values = sma_values(self.readings)
+        readings, expired = self._fresh()
+        values = sma_values(readings)
+        if expired:
+            values['frames expired'] = ', '.join(
+                f'0x{GROUP_IDS[k]:X} ({s:.1f} s ago)' for k, s in sorted(
+                    expired.items(), key=lambda item: GROUP_IDS[item[0]]))
         level = Level.OK
         parts: list[str] = []
-        alarms = self.readings.get(SmaAlarms)
-        if alarms is not None and alarms.active_alarms:
+        alarms, warnings = self._active(readings)
+        if alarms:
             level = Level.ERROR
-            parts.append('alarms ' + ', '.join(alarms.active_alarms))
-        if alarms is not None and alarms.active_warnings:
+            parts.append('alarms ' + ', '.join(alarms))
+        if warnings:
             level = max(level, Level.WARN)
-            parts.append('warnings ' + ', '.join(alarms.active_warnings))
-        if alarms is None:
-            parts.append('no alarm frame (0x35A) yet')
+            parts.append('warnings ' + ', '.join(warnings))
+        if not any(k in readings for k in ALARM_GROUPS):
+            gone = [k for k in ALARM_GROUPS if k in expired]
+            if gone:
+                level = max(level, Level.WARN)
+                parts.append(f'alarm frame 0x{GROUP_IDS[gone[0]]:X} silent for '
+                             f'{expired[gone[0]]:.1f} s: alarms unknown')
+            else:
+                parts.append('no alarm frame (0x35A or 0x359) yet')
         elif level == Level.OK:
             parts.append('OK')
-        battery = self.readings.get(SmaBattery)
-        soc = self.readings.get(SmaSoc)
+        battery = readings.get(SmaBattery)
+        soc = readings.get(SmaSoc)
         if battery is not None:
             summary = (f'{_fmt(battery.voltage_v, "V")}, {_fmt(battery.current_a, "A")}')
             if soc is not None:

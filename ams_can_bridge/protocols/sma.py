@@ -11,7 +11,8 @@ and by the ZEVA BMS16 next to its own frames:
   S16 0.1 degC;
 - 0x35A alarms (bytes 0..3) and warnings (bytes 4..7), 2 bits per condition
   (1 active, 2 OK, 0 or 3 not supported);
-- 0x35E manufacturer name, ASCII; 0x35F battery type, BMS version, capacity Ah.
+- 0x35E manufacturer name, ASCII; 0x35F battery type, BMS version, capacity Ah;
+- the Pylontech (0x359, 0x35C) and Victron (0x370..0x377) dialects: ``sma_dialects``.
 
 Decisions:
 
@@ -34,6 +35,9 @@ from typing import Union
 
 from ams_can_bridge.protocols.common import (
     check_dlc, check_range, EncodeRangeError, Frame, load_dbc, MalformedFrameError)
+from ams_can_bridge.protocols.sma_dialects import (
+    ascii_text, decode_dialect, DIALECT_DECODERS, DIALECT_IDS, DialectReading, encode_ascii,
+    encode_dialect, PYLONTECH_ALARMS_ID, VICTRON_CELL_EXTREMES_ID, VICTRON_MODULES_ID)
 
 LIMITS_ID = 0x351
 SOC_ID = 0x355
@@ -148,7 +152,8 @@ class SmaBatteryInfo:
     capacity_ah: int | None
 
 
-SmaReading = Union[SmaLimits, SmaSoc, SmaBattery, SmaAlarms, SmaManufacturer, SmaBatteryInfo]
+SmaReading = Union[SmaLimits, SmaSoc, SmaBattery, SmaAlarms, SmaManufacturer, SmaBatteryInfo,
+                   DialectReading]
 
 
 ABSOLUTE_ZERO_C = -273.15
@@ -202,6 +207,12 @@ _DBC_LAYOUT = {
     (ALARMS_ID, 'Warning_General'): (32, 2, 1, False),
     (ALARMS_ID, 'Warning_Generator'): (62, 2, 1, False),
     (INFO_ID, 'Capacity'): (32, 16, 1, False),
+    (PYLONTECH_ALARMS_ID, 'Alarm_OverVoltage'): (1, 1, 1, False),
+    (PYLONTECH_ALARMS_ID, 'Warning_BmsInternal'): (27, 1, 1, False),
+    (PYLONTECH_ALARMS_ID, 'ModuleCount'): (32, 8, 1, False),
+    (VICTRON_MODULES_ID, 'NumberOfModulesOffline'): (48, 16, 1, False),
+    (VICTRON_CELL_EXTREMES_ID, 'MinCellVoltage'): (0, 16, 0.001, False),
+    (VICTRON_CELL_EXTREMES_ID, 'HighestCellTemperature'): (48, 16, 1, False),
 }
 
 
@@ -217,10 +228,10 @@ def check_dbc() -> None:
 
 
 class SmaCodec:
-    """Decode and encode the SMA BMS frames 0x351, 0x355, 0x356, 0x35A, 0x35E, 0x35F."""
+    """Decode and encode the SMA BMS frames 0x351..0x35F and the dialects' 0x359..0x377."""
 
     is_extended_id = False
-    arbitration_ids = SMA_IDS
+    arbitration_ids = SMA_IDS | DIALECT_IDS
 
     def __init__(self) -> None:
         check_dbc()
@@ -234,6 +245,8 @@ class SmaCodec:
         """Decode one frame; MalformedFrameError for an unknown ID or a DLC out of range."""
         decoder = self._decoders.get(arbitration_id)
         if decoder is None:
+            if arbitration_id in DIALECT_DECODERS:
+                return decode_dialect(arbitration_id, data)
             raise MalformedFrameError(arbitration_id, data, 'not an SMA BMS ID')
         check_dlc(arbitration_id, data, DLC_RANGE[arbitration_id])
         return decoder(data)
@@ -275,8 +288,7 @@ class SmaCodec:
 
     @staticmethod
     def _manufacturer(data: bytes) -> SmaManufacturer:
-        text = bytes(data).rstrip(b'\x00 ')
-        return SmaManufacturer(''.join(chr(b) if 0x20 <= b < 0x7F else '?' for b in text))
+        return SmaManufacturer(ascii_text(data))
 
     @staticmethod
     def _info(data: bytes) -> SmaBatteryInfo:
@@ -305,17 +317,13 @@ class SmaCodec:
         if isinstance(message, SmaAlarms):
             return Frame(ALARMS_ID, self._encode_flags(message))
         if isinstance(message, SmaManufacturer):
-            name = message.name
-            if (not isinstance(name, str) or not 1 <= len(name) <= 8
-                    or not all(0x20 <= ord(c) < 0x7F for c in name)):
-                raise EncodeRangeError('sma.manufacturer', name, '1..8 printable ASCII chars')
-            return Frame(MANUFACTURER_ID, name.encode('ascii').ljust(8, b'\x00'))
+            return Frame(MANUFACTURER_ID, encode_ascii('sma.manufacturer', message.name))
         if isinstance(message, SmaBatteryInfo):
             data = (_put_u16('battery_type', message.battery_type, 1, '')
                     + _put_u16('bms_version', message.bms_version, 1, '')
                     + _put_u16('capacity_ah', message.capacity_ah, 1, 'Ah'))
             return Frame(INFO_ID, data)
-        raise TypeError(f'not an SMA message: {message!r}')
+        return encode_dialect(message)
 
     @staticmethod
     def _encode_flags(message: SmaAlarms) -> bytes:

@@ -63,6 +63,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help='BMS12 modules behind the EVMS3, 0..16')
     p.add_argument('--ivt-byte-order', choices=('big', 'little'), default=None,
                    help='IVT-S result byte order (default big)')
+    p.add_argument('--sma-dialect', choices=('sma', 'pylontech', 'victron'), default=None,
+                   help='frames the SMA BMS sends beyond 0x351..0x35F: sma (0x35A alarms), '
+                        'pylontech (0x359 alarms and 0x35C instead of 0x35A) or victron '
+                        '(0x35A plus 0x370..0x377); default sma')
     p.add_argument('--fault', type=_fault, action='append', default=[],
                    metavar='DEVICE:KIND[=VALUE]',
                    help='inject a fault: silent, malformed, error=CODE, drift=VOLTS, '
@@ -79,7 +83,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def build_devices(types: Sequence[str], ams_banks: int | None = None,
                   bms12_modules: int | None = None,
-                  ivt_byte_order: str | None = None) -> list[SimDevice]:
+                  ivt_byte_order: str | None = None,
+                  sma_dialect: str | None = None) -> list[SimDevice]:
     """Instantiate the simulators named by type (instance name = type name)."""
     devices: list[SimDevice] = []
     ams = None
@@ -90,6 +95,8 @@ def build_devices(types: Sequence[str], ams_banks: int | None = None,
             kwargs['bank_count'] = ams_banks
         elif kind == 'evms3' and bms12_modules is not None:
             kwargs['bms12_modules'] = bms12_modules
+        elif kind == 'sma' and sma_dialect is not None:
+            kwargs['dialect'] = sma_dialect
         elif kind == 'bms16' and 'sma' in types and _accepts(cls, 'send_sma'):
             # The BMS16 also speaks SMA (0x351...): two sources of one ID would clash.
             kwargs['send_sma'] = False
@@ -154,7 +161,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         options = parse_options(args.option)
         devices = build_devices(args.devices, args.ams_banks, args.bms12_modules,
-                                args.ivt_byte_order)
+                                args.ivt_byte_order, args.sma_dialect)
         apply_faults(devices, args.fault)
     except (ValueError, TypeError, ImportError) as exc:
         print(f'simulator: {exc}', file=sys.stderr)

@@ -1,0 +1,290 @@
+"""
+The SMA protocol's dialects: frames many SMA-speaking BMSs send next to (or instead of) 0x35A.
+
+The facts (not in the seed documents; confirmed from public vendor firmware and
+widely used open implementations of the Pylontech and Victron CAN protocols):
+
+- Pylontech (and the many BMSs that copy it) send **0x359** instead of 0x35A: byte 0 alarms
+  (bit 1 over-voltage, bit 2 under-voltage, bit 3 over-temperature, bit 4 under-temperature,
+  bit 7 discharge over-current), byte 1 alarms (bit 0 charge over-current, bit 3 BMS
+  internal), bytes 2 and 3 the same bits as warnings, byte 4 the module count; and **0x35C**
+  byte 0: bit 7 charge enable, bit 6 discharge enable, bit 5 request to charge immediately.
+- Victron-compatible BMSs add **0x370/0x371** (BMS name, ASCII, 8 + 8 bytes), **0x372**
+  (U16 LE: modules OK, blocking charge, blocking discharge, offline), **0x373** (U16 LE: min
+  cell mV, max cell mV, min cell temperature K, max cell temperature K) and **0x374..0x377**
+  (ASCII ids of the min/max voltage cell and the min/max temperature cell).
+
+Decisions:
+
+- The 0x359 conditions carry the SMA 0x35A names (``high_voltage`` for over-voltage, ...), so
+  an alarm means the same to the device whichever dialect reported it. Bits the dialect does
+  not define are ignored (copies of the Pylontech frame use them differently); 0x359 bytes
+  after byte 4 and 0x35C bytes after byte 0 are not interpreted.
+- Accepted DLCs: 0x359 4..8 (DLC 4: module count not sent, None), 0x35C 1..8, 0x372 and
+  0x373 8, the ASCII frames 1..8. Anything else is malformed.
+- 0xFFFF in a U16 field of 0x372/0x373 is "not available" (None), as in the SMA frames.
+  A min cell voltage above the max one (or a min temperature above the max) is malformed.
+- ASCII: trailing NUL / space padding dropped, a non-printable byte becomes '?'.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Union
+
+from ams_can_bridge.protocols.common import (
+    check_dlc, check_range, EncodeRangeError, Frame, MalformedFrameError)
+
+# Pylontech
+PYLONTECH_ALARMS_ID = 0x359
+PYLONTECH_REQUEST_ID = 0x35C
+# Victron
+VICTRON_BMS_NAME1_ID = 0x370
+VICTRON_BMS_NAME2_ID = 0x371
+VICTRON_MODULES_ID = 0x372
+VICTRON_CELL_EXTREMES_ID = 0x373
+VICTRON_MIN_VOLTAGE_CELL_ID = 0x374
+VICTRON_MAX_VOLTAGE_CELL_ID = 0x375
+VICTRON_MIN_TEMPERATURE_CELL_ID = 0x376
+VICTRON_MAX_TEMPERATURE_CELL_ID = 0x377
+
+PYLONTECH_IDS = frozenset({PYLONTECH_ALARMS_ID, PYLONTECH_REQUEST_ID})
+VICTRON_IDS = frozenset(range(VICTRON_BMS_NAME1_ID, VICTRON_MAX_TEMPERATURE_CELL_ID + 1))
+DIALECT_IDS = PYLONTECH_IDS | VICTRON_IDS
+_ASCII_DLC = tuple(range(1, 9))
+DIALECT_DLC = {
+    PYLONTECH_ALARMS_ID: (4, 5, 6, 7, 8), PYLONTECH_REQUEST_ID: _ASCII_DLC,
+    VICTRON_BMS_NAME1_ID: _ASCII_DLC, VICTRON_BMS_NAME2_ID: _ASCII_DLC,
+    VICTRON_MODULES_ID: (8,), VICTRON_CELL_EXTREMES_ID: (8,),
+    VICTRON_MIN_VOLTAGE_CELL_ID: _ASCII_DLC, VICTRON_MAX_VOLTAGE_CELL_ID: _ASCII_DLC,
+    VICTRON_MIN_TEMPERATURE_CELL_ID: _ASCII_DLC, VICTRON_MAX_TEMPERATURE_CELL_ID: _ASCII_DLC,
+}
+INVALID_U16 = 0xFFFF
+KELVIN_OFFSET = 273.15
+
+# 0x359: condition -> (byte of the alarm, bit); the warning is the same bit two bytes on.
+PYLONTECH_CONDITIONS = (
+    ('high_voltage', 0, 1), ('low_voltage', 0, 2), ('high_temperature', 0, 3),
+    ('low_temperature', 0, 4), ('high_discharge_current', 0, 7),
+    ('high_charge_current', 1, 0), ('bms_internal', 1, 3),
+)
+PYLONTECH_CONDITION_NAMES = tuple(name for name, _, _ in PYLONTECH_CONDITIONS)
+CHARGE_ENABLE_BIT = 7
+DISCHARGE_ENABLE_BIT = 6
+REQUEST_CHARGE_IMMEDIATELY_BIT = 5
+# 0x374..0x377 in ID order
+CELL_ID_KINDS = ('min_voltage', 'max_voltage', 'min_temperature', 'max_temperature')
+
+
+@dataclass(frozen=True)
+class PylontechAlarms:
+    """0x359: active alarms and warnings (SMA condition names) and the module count."""
+
+    alarms: frozenset[str] = frozenset()
+    warnings: frozenset[str] = frozenset()
+    module_count: int | None = None
+
+    @property
+    def active_alarms(self) -> tuple[str, ...]:
+        """Names of the active alarms, in bit order."""
+        return tuple(n for n in PYLONTECH_CONDITION_NAMES if n in self.alarms)
+
+    @property
+    def active_warnings(self) -> tuple[str, ...]:
+        """Names of the active warnings, in bit order."""
+        return tuple(n for n in PYLONTECH_CONDITION_NAMES if n in self.warnings)
+
+
+@dataclass(frozen=True)
+class PylontechRequest:
+    """0x35C: what the BMS allows and asks for."""
+
+    charge_enable: bool
+    discharge_enable: bool
+    request_charge_immediately: bool = False
+
+
+@dataclass(frozen=True)
+class VictronBmsName:
+    """0x370 (part 1) / 0x371 (part 2): the BMS name, 8 ASCII characters each."""
+
+    part: int
+    text: str
+
+
+@dataclass(frozen=True)
+class VictronModules:
+    """0x372: how many modules are OK, block charging, block discharging, are offline."""
+
+    ok: int | None
+    blocking_charge: int | None
+    blocking_discharge: int | None
+    offline: int | None
+
+
+@dataclass(frozen=True)
+class VictronCellExtremes:
+    """0x373: lowest / highest cell voltage (V) and cell temperature (K on the wire)."""
+
+    min_cell_v: float | None
+    max_cell_v: float | None
+    min_temperature_k: int | None
+    max_temperature_k: int | None
+
+    @property
+    def min_temperature_c(self) -> float | None:
+        """Lowest cell temperature in degC."""
+        return _celsius(self.min_temperature_k)
+
+    @property
+    def max_temperature_c(self) -> float | None:
+        """Highest cell temperature in degC."""
+        return _celsius(self.max_temperature_k)
+
+
+@dataclass(frozen=True)
+class VictronCellId:
+    """0x374..0x377: the ASCII id of the cell with the min/max voltage or temperature."""
+
+    kind: str  # one of CELL_ID_KINDS
+    text: str
+
+
+DialectReading = Union[PylontechAlarms, PylontechRequest, VictronBmsName, VictronModules,
+                       VictronCellExtremes, VictronCellId]
+
+
+def _celsius(kelvin: int | None) -> float | None:
+    return None if kelvin is None else round(kelvin - KELVIN_OFFSET, 2)
+
+
+def ascii_text(data: bytes) -> str:
+    """Decode an ASCII field: padding (NUL, space) dropped, odd bytes as '?'."""
+    text = bytes(data).rstrip(b'\x00 ')
+    return ''.join(chr(b) if 0x20 <= b < 0x7F else '?' for b in text)
+
+
+def encode_ascii(field: str, text: str) -> bytes:
+    """Encode 1..8 printable ASCII characters, NUL-padded to 8 bytes; EncodeRangeError else."""
+    if (not isinstance(text, str) or not 1 <= len(text) <= 8
+            or not all(0x20 <= ord(c) < 0x7F for c in text)):
+        raise EncodeRangeError(field, text, '1..8 printable ASCII chars')
+    return text.encode('ascii').ljust(8, b'\x00')
+
+
+def _u16s(data: bytes) -> list[int | None]:
+    raws = (data[i] | data[i + 1] << 8 for i in range(0, 8, 2))
+    return [None if raw == INVALID_U16 else raw for raw in raws]
+
+
+# --- decode ------------------------------------------------------------------------------------
+def _pylontech_alarms(aid: int, data: bytes) -> PylontechAlarms:
+    alarms = frozenset(n for n, byte, bit in PYLONTECH_CONDITIONS if data[byte] >> bit & 1)
+    warnings = frozenset(n for n, byte, bit in PYLONTECH_CONDITIONS
+                         if data[byte + 2] >> bit & 1)
+    return PylontechAlarms(alarms, warnings, data[4] if len(data) > 4 else None)
+
+
+def _pylontech_request(aid: int, data: bytes) -> PylontechRequest:
+    b0 = data[0]
+    return PylontechRequest(bool(b0 >> CHARGE_ENABLE_BIT & 1),
+                            bool(b0 >> DISCHARGE_ENABLE_BIT & 1),
+                            bool(b0 >> REQUEST_CHARGE_IMMEDIATELY_BIT & 1))
+
+
+def _bms_name(aid: int, data: bytes) -> VictronBmsName:
+    return VictronBmsName(aid - VICTRON_BMS_NAME1_ID + 1, ascii_text(data))
+
+
+def _modules(aid: int, data: bytes) -> VictronModules:
+    return VictronModules(*_u16s(data))
+
+
+def _cell_extremes(aid: int, data: bytes) -> VictronCellExtremes:
+    vmin, vmax, tmin, tmax = _u16s(data)
+    if vmin is not None and vmax is not None and vmin > vmax:
+        raise MalformedFrameError(aid, data, f'min cell {vmin} mV above max cell {vmax} mV')
+    if tmin is not None and tmax is not None and tmin > tmax:
+        raise MalformedFrameError(aid, data, f'min cell temperature {tmin} K above max {tmax} K')
+    return VictronCellExtremes(None if vmin is None else vmin / 1000,
+                               None if vmax is None else vmax / 1000, tmin, tmax)
+
+
+def _cell_id(aid: int, data: bytes) -> VictronCellId:
+    return VictronCellId(CELL_ID_KINDS[aid - VICTRON_MIN_VOLTAGE_CELL_ID], ascii_text(data))
+
+
+DIALECT_DECODERS: dict[int, Callable[[int, bytes], DialectReading]] = {
+    PYLONTECH_ALARMS_ID: _pylontech_alarms, PYLONTECH_REQUEST_ID: _pylontech_request,
+    VICTRON_BMS_NAME1_ID: _bms_name, VICTRON_BMS_NAME2_ID: _bms_name,
+    VICTRON_MODULES_ID: _modules, VICTRON_CELL_EXTREMES_ID: _cell_extremes,
+    **{i: _cell_id for i in range(VICTRON_MIN_VOLTAGE_CELL_ID,
+                                  VICTRON_MAX_TEMPERATURE_CELL_ID + 1)},
+}
+
+
+def decode_dialect(arbitration_id: int, data: bytes) -> DialectReading:
+    """Decode one dialect frame; MalformedFrameError for a DLC or value out of range."""
+    decoder = DIALECT_DECODERS.get(arbitration_id)
+    if decoder is None:
+        raise MalformedFrameError(arbitration_id, data, 'not a Pylontech / Victron ID')
+    check_dlc(arbitration_id, data, DIALECT_DLC[arbitration_id])
+    return decoder(arbitration_id, data)
+
+
+# --- encode (simulator, tests) ---------------------------------------------------------------
+def _put_u16(field: str, value: float | None, scale: int, unit: str) -> bytes:
+    if value is None:
+        return INVALID_U16.to_bytes(2, 'little')
+    check_range(f'sma.{field}', value, 0, (INVALID_U16 - 1) / scale, 1 / scale, unit)
+    return round(value * scale).to_bytes(2, 'little')
+
+
+def _names(field: str, names: frozenset[str]) -> frozenset[str]:
+    unknown = set(names) - set(PYLONTECH_CONDITION_NAMES)
+    if unknown:
+        raise EncodeRangeError(field, sorted(unknown),
+                               'condition names ' + ', '.join(PYLONTECH_CONDITION_NAMES))
+    return frozenset(names)
+
+
+def encode_dialect(message: DialectReading) -> Frame:
+    """Encode a dialect message; EncodeRangeError names what the wire cannot carry."""
+    if isinstance(message, PylontechAlarms):
+        data = bytearray(8)
+        for first, kind in ((0, 'alarms'), (2, 'warnings')):
+            active = _names(f'sma.pylontech.{kind}', getattr(message, kind))
+            for name, byte, bit in PYLONTECH_CONDITIONS:
+                if name in active:
+                    data[first + byte] |= 1 << bit
+        if message.module_count is not None:
+            check_range('sma.pylontech.module_count', message.module_count, 0, 255, 1)
+            data[4] = int(message.module_count)
+        return Frame(PYLONTECH_ALARMS_ID, bytes(data if message.module_count is not None
+                                                else data[:4]))
+    if isinstance(message, PylontechRequest):
+        b0 = (message.charge_enable << CHARGE_ENABLE_BIT
+              | message.discharge_enable << DISCHARGE_ENABLE_BIT
+              | message.request_charge_immediately << REQUEST_CHARGE_IMMEDIATELY_BIT)
+        return Frame(PYLONTECH_REQUEST_ID, bytes([b0, 0]))
+    if isinstance(message, VictronBmsName):
+        if message.part not in (1, 2):
+            raise EncodeRangeError('sma.victron.bms_name.part', message.part, '1 or 2')
+        return Frame(VICTRON_BMS_NAME1_ID + message.part - 1,
+                     encode_ascii('sma.victron.bms_name', message.text))
+    if isinstance(message, VictronModules):
+        data = b''.join(_put_u16(f'victron.modules_{n}', getattr(message, n), 1, '')
+                        for n in ('ok', 'blocking_charge', 'blocking_discharge', 'offline'))
+        return Frame(VICTRON_MODULES_ID, data)
+    if isinstance(message, VictronCellExtremes):
+        data = (_put_u16('victron.min_cell_v', message.min_cell_v, 1000, 'V')
+                + _put_u16('victron.max_cell_v', message.max_cell_v, 1000, 'V')
+                + _put_u16('victron.min_temperature_k', message.min_temperature_k, 1, 'K')
+                + _put_u16('victron.max_temperature_k', message.max_temperature_k, 1, 'K'))
+        return Frame(VICTRON_CELL_EXTREMES_ID, data)
+    if isinstance(message, VictronCellId):
+        if message.kind not in CELL_ID_KINDS:
+            raise EncodeRangeError('sma.victron.cell_id.kind', message.kind,
+                                   'one of ' + ', '.join(CELL_ID_KINDS))
+        return Frame(VICTRON_MIN_VOLTAGE_CELL_ID + CELL_ID_KINDS.index(message.kind),
+                     encode_ascii(f'sma.victron.{message.kind}_cell_id', message.text))
+    raise TypeError(f'not an SMA, Pylontech or Victron message: {message!r}')

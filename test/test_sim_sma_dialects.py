@@ -1,0 +1,110 @@
+"""SMA simulator dialects (--sma-dialect): what a Pylontech or Victron-style BMS sends."""
+import pytest
+
+from ams_can_bridge.devices.base import Level, PowerSupplyHealth
+from ams_can_bridge.devices.sma import SmaDevice
+from ams_can_bridge.protocols.sma import SmaCodec
+from ams_can_bridge.sim.main import build_devices, build_parser
+from ams_can_bridge.sim.sma import SmaSimulator
+
+
+def run(sim, device, seconds, step=0.05, start=0.0):
+    frames = []
+    t = start
+    while t < start + seconds - 1e-9:
+        for frame in sim.tick(t):
+            frames.append(frame)
+            if device is not None:
+                device.handle_frame(frame.arbitration_id, frame.data, t)
+        t += step
+    return frames
+
+
+def ids(frames):
+    counts = {}
+    for frame in frames:
+        counts[frame.arbitration_id] = counts.get(frame.arbitration_id, 0) + 1
+    return counts
+
+
+def test_sma_dialect_sends_no_dialect_frames():
+    assert set(ids(run(SmaSimulator(), None, 10.0))) == {
+        0x351, 0x355, 0x356, 0x35A, 0x35E, 0x35F}
+
+
+def test_pylontech_sends_0x359_and_0x35c_instead_of_0x35a():
+    frames = run(SmaSimulator(dialect='pylontech'), None, 10.0)
+    assert ids(frames) == {0x351: 10, 0x355: 10, 0x356: 10, 0x359: 10, 0x35C: 10,
+                           0x35E: 2, 0x35F: 2}
+    codec = SmaCodec()
+    for frame in frames:  # every frame valid
+        codec.decode(frame.arbitration_id, frame.data)
+
+
+def test_victron_adds_0x370_to_0x377():
+    frames = run(SmaSimulator(dialect='victron'), None, 10.0)
+    counts = ids(frames)
+    assert counts[0x35A] == 10
+    assert all(counts[i] == 10 for i in range(0x372, 0x378))
+    assert counts[0x370] == counts[0x371] == 2
+
+
+def test_pylontech_reaches_the_device_with_alarms_and_enables():
+    sim = SmaSimulator(dialect='pylontech', current_fn=lambda t: 10.0)
+    device = SmaDevice('sma', {})
+    run(sim, device, 2.0)
+    diag = device.diagnostic_report()
+    assert diag.level == Level.OK
+    assert diag.values['charge enable'] == 'yes' and diag.values['discharge enable'] == 'yes'
+    assert diag.values['module count'] == '1' and 'alarms active' not in diag.values
+    sim.faults.extra['alarm'] = ['high_voltage', 'contactor']  # 0x359 has no contactor bit
+    sim.faults.extra['warning'] = 'low_temperature'
+    run(sim, device, 1.0, start=2.0)
+    diag = device.diagnostic_report()
+    assert diag.level == Level.ERROR
+    assert diag.values['alarms active (0x359)'] == 'high_voltage'
+    assert diag.values['warnings active (0x359)'] == 'low_temperature'
+    assert diag.values['charge enable'] == 'no'  # over-voltage: the BMS refuses charge
+    assert device.battery_report().power_supply_health == PowerSupplyHealth.OVERVOLTAGE
+
+
+def test_pylontech_empty_pack_asks_for_charge():
+    sim = SmaSimulator(dialect='pylontech')
+    sim.soc_pct = 3.0
+    sim.current_fn = lambda t: 0.0
+    request = sim.pylontech_request()
+    assert (request.charge_enable, request.discharge_enable,
+            request.request_charge_immediately) == (True, False, True)
+
+
+def test_victron_reaches_the_device_and_follows_the_drifting_cell():
+    sim = SmaSimulator(dialect='victron', bms_name='ACME BATTERY 48V')
+    device = SmaDevice('sma', {})
+    sim.faults.drift_cell = 5
+    sim.faults.cell_drift_v = 0.08
+    run(sim, device, 2.0)
+    values = device.diagnostic_report().values
+    assert values['bms name'] == 'ACME BATTERY 48V'
+    assert values['max cell voltage id'] == 'C6'
+    spread = float(values['max cell voltage V']) - float(values['min cell voltage V'])
+    assert 0.08 - 0.008 <= spread <= 0.08 + 0.008
+    assert values['modules OK'] == '1' and values['modules offline'] == '0'
+    t_min = float(values['min cell temperature degC'])
+    t_max = float(values['max cell temperature degC'])
+    assert t_min < device.battery_report().temperature < t_max
+
+
+def test_bad_dialect_and_name_are_refused():
+    with pytest.raises(ValueError, match='sma, pylontech, victron'):
+        SmaSimulator(dialect='byd')
+    with pytest.raises(ValueError, match='1..16'):
+        SmaSimulator(bms_name='A' * 17)
+
+
+def test_command_line_chooses_the_dialect():
+    args = build_parser().parse_args(['--devices', 'sma', '--sma-dialect', 'victron'])
+    [sim] = build_devices(args.devices, sma_dialect=args.sma_dialect)
+    assert sim.dialect == 'victron'
+    assert build_devices(['sma'])[0].dialect == 'sma'
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(['--sma-dialect', 'byd'])
