@@ -76,6 +76,9 @@ def bus_report(status: Any, malformed: int, interface: str) -> DiagnosticReport:
     level = _BUS_LEVELS.get(state, Level.ERROR)
     reason = str(status.reason or '')
     message = state + (f': {reason}' if reason and level != Level.OK else '')
+    down_for = getattr(status, 'down_for', None)
+    if down_for is not None:
+        message += f' (down for {down_for:.1f} s)'
     values = {
         'state': state,
         'reason': reason,
@@ -89,4 +92,9 @@ def bus_report(status: Any, malformed: int, interface: str) -> DiagnosticReport:
         'replay': (('finished' if state == 'replay finished' else 'playing')
                    if interface == 'replay' else 'off'),
     }
+    if down_for is not None:
+        values['outage s'] = f'{down_for:.1f}'
+    last_outage = getattr(status, 'last_outage', None)
+    if last_outage is not None:
+        values['last outage s'] = f'{last_outage:.1f}'
     return DiagnosticReport(level, message, values)

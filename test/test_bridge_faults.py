@@ -52,13 +52,21 @@ def test_adapter_unplugged_while_running_reconnects(harness, tmp_path, capfd):
                     {'bms16/battery_state': BatteryState})
         h.status('CAN bus', lambda s: values(s)['state'] == 'connected')
         peer.wait_open()
-        peer.close()  # unplugged
+        peer.close()  # unplugged: the /dev/serial/by-id style symlink disappears too
+        assert not (tmp_path / 'ttyCAN1').exists()
         status = h.status('CAN bus', lambda s: values(s)['state'] == 'reconnecting')
         assert level(status) == ERROR
-        peer.reopen()
+        assert values(status)['reason'] and values(status)['reason'] in status.message
+        # how long the outage lasts, counting up while it lasts
+        status = h.status('CAN bus', lambda s: float(values(s).get('outage s', 0)) >= 0.6)
+        assert level(status) == ERROR and ' s)' in status.message
+        assert 'down for' in status.message, status.message
+        peer.reopen()  # plugged back in at the same path
         status = h.status('CAN bus', lambda s: values(s)['state'] == 'connected'
                           and int(values(s)['reconnects']) >= 1)
         assert level(status) == 0
+        assert 'outage s' not in values(status) and 'down for' not in status.message
+        assert float(values(status)['last outage s']) >= 0.6
         peer.wait_open()
         # data flows again through the new connection
         h.spin_until(lambda: peer.send(Frame(500, bms16_status(0, 55, 500, 0, 20)))

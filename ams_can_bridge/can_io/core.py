@@ -27,6 +27,9 @@ _CAN_ERR_CRTL_ACTIVE = 0x40
 _SOCKETCAN_ERRORS = ('socketcan', 'virtual')
 
 
+# An outage lasts from entering one of these until the bus is connected again.
+_DOWN_STATES = ('reconnecting', 'error', 'bus-off')
+
 # Log format of bus state changes (the node filters these: it logs its own).
 STATE_CHANGE_FORMAT = 'CAN bus %s: %s%s'
 
@@ -72,6 +75,8 @@ class CanIo:
         self._state = 'stopped'
         self._reason = ''
         self._ever_connected = False
+        self._down_since: float | None = None  # monotonic start of the current outage
+        self._last_outage: float | None = None
         self.frames_in = 0
         self.frames_out = 0
         self.frames_dropped_tx = 0
@@ -132,11 +137,14 @@ class CanIo:
 
     def status(self) -> BusStatus:
         """Return a snapshot of state and counters."""
+        down_since = self._down_since
         return BusStatus(
             state=self._state, reason=self._reason, frames_in=self.frames_in,
             frames_out=self.frames_out, frames_dropped_tx=self.frames_dropped_tx,
             error_frames=self.error_frames, reconnects=self.reconnects,
-            hardware_id=self.config.hardware_id, callback_errors=self.callback_errors)
+            hardware_id=self.config.hardware_id, callback_errors=self.callback_errors,
+            down_for=None if down_since is None else time.monotonic() - down_since,
+            last_outage=self._last_outage)
 
     def send(self, frame: Frame) -> None:
         """Send one frame now; raise CanSendError if not connected or the driver refuses."""
@@ -172,6 +180,13 @@ class CanIo:
             self._log.log(level, STATE_CHANGE_FORMAT, self.config.hardware_id, state,
                           f' ({reason})' if reason else '')
         with self._state_cv:
+            if state in _DOWN_STATES:
+                if self._down_since is None:
+                    self._down_since = time.monotonic()
+            elif self._down_since is not None:
+                if state in ('connected', 'error-passive'):
+                    self._last_outage = time.monotonic() - self._down_since
+                self._down_since = None
             self._state = state
             self._reason = reason
             self._state_cv.notify_all()
