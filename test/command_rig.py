@@ -108,7 +108,8 @@ class Rig:
         self.executor.add_node(self.client)
         self._spin = threading.Thread(target=self._run, daemon=True)
         self._spin.start()
-        self._clients: dict[tuple[str, Any], Any] = {}
+        self._clients: dict[tuple[str, Any, str], Any] = {}
+        self._others: list[Any] = []
 
     def _run(self) -> None:
         try:
@@ -120,11 +121,20 @@ class Rig:
         """Set one parameter on the node (through its callbacks); return the result."""
         return self.node.set_parameters([Parameter(name, value=value)])[0]
 
-    def call(self, srv_type: Any, name: str, timeout: float = 10.0, **fields: Any) -> Any:
-        """Call a service of the node through ROS and return the response."""
-        key = (name, srv_type)
+    def other_client(self, name: str) -> Any:
+        """Add another client node (a second user of the bridge) to the executor."""
+        node = rclpy.create_node(name, context=self.context)
+        self.executor.add_node(node)
+        self._others.append(node)
+        return node
+
+    def call(self, srv_type: Any, name: str, timeout: float = 10.0, client: Any = None,
+             **fields: Any) -> Any:
+        """Call a service of the node through ROS (from client, a node); return the answer."""
+        client_node = client or self.client
+        key = (name, srv_type, client_node.get_name())
         if key not in self._clients:
-            self._clients[key] = self.client.create_client(srv_type, name)
+            self._clients[key] = client_node.create_client(srv_type, name)
         client = self._clients[key]
         assert client.wait_for_service(timeout_sec=5.0), f'service {name} is not offered'
         future = client.call_async(srv_type.Request(**fields))
@@ -149,6 +159,8 @@ class Rig:
         self.executor.shutdown(timeout_sec=2.0)
         self.node.destroy_node()
         self.client.destroy_node()
+        for other in self._others:
+            other.destroy_node()
         rclpy.try_shutdown(context=self.context)
         self._spin.join(2)
         self.capture.close()

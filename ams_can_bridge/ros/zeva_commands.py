@@ -52,6 +52,9 @@ class _ZevaCommands:
         self.config.load(node.device_params.get(name, {}))
         self._mirror()
         self._send_lock = threading.Lock()  # one call's frames are never interleaved
+        # A parameter set (executor thread) and a write (service thread) run at once: the
+        # frames of one write come from one complete set of values, never from two.
+        self._config_lock = threading.Lock()
         self._services: list[Any] = []
 
     # --- hooks for the node ------------------------------------------------------------
@@ -61,8 +64,9 @@ class _ZevaCommands:
 
     def on_parameters_changed(self, changed: dict[str, Any]) -> None:
         """Keep the configuration values (and the device's copy) up to date."""
-        self.config.update(changed)
-        self._mirror()
+        with self._config_lock:
+            self.config.update(changed)
+            self._mirror()
 
     def on_commands_enabled(self, enabled: bool) -> None:
         """Nothing runs in the background here: services check the gate on each call."""
@@ -99,7 +103,8 @@ class _ZevaCommands:
         if not self.node.commands_enabled:
             return False, f'{self.name}: {gate_message(self.node, what)}'
         try:
-            frames = list(build())  # validation happens here, before anything is sent
+            with self._config_lock:
+                frames = list(build())  # validation happens here, before anything is sent
         except _Refused as exc:
             return False, f'{self.name}: cannot {what}: {exc}; nothing was sent'
         except (EncodeRangeError, ValueError, TypeError) as exc:
