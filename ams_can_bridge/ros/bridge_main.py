@@ -7,9 +7,11 @@ Entry point of the ``bridge`` executable: the bridge node on a multi-threaded ex
 """
 from __future__ import annotations
 
+import re
 import sys
 
 import rclpy
+from rclpy._rclpy_pybind11 import RCLError
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 import rclpy.logging
 
@@ -21,7 +23,11 @@ EXECUTOR_THREADS = 4
 
 def main(args: list[str] | None = None) -> int:
     """Run the bridge until Ctrl-C or SIGTERM; return the process exit code."""
-    rclpy.init(args=args)
+    try:
+        rclpy.init(args=args)
+    except RCLError as exc:  # a params file that is missing or not YAML: no traceback
+        rclpy.logging.get_logger(NODE_NAME).error(f'cannot start: {_rcl_reason(exc)}')
+        return 2
     node = None
     try:
         try:
@@ -50,6 +56,16 @@ def main(args: list[str] | None = None) -> int:
             node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+def _rcl_reason(exc: Exception) -> str:
+    """Return rcl's reason without its source locations (', at /project/src/...')."""
+    text = str(exc).replace('failed to initialize rcl: ', '')
+    text = re.sub(r', at [^,]*\.c:\d+', '', text).strip()
+    if 'params file' in text:
+        text += (' (check that the file exists and is valid YAML: '
+                 '<node name or /**>: ros__parameters: ...)')
+    return text
 
 
 if __name__ == '__main__':

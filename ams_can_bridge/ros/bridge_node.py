@@ -114,8 +114,11 @@ class BridgeNode(Node):
             self.params.raise_errors()
         except (ParamError, ConfigError) as exc:
             if self.params.errors:  # the values the user wrote come first, all of them
-                if not any(str(exc).startswith(e.split(' ', 1)[0]) for e in self.params.errors):
-                    self.params.errors.append(str(exc))
+                text = str(exc)
+                aggregate = all(e in text for e in self.params.errors)  # raise_errors() itself
+                if not aggregate and not any(text.startswith(e.split(' ', 1)[0])
+                                             for e in self.params.errors):
+                    self.params.errors.append(text)
                 try:
                     self.params.raise_errors()
                 except ParamError as every:
