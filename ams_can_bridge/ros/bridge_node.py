@@ -262,9 +262,13 @@ class BridgeNode(Node):
         if due and self._levels_changed():
             self.publish_diagnostics()
 
-    def _publish_battery(self, name: str) -> None:
+    def _publish_stale_battery(self, name: str) -> None:
         device = self.devices[name]
-        self._publish_report(name, device.battery_report(), device.extra_arrays())
+        report = device.battery_report()
+        # A frame may have arrived since is_stale() said so: that frame publishes itself;
+        # publishing here too would give one primary frame two present messages.
+        if not report.present:
+            self._publish_report(name, report, device.extra_arrays())
 
     def _publish_report(self, name: str, report: Any, arrays: dict) -> None:
         frame_id = self.device_params[name].get('frame_id', '')
@@ -277,7 +281,7 @@ class BridgeNode(Node):
     def _publish_stale(self) -> None:
         for name, device in self.devices.items():
             if device.is_stale():
-                self._publish_battery(name)
+                self._publish_stale_battery(name)
 
     def _statuses(self) -> list[tuple[str, Any]]:
         reports = [(name, device.diagnostic_report()) for name, device in self.devices.items()]
@@ -334,7 +338,7 @@ class BridgeNode(Node):
                 if stale:
                     self.get_logger().warning(
                         f'{name}: no status frame for {device.stale_timeout:g} s: STALE')
-                    self._publish_battery(name)
+                    self._publish_stale_battery(name)
                 elif name in self._heard:
                     self.get_logger().info(f'{name}: receiving again')
                 else:
