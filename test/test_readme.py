@@ -53,3 +53,20 @@ def test_readme_has_the_two_commands_and_every_config_file():
     assert './dev demo' in README and './dev test' in README
     for path in (Path(__file__).resolve().parents[1] / 'config').glob('*.yaml'):
         assert f'config/{path.name}' in README, path.name
+
+
+def test_failure_mode_table_names_tests_that_exist():
+    import ast
+    import re
+    section = README.split('## Failure modes', 1)[1].split('\n## ', 1)[0]
+    named = re.findall(r'`(test_\w+\.py)::(test_\w+)`', section)
+    assert len(named) >= 25, named
+    here = Path(__file__).resolve().parent
+    missing = []
+    for path, name in named:
+        source = here / path
+        tests = {n.name for n in ast.parse(source.read_text()).body
+                 if isinstance(n, ast.FunctionDef)} if source.is_file() else set()
+        if name not in tests:
+            missing.append(f'{path}::{name}')
+    assert not missing, f'README failure-mode table names tests that do not exist: {missing}'
