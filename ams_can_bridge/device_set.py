@@ -35,8 +35,8 @@ class DeviceSet:
         self.std: dict[int, tuple[Device, ...]] = {}
         self.ext: dict[int, tuple[Device, ...]] = {}
         for device in self.devices.values():
-            table = self.ext if device.is_extended_id else self.std
-            for can_id in device.arbitration_ids:
+            for can_id, extended in sorted(device.frame_ids):
+                table = self.ext if extended else self.std
                 table[can_id] = table.get(can_id, ()) + (device,)
 
     @property

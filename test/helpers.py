@@ -71,8 +71,7 @@ def device_reference(path: str, names: Iterable[str],
         for msg in reader:
             now[0] = msg.timestamp
             for name, device in devices.items():
-                if (msg.arbitration_id in device.arbitration_ids
-                        and msg.is_extended_id == device.is_extended_id
+                if ((msg.arbitration_id, msg.is_extended_id) in device.frame_ids
                         and device.handle_frame(msg.arbitration_id, bytes(msg.data), now[0])):
                     states[name].append((msg.timestamp, values_of(device.battery_report())))
     finally:

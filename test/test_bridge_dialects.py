@@ -53,3 +53,44 @@ def test_sma_victron_dialect_through_the_node(harness):  # noqa: F811
     assert got['max cell temperature degC'] == '30.85'
     assert got['modules blocking discharge'] == '1' and got['max cell voltage id'] == 'M2C7'
     assert level(status) == 0
+
+
+# --- EVMS3 bus: TC chargers (29-bit) and balance requests --------------------------------------
+# RUNNING, no error, 100.0 Ah, 400.0 V, aux 13.0 V, isolation 100 %, 25 degC
+EVMS3_RUNNING = bytes.fromhex('02 03 E8 0F A0 82 64 41')
+# CHARGING with error 12 (isolation): must never be what an 11-bit EVMS3 shows
+EVMS3_CHARGING_ISOLATION = bytes.fromhex('63 03 E8 0F A0 82 64 41')
+
+
+def test_evms3_chargers_and_balance_through_the_node(harness):  # noqa: F811
+    h = harness({'devices': ['evms3'], 'evms3.bms12_modules': 1, 'diagnostics_period': 0.2})
+    h.send(30, EVMS3_RUNNING, extended=True)
+    h.send(300, bytes([0x0F, 0xD2]), extended=True)  # module 0: balance to 4050 mV
+    h.send(0x1806E5F4, bytes([0x0F, 0xC0, 0x00, 0x7D, 0x00, 0, 0, 0]), extended=True)
+    # charger 1: 398.7 V, 9.8 A, over-temperature shutdown (bit 1)
+    h.send(0x18FF50E5, bytes([0x0F, 0x93, 0x00, 0x62, 0x02, 0x41, 0, 0]), extended=True)
+    status = h.status('evms3', lambda s: 'charger 1 status' in values(s))
+    assert level(status) == 1
+    # (module 0 sent no cells, so it is also reported silent)
+    assert status.message.startswith('RUNNING, no error; ')
+    assert status.message.endswith('; charger 1: over-temperature shutdown')
+    got = values(status)
+    assert (got['charger 1 target volts (V)'], got['charger 1 target amps (A)']) == (
+        '403.2', '12.5')
+    assert (got['charger 1 output volts (V)'], got['charger 1 output amps (A)']) == (
+        '398.7', '9.8')
+    assert got['charger 1 shutdown by BMS'] == 'no'
+    assert got['charger 1 over-temperature shutdown'] == 'yes'
+    assert got['module 0 balance target (mV)'] == '4050'
+
+
+def test_evms3_on_11_bit_ids_with_29_bit_chargers(harness):  # noqa: F811
+    h = harness({'devices': ['evms3'], 'evms3.extended_id': False, 'diagnostics_period': 0.2})
+    h.send(30, EVMS3_CHARGING_ISOLATION, extended=True)  # another node's 29-bit ID 30
+    h.send(30, EVMS3_RUNNING, extended=False)
+    h.send(0x18FF50E5, bytes([0x0F, 0x93, 0x00, 0x62, 0x00, 0x41]), extended=True)
+    status = h.status('evms3', lambda s: 'charger 1 status' in values(s))
+    got = values(status)
+    assert got['state'] == 'RUNNING' and got['error'] == 'no error'
+    assert got['charger 1 output amps (A)'] == '9.8' and got['charger 1 status'] == 'OK'
+    assert got['frames received'] == '2' and got['frames malformed'] == '0'

@@ -140,7 +140,7 @@ def common_params(device_cls: type['Device']) -> list[ParamSpec]:
                                high=(1 << device_cls.ID_BITS) - 1))
     if device_cls.EXTENDED_ID_CHOICE:
         specs.append(ParamSpec('extended_id', bool, device_cls.DEFAULT_EXTENDED_ID,
-                               'use 29-bit (extended) CAN IDs'))
+                               device_cls.EXTENDED_ID_HELP))
     return specs
 
 
@@ -159,6 +159,7 @@ class Device:
     ID_BITS: ClassVar[int] = 11  # 29 for devices on extended (CAN 2.0B) IDs
     EXTENDED_ID_CHOICE: ClassVar[bool] = False
     DEFAULT_EXTENDED_ID: ClassVar[bool] = False
+    EXTENDED_ID_HELP: ClassVar[str] = 'use 29-bit (extended) CAN IDs'
     PARAMS: ClassVar[list[ParamSpec]] = []  # type-specific, besides common_params()
     # What the device's command services use (declared with the device, passed in params
     # like PARAMS: the device itself reads some, e.g. a pack capacity or cell counts).
@@ -186,8 +187,17 @@ class Device:
 
     @property
     def is_extended_id(self) -> bool:
-        """Tell whether the device's IDs are 29-bit."""
+        """Tell whether the device's own IDs are 29-bit."""
         return bool(getattr(self.codec, 'is_extended_id', False))
+
+    @property
+    def frame_ids(self) -> frozenset[tuple[int, bool]]:
+        """Return every (CAN ID, 29-bit) the device consumes; a device may use both widths."""
+        ids = getattr(self.codec, 'frame_ids', None)
+        if ids is not None:
+            return ids
+        extended = self.is_extended_id
+        return frozenset((can_id, extended) for can_id in self.arbitration_ids)
 
     def handle_frame(self, arbitration_id: int, data: bytes, stamp: float) -> bool:
         """

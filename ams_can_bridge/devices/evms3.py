@@ -1,5 +1,10 @@
 """
-ZEVA EVMS3 state: status (ID 30), battery current (ID 40) and BMS12 cell modules.
+ZEVA EVMS3 state: status (ID 30), battery current (ID 40), BMS12 modules and TC chargers.
+
+What the EVMS commands is shown too: the balance target it sends each BMS12 module (300 + 10 m,
+mV, 0 = off) and, per TC charger 1..3, its command (target volts / amps, "shutdown by BMS")
+and the charger's answer (output volts / amps, status bits: any set bit is WARN). Each of
+these expires on its own (NaN / left out after its timeout), like the module cells.
 
 The EVMS3 does not send its state of charge: SoC = remaining Ah / ``config.pack_capacity_ah``
 (a configuration value the commanding part declares), NaN while that is unset. The current
@@ -17,14 +22,18 @@ from ams_can_bridge.devices.base import (
 from ams_can_bridge.parameters import config_param_specs
 from ams_can_bridge.protocols import evms3 as evms3_proto
 from ams_can_bridge.protocols.evms3 import (
-    BatteryCurrent, BMS12_MAX_MODULES, Bms12Cells, Bms12Temperatures, Evms3Codec, Evms3Error,
-    Evms3State, Evms3Status, EVMS3_WARNINGS)
+    BatteryCurrent, BMS12_MAX_MODULES, Bms12Cells, Bms12Request, Bms12Temperatures, Evms3Codec,
+    Evms3Error, Evms3State, Evms3Status, EVMS3_WARNINGS)
+from ams_can_bridge.protocols.tc_charger import (
+    CHARGERS, ChargerCommand, ChargerStatus, STATUS_BIT_TEXT)
 
 NAN = math.nan
 CELLS_PER_BMS12 = 12  # t = 1..3 carry 3 x 4 cells: a module cannot report more
 # The EVMS polls each BMS12 at least once a second (else the module stops balancing):
 # three missed polls make a module's cells unknown, whatever the status stale_timeout is.
 BMS12_STALE_TIMEOUT = 3.0
+# TC chargers and the EVMS's commands to them come about once a second: five missed.
+CHARGER_STALE_TIMEOUT = 5.0
 
 _HEALTH = {
     Evms3Error.BMS_SHUTDOWN: PowerSupplyHealth.DEAD,
@@ -61,6 +70,8 @@ class _Module:
         self.cells_seen = [-math.inf] * 3  # per t = 1..3
         self.temps = (NAN, NAN)
         self.temps_seen = -math.inf
+        self.balance_mv: int | None = None  # what the EVMS asks (None = balancing off)
+        self.balance_seen = -math.inf
 
     def last_seen(self) -> float:
         return max(max(self.cells_seen), self.temps_seen)
@@ -71,6 +82,10 @@ class Evms3Device(Device):
 
     TYPE = 'evms3'
     ID_BITS = 29
+    EXTENDED_ID_CHOICE = True  # ZEVA's firmware can be built with 11-bit IDs
+    DEFAULT_EXTENDED_ID = True
+    EXTENDED_ID_HELP = ('29-bit IDs for the EVMS3 and BMS12 frames (false: a firmware built '
+                        'with 11-bit IDs); the TC chargers always use 29-bit IDs')
     BROADCAST_PERIOD = 0.25
     DEFAULT_BASE_ID = 30
     PARAMS = [
@@ -90,8 +105,14 @@ class Evms3Device(Device):
         if not 0 <= modules <= BMS12_MAX_MODULES:
             raise ValueError(f'{name}.bms12_modules = {modules}: allowed 0..16')
         self.bms12_modules = modules
-        self.codec = Evms3Codec(self.base_id, bms12_modules=modules)
+        extended = self.params.get('extended_id')
+        self.codec = Evms3Codec(self.base_id, bms12_modules=modules,
+                                extended_id=True if extended is None else bool(extended))
         self.module_timeout = max(self.stale_timeout, BMS12_STALE_TIMEOUT)
+        self.charger_timeout = max(self.stale_timeout, CHARGER_STALE_TIMEOUT)
+        # charger 1..3 -> (last reading, clock() it came)
+        self._charger_commands: dict[int, tuple[ChargerCommand, float]] = {}
+        self._charger_status: dict[int, tuple[ChargerStatus, float]] = {}
         self._status: Evms3Status | None = None
         self._stamp = NAN
         self._current_a = NAN  # wire sign: positive = discharge
@@ -134,7 +155,15 @@ class Evms3Device(Device):
             module = self._modules[reading.module]
             module.temps = tuple(float(t) for t in reading.temperatures_c)
             module.temps_seen = self.clock()
-        # Requests from the EVMS and our own commands seen on the bus carry no state.
+        elif isinstance(reading, Bms12Request):
+            module = self._modules[reading.module]
+            module.balance_mv = reading.balance_mv
+            module.balance_seen = self.clock()
+        elif isinstance(reading, ChargerCommand):
+            self._charger_commands[reading.charger] = (reading, self.clock())
+        elif isinstance(reading, ChargerStatus):
+            self._charger_status[reading.charger] = (reading, self.clock())
+        # Our own commands seen on the bus carry no state.
         return False
 
     # --- helpers (lock held) -----------------------------------------------------------------
@@ -236,6 +265,8 @@ class Evms3Device(Device):
                 'unknown' if t != t else f'{t:g}' for t in temps)
             values[f'module {m} last heard'] = ('never' if seen == -math.inf
                                                 else f'{self.clock() - seen:.1f} s ago')
+            values[f'module {m} balance target (mV)'] = self._balance_text(m)
+        charger_faults = self._charger_values(values)
         if status.error == Evms3Error.NONE:
             level = Level.OK
         elif status.error in EVMS3_WARNINGS:
@@ -247,4 +278,40 @@ class Evms3Device(Device):
         if silent:
             level = max(level, Level.WARN)
             message += '; BMS12 module(s) silent: ' + ', '.join(str(m) for m in silent)
+        if charger_faults:
+            level = max(level, Level.WARN)
+            message += '; ' + '; '.join(charger_faults)
         return DiagnosticReport(level, message, values)
+
+    def _balance_text(self, m: int) -> str:
+        module = self._modules[m]
+        if self.clock() - module.balance_seen > self.module_timeout:
+            return 'unknown (no request from the EVMS)'
+        return 'off' if module.balance_mv is None else str(module.balance_mv)
+
+    def _charger_values(self, values: dict[str, str]) -> list[str]:
+        """Add each charger's values (ZEVA Monitor names); return its faults, if any."""
+        now = self.clock()
+        faults = []
+        for n in range(1, CHARGERS + 1):
+            command, command_seen = self._charger_commands.get(n, (None, -math.inf))
+            status, status_seen = self._charger_status.get(n, (None, -math.inf))
+            if command is None and status is None:
+                continue
+            key = f'charger {n} '
+            if now - command_seen <= self.charger_timeout:
+                values[key + 'target volts (V)'] = f'{command.target_voltage_v:.1f}'
+                values[key + 'target amps (A)'] = f'{command.current_limit_a:.1f}'
+                values[key + 'shutdown by BMS'] = 'yes' if command.stop else 'no'
+            if now - status_seen <= self.charger_timeout:
+                values[key + 'output volts (V)'] = f'{status.output_voltage_v:.1f}'
+                values[key + 'output amps (A)'] = f'{status.output_current_a:.1f}'
+                values[key + 'status'] = ', '.join(status.active_bits) or 'OK'
+                for bit, text in STATUS_BIT_TEXT.items():
+                    values[key + text] = 'yes' if status.status & bit else 'no'
+                values[key + 'temperature (raw)'] = ('not sent' if status.temperature_raw is None
+                                                     else str(status.temperature_raw))
+                if status.status:
+                    faults.append(f'charger {n}: ' + ', '.join(status.active_bits))
+            values[key + 'last heard'] = f'{now - max(command_seen, status_seen):.1f} s ago'
+        return faults

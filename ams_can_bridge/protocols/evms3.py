@@ -4,6 +4,8 @@ ZEVA EVMS3 and its BMS12 cell modules: 29-bit frames <-> typed readings and comm
 PROTOCOLS.md section 3 (EVMS3 CAN protocol rev 1.1; BMS12 from ZEVA's open firmware).
 IDs of the EVMS3 are ``base_id + 0..11`` (30 status .. 41 zero current sensor by default);
 BMS12 module ``m`` uses ``300 + 10 m + t`` (t = 0 request, 1..3 cells, 4 temperatures).
+29-bit by default; ``extended_id=False`` for a firmware built with 11-bit IDs. The TC chargers
+the EVMS drives (``protocols.tc_charger``, always 29-bit) are decoded here too.
 msg_defs/evms3.dbc describes the same frames for other tools; this codec is written by hand
 because it runs on the bus thread for every frame (a few microseconds, no cantools), and
 because the DBC cannot carry what is done here: the 9th bit of the charge voltages, the
@@ -21,6 +23,8 @@ from typing import Any, Iterable, Mapping, Sequence
 
 from ams_can_bridge.protocols.common import (
     check_dlc, check_range, ConfigField, EncodeRangeError, Frame, MalformedFrameError)
+from ams_can_bridge.protocols.tc_charger import (
+    CHARGER_IDS, ChargerCommand, ChargerStatus, TcChargerCodec)
 
 BMS12_BASE_ID = 300
 BMS12_MAX_MODULES = 16
@@ -374,16 +378,19 @@ def _decode_config(packet: int, aid: int, data: bytes) -> Evms3ConfigPart:
 
 # --- the codec -------------------------------------------------------------------------------
 class Evms3Codec:
-    """EVMS3 frames at base_id + 0..11 and BMS12 frames of modules 0..bms12_modules-1."""
-
-    is_extended_id = True
+    """EVMS3 frames at base_id + 0..11, BMS12 modules 0..bms12_modules-1, TC chargers 1..3."""
 
     def __init__(self, base_id: int = 30, bms12_modules: int = BMS12_MAX_MODULES,
-                 bms12_base: int = BMS12_BASE_ID) -> None:
-        if not 0 <= base_id <= 0x1FFFFFFF - 11:
-            raise ValueError(f'base_id {base_id} outside 0..0x1FFFFFF4 (29-bit IDs)')
+                 bms12_base: int = BMS12_BASE_ID, extended_id: bool = True) -> None:
+        # ZEVA's firmware uses 29-bit IDs unless built with USE_29BIT_IDS 0; the TC chargers
+        # on the same bus always use 29-bit IDs, so one EVMS3 may need both widths.
+        top = 0x1FFFFFFF if extended_id else 0x7FF
+        if not 0 <= base_id <= top - 11:
+            raise ValueError(f'base_id {base_id} outside 0..0x{top - 11:X} '
+                             f'({29 if extended_id else 11}-bit IDs)')
         if not 0 <= bms12_modules <= BMS12_MAX_MODULES:
             raise ValueError(f'bms12_modules {bms12_modules} outside 0..16')
+        self.is_extended_id = bool(extended_id)
         self.base_id = base_id
         self.bms12_base = bms12_base
         self.bms12_modules = bms12_modules
@@ -393,7 +400,12 @@ class Evms3Codec:
         if own & set(self._bms12):
             raise ValueError(f'EVMS3 IDs {base_id}..{base_id + 11} overlap the BMS12 IDs '
                              f'{bms12_base}..{bms12_base + 10 * bms12_modules - 6}')
-        self.arbitration_ids = frozenset(own | set(self._bms12))
+        self.chargers = TcChargerCodec()
+        self.arbitration_ids = frozenset(own | set(self._bms12) | CHARGER_IDS)
+        # (ID, 29-bit) pairs: the node dispatches on both, so an 11-bit EVMS3 still gets its
+        # chargers' 29-bit frames and no 29-bit frame with an EVMS3 number reaches it.
+        self.frame_ids = frozenset({(i, self.is_extended_id) for i in own | set(self._bms12)}
+                                   | {(i, True) for i in CHARGER_IDS})
         b = base_id
         self._decoders = {
             b + STATUS: self._decode_status, b + SET_STATE: self._decode_set_state,
@@ -413,6 +425,8 @@ class Evms3Codec:
             return decoder(arbitration_id, data)
         module_type = self._bms12.get(arbitration_id)
         if module_type is None:
+            if arbitration_id in CHARGER_IDS:
+                return self.chargers.decode(arbitration_id, data)
             raise MalformedFrameError(arbitration_id, data, 'not an EVMS3/BMS12 ID of this codec')
         return self._decode_bms12(arbitration_id, data, *module_type)
 
@@ -482,7 +496,7 @@ class Evms3Codec:
 
     # --- encode ---------------------------------------------------------------------------
     def _frame(self, offset: int, data: bytes | bytearray) -> Frame:
-        return Frame(self.base_id + offset, bytes(data), True)
+        return Frame(self.base_id + offset, bytes(data), self.is_extended_id)
 
     def config_frames(self, cfg: Evms3Config) -> list[Frame]:
         """Build the frames of IDs 32, 33, 34, 35 in that order (EncodeRangeError first)."""
@@ -516,6 +530,8 @@ class Evms3Codec:
             return self._frame(BATTERY_CURRENT, raw.to_bytes(3, 'big'))
         if isinstance(msg, (Bms12Request, Bms12Cells, Bms12Temperatures)):
             return self._encode_bms12(msg)
+        if isinstance(msg, (ChargerCommand, ChargerStatus)):
+            return self.chargers.encode(msg)
         raise TypeError(f'cannot encode {type(msg).__name__} as an EVMS3 frame')
 
     def _encode_status(self, msg: Evms3Status) -> Frame:
@@ -539,13 +555,13 @@ class Evms3Codec:
         if isinstance(msg, Bms12Request):
             mv = (0 if msg.balance_mv is None
                   else _check_int('balance_mv', msg.balance_mv, 1, 65535))
-            return Frame(base, mv.to_bytes(2, 'big'), True)
+            return Frame(base, mv.to_bytes(2, 'big'), self.is_extended_id)
         if isinstance(msg, Bms12Temperatures):
             if len(msg.temperatures_c) != 2:
                 raise EncodeRangeError('temperatures_c', msg.temperatures_c, '2 values')
             raw = [40 + _check_int(f'temperatures_c[{i}]', t, -40, 215)
                    for i, t in enumerate(msg.temperatures_c)]
-            return Frame(base + 4, bytes(raw + [0] * 6), True)
+            return Frame(base + 4, bytes(raw + [0] * 6), self.is_extended_id)
         if msg.first_cell not in (0, 4, 8):
             raise EncodeRangeError('first_cell', msg.first_cell, '0, 4 or 8')
         if len(msg.voltages_v) != 4:
@@ -554,7 +570,7 @@ class Evms3Codec:
         for i, volts in enumerate(msg.voltages_v):
             check_range(f'voltages_v[{i}]', volts, 0, 65.535, 0.001, 'V')
             data += int(round(volts * 1000)).to_bytes(2, 'big')
-        return Frame(base + 1 + msg.first_cell // 4, bytes(data), True)
+        return Frame(base + 1 + msg.first_cell // 4, bytes(data), self.is_extended_id)
 
 
 def _check_int(name: str, value: Any, low: int, high: int) -> int:

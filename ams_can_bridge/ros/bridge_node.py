@@ -224,8 +224,10 @@ class BridgeNode(Node):
                  + ('' if self.commands_allowed else
                     ' (commands_allowed is false: commands cannot be enabled)')]
         for name, device in self.devices.items():
-            lines.append(f'  {name} ({device.TYPE}): '
-                         + format_ids(device.arbitration_ids, device.is_extended_id))
+            ids = device.frame_ids
+            lines.append(f'  {name} ({device.TYPE}): ' + '; '.join(
+                format_ids({i for i, e in ids if e == extended}, extended)
+                for extended in (False, True) if any(e == extended for _, e in ids)))
         if not self.devices:
             lines.append('  no devices configured (set the devices parameter)')
         self.get_logger().info('\n'.join(lines))

@@ -150,7 +150,8 @@ class Evms3Commands(_ZevaCommands):
     def __init__(self, node: Any, device: Device, name: str) -> None:
         """Create the codec and the services of one EVMS3 instance."""
         super().__init__(node, device, name)
-        self.codec = evms3_proto.Evms3Codec(self._base_id(30), bms12_modules=0)
+        self.codec = evms3_proto.Evms3Codec(self._base_id(30), bms12_modules=0,
+                                            extended_id=device.is_extended_id)
         self._service(Trigger, 'write_config', self._trigger('write the configuration',
                                                              self._config_frames))
         self._service(SetBool, 'set_setup_mode', self._set_setup_mode)

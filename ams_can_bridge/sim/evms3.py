@@ -7,6 +7,16 @@ its cells (t = 1..3) and temperatures (t = 4). Remaining Ah integrates the curre
 pack voltage is the sum of the module cells. Reacts like PROTOCOLS.md section 3 says: 31 set
 state, 32..35 configuration stored only once all four arrived, 36 cell numbers, 37 clears
 the matching error, 38 resets SoC to full, 39 powers off (silent until ``power_on()``).
+
+Charging phase (``start_charging()``, or ``charge_after_s`` after the first tick): the EVMS
+enters CHARGING and commands its ``chargers`` TC chargers (1..3, 29-bit) once a second:
+target voltage = the stored config's max charge voltage (else 4.15 V per cell), current limit
+= its max charge current (else 10 A) shared between the chargers, stop once the pack is full.
+Each charger answers once a second with its output (the current tapers over the last 2 V
+below the target; the EVMS stops the chargers once it is below 5 % of the limit) and
+``faults.extra['charger_status']`` (raw status bits; a charger with a bit set delivers
+nothing). While charging the EVMS asks the BMS12 modules to balance to the
+lowest cell (dynamic), or to the stored static balance voltage, or not at all ('off').
 """
 from __future__ import annotations
 
@@ -18,12 +28,19 @@ from ams_can_bridge.protocols.evms3 import (
     AcknowledgeError, BatteryCurrent, Bms12Cells, Bms12Request, Bms12Temperatures,
     BmsCellNumbers, Evms3Codec, Evms3Config, Evms3ConfigPart, Evms3Error, Evms3State,
     Evms3Status, PowerOff, ResetSoc, SetState, ZeroCurrentSensor)
+from ams_can_bridge.protocols.tc_charger import ChargerCommand, ChargerStatus
 from ams_can_bridge.sim.base import Periodic, SimDevice
 from ams_can_bridge.sim.pack import Elapsed
 from ams_can_bridge.sim.profiles import drive_current_a
 
 CELL_RESISTANCE_OHM = 0.0008
 NOMINAL_SERIES_CELLS = 96  # pack voltage when no BMS12 module is simulated
+FULL_CELL_V = 4.15
+DEFAULT_CHARGE_CURRENT_A = 10.0
+CHARGER_PERIOD = 1.0
+TAPER_V = 2.0  # the chargers' current falls to 0 over the last TAPER_V below the target
+END_FRACTION = 0.05  # charge ends when the current has tapered below 5 % of the limit
+CHARGER_TEMPERATURE_RAW = 65
 
 
 def nmc_cell_ocv(soc: float) -> float:
@@ -42,15 +59,22 @@ class Evms3Simulator(SimDevice):
     def __init__(self, name: str | None = None, base_id: int = 30, bms12_modules: int = 2,
                  cells_per_module: int | Sequence[int] = 12,
                  current_fn: Callable[[float], float] | None = None,
-                 capacity_ah: float = 100.0, seed: int = 0) -> None:
+                 capacity_ah: float = 100.0, seed: int = 0, chargers: int = 1,
+                 charge_after_s: float | None = None, extended_id: bool = True) -> None:
         super().__init__(name)
+        if not 0 <= chargers <= 3:
+            raise ValueError(f'chargers {chargers}: allowed 0..3 (TC chargers 1..3)')
         if not 0 <= bms12_modules <= 16:
             raise ValueError(f'bms12_modules {bms12_modules}: allowed 0..16')
         counts = ([cells_per_module] * bms12_modules if isinstance(cells_per_module, int)
                   else list(cells_per_module)[:bms12_modules])
         if len(counts) != bms12_modules or any(not 0 <= n <= 12 for n in counts):
             raise ValueError(f'cells_per_module {cells_per_module!r}: 0..12 per module')
-        self.codec = Evms3Codec(base_id, bms12_modules=bms12_modules)
+        self.codec = Evms3Codec(base_id, bms12_modules=bms12_modules, extended_id=extended_id)
+        self.chargers = chargers
+        self.charge_after_s = charge_after_s
+        self.charger_commands: dict[int, ChargerCommand] = {}  # last sent, per charger
+        self.charge_done = False
         self.bms12_modules = bms12_modules
         self.cells_per_module = counts
         self.current_fn = current_fn or drive_current_a
@@ -72,6 +96,8 @@ class Evms3Simulator(SimDevice):
         self._status = Periodic(self.STATUS_PERIOD)
         self._current = Periodic(self.CURRENT_PERIOD, phase=0.05)
         self._bms12 = Periodic(self.BMS12_PERIOD, phase=0.1)
+        self._charger_command = Periodic(CHARGER_PERIOD, phase=0.2)
+        self._charger_status = Periodic(CHARGER_PERIOD, phase=0.7)
         self._t0: float | None = None
         self._elapsed = Elapsed()
 
@@ -79,6 +105,36 @@ class Evms3Simulator(SimDevice):
     def power_on(self) -> None:
         """Power the EVMS back on after ID 39."""
         self.powered = True
+
+    def start_charging(self) -> None:
+        """Plug the chargers in: the EVMS enters CHARGING and starts commanding them."""
+        self.state = Evms3State.CHARGING
+        self.charge_done = False
+
+    def charge_command(self, charger: int) -> ChargerCommand:
+        """Return what the EVMS asks of one charger now (stop once the pack is full)."""
+        cfg = self.stored_config
+        cells = sum(self.cells_per_module) or NOMINAL_SERIES_CELLS
+        target = (float(cfg.max_charge_voltage_v) if cfg is not None
+                  else round(cells * FULL_CELL_V, 1))
+        total = (float(cfg.max_charge_current_a) if cfg is not None
+                 else DEFAULT_CHARGE_CURRENT_A)
+        # Full: every Ah back in, or the current has tapered to its end (latched: a pack
+        # that relaxes after the stop is not charged again).
+        self.charge_done = self.charge_done or (
+            self.remaining_ah >= self.capacity_ah - 1e-6
+            or target - self.pack_voltage_v() < TAPER_V * END_FRACTION)
+        return ChargerCommand(charger, min(target, 6553.5), round(total / self.chargers, 1),
+                              self.charge_done)
+
+    def charger_output_a(self, charger: int) -> float:
+        """Return the current one charger delivers now (A): its limit, tapered, or 0."""
+        command = self.charger_commands.get(charger)
+        status_bits = int(self.faults.extra.get('charger_status', 0) or 0)
+        if command is None or command.stop or status_bits or self.state != Evms3State.CHARGING:
+            return 0.0
+        headroom = (command.target_voltage_v - self.pack_voltage_v()) / TAPER_V
+        return round(command.current_limit_a * min(1.0, max(0.0, headroom)), 1)
 
     @property
     def soc(self) -> float:
@@ -117,8 +173,18 @@ class Evms3Simulator(SimDevice):
         if self._t0 is None:
             self._t0 = now
         dt = self._elapsed(now)
-        flowing = self.powered and self.state in (Evms3State.RUNNING, Evms3State.CHARGING)
-        self.current_a = float(self.current_fn(now - self._t0)) if flowing else 0.0
+        if (self.charge_after_s is not None and self.state == Evms3State.RUNNING
+                and now - self._t0 >= self.charge_after_s):
+            self.start_charging()
+        if not self.powered:
+            self.current_a = 0.0
+        elif self.state == Evms3State.CHARGING:
+            # wire sign: positive = discharge, so the chargers' output is negative
+            self.current_a = -sum(self.charger_output_a(n) for n in range(1, self.chargers + 1))
+        elif self.state == Evms3State.RUNNING:
+            self.current_a = float(self.current_fn(now - self._t0))
+        else:
+            self.current_a = 0.0
         self.remaining_ah = min(self.capacity_ah, max(
             0.0, self.remaining_ah - self.current_a * dt / 3600.0))
 
@@ -140,16 +206,45 @@ class Evms3Simulator(SimDevice):
             frames.append(self.codec.encode(BatteryCurrent(round(self.current_a, 3))))
         if self._bms12.due(now):
             frames += self._bms12_frames()
+        frames += self._charger_frames(now)
         if not self.powered or self.faults.silent:
             return []
         if self.faults.malformed:
             frames = [self.corrupt(f) for f in frames]
         return frames
 
-    def _bms12_frames(self) -> list[Frame]:
+    def _charger_frames(self, now: float) -> list[Frame]:
+        charging = self.state == Evms3State.CHARGING and self.chargers > 0
+        # Both schedules run always, so the first command and answer come on their phase.
+        commands_due = self._charger_command.due(now)
+        status_due = self._charger_status.due(now)
+        if not charging:
+            return []
+        frames = []
+        if commands_due:
+            for n in range(1, self.chargers + 1):
+                self.charger_commands[n] = self.charge_command(n)
+                frames.append(self.codec.encode(self.charger_commands[n]))
+        if status_due:
+            bits = int(self.faults.extra.get('charger_status', 0) or 0)
+            volts = round(min(6553.5, self.pack_voltage_v()), 1)
+            for n in range(1, self.chargers + 1):
+                frames.append(self.codec.encode(ChargerStatus(
+                    n, volts, self.charger_output_a(n), bits, CHARGER_TEMPERATURE_RAW)))
+        return frames
+
+    def balance_target_mv(self) -> int | None:
+        """Return the balance voltage the EVMS asks of every BMS12 module (None = off)."""
         cfg = self.stored_config
-        balance = (None if cfg is None or cfg.balance_mode != 'static'
-                   else int(round(cfg.balance_v * 1000)))
+        if cfg is not None and cfg.balance_mode == 'static':
+            return int(round(cfg.balance_v * 1000))
+        if self.state != Evms3State.CHARGING or (cfg is not None and cfg.balance_mode == 'off'):
+            return None
+        cells = [v for module in self.cell_voltages() for v in module]
+        return int(round(min(cells) * 1000)) if cells else None  # dynamic: to the lowest
+
+    def _bms12_frames(self) -> list[Frame]:
+        balance = self.balance_target_mv()
         frames = []
         for m, cells in enumerate(self.cell_voltages()):
             padded = cells + [0.0] * (12 - len(cells))
@@ -164,7 +259,8 @@ class Evms3Simulator(SimDevice):
     def on_frame(self, frame: Frame, now: float) -> None:
         """Take commands addressed to the EVMS (IDs 31..39, 41); ignore the rest."""
         offset = frame.arbitration_id - self.codec.base_id
-        if not frame.is_extended_id or not 1 <= offset <= 11 or offset == 10:
+        if (frame.is_extended_id != self.codec.is_extended_id or not 1 <= offset <= 11
+                or offset == 10):
             return  # not ours, or our own status / current sensor frames
         try:
             msg = self.codec.decode(frame.arbitration_id, frame.data)

@@ -61,6 +61,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--ams-banks', type=int, default=None, metavar='N', help='AMS banks 1..5')
     p.add_argument('--bms12-modules', type=int, default=None, metavar='N',
                    help='BMS12 modules behind the EVMS3, 0..16')
+    p.add_argument('--evms3-charge-after', type=float, default=None, metavar='S',
+                   help='the EVMS3 starts charging after S seconds: it commands its TC '
+                        'chargers (29-bit) and they answer (default: never, it drives)')
+    p.add_argument('--evms3-chargers', type=int, default=None, metavar='N',
+                   help='TC chargers on the EVMS3 bus, 0..3 (default 1)')
     p.add_argument('--ivt-byte-order', choices=('big', 'little'), default=None,
                    help='IVT-S result byte order (default big)')
     p.add_argument('--sma-dialect', choices=('sma', 'pylontech', 'victron'), default=None,
@@ -84,7 +89,8 @@ def build_parser() -> argparse.ArgumentParser:
 def build_devices(types: Sequence[str], ams_banks: int | None = None,
                   bms12_modules: int | None = None,
                   ivt_byte_order: str | None = None,
-                  sma_dialect: str | None = None) -> list[SimDevice]:
+                  sma_dialect: str | None = None, evms3_charge_after: float | None = None,
+                  evms3_chargers: int | None = None) -> list[SimDevice]:
     """Instantiate the simulators named by type (instance name = type name)."""
     devices: list[SimDevice] = []
     ams = None
@@ -93,8 +99,11 @@ def build_devices(types: Sequence[str], ams_banks: int | None = None,
         kwargs: dict[str, Any] = {'name': kind}
         if kind == 'ams' and ams_banks is not None:
             kwargs['bank_count'] = ams_banks
-        elif kind == 'evms3' and bms12_modules is not None:
-            kwargs['bms12_modules'] = bms12_modules
+        elif kind == 'evms3':
+            for key, value in (('bms12_modules', bms12_modules), ('chargers', evms3_chargers),
+                               ('charge_after_s', evms3_charge_after)):
+                if value is not None:
+                    kwargs[key] = value
         elif kind == 'sma' and sma_dialect is not None:
             kwargs['dialect'] = sma_dialect
         elif kind == 'bms16' and 'sma' in types and _accepts(cls, 'send_sma'):
@@ -161,7 +170,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         options = parse_options(args.option)
         devices = build_devices(args.devices, args.ams_banks, args.bms12_modules,
-                                args.ivt_byte_order, args.sma_dialect)
+                                args.ivt_byte_order, args.sma_dialect,
+                                args.evms3_charge_after, args.evms3_chargers)
         apply_faults(devices, args.fault)
     except (ValueError, TypeError, ImportError) as exc:
         print(f'simulator: {exc}', file=sys.stderr)

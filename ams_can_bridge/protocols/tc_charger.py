@@ -1,0 +1,149 @@
+"""
+TC / Elcon chargers as a ZEVA EVMS3 drives them: 29-bit IDs, big-endian fields.
+
+Facts (not in the seed documents): ZEVA's open EVMS3 firmware (MIT, August 2021) names the
+IDs of up to three chargers, ``TC_CHARGER1_RX_ID`` 0x1806E5F4 (EVMS -> charger) and
+``TC_CHARGER1_TX_ID`` 0x18FF50E5 (charger -> bus), then E7 and E8 for chargers 2 and 3; the
+fields are those of the TC/Elcon charger CAN protocol:
+
+- command: bytes 0-1 target voltage 0.1 V, bytes 2-3 current limit 0.1 A, byte 4 0 = charge,
+  1 = stop (ZEVA Monitor: "shutdown by BMS");
+- status: bytes 0-1 output voltage 0.1 V, bytes 2-3 output current 0.1 A, byte 4 status bits
+  (bit 0 hardware failure, bit 1 over-temperature shutdown, bit 2 input (AC) voltage error,
+  bit 3 battery fault / no battery, bit 4 communication timeout), byte 5 temperature (raw).
+
+Decisions:
+
+- DLC 5..8 for both (bytes after the defined ones are reserved); a command without byte 4
+  or a status without byte 4 is malformed, a status without byte 5 has no temperature.
+- A command byte 4 other than 0 or 1 is malformed. Status bits 5..7 are not defined: they
+  are kept (``ChargerStatus.status`` is the raw byte) and named 'bit 5'.. so they still warn.
+"""
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+from typing import Union
+
+from ams_can_bridge.protocols.common import (
+    check_dlc, check_range, EncodeRangeError, Frame, MalformedFrameError)
+
+TC_CHARGER1_RX_ID = 0x1806E5F4
+TC_CHARGER1_TX_ID = 0x18FF50E5
+TC_CHARGER2_RX_ID = 0x1806E7F4
+TC_CHARGER2_TX_ID = 0x18FF50E7
+TC_CHARGER3_RX_ID = 0x1806E8F4
+TC_CHARGER3_TX_ID = 0x18FF50E8
+CHARGERS = 3
+COMMAND_IDS = (TC_CHARGER1_RX_ID, TC_CHARGER2_RX_ID, TC_CHARGER3_RX_ID)
+STATUS_IDS = (TC_CHARGER1_TX_ID, TC_CHARGER2_TX_ID, TC_CHARGER3_TX_ID)
+CHARGER_IDS = frozenset(COMMAND_IDS + STATUS_IDS)
+DLC_RANGE = (5, 6, 7, 8)
+MAX_DECIVOLTS = 0xFFFF
+
+
+class ChargerStatusBit(enum.IntFlag):
+    """Status byte 4 of the charger's answer."""
+
+    HARDWARE_FAILURE = 0x01
+    OVER_TEMPERATURE = 0x02  # over-temperature shutdown
+    INPUT_VOLTAGE_ERROR = 0x04  # input (AC) voltage wrong or missing
+    BATTERY_FAULT = 0x08  # battery fault / no battery (reverse or not connected)
+    COMMUNICATION_TIMEOUT = 0x10  # no command from the EVMS in time
+
+
+STATUS_BIT_TEXT = {
+    ChargerStatusBit.HARDWARE_FAILURE: 'hardware failure',
+    ChargerStatusBit.OVER_TEMPERATURE: 'over-temperature shutdown',
+    ChargerStatusBit.INPUT_VOLTAGE_ERROR: 'input (AC) voltage error',
+    ChargerStatusBit.BATTERY_FAULT: 'battery fault / no battery',
+    ChargerStatusBit.COMMUNICATION_TIMEOUT: 'communication timeout',
+}
+
+
+@dataclass(frozen=True, slots=True)
+class ChargerCommand:
+    """EVMS -> charger 1..3: target voltage, current limit, stop (1) or charge (0)."""
+
+    charger: int
+    target_voltage_v: float
+    current_limit_a: float
+    stop: bool
+
+
+@dataclass(frozen=True, slots=True)
+class ChargerStatus:
+    """Charger 1..3 -> bus: output voltage and current, raw status byte, raw temperature."""
+
+    charger: int
+    output_voltage_v: float
+    output_current_a: float
+    status: int
+    temperature_raw: int | None = None
+
+    @property
+    def active_bits(self) -> tuple[str, ...]:
+        """Describe every set status bit, defined ones by name, in bit order."""
+        return tuple(STATUS_BIT_TEXT[ChargerStatusBit(1 << b)] if 1 << b in STATUS_BIT_TEXT
+                     else f'bit {b}' for b in range(8) if self.status >> b & 1)
+
+
+ChargerReading = Union[ChargerCommand, ChargerStatus]
+
+
+def _be16(data: bytes, i: int) -> int:
+    return data[i] << 8 | data[i + 1]
+
+
+def _put_decis(field: str, value: float, unit: str) -> bytes:
+    check_range(field, value, 0, MAX_DECIVOLTS / 10, 0.1, unit)
+    return round(value * 10).to_bytes(2, 'big')
+
+
+def _check_charger(charger: object) -> int:
+    if isinstance(charger, bool) or charger not in range(1, CHARGERS + 1):
+        raise EncodeRangeError('charger', charger, '1, 2 or 3')
+    return int(charger)  # type: ignore[call-overload]
+
+
+class TcChargerCodec:
+    """Decode and encode the command and status frames of TC chargers 1..3."""
+
+    is_extended_id = True
+    arbitration_ids = CHARGER_IDS
+
+    def decode(self, arbitration_id: int, data: bytes) -> ChargerReading:
+        """Frame -> reading; MalformedFrameError for a foreign ID, DLC or value."""
+        if arbitration_id in COMMAND_IDS:
+            check_dlc(arbitration_id, data, DLC_RANGE)
+            if data[4] > 1:
+                raise MalformedFrameError(arbitration_id, data,
+                                          f'byte 4 = {data[4]}, expected 0 (charge) or 1 (stop)')
+            return ChargerCommand(COMMAND_IDS.index(arbitration_id) + 1, _be16(data, 0) / 10,
+                                  _be16(data, 2) / 10, bool(data[4]))
+        if arbitration_id in STATUS_IDS:
+            check_dlc(arbitration_id, data, DLC_RANGE)
+            return ChargerStatus(STATUS_IDS.index(arbitration_id) + 1, _be16(data, 0) / 10,
+                                 _be16(data, 2) / 10, data[4],
+                                 data[5] if len(data) > 5 else None)
+        raise MalformedFrameError(arbitration_id, data, 'not a TC charger ID')
+
+    def encode(self, message: ChargerReading) -> Frame:
+        """Encode a reading as an 8-byte frame (reserved bytes 0); EncodeRangeError else."""
+        charger = _check_charger(message.charger)
+        if isinstance(message, ChargerCommand):
+            data = (_put_decis('target_voltage_v', message.target_voltage_v, 'V')
+                    + _put_decis('current_limit_a', message.current_limit_a, 'A')
+                    + bytes([1 if message.stop else 0, 0, 0, 0]))
+            return Frame(COMMAND_IDS[charger - 1], data, True)
+        if isinstance(message, ChargerStatus):
+            check_range('status', message.status, 0, 255, 1)
+            temperature = message.temperature_raw
+            if temperature is not None:
+                check_range('temperature_raw', temperature, 0, 255, 1)
+            data = (_put_decis('output_voltage_v', message.output_voltage_v, 'V')
+                    + _put_decis('output_current_a', message.output_current_a, 'A')
+                    + bytes([message.status, temperature or 0, 0, 0]))
+            return Frame(STATUS_IDS[charger - 1], data if temperature is not None
+                         else data[:5], True)
+        raise TypeError(f'not a TC charger message: {message!r}')
