@@ -2,9 +2,10 @@
 Hostile traffic into the RUNNING bridge, over python-can's virtual bus and over slcan.
 
 Hypothesis draws streams of frames at every ID the configured devices consume: random DLC
-0..8 and random data, remote frames, error frames (virtual bus), mixed with valid status
-frames. An offline replica of the same devices (``DeviceSet``, as log2bag builds it) sees
-the same frames and says which ones are malformed and which ones are primary status frames.
+0..8 (0..64 on a CAN FD bus) and random data, remote frames, error frames (virtual bus),
+mixed with valid status frames. An offline replica of the same devices (``DeviceSet``, as
+log2bag builds it) sees the same frames and says which ones are malformed and which ones are
+primary status frames.
 After each stream, the running node must have:
 
 - let nothing escape a callback, the executor or a thread (and no frame handler failed);
@@ -48,11 +49,16 @@ def marker(soc: int) -> Frame:
     return Frame(BMS16_STATUS, bytes([0, soc, 0x0B, 0x02, 0x7D, 0x80, 25]))
 
 
-def events(error_frames: bool):
+FD_LENGTHS = (0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64)
+
+
+def events(error_frames: bool, fd: bool = False):
     """Strategy: a stream of (kind, ...) events, kinds data / remote / valid / error."""
     known = st.sampled_from(IDS)
+    payload = (st.sampled_from(FD_LENGTHS).flatmap(lambda n: st.binary(min_size=n, max_size=n))
+               if fd else st.binary(max_size=8))
     kinds = [
-        st.tuples(st.just('data'), known, st.binary(max_size=8)),
+        st.tuples(st.just('data'), known, payload),
         st.tuples(st.just('remote'), known, st.integers(0, 8)),
         st.tuples(st.just('valid'), st.sampled_from(FRAMES), st.just(b'')),
     ]
@@ -70,9 +76,10 @@ class Transport:
         self.kind = kind
         self.peer = None
         params = dict(PARAMS)
-        if kind == 'virtual':
+        if kind in ('virtual', 'virtual-fd'):
             channel = f'fuzz-node-{time.monotonic_ns()}'
-            params.update({'can.interface': 'virtual', 'can.channel': channel})
+            params.update({'can.interface': 'virtual', 'can.channel': channel,
+                           'can.fd': kind == 'virtual-fd'})
             self.bus = can.Bus(interface='virtual', channel=channel)
         else:
             self.peer = SlcanPeer(symlink=tmp_path_factory.mktemp('fuzz') / 'ttyACM_fuzz')
@@ -87,7 +94,7 @@ class Transport:
         if self.peer is not None:
             assert self.peer.send(Frame(can_id, data, extended))
         else:
-            self.bus.send(can.Message(arbitration_id=can_id, data=data,
+            self.bus.send(can.Message(arbitration_id=can_id, data=data, is_fd=len(data) > 8,
                                       is_extended_id=extended))
 
     def remote(self, can_id: int, extended: bool, dlc: int) -> None:
@@ -109,7 +116,7 @@ class Transport:
             self.bus.shutdown()
 
 
-@pytest.fixture(scope='module', params=['virtual', 'slcan'])
+@pytest.fixture(scope='module', params=['virtual', 'virtual-fd', 'slcan'])
 def live(request, tmp_path_factory):
     transport = Transport(request.param, tmp_path_factory)
     transport.replica = replica()
@@ -145,7 +152,7 @@ def run_stream(live: Transport, stream: list) -> None:
         values = bridge.bus_values()
         return (all(bridge.present_count(d) - before[d] == expected[d] for d in DEVICES)
                 and values.get('malformed frames') == malformed
-                and (live.kind != 'virtual'
+                and (live.peer is not None
                      or values.get('error frames') == str(live.errors_sent)))
     try:
         bridge.wait(settled, 10, 'every primary frame published and every bad one counted')
@@ -167,7 +174,8 @@ def run_stream(live: Transport, stream: list) -> None:
 @settings(max_examples=examples(12))
 @given(stream=st.data())
 def test_hostile_streams_into_the_running_node(live, stream):
-    run_stream(live, stream.draw(events(error_frames=live.kind == 'virtual')))
+    run_stream(live, stream.draw(events(error_frames=live.peer is None,
+                                        fd=live.kind == 'virtual-fd')))
 
 
 def test_the_replica_is_not_vacuous():
