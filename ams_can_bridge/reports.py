@@ -89,6 +89,7 @@ def bus_report(status: Any, malformed: int, interface: str) -> DiagnosticReport:
         'error frames': str(status.error_frames),
         'reconnects': str(status.reconnects),
         'frame handler errors': str(getattr(status, 'callback_errors', 0)),
+        'unreadable frames': str(getattr(status, 'frames_unreadable', 0)),
         'adapter': str(getattr(status, 'hardware_id', '') or ''),
         'replay': (('finished' if state == 'replay finished' else 'playing')
                    if interface == 'replay' else 'off'),

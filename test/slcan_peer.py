@@ -150,6 +150,10 @@ class SlcanPeer:
             return False
         return self._write(frame_to_slcan(frame))
 
+    def send_raw(self, line: bytes) -> bool:
+        """Write raw bytes to the bus user (garbled lines, line noise)."""
+        return self.is_open and self._write(line)
+
     def send_remote(self, arbitration_id: int, dlc: int, extended: bool = False) -> bool:
         """Deliver a remote frame ('r' / 'R' line) to the bus user."""
         if not self.is_open or self._master < 0:

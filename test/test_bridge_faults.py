@@ -77,6 +77,28 @@ def test_adapter_unplugged_while_running_reconnects(harness, tmp_path, capfd):
     assert 'Traceback' not in capfd.readouterr().err
 
 
+def test_a_garbled_slcan_line_is_a_dropped_frame_not_a_lost_bus(harness, tmp_path, capfd):
+    peer = SlcanPeer(symlink=tmp_path / 'ttyCAN2')
+    try:
+        h = harness(dict(slcan_params(peer), devices=['bms16']),
+                    {'bms16/battery_state': BatteryState})
+        h.status('CAN bus', lambda s: values(s)['state'] == 'connected')
+        peer.wait_open()
+        # line noise: python-can's slcan driver raises on a line it cannot parse
+        assert peer.send_raw(b't1F47' + b'ZZ' * 7 + b'\r')
+        assert peer.send_raw(b'T\r')
+        h.spin_until(lambda: peer.send(Frame(500, bms16_status(0, 44, 500, 0, 20)))
+                     and any(m.present and abs(m.percentage - 0.44) < 1e-6
+                             for m in h.msgs['bms16/battery_state']))
+        status = h.status('CAN bus', lambda s: values(s)['unreadable frames'] == '2')
+        assert values(status)['state'] == 'connected' and level(status) == 0
+        assert values(status)['reconnects'] == '0'
+    finally:
+        peer.shutdown()
+    err = capfd.readouterr().err
+    assert 'unreadable message from the driver dropped' in err and 'Traceback' not in err
+
+
 def test_malformed_frames_counted_never_published(harness, capfd):
     h = harness({'devices': ['bms16'], 'diagnostics_period': 0.2},
                 {'bms16/battery_state': BatteryState})

@@ -115,6 +115,7 @@ class BusStatus:
     reconnects: int
     hardware_id: str
     callback_errors: int = 0
+    frames_unreadable: int = 0         # messages the driver could not parse
     down_for: float | None = None      # s the bus has been down (None while it is up)
     last_outage: float | None = None   # s the last outage lasted, once the bus is back
 

@@ -18,6 +18,7 @@ _RECV_TIMEOUT = 0.1     # s: how quickly the receive thread notices stop()
 _STATE_POLL = 0.5       # s: how often bus.state is asked (it may be a driver call)
 _SEND_TIMEOUT = 0.05    # s: a full TX queue is a dropped frame, not a stalled caller
 _CALLBACK_LOG_EVERY = 5.0  # s: throttle for errors raised by on_frame
+_UNREADABLE_LIMIT = 100  # unreadable driver messages in a row: the link itself is broken
 
 # SocketCAN error-frame encoding (linux/can/error.h); the virtual bus carries it unchanged.
 _CAN_ERR_CRTL = 0x04
@@ -83,6 +84,8 @@ class CanIo:
         self.error_frames = 0
         self.reconnects = 0
         self.callback_errors = 0
+        self.frames_unreadable = 0  # messages the driver could not parse (garbled input)
+        self._last_unreadable_log = -_CALLBACK_LOG_EVERY
         self.last_stamp = float('nan')
         self._last_callback_log = 0.0
 
@@ -143,6 +146,7 @@ class CanIo:
             frames_out=self.frames_out, frames_dropped_tx=self.frames_dropped_tx,
             error_frames=self.error_frames, reconnects=self.reconnects,
             hardware_id=self.config.hardware_id, callback_errors=self.callback_errors,
+            frames_unreadable=self.frames_unreadable,
             down_for=None if down_since is None else time.monotonic() - down_since,
             last_outage=self._last_outage)
 
@@ -275,8 +279,17 @@ class CanIo:
         decode_errors = self.config.interface in _SOCKETCAN_ERRORS
         bus_time = replay is not None or self.config.use_bus_time
         next_poll = wall() + _STATE_POLL
+        unreadable_run = 0
         while not stop():
-            msg = recv(_RECV_TIMEOUT)
+            try:
+                msg = recv(_RECV_TIMEOUT)
+            except (ValueError, IndexError) as exc:
+                # The driver could not parse one message (slcan: a garbled serial line): a
+                # bad frame, not a lost bus - unless nothing readable comes any more.
+                unreadable_run += 1
+                self._unreadable(exc, unreadable_run)
+                continue
+            unreadable_run = 0
             now = wall()
             if msg is not None:
                 if msg.is_error_frame:
@@ -347,6 +360,18 @@ class CanIo:
                     recorder.stop()  # keep what was written readable
                 except Exception:  # the disk that failed may fail again: nothing to add
                     pass
+
+    def _unreadable(self, exc: Exception, run: int) -> None:
+        self.frames_unreadable += 1
+        if run >= _UNREADABLE_LIMIT:
+            raise _BusLost('reconnecting', f'{run} unreadable messages in a row from the '
+                           f'driver, last: {_describe(exc)}')
+        now = time.monotonic()
+        if now - self._last_unreadable_log >= _CALLBACK_LOG_EVERY:
+            self._last_unreadable_log = now
+            self._log.warning('CAN bus %s: unreadable message from the driver dropped (%d so '
+                              'far): %s', self.config.hardware_id, self.frames_unreadable,
+                              _describe(exc))
 
     def _callback_failed(self, msg: can.Message, exc: Exception) -> None:
         self.callback_errors += 1
