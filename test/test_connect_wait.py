@@ -94,3 +94,58 @@ def test_a_bus_that_does_not_open_fails_after_connect_wait_naming_state_and_reas
                 if f.arbitration_id == BMS16_RESET_SOC] == [BMS16_RESET_SOC]
     finally:
         peer.shutdown()
+
+
+def test_installed_bridge_answers_a_command_called_as_soon_as_its_service_appears(tmp_path):
+    """The report of issue 9, as a user hits it: installed bridge, slcan, call at once."""
+    import os
+    import subprocess
+
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from std_srvs.srv import SetBool
+
+    from helpers import ros_context
+    from test_bridge_slcan import bridge_executable
+    ns = f'race_{os.getpid()}'
+    # The adapter is plugged in only after the calls were made, so they surely race the
+    # opening bus; python-can then sleeps its own 2 s in the open (no sleep_after_open).
+    peer = SlcanPeer(symlink=tmp_path / 'ttyACM_installed', plugged=False)
+    with peer, ros_context() as context:
+        params = tmp_path / 'race.yaml'
+        params.write_text(
+            '/**:\n  ros__parameters:\n    devices: [evms3, bms16]\n'
+            '    commands_allowed: true\n    commands_enabled: true\n'
+            f'    can: {{interface: slcan, channel: {peer.channel}, bitrate: 500000,'
+            ' reconnect_period: 0.2, connect_wait: 10.0}\n')
+        proc = subprocess.Popen(
+            [bridge_executable(), '--ros-args', '-r', f'__ns:=/{ns}', '--params-file',
+             str(params)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+            env=dict(os.environ))
+        node = rclpy.create_node('race_client', context=context)
+        try:
+            setup = node.create_client(SetBool, f'/{ns}/evms3/set_setup_mode')
+            reset = node.create_client(Trigger, f'/{ns}/bms16/reset_soc')
+            assert setup.wait_for_service(timeout_sec=30) and reset.wait_for_service(30)
+            futures = [setup.call_async(SetBool.Request(data=True)),
+                       reset.call_async(Trigger.Request())]
+            executor = SingleThreadedExecutor(context=context)
+            executor.add_node(node)
+            executor.spin_once(timeout_sec=0.5)  # the requests are out and waiting
+            assert not any(f.done() for f in futures)
+            peer.reopen()  # plugged in
+            for future in futures:
+                executor.spin_until_future_complete(future, timeout_sec=15)
+            executor.shutdown()
+            answers = [f.result() for f in futures]
+            assert all(a is not None and a.success for a in answers), answers
+            ids = [f.arbitration_id for f in peer.wait_received(2)]
+            assert 31 in ids and BMS16_RESET_SOC in ids, ids
+        finally:
+            node.destroy_node()
+            proc.terminate()
+            try:
+                proc.communicate(timeout=20)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.communicate()
