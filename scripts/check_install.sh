@@ -41,6 +41,7 @@ inst="$scratch/ws/install/ams_can_bridge"
 for f in lib/ams_can_bridge/bridge lib/ams_can_bridge/simulator lib/ams_can_bridge/demo \
          lib/ams_can_bridge/log2bag share/ams_can_bridge/config/foxglove_layout.json \
          share/ams_can_bridge/package.xml share/ams_can_bridge/launch/bridge.launch.py \
+         share/ams_can_bridge/security/policy.xml \
          share/ament_index/resource_index/packages/ams_can_bridge; do
   [ -e "$inst/$f" ] || fail "colcon install lacks $f"
 done
