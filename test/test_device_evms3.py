@@ -28,9 +28,12 @@ def test_class_contract():
         'evms3', 0.25, 30)
     assert device.is_extended_id is True
     chargers = {0x1806E5F4, 0x1806E7F4, 0x1806E8F4, 0x18FF50E5, 0x18FF50E7, 0x18FF50E8}
+    readback = set(range(52, 57))
     assert device.arbitration_ids == frozenset(
-        list(range(30, 42)) + list(range(300, 305)) + list(range(310, 315))) | chargers
-    assert make(base_id=100).arbitration_ids == frozenset(range(100, 112)) | chargers
+        list(range(30, 42)) + list(range(300, 305)) + list(range(310, 315))) | chargers \
+        | readback
+    assert make(base_id=100).arbitration_ids == frozenset(range(100, 112)) | chargers \
+        | readback
     spec = {p.key: p for p in Evms3Device.PARAMS}['bms12_modules']
     assert (spec.type, spec.default, spec.low, spec.high) == (int, 0, 0, 16)
     assert device.stale_timeout == pytest.approx(1.25)

@@ -19,11 +19,13 @@ from typing import Any, Callable, Mapping
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, Level, ParamSpec,
     PowerSupplyHealth, PowerSupplyStatus)
+from ams_can_bridge.devices.evms3_readback import ConfigReader, ReadResult, Send
 from ams_can_bridge.parameters import config_param_specs
 from ams_can_bridge.protocols import evms3 as evms3_proto
 from ams_can_bridge.protocols.evms3 import (
-    BatteryCurrent, BMS12_MAX_MODULES, Bms12Cells, Bms12Request, Bms12Temperatures, Evms3Codec,
-    Evms3Error, Evms3State, Evms3Status, EVMS3_WARNINGS)
+    BatteryCurrent, BMS12_MAX_MODULES, Bms12Cells, Bms12Request, Bms12Temperatures,
+    ConfigReport, Evms3Codec, Evms3Error, Evms3State, Evms3Status, EVMS3_WARNINGS,
+    READBACK_IDS, RequestConfig)
 from ams_can_bridge.protocols.tc_charger import (
     CHARGERS, ChargerCommand, ChargerStatus, STATUS_BIT_TEXT)
 
@@ -94,7 +96,14 @@ class Evms3Device(Device):
                   'module: 12, or config.cells_per_module when set', low=0, high=16, step=1),
     ]
 
-    COMMAND_PARAMS = config_param_specs(evms3_proto.CONFIG_FIELDS)
+    COMMAND_PARAMS = config_param_specs(evms3_proto.CONFIG_FIELDS) + [
+        ParamSpec('config_request', bool, False,
+                  'allow read_config to send ID 51: ZEVA motor controllers use ID 51 for '
+                  'their throttle frame, so leave false on a bus with one', read_only=False),
+        ParamSpec('read_timeout', float, 2.0,
+                  's read_config waits for the answer (IDs 52..56) after sending ID 51',
+                  low=0.1, high=30.0, read_only=False),
+    ]
 
     def __init__(self, name: str, params: Mapping[str, Any],
                  clock: Callable[[], float] = time.monotonic) -> None:
@@ -118,6 +127,7 @@ class Evms3Device(Device):
         self._current_a = NAN  # wire sign: positive = discharge
         self._current_seen = -math.inf
         self._modules = [_Module() for _ in range(modules)]
+        self.reader = ConfigReader(self.lock, self.codec.encode(RequestConfig()))
 
     # --- what the commanding part reads ------------------------------------------------------
     @property
@@ -138,7 +148,20 @@ class Evms3Device(Device):
         status = self.status
         return None if status is None else status.state
 
+    def read_config(self, send: Send, timeout: float) -> ReadResult:
+        """Send ID 51 through send(frame) -> (ok, why); wait up to timeout s for 52..56."""
+        return self.reader.read(send, timeout)
+
     # --- bus thread --------------------------------------------------------------------------
+    def handle_frame(self, arbitration_id: int, data: bytes, stamp: float) -> bool:
+        """Decode and apply one frame; a bad 52..56 also fails a read_config waiting now."""
+        malformed = self.frames_malformed
+        primary = super().handle_frame(arbitration_id, data, stamp)
+        if self.frames_malformed != malformed and arbitration_id in READBACK_IDS:
+            with self.lock:
+                self.reader.offer_malformed(self.last_malformed)
+        return primary
+
     def _handle(self, reading: Any, stamp: float) -> bool:
         if isinstance(reading, Evms3Status):
             self._status = reading
@@ -163,6 +186,8 @@ class Evms3Device(Device):
             self._charger_commands[reading.charger] = (reading, self.clock())
         elif isinstance(reading, ChargerStatus):
             self._charger_status[reading.charger] = (reading, self.clock())
+        elif isinstance(reading, ConfigReport):
+            self.reader.offer(reading, self.clock())
         # Our own commands seen on the bus carry no state.
         return False
 
@@ -267,6 +292,7 @@ class Evms3Device(Device):
                                                 else f'{self.clock() - seen:.1f} s ago')
             values[f'module {m} balance target (mV)'] = self._balance_text(m)
         charger_faults = self._charger_values(values)
+        values.update(self.reader.values(self.clock()))
         if status.error == Evms3Error.NONE:
             level = Level.OK
         elif status.error in EVMS3_WARNINGS:

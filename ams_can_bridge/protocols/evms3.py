@@ -33,6 +33,14 @@ STATUS, SET_STATE, CONFIG1, CONFIG2, CONFIG3, CONFIG4 = range(6)
 CELL_NUMBERS, ACK_ERROR, RESET_SOC, POWER_OFF, BATTERY_CURRENT, ZERO_CURRENT = range(6, 12)
 BALANCE_DYNAMIC = 251
 BALANCE_OFF = 252
+# Read-back (ZEVA's open firmware, MIT, August 2021): fixed IDs, not moved by base_id. ID 51
+# is also a ZEVA motor controller's throttle frame (MC_SET_THROTTLE_ID), 52/53 its settings.
+CORE_REQUEST_CONFIG = 51
+CORE_SEND_CONFIG1, CORE_SEND_CONFIG2, CORE_SEND_CONFIG3, CORE_SEND_CONFIG4 = range(52, 56)
+CORE_SEND_CELL_NUMS = 56
+READBACK_IDS = range(CORE_SEND_CONFIG1, CORE_SEND_CELL_NUMS + 1)
+READBACK_NAMES = {52: 'config 1', 53: 'config 2', 54: 'config 3', 55: 'config 4',
+                  56: 'cell numbers'}
 
 
 class Evms3State(enum.IntEnum):
@@ -173,7 +181,71 @@ class AcknowledgeError:
 
 @dataclass(frozen=True, slots=True)
 class ResetSoc:
-    """ID 38: reset the state of charge to 100 %."""
+    """
+    ID 38: reset the state of charge to 100 % (sent with DLC 0).
+
+    ZEVA's 2021 firmware reads one data byte 0..100 as the SoC to set; older firmware
+    ignores the data and sets 100 %. The bridge sends no data, so both mean 100 %.
+    """
+
+
+@dataclass(frozen=True, slots=True)
+class RequestConfig:
+    """ID 51 (DLC 0): ask the EVMS for its whole configuration; it answers on 52..56."""
+
+
+@dataclass(frozen=True)
+class ConfigReport:
+    """IDs 52..56: one packet of the configuration the EVMS reports (its answer to 51)."""
+
+    arbitration_id: int  # 52..55: the layout of 32..35; 56: the layout of 36
+    values: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class ConfigReadback:
+    """A whole reported configuration (52..56 joined), or what was missing from it."""
+
+    config: Evms3Config | None
+    cells_per_module: tuple[int, ...] | None
+    missing: tuple[int, ...] = ()  # IDs of 52..56 not received
+
+    @classmethod
+    def join(cls, reports: Iterable[ConfigReport]) -> 'ConfigReadback':
+        """Join the packets of one answer (any order); missing IDs named, nothing guessed."""
+        by_id = {r.arbitration_id: r for r in reports}
+        missing = tuple(i for i in READBACK_IDS if i not in by_id)
+        if missing:
+            return cls(None, None, missing)
+        values: dict[str, Any] = {}
+        for report in by_id.values():
+            values.update(report.values)
+        cells = values.pop('cells_per_module')
+        return cls(Evms3Config(**values), tuple(cells))
+
+    def parameter_values(self) -> dict[str, Any]:
+        """Every configuration field read, physical units (balance_v only when static)."""
+        if self.config is None or self.cells_per_module is None:
+            return {}
+        values = {f.name: getattr(self.config, f.name) for f in fields(Evms3Config)}
+        if values['balance_v'] is None:
+            del values['balance_v']  # dynamic / off: the device reported no voltage
+        values['cells_per_module'] = list(self.cells_per_module)
+        return values
+
+    def summary(self) -> str:
+        """One line: capacity, limits, balancing, charging, modules."""
+        cfg = self.config
+        if cfg is None or self.cells_per_module is None:
+            return 'incomplete: missing ' + ', '.join(
+                f'ID {i} ({READBACK_NAMES[i]})' for i in self.missing)
+        balance = (f'static {cfg.balance_v:.2f} V' if cfg.balance_mode == 'static'
+                   else cfg.balance_mode)
+        modules = [n for n in self.cells_per_module if n]
+        return (f'{cfg.pack_capacity_ah} Ah, full {cfg.full_voltage_v} V, cells '
+                f'{cfg.bms_min_cell_v:.2f}..{cfg.bms_max_cell_v:.2f} V, balance {balance}, '
+                f'charge {cfg.max_charge_voltage_v} V {cfg.max_charge_current_a} A, '
+                f'{len(modules)} BMS12 module(s) with {sum(modules)} cells')
 
 
 @dataclass(frozen=True, slots=True)
@@ -382,6 +454,7 @@ class Evms3Codec:
 
     def __init__(self, base_id: int = 30, bms12_modules: int = BMS12_MAX_MODULES,
                  bms12_base: int = BMS12_BASE_ID, extended_id: bool = True) -> None:
+        """Decode/encode at base_id (+ the fixed read-back IDs 51..56); ValueError on overlap."""
         # ZEVA's firmware uses 29-bit IDs unless built with USE_29BIT_IDS 0; the TC chargers
         # on the same bus always use 29-bit IDs, so one EVMS3 may need both widths.
         top = 0x1FFFFFFF if extended_id else 0x7FF
@@ -400,6 +473,11 @@ class Evms3Codec:
         if own & set(self._bms12):
             raise ValueError(f'EVMS3 IDs {base_id}..{base_id + 11} overlap the BMS12 IDs '
                              f'{bms12_base}..{bms12_base + 10 * bms12_modules - 6}')
+        fixed = set(range(CORE_REQUEST_CONFIG, CORE_SEND_CELL_NUMS + 1))
+        if fixed & (own | set(self._bms12)):
+            raise ValueError(f'EVMS3 IDs {base_id}..{base_id + 11} or the BMS12 IDs overlap '
+                             'the read-back IDs 51..56 (fixed in the EVMS3 firmware)')
+        own |= set(READBACK_IDS)  # 51 is not listened to: on a ZEVA bus it may be throttle
         self.chargers = TcChargerCodec()
         self.arbitration_ids = frozenset(own | set(self._bms12) | CHARGER_IDS)
         # (ID, 29-bit) pairs: the node dispatches on both, so an 11-bit EVMS3 still gets its
@@ -416,6 +494,8 @@ class Evms3Codec:
         }
         for packet in range(4):
             self._decoders[b + CONFIG1 + packet] = self._decode_config
+            self._decoders[CORE_SEND_CONFIG1 + packet] = self._decode_report
+        self._decoders[CORE_SEND_CELL_NUMS] = self._decode_report
 
     # --- decode ---------------------------------------------------------------------------
     def decode(self, arbitration_id: int, data: bytes) -> Any:
@@ -458,6 +538,14 @@ class Evms3Codec:
         # ID 35: the seed calls it "6 bytes" but draws 8 (two reserved): accept both.
         check_dlc(aid, data, (6, 8) if packet == 3 else 8)
         return _decode_config(packet, aid, data)
+
+    def _decode_report(self, aid: int, data: bytes) -> ConfigReport:
+        if aid == CORE_SEND_CELL_NUMS:
+            cells = self._decode_cell_numbers(aid, data).cells_per_module
+            return ConfigReport(aid, {'cells_per_module': cells})
+        packet = aid - CORE_SEND_CONFIG1
+        check_dlc(aid, data, (6, 8) if packet == 3 else 8)
+        return ConfigReport(aid, _decode_config(packet, aid, data).values)
 
     def _decode_cell_numbers(self, aid: int, data: bytes) -> BmsCellNumbers:
         check_dlc(aid, data, 8)
@@ -502,6 +590,13 @@ class Evms3Codec:
         """Build the frames of IDs 32, 33, 34, 35 in that order (EncodeRangeError first)."""
         return [self._frame(CONFIG1 + i, p) for i, p in enumerate(_config_payloads(cfg))]
 
+    def report_frames(self, cfg: Evms3Config, cells_per_module: Sequence[int]) -> list[Frame]:
+        """Build the EVMS's answer to ID 51: IDs 52..55 (config) and 56 (cell numbers)."""
+        frames = [Frame(CORE_SEND_CONFIG1 + i, bytes(p), self.is_extended_id)
+                  for i, p in enumerate(_config_payloads(cfg))]
+        cells = self.encode(BmsCellNumbers(tuple(cells_per_module)))
+        return frames + [Frame(CORE_SEND_CELL_NUMS, cells.data, self.is_extended_id)]
+
     def encode(self, msg: Any) -> Frame:
         """Reading/command -> Frame; EncodeRangeError names the field and allowed range."""
         if isinstance(msg, Evms3Status):
@@ -520,6 +615,8 @@ class Evms3Codec:
             return self._frame(ACK_ERROR, bytes([int(msg.error)]))
         if isinstance(msg, ResetSoc):
             return self._frame(RESET_SOC, b'')
+        if isinstance(msg, RequestConfig):
+            return Frame(CORE_REQUEST_CONFIG, b'', self.is_extended_id)
         if isinstance(msg, PowerOff):
             return self._frame(POWER_OFF, b'')
         if isinstance(msg, ZeroCurrentSensor):

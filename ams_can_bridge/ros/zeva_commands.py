@@ -1,9 +1,12 @@
 """
-ZEVA EVMS3 and BMS16 services: configuration write, setup mode, error acknowledge, SoC reset.
+ZEVA EVMS3 and BMS16 services: configuration read/write, setup mode, error acknowledge, SoC.
 
 Every configuration value is a parameter ``<name>.config.<field>`` in physical units, without
-a default: neither device can report its configuration, so writing a guess would overwrite
-the device. ``write_config`` refuses until every value is set and names all missing ones.
+a default: writing a guess would overwrite the device. ``write_config`` refuses until every
+value is set and names all missing ones. The EVMS3 can report its configuration:
+``read_config`` (the device sends ID 51 and joins the answer 52..56) sets every value from
+it, so a write after it is a read-modify-write; it is refused unless ``<name>.config_request``
+is true, because ID 51 is also a ZEVA motor controller's throttle frame.
 Nothing is sent unless ``commands_enabled`` is true, and a refused call sends nothing: every
 frame of a call is built (and so validated) before the first one is sent.
 """
@@ -12,6 +15,7 @@ from __future__ import annotations
 import threading
 from typing import Any, Callable, Iterable
 
+from rclpy.parameter import Parameter
 from std_srvs.srv import SetBool, Trigger
 
 from ams_can_bridge.devices.base import Device
@@ -42,6 +46,7 @@ class _ZevaCommands:
     """Shared plumbing: config values, the gate, all-or-nothing frame sequences, services."""
 
     FIELDS: tuple[ConfigField, ...] = ()
+    WRITE_HINT = 'set them all: the device has no read-back, a write overwrites every value'
 
     def __init__(self, node: Any, device: Device, name: str) -> None:
         """Load and check the configuration values; raises ParamError naming bad ones."""
@@ -129,8 +134,7 @@ class _ZevaCommands:
         missing = self.config.missing(optional)
         if missing:
             raise _Refused(f'{len(missing)} configuration value(s) unset: '
-                           + ', '.join(missing) + ' (set them all: the device has no '
-                           'read-back, a write overwrites every value)')
+                           + ', '.join(missing) + f' ({self.WRITE_HINT.format(self.name)})')
         return self.config.as_mapping()
 
     def _base_id(self, default: int) -> int:
@@ -143,9 +147,11 @@ class _Refused(Exception):
 
 
 class Evms3Commands(_ZevaCommands):
-    """EVMS3: write_config (IDs 32..36), set_setup_mode (31), acknowledge_error (37), reset_soc."""
+    """EVMS3: read_config (51 -> 52..56), write_config (32..36), set_setup_mode (31), ..."""
 
     FIELDS = evms3_proto.CONFIG_FIELDS
+    WRITE_HINT = ('set them all, or fill them from the EVMS3 with {0}/read_config: a write '
+                  'overwrites every value')
 
     def __init__(self, node: Any, device: Device, name: str) -> None:
         """Create the codec and the services of one EVMS3 instance."""
@@ -159,9 +165,40 @@ class Evms3Commands(_ZevaCommands):
                                                                   self._ack_frames))
         self._service(Trigger, 'reset_soc', self._trigger(
             'reset the SoC', lambda: [self.codec.encode(evms3_proto.ResetSoc())]))
+        self._service(Trigger, 'read_config', self._read_config)
 
     def _check(self, name: str, value: Any) -> Any:
         return evms3_proto.check_config_value(name, value)
+
+    def _read_config(self, request: Any, response: Any) -> Any:
+        response.success, response.message = self._read()
+        return response
+
+    def _read(self) -> tuple[bool, str]:
+        params = self.node.device_params.get(self.name, {})
+        if not params.get('config_request'):
+            return False, (
+                f'{self.name}: read_config refused: {self.name}.config_request is false. ID 51 '
+                'asks the EVMS3 for its configuration, but a ZEVA motor controller takes ID 51 '
+                'as its throttle frame: set the parameter ' + self.name + '.config_request to '
+                'true only if no ZEVA motor controller is on this bus; nothing was sent')
+        if not self.node.commands_enabled:
+            return False, f'{self.name}: {gate_message(self.node, "read the configuration")}'
+
+        def send(frame: Frame) -> tuple[bool, str]:
+            with self._send_lock:
+                return self.node.transmit(frame)
+        result = self.device.read_config(send, float(params.get('read_timeout') or 2.0))
+        if not result.ok:
+            return False, f'{self.name}: read_config failed: {result.error}; nothing was set'
+        values = result.readback.parameter_values()
+        outcome = self.node.set_parameters_atomically([
+            Parameter(f'{self.name}.config.{key}', value=value) for key, value in values.items()])
+        if not outcome.successful:
+            return False, (f'{self.name}: read_config: the EVMS3 answered, but its values '
+                           f'cannot be set: {outcome.reason}; nothing was set')
+        return True, (f'{self.name}: read_config: {result.readback.summary()}; set '
+                      f'{len(values)} parameters {self.name}.config.*')
 
     def _config_frames(self) -> list[Frame]:
         mode = self.config.values.get('balance_mode')

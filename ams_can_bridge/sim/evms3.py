@@ -6,7 +6,9 @@ What the bus of an EVMS3 conversion carries: the status (ID 30, 4 Hz), the curre
 its cells (t = 1..3) and temperatures (t = 4). Remaining Ah integrates the current profile;
 pack voltage is the sum of the module cells. Reacts like PROTOCOLS.md section 3 says: 31 set
 state, 32..35 configuration stored only once all four arrived, 36 cell numbers, 37 clears
-the matching error, 38 resets SoC to full, 39 powers off (silent until ``power_on()``).
+the matching error, 38 resets SoC to full, 39 powers off (silent until ``power_on()``), 51
+is answered with the whole configuration on 52..56 (the stored one, else FACTORY_CONFIG;
+``faults.extra['config_answer']``: only these IDs of 52..56 are sent, a partial answer).
 
 Charging phase (``start_charging()``, or ``charge_after_s`` after the first tick): the EVMS
 enters CHARGING and commands its ``chargers`` TC chargers (1..3, 29-bit) once a second:
@@ -26,8 +28,8 @@ from typing import Any, Callable, Sequence
 from ams_can_bridge.protocols.common import Frame, ProtocolError
 from ams_can_bridge.protocols.evms3 import (
     AcknowledgeError, BatteryCurrent, Bms12Cells, Bms12Request, Bms12Temperatures,
-    BmsCellNumbers, Evms3Codec, Evms3Config, Evms3ConfigPart, Evms3Error, Evms3State,
-    Evms3Status, PowerOff, ResetSoc, SetState, ZeroCurrentSensor)
+    BmsCellNumbers, CORE_REQUEST_CONFIG, Evms3Codec, Evms3Config, Evms3ConfigPart, Evms3Error,
+    Evms3State, Evms3Status, PowerOff, RequestConfig, ResetSoc, SetState, ZeroCurrentSensor)
 from ams_can_bridge.protocols.tc_charger import ChargerCommand, ChargerStatus
 from ams_can_bridge.sim.base import Periodic, SimDevice
 from ams_can_bridge.sim.pack import Elapsed
@@ -41,6 +43,17 @@ CHARGER_PERIOD = 1.0
 TAPER_V = 2.0  # the chargers' current falls to 0 over the last TAPER_V below the target
 END_FRACTION = 0.05  # charge ends when the current has tapered below 5 % of the limit
 CHARGER_TEMPERATURE_RAW = 65
+# What an EVMS3 reports before anyone wrote a configuration: the default settings of ZEVA's
+# open firmware (MIT, August 2021), in physical units.
+FACTORY_CONFIG = Evms3Config(
+    pack_capacity_ah=100, soc_warning_pct=20, full_voltage_v=160, warn_current_a=1210,
+    trip_current_a=1210, temp_warning_c=151, min_aux_voltage_v=10, min_isolation_pct=50,
+    tacho_ppr=2, fuel_gauge_full_pct=80, fuel_gauge_empty_pct=20, temp_gauge_hot_pct=80,
+    temp_gauge_cold_pct=20, bms_min_cell_v=2.5, bms_max_cell_v=3.8, balance_v=None,
+    balance_mode='dynamic', bms_hysteresis_v=0.2, bms_min_temp_c=-40, bms_max_temp_c=101,
+    max_charge_voltage_v=100, max_charge_current_a=10, alt_charge_voltage_v=100,
+    alt_charge_current_a=20, sleep_delay_min=5, mpi_function=0, mpo1_function=0,
+    mpo2_function=0, parallel_strings=1, enable_precharge=True, stationary_mode=False)
 
 
 def nmc_cell_ocv(soc: float) -> float:
@@ -75,6 +88,7 @@ class Evms3Simulator(SimDevice):
         self.charge_after_s = charge_after_s
         self.charger_commands: dict[int, ChargerCommand] = {}  # last sent, per charger
         self.charge_done = False
+        self._answer_due = False
         self.bms12_modules = bms12_modules
         self.cells_per_module = counts
         self.current_fn = current_fn or drive_current_a
@@ -207,6 +221,9 @@ class Evms3Simulator(SimDevice):
         if self._bms12.due(now):
             frames += self._bms12_frames()
         frames += self._charger_frames(now)
+        if self._answer_due:
+            self._answer_due = False
+            frames += self.config_answer()
         if not self.powered or self.faults.silent:
             return []
         if self.faults.malformed:
@@ -233,6 +250,17 @@ class Evms3Simulator(SimDevice):
                     n, volts, self.charger_output_a(n), bits, CHARGER_TEMPERATURE_RAW)))
         return frames
 
+    def config_answer(self) -> list[Frame]:
+        """Return the answer to ID 51: IDs 52..56 (only those of a config_answer fault)."""
+        cells = self.cell_numbers or tuple(self.cells_per_module) + (0,) * (
+            16 - len(self.cells_per_module))
+        frames = self.codec.report_frames(self.stored_config or FACTORY_CONFIG, cells)
+        only = self.faults.extra.get('config_answer')
+        if only is None:
+            return frames
+        wanted = {int(only)} if isinstance(only, (int, str)) else {int(i) for i in only}
+        return [f for f in frames if f.arbitration_id in wanted]
+
     def balance_target_mv(self) -> int | None:
         """Return the balance voltage the EVMS asks of every BMS12 module (None = off)."""
         cfg = self.stored_config
@@ -257,7 +285,12 @@ class Evms3Simulator(SimDevice):
 
     # --- frames in ----------------------------------------------------------------------
     def on_frame(self, frame: Frame, now: float) -> None:
-        """Take commands addressed to the EVMS (IDs 31..39, 41); ignore the rest."""
+        """Take commands addressed to the EVMS (IDs 31..39, 41, 51); ignore the rest."""
+        if (frame.arbitration_id == CORE_REQUEST_CONFIG
+                and frame.is_extended_id == self.codec.is_extended_id):
+            self.received.append(RequestConfig())  # any data: the firmware does not look
+            self._answer_due = self.powered
+            return
         offset = frame.arbitration_id - self.codec.base_id
         if (frame.is_extended_id != self.codec.is_extended_id or not 1 <= offset <= 11
                 or offset == 10):

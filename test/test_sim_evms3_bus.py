@@ -1,10 +1,12 @@
-"""Simulated EVMS3 charging phase: it commands its TC chargers, they answer, the pack fills."""
+"""Simulated EVMS3 bus: charging with TC chargers that answer, and the answer to ID 51."""
 import pytest
 
 from ams_can_bridge.devices.base import Level, PowerSupplyStatus
 from ams_can_bridge.devices.evms3 import Evms3Device
+from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import (
-    Bms12Request, Evms3Codec, Evms3Config, Evms3State, Evms3Status)
+    Bms12Request, ConfigReadback, ConfigReport, Evms3Codec, Evms3Config, Evms3State,
+    Evms3Status, RequestConfig)
 from ams_can_bridge.protocols.tc_charger import ChargerCommand, ChargerStatus
 from ams_can_bridge.sim.evms3 import Evms3Simulator
 from ams_can_bridge.sim.main import build_devices, build_parser
@@ -101,3 +103,21 @@ def test_command_line_options():
     assert (sim.charge_after_s, sim.chargers) == (5.0, 3)
     with pytest.raises(ValueError, match='0..3'):
         Evms3Simulator(chargers=4)
+
+
+def test_answers_51_with_its_configuration_on_52_to_56():
+    sim = Evms3Simulator(bms12_modules=3, cells_per_module=[12, 12, 10])
+    assert not any(isinstance(r, ConfigReport) for r in run(sim, 0.0, 1.0))  # unasked
+    sim.on_frame(Frame(51, b'\x07', True), 1.0)  # any data: the firmware does not look
+    readings = run(sim, 1.01, 1.02)
+    reports = of(readings, ConfigReport)
+    assert [r.arbitration_id for r in reports] == [52, 53, 54, 55, 56]
+    readback = ConfigReadback.join(reports)
+    assert readback.config.balance_mode == 'dynamic'  # firmware default, never configured
+    assert readback.cells_per_module == (12, 12, 10) + (0,) * 13
+    assert sim.received == [RequestConfig()]
+    assert not of(run(sim, 1.03, 2.0), ConfigReport)  # one answer per request
+    sim.on_frame(Frame(51, b'', False), 2.0)  # an 11-bit 51 is not for this EVMS3
+    sim.faults.extra['config_answer'] = [53]
+    sim.on_frame(Frame(51, b'', True), 2.0)
+    assert [r.arbitration_id for r in of(run(sim, 2.01, 2.02), ConfigReport)] == [53]

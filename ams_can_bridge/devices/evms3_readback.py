@@ -1,0 +1,123 @@
+"""
+EVMS3 configuration read-back: ask with ID 51, collect the answer on 52..56. No rclpy.
+
+ZEVA's open EVMS3 firmware (MIT, August 2021) answers a frame with ID 51 (any data, DLC 0
+is enough) with its whole configuration: IDs 52..55 in the layout of 32..35 and 56 in the
+layout of 36. The reader collects one answer for a waiting ``read`` (the service), and keeps
+the last packets whoever asked (a ZEVA Monitor, for example) for the diagnostics: a set
+counts as one answer when its five packets came within ANSWER_WINDOW of each other, so a
+lone 52/53 (a ZEVA motor controller's settings frames share those IDs) is never shown as
+the EVMS's configuration.
+"""
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from ams_can_bridge.protocols.common import Frame
+from ams_can_bridge.protocols.evms3 import (
+    CONFIG_FIELDS, ConfigReadback, ConfigReport, READBACK_IDS, READBACK_NAMES)
+
+ANSWER_WINDOW = 1.0  # s: the EVMS sends the five packets of one answer back to back
+_UNITS = {f.name: f.unit for f in CONFIG_FIELDS}
+
+Send = Callable[[Frame], 'tuple[bool, str]']
+
+
+@dataclass(frozen=True)
+class ReadResult:
+    """What one read_config got: a complete read-back, or why not (nothing to set then)."""
+
+    readback: ConfigReadback | None
+    error: str = ''
+
+    @property
+    def ok(self) -> bool:
+        """Tell whether a complete configuration was read."""
+        return self.readback is not None and self.readback.config is not None
+
+
+def _text(value: Any) -> str:
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
+    if isinstance(value, (tuple, list)):
+        return ', '.join(str(v) for v in value)
+    return f'{value:g}' if isinstance(value, float) else str(value)
+
+
+class ConfigReader:
+    """The read-back state of one EVMS3; its lock is the device's (the bus thread's)."""
+
+    def __init__(self, lock: threading.Lock, request: Frame) -> None:
+        self._cv = threading.Condition(lock)
+        self._request = request
+        self._last: dict[int, tuple[ConfigReport, float]] = {}  # ID -> (packet, clock())
+        self._waiting: dict[int, ConfigReport] | None = None
+        self._malformed: list[str] = []
+
+    # --- bus thread (device lock held) ----------------------------------------------------
+    def offer(self, report: ConfigReport, now: float) -> None:
+        """Take one decoded packet of 52..56."""
+        self._last[report.arbitration_id] = (report, now)
+        if self._waiting is not None:
+            self._waiting[report.arbitration_id] = report
+            self._cv.notify_all()
+
+    def offer_malformed(self, reason: str) -> None:
+        """Remember a malformed 52..56 frame for the read waiting now (its answer fails)."""
+        if self._waiting is not None:
+            self._malformed.append(reason)
+
+    # --- service thread (device lock NOT held) ----------------------------------------------
+    def read(self, send: Send, timeout: float) -> ReadResult:
+        """
+        Send ID 51 through ``send`` and wait up to timeout s for 52..56.
+
+        Never raises: a refused send, a read already waiting, or a partial answer come back
+        as a ReadResult without a configuration and a reason naming what is missing.
+        """
+        with self._cv:
+            if self._waiting is not None:
+                return ReadResult(None, 'another read_config is waiting for the EVMS3')
+            self._waiting, self._malformed = {}, []
+        try:
+            ok, why = send(self._request)
+            if not ok:
+                return ReadResult(None, f'ID 51 was not sent: {why}')
+            deadline = time.monotonic() + timeout
+            with self._cv:
+                self._cv.wait_for(lambda: len(self._waiting) == len(READBACK_IDS),
+                                  max(0.0, deadline - time.monotonic()))
+                got, malformed = dict(self._waiting), list(self._malformed)
+        finally:
+            with self._cv:
+                self._waiting = None
+        readback = ConfigReadback.join(got.values())
+        if readback.config is None:
+            reason = (f'no complete answer within {timeout:g} s: ' + readback.summary()
+                      + ''.join(f'; {m}' for m in malformed))
+            return ReadResult(readback, reason)
+        return ReadResult(readback)
+
+    # --- executor (device lock held) --------------------------------------------------------
+    def values(self, now: float) -> dict[str, str]:
+        """Diagnostics values: the last complete answer seen on the bus, and its age."""
+        if not self._last:
+            return {}
+        times = [seen for _, seen in self._last.values()]
+        complete = (len(self._last) == len(READBACK_IDS)
+                    and max(times) - min(times) <= ANSWER_WINDOW)
+        if not complete:
+            missing = [i for i in READBACK_IDS if i not in self._last]
+            text = ('incomplete: missing ' + ', '.join(
+                f'ID {i} ({READBACK_NAMES[i]})' for i in missing) if missing
+                else 'incomplete: packets of different answers')
+            return {'config read back': text}
+        readback = ConfigReadback.join(report for report, _ in self._last.values())
+        values = {'config read back': f'{now - max(times):.1f} s ago (IDs 52..56)'}
+        for name, value in readback.parameter_values().items():
+            unit = _UNITS.get(name, '')
+            values[f'config {name}' + (f' ({unit})' if unit else '')] = _text(value)
+        return values

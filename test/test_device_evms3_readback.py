@@ -1,0 +1,122 @@
+"""Evms3Device.read_config and the read-back in diagnostics, without ROS (frames by hand)."""
+import threading
+import time
+
+from ams_can_bridge.devices.evms3 import Evms3Device
+from ams_can_bridge.protocols.common import Frame
+from helpers import Clock
+from test_protocol_evms3_readback import ANSWER, CELLS, CONFIG
+
+STATUS_OK = bytes.fromhex('02 03 E8 0F A0 82 64 41')
+
+
+def make(clock=None):
+    return Evms3Device('evms3', {}, clock=clock or Clock(1000.0))
+
+
+def answering(device, ids=tuple(ANSWER), sent=None):
+    """Return a send() that records the frame and answers at once with the given IDs."""
+    def send(frame):
+        if sent is not None:
+            sent.append(frame)
+        for frame_id in ids:
+            device.handle_frame(frame_id, ANSWER[frame_id], 1.0)
+        return True, 'sent'
+    return send
+
+
+def test_read_config_sends_51_and_joins_the_answer():
+    device = make()
+    sent = []
+    result = device.read_config(answering(device, sent=sent), timeout=1.0)
+    assert sent == [Frame(51, b'', True)]
+    assert result.ok and result.error == ''
+    assert result.readback.config == CONFIG and result.readback.cells_per_module == CELLS
+
+
+def test_answer_from_another_thread_after_the_send():
+    device = make()
+
+    def send(frame):
+        def later():
+            time.sleep(0.05)
+            for frame_id, data in ANSWER.items():
+                device.handle_frame(frame_id, data, 1.0)
+        threading.Thread(target=later).start()
+        return True, 'sent'
+    assert device.read_config(send, timeout=5.0).ok
+
+
+def test_partial_answer_fails_naming_the_missing_ids():
+    device = make()
+    start = time.monotonic()
+    result = device.read_config(answering(device, ids=(52, 53, 55)), timeout=0.2)
+    assert time.monotonic() - start >= 0.19  # waited the whole timeout
+    assert not result.ok
+    assert result.error == ('no complete answer within 0.2 s: incomplete: missing '
+                            'ID 54 (config 3), ID 56 (cell numbers)')
+
+
+def test_malformed_packet_is_named():
+    device = make()
+
+    def send(frame):
+        device.handle_frame(52, ANSWER[52], 1.0)
+        device.handle_frame(53, bytes([7]) + ANSWER[53][1:], 1.0)  # tacho 7: not 1..6
+        return True, 'sent'
+    result = device.read_config(send, timeout=0.1)
+    assert not result.ok
+    assert 'missing ID 53 (config 2)' in result.error
+    assert 'tacho_ppr raw 7 outside 1..6' in result.error
+
+
+def test_refused_send_and_a_second_read_at_once():
+    device = make()
+    result = device.read_config(lambda frame: (False, 'commands are disabled'), 1.0)
+    assert not result.ok and result.error == 'ID 51 was not sent: commands are disabled'
+    release = threading.Event()
+    first = {}
+
+    def slow(frame):
+        release.wait(2.0)
+        return True, 'sent'
+    worker = threading.Thread(target=lambda: first.update(r=device.read_config(slow, 0.1)))
+    worker.start()
+    time.sleep(0.05)
+    second = device.read_config(answering(device), 1.0)
+    release.set()
+    worker.join(3.0)
+    assert not second.ok and 'another read_config is waiting' in second.error
+    assert not first['r'].ok  # nothing answered the first one
+
+
+def test_listener_shows_a_complete_answer_in_the_diagnostics():
+    clock = Clock(1000.0)
+    device = make(clock)
+    device.handle_frame(30, STATUS_OK, 1.0)
+    for frame_id, data in ANSWER.items():  # a ZEVA Monitor asked, the EVMS answered
+        device.handle_frame(frame_id, data, 1.0)
+    clock.now += 3.0
+    values = device.diagnostic_report().values
+    assert values['config read back'] == '3.0 s ago (IDs 52..56)'
+    assert values['config pack_capacity_ah (Ah)'] == '100'
+    assert values['config bms_max_cell_v (V)'] == '3.65'
+    assert values['config balance_mode'] == 'static'
+    assert values['config enable_precharge'] == 'true'
+    assert values['config cells_per_module'] == ', '.join(str(n) for n in CELLS)
+
+
+def test_a_lone_52_is_not_shown_as_the_configuration():
+    clock = Clock(1000.0)
+    device = make(clock)
+    device.handle_frame(30, STATUS_OK, 1.0)
+    device.handle_frame(52, ANSWER[52], 1.0)  # a motor controller's settings frame, say
+    values = device.diagnostic_report().values
+    assert values['config read back'].startswith('incomplete: missing ID 53 (config 2)')
+    assert not any(k.startswith('config pack') for k in values)
+    for frame_id, data in ANSWER.items():
+        if frame_id != 52:
+            clock.now += 0.6  # five packets spread over 2.4 s: not one answer
+            device.handle_frame(frame_id, data, 1.0)
+    values = device.diagnostic_report().values
+    assert values['config read back'] == 'incomplete: packets of different answers'

@@ -1,0 +1,105 @@
+"""
+EVMS3 configuration read-back (ID 51 -> 52..56), golden frames written by hand.
+
+Facts (issue 10, ZEVA's open EVMS3 firmware, MIT, August 2021): ID 51 with any data (DLC 0
+is enough) asks; 52..55 answer in exactly the layout of 32..35 and 56 in the layout of 36.
+"""
+import cantools
+import pytest
+
+from ams_can_bridge.protocols.common import Frame, MalformedFrameError, msg_defs_dir
+from ams_can_bridge.protocols.evms3 import (
+    ConfigReadback, ConfigReport, Evms3Codec, Evms3Config, RequestConfig)
+
+CODEC = Evms3Codec(bms12_modules=2)
+# The same bytes as the 32..35 golden frames of test_protocol_evms3, now on 52..55:
+ANSWER = {
+    52: bytes.fromhex('14 14 C8 1E 32 3C 0B 32'),  # 100/5, 20, 400/2, 300/10, 500/10, 60 ..
+    53: bytes.fromhex('02 5A 0A 50 14 82 A5 96'),  # .. 2.80 V = 1.50 + 1.30, 3.65, 3.50 V
+    54: bytes.fromhex('05 28 5F 2C 9E FA 0A 03'),  # 300 V: 0x2C + 9th bit in 0x9E (30 A)
+    55: bytes.fromhex('01 02 06 02 01 00 00 00'),
+    # module 0 = 12 (low nibble of byte 0), module 1 = 8, module 2 = 3, module 3 = 4,
+    # module 15 = 15 (high nibble of byte 7)
+    56: bytes.fromhex('8C 43 00 00 00 00 00 F0'),
+}
+CONFIG = Evms3Config(
+    pack_capacity_ah=100, soc_warning_pct=20, full_voltage_v=400, warn_current_a=300,
+    trip_current_a=500, temp_warning_c=60, min_aux_voltage_v=11, min_isolation_pct=50,
+    tacho_ppr=2, fuel_gauge_full_pct=90, fuel_gauge_empty_pct=10, temp_gauge_hot_pct=80,
+    temp_gauge_cold_pct=20, bms_min_cell_v=2.8, bms_max_cell_v=3.65, balance_v=3.5,
+    balance_mode='static', bms_hysteresis_v=0.05, bms_min_temp_c=0, bms_max_temp_c=55,
+    max_charge_voltage_v=300, max_charge_current_a=30, alt_charge_voltage_v=250,
+    alt_charge_current_a=10, sleep_delay_min=3, mpi_function=1, mpo1_function=2,
+    mpo2_function=6, parallel_strings=2, enable_precharge=True, stationary_mode=False)
+CELLS = (12, 8, 3, 4) + (0,) * 11 + (15,)
+
+
+def test_request_is_id_51_without_data():
+    assert CODEC.encode(RequestConfig()) == Frame(51, b'', True)
+    assert Evms3Codec(extended_id=False).encode(RequestConfig()) == Frame(51, b'', False)
+
+
+def test_answer_golden_joins_into_one_configuration():
+    reports = [CODEC.decode(i, data) for i, data in ANSWER.items()]
+    assert [r.arbitration_id for r in reports] == [52, 53, 54, 55, 56]
+    assert reports[4] == ConfigReport(56, {'cells_per_module': CELLS})
+    readback = ConfigReadback.join(reversed(reports))  # any order
+    assert readback == ConfigReadback(CONFIG, CELLS, ())
+    assert readback.summary() == (
+        '100 Ah, full 400 V, cells 2.80..3.65 V, balance static 3.50 V, charge 300 V 30 A, '
+        '5 BMS12 module(s) with 42 cells')
+    values = readback.parameter_values()
+    assert values['balance_v'] == 3.5 and values['balance_mode'] == 'static'
+    assert values['cells_per_module'] == list(CELLS) and len(values) == 32
+    assert CODEC.report_frames(CONFIG, CELLS) == [
+        Frame(i, data, True) for i, data in ANSWER.items()]
+
+
+@pytest.mark.parametrize('raw, mode', [(251, 'dynamic'), (252, 'off')])
+def test_balance_mode_from_251_252_has_no_voltage(raw, mode):
+    data = bytearray(ANSWER[53])
+    data[7] = raw
+    answer = {**ANSWER, 53: bytes(data)}
+    readback = ConfigReadback.join(CODEC.decode(i, d) for i, d in answer.items())
+    assert readback.config.balance_mode == mode and readback.config.balance_v is None
+    assert 'balance_v' not in readback.parameter_values()
+    assert f'balance {mode}' in readback.summary()
+
+
+def test_partial_answer_names_what_is_missing():
+    readback = ConfigReadback.join([CODEC.decode(52, ANSWER[52]), CODEC.decode(55, ANSWER[55])])
+    assert readback.config is None and readback.missing == (53, 54, 56)
+    assert readback.summary() == ('incomplete: missing ID 53 (config 2), ID 54 (config 3), '
+                                  'ID 56 (cell numbers)')
+    assert readback.parameter_values() == {}
+
+
+def test_answer_values_out_of_range_are_malformed():
+    with pytest.raises(MalformedFrameError, match='tacho_ppr raw 7'):
+        CODEC.decode(53, bytes([7]) + ANSWER[53][1:])
+    with pytest.raises(MalformedFrameError, match='DLC 7'):
+        CODEC.decode(52, ANSWER[52][:7])
+    assert CODEC.decode(55, ANSWER[55][:6]).values['parallel_strings'] == 2  # 6 like 35
+
+
+def test_ids_51_to_56_are_fixed_and_51_is_not_listened_to():
+    moved = Evms3Codec(base_id=1000)
+    assert {(i, True) for i in range(52, 57)} <= moved.frame_ids
+    assert 51 not in moved.arbitration_ids  # may be a ZEVA motor controller's throttle
+    assert moved.encode(RequestConfig()).arbitration_id == 51
+    narrow = Evms3Codec(extended_id=False)
+    assert (52, False) in narrow.frame_ids and (52, True) not in narrow.frame_ids
+    with pytest.raises(ValueError, match='51..56'):
+        Evms3Codec(base_id=45)
+
+
+def test_dbc_has_the_read_back_messages():
+    db = cantools.database.load_file(str(msg_defs_dir() / 'evms3.dbc'), strict=True)
+    request = db.get_message_by_frame_id(51, force_extended_id=True)
+    assert (request.name, request.length) == ('EVMS3_RequestConfig', 0)
+    answer = db.get_message_by_frame_id(53, force_extended_id=True)
+    decoded = answer.decode(ANSWER[53], decode_choices=False)
+    assert decoded['BmsMinVoltage'] == pytest.approx(2.8)
+    assert decoded['BalanceVoltage'] == pytest.approx(3.5)
+    cells = db.get_message_by_frame_id(56, force_extended_id=True).decode(ANSWER[56])
+    assert (cells['Module0Cells'], cells['Module1Cells'], cells['Module15Cells']) == (12, 8, 15)
