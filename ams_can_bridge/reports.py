@@ -44,8 +44,9 @@ def battery_fields(report: BatteryReport) -> dict[str, Any]:
         'power_supply_health': int(report.power_supply_health),
         'power_supply_technology': int(report.power_supply_technology),
         'present': bool(report.present),
-        'cell_voltage': [float(v) for v in report.cell_voltage],
-        'cell_temperature': [float(v) for v in report.cell_temperature],
+        # As the device holds them (floats): each writer packs them as float32 its own way.
+        'cell_voltage': report.cell_voltage,
+        'cell_temperature': report.cell_temperature,
         'location': report.location,
         'serial_number': report.serial_number,
     }

@@ -9,6 +9,14 @@ STATES = ('connecting', 'connected', 'reconnecting', 'error', 'bus-off', 'error-
 # States in which the receive thread is still (re)opening the bus: it may come back alone.
 RETRY_STATES = ('connecting', 'reconnecting', 'error', 'bus-off')
 
+# python-can options the bridge sets unless can.options gives them. slcan: python-can reads
+# the serial port with a 1 ms timeout by default, so an idle bus costs ~1000 wake-ups a
+# second; a read returns as soon as a byte arrives whatever the timeout, so 0.1 s (the
+# receive loop's own poll) costs no latency and makes an idle bridge nearly free.
+INTERFACE_DEFAULTS: dict[str, dict[str, object]] = {
+    'slcan': {'timeout': 0.1},
+}
+
 _INT = re.compile(r'[+-]?(0x[0-9a-fA-F]+|0o[0-7]+|0b[01]+|\d+)$')
 _FLOAT = re.compile(r'[+-]?(\d+\.\d*|\.\d+|\d+)([eE][+-]?\d+)?$')
 
@@ -95,6 +103,16 @@ class BusConfig:
         if not self.replay_rate >= 0:
             raise ValueError(f'can.replay_rate = {self.replay_rate}: must be >= 0 '
                              '(1.0 = real time, 0 = as fast as possible)')
+
+    def bus_kwargs(self) -> dict[str, object]:
+        """Return the python-can keyword arguments: the interface's defaults, then options."""
+        kwargs = dict(INTERFACE_DEFAULTS.get(self.interface, {}))
+        kwargs.update(self.options)
+        if self.bitrate > 0:
+            kwargs['bitrate'] = self.bitrate
+        if self.fd:
+            kwargs['fd'] = True
+        return kwargs
 
     @property
     def hardware_id(self) -> str:

@@ -224,12 +224,7 @@ class CanIo:
         if cfg.interface == 'replay':
             bus: can.BusABC | ReplayBus = ReplayBus(cfg.channel, cfg.replay_rate)
         else:
-            kwargs = dict(cfg.options)
-            if cfg.bitrate > 0:
-                kwargs['bitrate'] = cfg.bitrate
-            if cfg.fd:
-                kwargs['fd'] = True
-            bus = can.Bus(interface=cfg.interface, channel=cfg.channel, **kwargs)
+            bus = can.Bus(interface=cfg.interface, channel=cfg.channel, **cfg.bus_kwargs())
             if self._filters and type(bus)._apply_filters is not can.BusABC._apply_filters:
                 # Only where the driver filters in hardware/kernel: elsewhere python-can
                 # would loop over the filter list per frame, slower than our set lookup.

@@ -223,6 +223,11 @@ class Device:
     def _handle(self, reading: Any, stamp: float) -> bool:
         raise NotImplementedError
 
+    @property
+    def revision(self) -> int:
+        """Count every frame taken, valid or not: reports can change only when it does."""
+        return self.frames_received + self.frames_malformed
+
     # --- executor side ----------------------------------------------------------------
     def is_stale(self) -> bool:
         """Tell whether no primary frame came within stale_timeout (or none ever)."""

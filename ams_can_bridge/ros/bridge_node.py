@@ -2,15 +2,15 @@
 The ``bridge`` node: CAN frames -> device state -> BatteryState, arrays and /diagnostics.
 
 Threads: the CanIo receive thread decodes every frame into its devices (``handle_frame``)
-and never calls rclpy per frame. On a primary status frame it takes a snapshot of the
-device's report (plain dataclasses) into an ordered queue and wakes the executor through a
-guard condition, so every primary frame becomes exactly one message with the values of
-that moment, even when frames come faster than the executor runs (a replay at rate 0).
-During a replay a full queue makes the replay wait (nothing lost); on a live bus the
-receive thread never waits: the oldest snapshots are dropped and counted in the CAN bus
-diagnostics. Publishing happens on the executor, in
-``telemetry_group``; services that wait go in ``service_group`` (reentrant), so telemetry
-keeps flowing while a command waits for the device.
+and, on a primary status frame, publishes that device's BatteryState and arrays itself
+(rclpy publishers are thread-safe). So every primary frame becomes exactly one message
+with the values of that moment, a replay at rate 0 is paced by publishing (nothing queued,
+nothing lost), and the executor is not woken per frame: profiles showed the executor's
+wake-up (rebuilding its wait set) costing more than the decoding itself. The executor runs
+only the services: the periodic work (diagnostics, stale messages, the watch that notices
+state and level changes) runs on a thread of its own (``Periodic``), so an idle bridge
+wakes no executor at all. Services that wait go in ``service_group`` (reentrant), and
+telemetry keeps flowing while a command waits for the device.
 
 COMMANDERS seam (the command services live in other modules). For each device instance
 whose type is in ``ams_can_bridge.registry.COMMANDERS`` the node builds ``cls(node, device,
@@ -34,17 +34,15 @@ shutdown. A missing commander module is skipped with a debug log.
 """
 from __future__ import annotations
 
-from collections import deque
 import logging
 import math
-import threading
 import time
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import SetParametersResult
 from rosgraph_msgs.msg import Clock
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import BatteryState
@@ -57,6 +55,7 @@ from ams_can_bridge.can_io.core import STATE_CHANGE_FORMAT
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.devices.base import Device
 from ams_can_bridge.errors import ConfigError
+from ams_can_bridge.periodic import Periodic
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.ros import convert
 from ams_can_bridge.ros.bus_log import BusStateLog
@@ -67,9 +66,6 @@ NODE_NAME = 'ams_can_bridge'
 MALFORMED_LOG_PERIOD = 5.0  # s between malformed-frame log lines per device
 STALE_PUBLISH_PERIOD = 1.0  # s, battery_state present:false while stale
 WATCH_PERIOD = 0.2  # s, how fast bus state / staleness transitions are noticed
-PENDING_LIMIT = 10_000  # snapshots queued for the executor on a live bus
-# A replay waits above this many, so no burst outruns the publishers' history (depth).
-REPLAY_PENDING_LIMIT = 50
 TELEMETRY_DEPTH = 100  # history of battery_state / array publishers
 CLOCK_PERIOD = 0.01  # s between /clock messages of a replay (can.replay_clock)
 
@@ -89,7 +85,6 @@ class BridgeNode(Node):
     def __init__(self, node_name: str = NODE_NAME, **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         self.params = ParamRegistry(self)
-        self.telemetry_group = MutuallyExclusiveCallbackGroup()
         self.service_group = ReentrantCallbackGroup()
         self.devices: dict[str, Device] = {}
         self.commanders: dict[str, Any] = {}
@@ -98,12 +93,10 @@ class BridgeNode(Node):
         self.commands_changes = 0  # run-time changes of commands_enabled (diagnostics)
         self.can_io: CanIo | None = None
         self._ready = False
-        # (device name, BatteryReport, extra arrays) per primary frame, oldest first.
-        self._pending: deque[tuple[str, Any, dict]] = deque()
-        self._pending_cv = threading.Condition()
-        self.snapshots_dropped = 0
         self._replaying = False
         self._levels: dict[str, int] = {}
+        # name -> (device revision, stale, level): a report is rebuilt only after a change.
+        self._level_cache: dict[str, tuple[int, bool, int]] = {}
         self._malformed_logged: dict[str, tuple[int, float]] = {}
         self._stale: dict[str, bool] = {}
         self._heard: set[str] = set()
@@ -127,6 +120,7 @@ class BridgeNode(Node):
             raise ConfigError(str(exc)) from None
         self._ready = True
         self.can_io.start()
+        self.periodic.start()
         self._log_summary()
 
     # --- set-up ---------------------------------------------------------------------------
@@ -169,13 +163,11 @@ class BridgeNode(Node):
         self._make_publishers()
         for name, device in self.devices.items():
             self._add_commander(name, device)
-        can_logger = logging.getLogger(f'{NODE_NAME}.can_io.{id(self)}')
-        can_logger.propagate = False
+        can_logger = self._stdlib_logger('can_io')
         # CanIo logs every state change; the node logs the user-facing transitions itself
         # (once per change, with what happens next), so only CanIo's other problems pass.
         can_logger.setLevel(logging.WARNING)
         can_logger.addFilter(lambda record: record.msg != STATE_CHANGE_FORMAT)
-        can_logger.addHandler(RosLogHandler(self.get_logger()))
         self.can_io = CanIo(self.bus_config, self._on_frame, filters, can_logger)
 
     def _make_publishers(self) -> None:
@@ -189,15 +181,22 @@ class BridgeNode(Node):
                     Float32MultiArray, f'{name}/{suffix}', TELEMETRY_DEPTH)
                 for suffix in device.extra_arrays()}
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        self._wake = self.create_guard_condition(self._publish_due, self.telemetry_group)
-        self.create_timer(self.diagnostics_period, self.publish_diagnostics,
-                          self.telemetry_group)
-        self.create_timer(STALE_PUBLISH_PERIOD, self._publish_stale, self.telemetry_group)
-        self.create_timer(WATCH_PERIOD, self._watch, self.telemetry_group)
+        # One thread for all periodic work (see periodic.py: why not executor timers).
+        self.periodic = Periodic(f'{NODE_NAME}-periodic', self._stdlib_logger('periodic'))
+        self.periodic.every(self.diagnostics_period, self.publish_diagnostics)
+        self.periodic.every(STALE_PUBLISH_PERIOD, self._publish_stale)
+        self.periodic.every(WATCH_PERIOD, self._watch)
         if self._replay_clock:
             self.clock_pub = self.create_publisher(Clock, '/clock', 10)
             self._clock_sent = math.nan
-            self.create_timer(CLOCK_PERIOD, self._publish_clock, self.telemetry_group)
+            self.periodic.every(CLOCK_PERIOD, self._publish_clock)
+
+    def _stdlib_logger(self, part: str) -> logging.Logger:
+        """Return a stdlib logger of this node whose records go to the node's rclpy logger."""
+        logger = logging.getLogger(f'{NODE_NAME}.{part}.{id(self)}')
+        logger.propagate = False
+        logger.addHandler(RosLogHandler(self.get_logger()))
+        return logger
 
     def _add_commander(self, name: str, device: Device) -> None:
         path = registry.COMMANDERS.get(device.TYPE)
@@ -237,32 +236,12 @@ class BridgeNode(Node):
                   stamp: float) -> None:
         for device in self.device_set.handle_frame(arbitration_id, data, is_extended_id,
                                                    stamp):
-            self._queue_snapshot(device)
+            self._publish_battery(device.name)
 
-    def _queue_snapshot(self, device: Device) -> None:
-        snapshot = (device.name, device.battery_report(), device.extra_arrays())
-        with self._pending_cv:
-            if self._replaying and len(self._pending) >= REPLAY_PENDING_LIMIT:
-                # A replay must not lose data: wait for the executor to catch up.
-                self._pending_cv.wait_for(
-                    lambda: len(self._pending) < REPLAY_PENDING_LIMIT or not self._ready)
-            elif len(self._pending) >= PENDING_LIMIT:
-                self._pending.popleft()  # live bus: never stall the receive thread
-                self.snapshots_dropped += 1
-            wake = not self._pending
-            self._pending.append(snapshot)
-        if wake:
-            self._wake.trigger()
-
-    # --- executor: publishing -------------------------------------------------------------
-    def _publish_due(self) -> None:
-        with self._pending_cv:
-            due, self._pending = self._pending, deque()
-            self._pending_cv.notify_all()
-        for name, report, arrays in due:
-            self._publish_report(name, report, arrays)
-        if due and self._levels_changed():
-            self.publish_diagnostics()
+    # --- publishing -----------------------------------------------------------------------
+    def _publish_battery(self, name: str) -> None:
+        device = self.devices[name]
+        self._publish_report(name, device.battery_report(), device.extra_arrays())
 
     def _publish_stale_battery(self, name: str) -> None:
         device = self.devices[name]
@@ -286,22 +265,37 @@ class BridgeNode(Node):
                 self._publish_stale_battery(name)
 
     def _statuses(self) -> list[tuple[str, Any]]:
-        reports = [(name, device.diagnostic_report()) for name, device in self.devices.items()]
+        reports = []
+        for name, device in self.devices.items():
+            revision, stale = device.revision, device.is_stale()
+            report = device.diagnostic_report()
+            self._level_cache[name] = (revision, stale, int(report.level))
+            reports.append((name, report))
         reports.append(('CAN bus', self._bus_report()))
         return reports
+
+    def _device_level(self, name: str) -> int:
+        """Return a device's diagnostic level, rebuilding its report only after a change."""
+        device = self.devices[name]
+        revision, stale = device.revision, device.is_stale()
+        cached = self._level_cache.get(name)
+        if cached is None or cached[:2] != (revision, stale):
+            cached = (revision, stale, int(device.diagnostic_report().level))
+            self._level_cache[name] = cached
+        return cached[2]
 
     def _bus_report(self) -> Any:
         status = self.can_io.status()
         malformed = sum(d.frames_malformed for d in self.devices.values())
         report = convert.bus_report(status, malformed, self.bus_config.interface)
-        report.values['telemetry snapshots dropped'] = str(self.snapshots_dropped)
         report.values['commands_allowed'] = str(self.commands_allowed).lower()
         report.values['commands_enabled'] = str(self.commands_enabled).lower()
         report.values['commands_enabled changes'] = str(self.commands_changes)
         return report
 
     def _levels_changed(self) -> bool:
-        levels = {name: int(r.level) for name, r in self._statuses()}
+        levels = {name: self._device_level(name) for name in self.devices}
+        levels['CAN bus'] = int(self._bus_report().level)
         return levels != self._levels
 
     def publish_diagnostics(self) -> None:
@@ -465,10 +459,11 @@ class BridgeNode(Node):
 
     # --- shutdown -------------------------------------------------------------------------
     def destroy_node(self) -> None:
-        """Stop the commanders and the bus thread (closes the bus), then the node."""
+        """Stop the periodic work, the commanders and the bus thread (closes the bus)."""
         self._ready = False
-        with self._pending_cv:
-            self._pending_cv.notify_all()  # release a replay waiting for the executor
+        periodic = getattr(self, 'periodic', None)
+        if periodic is not None:
+            periodic.stop()
         for commander in self.commanders.values():
             hook = getattr(commander, 'destroy', None)
             if hook:
