@@ -12,35 +12,31 @@ because the DBC cannot carry what is done here: the 9th bit of the charge voltag
 balance special values (251 dynamic, 252 off) and refusing, instead of clamping, any
 configuration value the EVMS would silently limit.
 
-This module stays long on purpose: the whole wire format of one device in one place.
+The configuration (typed config, its layout in 32..36, the read-back 51..56) lives in
+``protocols.evms3_config``; every name of it is importable from here too.
 """
 from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass, field, fields
-from typing import Any, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, Sequence
 
 from ams_can_bridge.protocols.common import (
-    check_dlc, check_range, ConfigField, EncodeRangeError, Frame, MalformedFrameError)
+    check_dlc, check_range, EncodeRangeError, Frame, MalformedFrameError)
+from ams_can_bridge.protocols.evms3_config import (  # noqa: F401 (re-exported)
+    BALANCE_DYNAMIC, BALANCE_MODES, BALANCE_OFF, BMS12_MAX_MODULES, check_config_value,
+    CONFIG_FIELDS, CONFIG_FILLER, config_payloads, ConfigReadback, ConfigReport,
+    CORE_REQUEST_CONFIG, CORE_SEND_CELL_NUMS, CORE_SEND_CONFIG1, CORE_SEND_CONFIG2,
+    CORE_SEND_CONFIG3, CORE_SEND_CONFIG4, decode_config_packet, Evms3Config, Evms3ConfigPart,
+    READBACK_IDS, READBACK_NAMES)
 from ams_can_bridge.protocols.tc_charger import (
     CHARGER_IDS, ChargerCommand, ChargerStatus, TcChargerCodec)
 
 BMS12_BASE_ID = 300
-BMS12_MAX_MODULES = 16
 CURRENT_OFFSET_MA = 8388608
 STATUS, SET_STATE, CONFIG1, CONFIG2, CONFIG3, CONFIG4 = range(6)
 CELL_NUMBERS, ACK_ERROR, RESET_SOC, POWER_OFF, BATTERY_CURRENT, ZERO_CURRENT = range(6, 12)
-BALANCE_DYNAMIC = 251
-BALANCE_OFF = 252
-# Read-back (ZEVA's open firmware, MIT, August 2021): fixed IDs, not moved by base_id. ID 51
-# is also a ZEVA motor controller's throttle frame (MC_SET_THROTTLE_ID), 52/53 its settings.
-CORE_REQUEST_CONFIG = 51
-CORE_SEND_CONFIG1, CORE_SEND_CONFIG2, CORE_SEND_CONFIG3, CORE_SEND_CONFIG4 = range(52, 56)
-CORE_SEND_CELL_NUMS = 56
-READBACK_IDS = range(CORE_SEND_CONFIG1, CORE_SEND_CELL_NUMS + 1)
-READBACK_NAMES = {52: 'config 1', 53: 'config 2', 54: 'config 3', 55: 'config 4',
-                  56: 'cell numbers'}
 
 
 class Evms3State(enum.IntEnum):
@@ -103,68 +99,6 @@ class SetState:
     setup: bool
 
 
-@dataclass(frozen=True)
-class Evms3Config:
-    """IDs 32..35: every configuration value, physical units (ranges in CONFIG_FIELDS)."""
-
-    pack_capacity_ah: int
-    soc_warning_pct: int
-    full_voltage_v: int
-    warn_current_a: int
-    trip_current_a: int
-    temp_warning_c: int
-    min_aux_voltage_v: int
-    min_isolation_pct: int
-    tacho_ppr: int
-    fuel_gauge_full_pct: int
-    fuel_gauge_empty_pct: int
-    temp_gauge_hot_pct: int
-    temp_gauge_cold_pct: int
-    bms_min_cell_v: float
-    bms_max_cell_v: float
-    balance_v: float | None  # used only when balance_mode is 'static'
-    balance_mode: str
-    bms_hysteresis_v: float
-    bms_min_temp_c: int
-    bms_max_temp_c: int
-    max_charge_voltage_v: int
-    max_charge_current_a: int
-    alt_charge_voltage_v: int
-    alt_charge_current_a: int
-    sleep_delay_min: int
-    mpi_function: int
-    mpo1_function: int
-    mpo2_function: int
-    parallel_strings: int
-    enable_precharge: bool
-    stationary_mode: bool
-
-    @classmethod
-    def from_parts(cls, parts: Iterable['Evms3ConfigPart']) -> 'Evms3Config':
-        """Join the four decoded packets (any order) into one configuration."""
-        values: dict[str, Any] = {}
-        for part in parts:
-            values.update(part.values)
-        return cls(**values)
-
-    @classmethod
-    def from_mapping(cls, values: Mapping[str, Any]) -> 'Evms3Config':
-        """Build from a name -> value mapping (extra keys ignored, missing ones named)."""
-        names = [f.name for f in fields(cls)]
-        missing = [n for n in names if n not in values and n != 'balance_v']
-        if missing:
-            raise EncodeRangeError(missing[0], None, 'a value (unset: ' + ', '.join(missing) + ')')
-        return cls(**{n: values.get(n) for n in names})
-
-
-@dataclass(frozen=True)
-class Evms3ConfigPart:
-    """One decoded configuration packet: part 1..4 (IDs 32..35) and its values by name."""
-
-    part: int
-    values: Mapping[str, Any] = field(default_factory=dict)
-
-
 @dataclass(frozen=True, slots=True)
 class BmsCellNumbers:
     """ID 36: cells per BMS12 module, 16 values 0..15."""
@@ -192,60 +126,6 @@ class ResetSoc:
 @dataclass(frozen=True, slots=True)
 class RequestConfig:
     """ID 51 (DLC 0): ask the EVMS for its whole configuration; it answers on 52..56."""
-
-
-@dataclass(frozen=True)
-class ConfigReport:
-    """IDs 52..56: one packet of the configuration the EVMS reports (its answer to 51)."""
-
-    arbitration_id: int  # 52..55: the layout of 32..35; 56: the layout of 36
-    values: Mapping[str, Any] = field(default_factory=dict)
-
-
-@dataclass(frozen=True)
-class ConfigReadback:
-    """A whole reported configuration (52..56 joined), or what was missing from it."""
-
-    config: Evms3Config | None
-    cells_per_module: tuple[int, ...] | None
-    missing: tuple[int, ...] = ()  # IDs of 52..56 not received
-
-    @classmethod
-    def join(cls, reports: Iterable[ConfigReport]) -> 'ConfigReadback':
-        """Join the packets of one answer (any order); missing IDs named, nothing guessed."""
-        by_id = {r.arbitration_id: r for r in reports}
-        missing = tuple(i for i in READBACK_IDS if i not in by_id)
-        if missing:
-            return cls(None, None, missing)
-        values: dict[str, Any] = {}
-        for report in by_id.values():
-            values.update(report.values)
-        cells = values.pop('cells_per_module')
-        return cls(Evms3Config(**values), tuple(cells))
-
-    def parameter_values(self) -> dict[str, Any]:
-        """Every configuration field read, physical units (balance_v only when static)."""
-        if self.config is None or self.cells_per_module is None:
-            return {}
-        values = {f.name: getattr(self.config, f.name) for f in fields(Evms3Config)}
-        if values['balance_v'] is None:
-            del values['balance_v']  # dynamic / off: the device reported no voltage
-        values['cells_per_module'] = list(self.cells_per_module)
-        return values
-
-    def summary(self) -> str:
-        """One line: capacity, limits, balancing, charging, modules."""
-        cfg = self.config
-        if cfg is None or self.cells_per_module is None:
-            return 'incomplete: missing ' + ', '.join(
-                f'ID {i} ({READBACK_NAMES[i]})' for i in self.missing)
-        balance = (f'static {cfg.balance_v:.2f} V' if cfg.balance_mode == 'static'
-                   else cfg.balance_mode)
-        modules = [n for n in self.cells_per_module if n]
-        return (f'{cfg.pack_capacity_ah} Ah, full {cfg.full_voltage_v} V, cells '
-                f'{cfg.bms_min_cell_v:.2f}..{cfg.bms_max_cell_v:.2f} V, balance {balance}, '
-                f'charge {cfg.max_charge_voltage_v} V {cfg.max_charge_current_a} A, '
-                f'{len(modules)} BMS12 module(s) with {sum(modules)} cells')
 
 
 @dataclass(frozen=True, slots=True)
@@ -288,164 +168,6 @@ class Bms12Temperatures:
 
     module: int
     temperatures_c: tuple[int, int]
-
-
-# --- configuration table ----------------------------------------------------------------------
-# Plain byte fields: (name, type, packet 0..3, byte, scale, offset, raw low, raw high, unit, what)
-_LINEAR = (
-    ('pack_capacity_ah', int, 0, 0, 5, 0, 1, 250, 'Ah', 'pack capacity'),
-    ('soc_warning_pct', int, 0, 1, 1, 0, 0, 99, '%', 'state of charge warning level'),
-    ('full_voltage_v', int, 0, 2, 2, 0, 5, 251, 'V', 'pack voltage that counts as full'),
-    ('warn_current_a', int, 0, 3, 10, 0, 1, 121, 'A', 'overcurrent warning threshold'),
-    ('trip_current_a', int, 0, 4, 10, 0, 1, 121, 'A', 'overcurrent shutdown threshold'),
-    ('temp_warning_c', int, 0, 5, 1, 0, 0, 151, 'degC', 'EVMS temperature warning'),
-    ('min_aux_voltage_v', int, 0, 6, 1, 0, 8, 15, 'V', 'minimum 12 V (aux) voltage'),
-    ('min_isolation_pct', int, 0, 7, 1, 0, 0, 99, '%', 'minimum isolation integrity'),
-    ('tacho_ppr', int, 1, 0, 1, 0, 1, 6, '', 'tachometer pulses per revolution'),
-    ('fuel_gauge_full_pct', int, 1, 1, 1, 0, 0, 100, '%', 'fuel gauge output when full'),
-    ('fuel_gauge_empty_pct', int, 1, 2, 1, 0, 0, 100, '%', 'fuel gauge output when empty'),
-    ('temp_gauge_hot_pct', int, 1, 3, 1, 0, 0, 100, '%', 'temperature gauge output hot'),
-    ('temp_gauge_cold_pct', int, 1, 4, 1, 0, 0, 100, '%', 'temperature gauge output cold'),
-    ('bms_min_cell_v', float, 1, 5, 0.01, 1.5, 0, 250, 'V', 'BMS minimum cell voltage'),
-    ('bms_max_cell_v', float, 1, 6, 0.01, 2.0, 0, 250, 'V', 'BMS maximum cell voltage'),
-    ('bms_hysteresis_v', float, 2, 0, 0.01, 0, 0, 50, 'V', 'BMS hysteresis'),
-    ('bms_min_temp_c', int, 2, 1, 1, -40, 0, 141, 'degC', 'BMS minimum temperature'),
-    ('bms_max_temp_c', int, 2, 2, 1, -40, 0, 141, 'degC', 'BMS maximum temperature'),
-    ('sleep_delay_min', int, 2, 7, 1, 0, 1, 6, 'min', 'sleep delay'),
-    ('mpi_function', int, 3, 0, 1, 0, 0, 3, '', 'MPI function (EVMS3 manual order)'),
-    ('mpo1_function', int, 3, 1, 1, 0, 0, 6, '', 'MPO1 function (EVMS3 manual order)'),
-    ('mpo2_function', int, 3, 2, 1, 0, 0, 6, '', 'MPO2 function (EVMS3 manual order)'),
-    ('parallel_strings', int, 3, 3, 1, 0, 1, 20, '', 'parallel strings'),
-)
-_LINEAR_BY_NAME = {row[0]: row for row in _LINEAR}
-# 9-bit voltage (low byte + bit 7 of the current byte) and 7-bit current, packet 3 bytes 3..6
-_CHARGE = (('max_charge_voltage_v', 'max_charge_current_a', 3),
-           ('alt_charge_voltage_v', 'alt_charge_current_a', 5))
-_BOOLS = (('enable_precharge', 4), ('stationary_mode', 5))  # packet 4 (ID 35)
-BALANCE_MODES = ('static', 'dynamic', 'off')
-
-
-def _linear_field(row: tuple) -> ConfigField:
-    name, typ, _, _, scale, offset, rlo, rhi, unit, what = row
-    low, high = _phys(typ, scale, offset, rlo), _phys(typ, scale, offset, rhi)
-    return ConfigField(name, typ, low, high, scale, unit, f'{what} ({low:g}..{high:g} {unit})'
-                       .replace(' )', ')'))
-
-
-def _phys(typ: type, scale: float, offset: float, raw: int) -> float:
-    if typ is int:
-        return int(raw * scale + offset)
-    return round(raw * scale + offset, 6)
-
-
-def _build_fields() -> tuple[ConfigField, ...]:
-    by_name = {row[0]: _linear_field(row) for row in _LINEAR}
-    by_name['balance_v'] = ConfigField(
-        'balance_v', float, 2.0, 4.5, 0.01, 'V',
-        'static balance voltage (2.00..4.50 V), used only when balance_mode is static')
-    by_name['balance_mode'] = ConfigField(
-        'balance_mode', str, description='balancing: static (at balance_v), dynamic or off',
-        choices=BALANCE_MODES)
-    for volt, amp, _ in _CHARGE:
-        kind = volt.split('_')[0]
-        by_name[volt] = ConfigField(volt, int, 0, 511, 1, 'V', f'{kind} charge voltage (0..511 V)')
-        by_name[amp] = ConfigField(amp, int, 0, 127, 1, 'A', f'{kind} charge current (0..127 A)')
-    by_name['enable_precharge'] = ConfigField('enable_precharge', bool,
-                                              description='enable the precharge sequence')
-    by_name['stationary_mode'] = ConfigField('stationary_mode', bool,
-                                             description='stationary (non-vehicle) mode')
-    ordered = [by_name[f.name] for f in fields(Evms3Config)]
-    ordered.append(ConfigField('cells_per_module', 'int[]', 0, 15, 1, '',
-                               'cells on each of the 16 BMS12 modules (0..15), ID 36',
-                               length=BMS12_MAX_MODULES))
-    return tuple(ordered)
-
-
-CONFIG_FIELDS: tuple[ConfigField, ...] = _build_fields()
-_FIELD_BY_NAME = {f.name: f for f in CONFIG_FIELDS}
-
-
-def check_config_value(name: str, value: Any) -> Any:
-    """
-    Validate one configuration value; return it normalized (int/float/bool/str/tuple).
-
-    Raises EncodeRangeError naming the field, the value and what is allowed. Numbers may be
-    written as int or float (3 and 3.0 are the same); nothing is clamped.
-    """
-    spec = _FIELD_BY_NAME.get(name)
-    if spec is None:
-        raise EncodeRangeError(name, value, 'one of ' + ', '.join(_FIELD_BY_NAME))
-    if spec.type is bool:
-        if isinstance(value, bool) or (isinstance(value, int) and value in (0, 1)):
-            return bool(value)
-        raise EncodeRangeError(name, value, 'true or false')
-    if spec.type is str:
-        if value not in spec.choices:
-            raise EncodeRangeError(name, value, 'one of ' + ', '.join(spec.choices))
-        return value
-    if spec.type == 'int[]':
-        if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) \
-                or len(value) != spec.length:
-            raise EncodeRangeError(name, value, f'{spec.length} integers 0..15')
-        return tuple(int(_number(f'{name}[{i}]', v, spec)) for i, v in enumerate(value))
-    number = _number(name, value, spec)
-    return int(round(number)) if spec.type is int else round(float(number), 6)
-
-
-def _number(name: str, value: Any, spec: ConfigField) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise EncodeRangeError(name, value, f'a number {spec.low:g}..{spec.high:g} {spec.unit}'
-                               .rstrip())
-    check_range(name, value, spec.low, spec.high, spec.step, spec.unit)
-    return value
-
-
-def _config_payloads(cfg: Evms3Config) -> list[bytearray]:
-    out = [bytearray(8) for _ in range(4)]
-    for name, _, packet, byte, scale, offset, _, _, _, _ in _LINEAR:
-        value = check_config_value(name, getattr(cfg, name))
-        out[packet][byte] = int(round((value - offset) / scale))
-    mode = check_config_value('balance_mode', cfg.balance_mode)
-    if mode == 'static' or cfg.balance_v is not None:
-        balance = check_config_value('balance_v', cfg.balance_v)
-    out[1][7] = (BALANCE_DYNAMIC if mode == 'dynamic' else BALANCE_OFF if mode == 'off'
-                 else int(round((balance - 2.0) / 0.01)))
-    for volt, amp, byte in _CHARGE:
-        v = check_config_value(volt, getattr(cfg, volt))
-        a = check_config_value(amp, getattr(cfg, amp))
-        out[2][byte] = v & 0xFF
-        out[2][byte + 1] = a | (v >> 8) << 7
-    for name, byte in _BOOLS:
-        out[3][byte] = int(check_config_value(name, getattr(cfg, name)))
-    return out
-
-
-def _decode_config(packet: int, aid: int, data: bytes) -> Evms3ConfigPart:
-    values: dict[str, Any] = {}
-    for name, typ, pk, byte, scale, offset, rlo, rhi, _, _ in _LINEAR:
-        if pk != packet:
-            continue
-        raw = data[byte]
-        if not rlo <= raw <= rhi:
-            raise MalformedFrameError(aid, data, f'{name} raw {raw} outside {rlo}..{rhi}')
-        values[name] = _phys(typ, scale, offset, raw)
-    if packet == 1:
-        raw = data[7]
-        if raw > BALANCE_OFF:
-            raise MalformedFrameError(aid, data, f'balance voltage raw {raw} outside 0..252')
-        values['balance_mode'] = ('dynamic' if raw == BALANCE_DYNAMIC else
-                                  'off' if raw == BALANCE_OFF else 'static')
-        values['balance_v'] = round(2.0 + raw * 0.01, 2) if raw <= 250 else None
-    elif packet == 2:
-        for volt, amp, byte in _CHARGE:
-            values[volt] = data[byte] | (data[byte + 1] >> 7) << 8
-            values[amp] = data[byte + 1] & 0x7F
-    elif packet == 3:
-        for name, byte in _BOOLS:
-            if data[byte] > 1:
-                raise MalformedFrameError(aid, data, f'{name} raw {data[byte]}, expected 0 or 1')
-            values[name] = bool(data[byte])
-    return Evms3ConfigPart(packet + 1, values)
 
 
 # --- the codec -------------------------------------------------------------------------------
@@ -537,7 +259,7 @@ class Evms3Codec:
         packet = aid - self.base_id - CONFIG1
         # ID 35: the seed calls it "6 bytes" but draws 8 (two reserved): accept both.
         check_dlc(aid, data, (6, 8) if packet == 3 else 8)
-        return _decode_config(packet, aid, data)
+        return decode_config_packet(packet, aid, data)
 
     def _decode_report(self, aid: int, data: bytes) -> ConfigReport:
         if aid == CORE_SEND_CELL_NUMS:
@@ -545,7 +267,7 @@ class Evms3Codec:
             return ConfigReport(aid, {'cells_per_module': cells})
         packet = aid - CORE_SEND_CONFIG1
         check_dlc(aid, data, (6, 8) if packet == 3 else 8)
-        return ConfigReport(aid, _decode_config(packet, aid, data).values)
+        return ConfigReport(aid, decode_config_packet(packet, aid, data).values)
 
     def _decode_cell_numbers(self, aid: int, data: bytes) -> BmsCellNumbers:
         check_dlc(aid, data, 8)
@@ -588,12 +310,12 @@ class Evms3Codec:
 
     def config_frames(self, cfg: Evms3Config) -> list[Frame]:
         """Build the frames of IDs 32, 33, 34, 35 in that order (EncodeRangeError first)."""
-        return [self._frame(CONFIG1 + i, p) for i, p in enumerate(_config_payloads(cfg))]
+        return [self._frame(CONFIG1 + i, p) for i, p in enumerate(config_payloads(cfg))]
 
     def report_frames(self, cfg: Evms3Config, cells_per_module: Sequence[int]) -> list[Frame]:
         """Build the EVMS's answer to ID 51: IDs 52..55 (config) and 56 (cell numbers)."""
         frames = [Frame(CORE_SEND_CONFIG1 + i, bytes(p), self.is_extended_id)
-                  for i, p in enumerate(_config_payloads(cfg))]
+                  for i, p in enumerate(config_payloads(cfg))]
         cells = self.encode(BmsCellNumbers(tuple(cells_per_module)))
         return frames + [Frame(CORE_SEND_CELL_NUMS, cells.data, self.is_extended_id)]
 
@@ -604,7 +326,7 @@ class Evms3Codec:
         if isinstance(msg, SetState):
             return self._frame(SET_STATE, bytes([1 if msg.setup else 0]))
         if isinstance(msg, Evms3ConfigPart):
-            cfg = Evms3Config.from_mapping({**_CONFIG_FILLER, **msg.values})
+            cfg = Evms3Config.from_mapping({**CONFIG_FILLER, **msg.values})
             return self.config_frames(cfg)[msg.part - 1]
         if isinstance(msg, BmsCellNumbers):
             cells = check_config_value('cells_per_module', msg.cells_per_module)
@@ -676,9 +398,3 @@ def _check_int(name: str, value: Any, low: int, high: int) -> int:
         raise EncodeRangeError(name, value, f'an integer {low}..{high}')
     check_range(name, value, low, high, 1)
     return int(round(value))
-
-
-# Valid values to encode a single decoded part: the other parts' fields do not reach its frame.
-_CONFIG_FILLER: dict[str, Any] = {
-    f.name: (f.low if f.low is not None else f.choices[0] if f.choices else False)
-    for f in CONFIG_FIELDS if f.name != 'cells_per_module'}
