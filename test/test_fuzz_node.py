@@ -30,6 +30,7 @@ from test_bridge_slcan import FRAMES
 
 DEVICES = ['ams', 'ivt_s', 'evms3', 'bms16', 'sma']
 PARAMS = {'devices': DEVICES, 'diagnostics_period': 0.1,
+          'evms3.bms12_modules': 4, 'ams.bank_count': 3,  # their frames at more IDs
           # never stale during a test: every present message comes from a primary frame
           **{f'{d}.stale_timeout': 3600.0 for d in DEVICES}}
 BMS16_STATUS = 500
