@@ -199,3 +199,36 @@ def test_config_changes_during_write_config_send_one_consistent_set(rig_factory)
     seen = [sets.get(group, 'mixed') for group in groups]
     assert 'mixed' not in seen, seen
     assert {'A', 'B'} <= set(seen), seen  # the values really changed between the writes
+
+
+def test_commands_waiting_for_a_down_bus_leave_telemetry_and_disarming_running(
+        rig_factory, tmp_path):
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rcl_interfaces.srv import SetParameters
+    from rclpy.parameter import Parameter
+    rig = rig_factory({'devices': ['bms16'], 'commands_allowed': True,
+                       'commands_enabled': True, 'can.interface': 'slcan',
+                       'can.channel': str(tmp_path / 'ttyACM_gone'), 'can.connect_wait': 20.0,
+                       'diagnostics_period': 0.1}, wait_connected=False)
+    arrays = []
+    rig.client.create_subscription(
+        DiagnosticArray, '/diagnostics', lambda m: arrays.append(time.monotonic()) if any(
+            s.hardware_id == rig.node.hardware_id for s in m.status) else None, 50)
+    assert rig.capture.wait_for(lambda: len(arrays) >= 2)
+    calls = [rig.call_in_thread(Trigger, '/bms16/reset_soc') for _ in range(6)]
+    assert rig.capture.wait_for(lambda: sum('response' in c for c in calls) >= 4)
+    # 4 answered at once; 2 wait for the bus, each holding an executor thread
+    refused = [c['response'].message for c in calls if 'response' in c]
+    assert all('2 commands already wait for it' in m for m in refused), refused
+    start = time.monotonic()
+    rig.capture.wait_for(lambda: False, timeout=1.0)
+    assert len([t for t in arrays if t > start]) >= 5  # /diagnostics did not stop
+    # the supervisor can still disarm through the parameter service: the waits end at once
+    result = rig.call(SetParameters, '/ams_can_bridge/set_parameters', parameters=[
+        Parameter('commands_enabled', value=False).to_parameter_msg()])
+    assert result.results[0].successful
+    for call in calls:
+        call['thread'].join(3)
+    waited = [c['response'].message for c in calls if 'already wait' not in
+              c['response'].message]
+    assert len(waited) == 2 and all('commands_enabled was set to false' in m for m in waited)

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import logging
 import math
+import threading
 import time
 from typing import Any
 
@@ -67,6 +68,10 @@ MALFORMED_LOG_PERIOD = 5.0  # s between malformed-frame log lines per device
 STALE_PUBLISH_PERIOD = 1.0  # s, battery_state present:false while stale
 WATCH_PERIOD = 0.2  # s, how fast bus state / staleness transitions are noticed
 TELEMETRY_DEPTH = 100  # history of battery_state / array publishers
+# Commands that may wait for a down bus at once. A waiting call holds an executor thread
+# (the bridge runs 4): at most 2 wait, so telemetry, /diagnostics and the parameter
+# services (disarming) always keep a thread; a further command fails at once instead.
+BUS_WAIT_SLOTS = 2
 CLOCK_PERIOD = 0.01  # s between /clock messages of a replay (can.replay_clock)
 
 __all__ = ['BridgeNode', 'ConfigError', 'NODE_NAME']
@@ -91,6 +96,7 @@ class BridgeNode(Node):
         self.commands_enabled = False
         self.commands_allowed = False
         self.commands_changes = 0  # run-time changes of commands_enabled (diagnostics)
+        self._bus_waits = threading.BoundedSemaphore(BUS_WAIT_SLOTS)
         self.can_io: CanIo | None = None
         self._ready = False
         self._replaying = False
@@ -365,6 +371,20 @@ class BridgeNode(Node):
         if status.connected:
             return True, ''
         wait = self.connect_wait if limit is None else min(self.connect_wait, limit)
+        if wait > 0 and status.state in RETRY_STATES:
+            if not self._bus_waits.acquire(blocking=False):
+                reason = f': {status.reason}' if status.reason else ''
+                return False, (f'CAN bus {self.hardware_id} is not connected ({status.state}'
+                               f'{reason}) and {BUS_WAIT_SLOTS} commands already wait for it: '
+                               'try again later')
+            try:
+                return self._wait_for_bus(can_io, status, wait, limit)
+            finally:
+                self._bus_waits.release()
+        return self._wait_for_bus(can_io, status, wait, limit)
+
+    def _wait_for_bus(self, can_io: CanIo, status: Any, wait: float,
+                      limit: float | None) -> tuple[bool, str]:
         deadline = time.monotonic() + wait
         while status.state in RETRY_STATES and self.commands_enabled:
             left = deadline - time.monotonic()

@@ -115,12 +115,12 @@ class _ZevaCommands:
         except (EncodeRangeError, ValueError, TypeError) as exc:
             return False, f'{self.name}: cannot {what}: {exc}; nothing was sent'
         sent = []
+        # A bus still opening (or reconnecting) is waited for once, before the first frame
+        # and outside the send lock, so calls wait side by side, not one after the other.
+        ok, message = self.node.wait_for_bus()
+        if not ok:
+            return False, f'{self.name}: cannot {what}: {message}; nothing was sent'
         with self._send_lock:
-            # A bus still opening (or reconnecting) is waited for once, before the first
-            # frame: the frames of one call then go out on one connection, or not at all.
-            ok, message = self.node.wait_for_bus()
-            if not ok:
-                return False, f'{self.name}: cannot {what}: {message}; nothing was sent'
             for frame in frames:
                 ok, message = self.node.transmit(frame, wait=False)
                 if not ok:
