@@ -121,6 +121,14 @@ def test_victron_impossible_extremes_are_malformed():
         CODEC.decode(0x373, swapped_temps)
     with pytest.raises(MalformedFrameError, match='DLC 6'):
         CODEC.decode(0x373, CELLS_GOLDEN[:6])
+    # 3549 K (3275.85 degC) is the hottest a cell may read; 3550 K would be published as a
+    # temperature the SMA frames themselves cannot carry
+    hottest = CELLS_GOLDEN[:6] + bytes([0xDD, 0x0D])  # 0x0DDD = 3549
+    assert CODEC.decode(0x373, hottest).max_temperature_k == 3549
+    with pytest.raises(MalformedFrameError, match='3550 K is above 3549 K'):
+        CODEC.decode(0x373, CELLS_GOLDEN[:6] + bytes([0xDE, 0x0D]))
+    with pytest.raises(EncodeRangeError, match='max_temperature_k'):
+        CODEC.encode(VictronCellExtremes(3.3, 3.4, 290, 3550))
 
 
 def test_encoders_refuse_what_the_wire_cannot_carry():

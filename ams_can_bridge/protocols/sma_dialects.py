@@ -23,7 +23,9 @@ Decisions:
 - Accepted DLCs: 0x359 4..8 (DLC 4: module count not sent, None), 0x35C 1..8, 0x372 and
   0x373 8, the ASCII frames 1..8. Anything else is malformed.
 - 0xFFFF in a U16 field of 0x372/0x373 is "not available" (None), as in the SMA frames.
-  A min cell voltage above the max one (or a min temperature above the max) is malformed.
+  A min cell voltage above the max one (or a min temperature above the max) is malformed, and
+  so is a temperature above MAX_TEMPERATURE_K (3549 K = 3275.85 degC, inside the 3276.7 degC
+  the SMA frames themselves can carry): such a value would reach BatteryState.temperature.
 - ASCII: trailing NUL / space padding dropped, a non-printable byte becomes '?'.
 """
 from __future__ import annotations
@@ -60,6 +62,7 @@ DIALECT_DLC = {
 }
 INVALID_U16 = 0xFFFF
 KELVIN_OFFSET = 273.15
+MAX_TEMPERATURE_K = 3549
 
 # 0x359: condition -> (byte of the alarm, bit); the warning is the same bit two bytes on.
 PYLONTECH_CONDITIONS = (
@@ -205,6 +208,10 @@ def _cell_extremes(aid: int, data: bytes) -> VictronCellExtremes:
         raise MalformedFrameError(aid, data, f'min cell {vmin} mV above max cell {vmax} mV')
     if tmin is not None and tmax is not None and tmin > tmax:
         raise MalformedFrameError(aid, data, f'min cell temperature {tmin} K above max {tmax} K')
+    for kelvin in (tmin, tmax):
+        if kelvin is not None and kelvin > MAX_TEMPERATURE_K:
+            raise MalformedFrameError(aid, data, f'cell temperature {kelvin} K is above '
+                                      f'{MAX_TEMPERATURE_K} K')
     return VictronCellExtremes(None if vmin is None else vmin / 1000,
                                None if vmax is None else vmax / 1000, tmin, tmax)
 
@@ -232,10 +239,12 @@ def decode_dialect(arbitration_id: int, data: bytes) -> DialectReading:
 
 
 # --- encode (simulator, tests) ---------------------------------------------------------------
-def _put_u16(field: str, value: float | None, scale: int, unit: str) -> bytes:
+def _put_u16(field: str, value: float | None, scale: int, unit: str,
+             high: float | None = None) -> bytes:
     if value is None:
         return INVALID_U16.to_bytes(2, 'little')
-    check_range(f'sma.{field}', value, 0, (INVALID_U16 - 1) / scale, 1 / scale, unit)
+    top = (INVALID_U16 - 1) / scale if high is None else high
+    check_range(f'sma.{field}', value, 0, top, 1 / scale, unit)
     return round(value * scale).to_bytes(2, 'little')
 
 
@@ -278,8 +287,10 @@ def encode_dialect(message: DialectReading) -> Frame:
     if isinstance(message, VictronCellExtremes):
         data = (_put_u16('victron.min_cell_v', message.min_cell_v, 1000, 'V')
                 + _put_u16('victron.max_cell_v', message.max_cell_v, 1000, 'V')
-                + _put_u16('victron.min_temperature_k', message.min_temperature_k, 1, 'K')
-                + _put_u16('victron.max_temperature_k', message.max_temperature_k, 1, 'K'))
+                + _put_u16('victron.min_temperature_k', message.min_temperature_k, 1, 'K',
+                           MAX_TEMPERATURE_K)
+                + _put_u16('victron.max_temperature_k', message.max_temperature_k, 1, 'K',
+                           MAX_TEMPERATURE_K))
         return Frame(VICTRON_CELL_EXTREMES_ID, data)
     if isinstance(message, VictronCellId):
         if message.kind not in CELL_ID_KINDS:
