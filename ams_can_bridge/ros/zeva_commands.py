@@ -186,8 +186,11 @@ class Evms3Commands(_ZevaCommands):
             return False, f'{self.name}: {gate_message(self.node, "read the configuration")}'
 
         def send(frame: Frame) -> tuple[bool, str]:
+            ok, message = self.node.wait_for_bus()  # outside the send lock, as every call
+            if not ok:
+                return False, message
             with self._send_lock:
-                return self.node.transmit(frame)
+                return self.node.transmit(frame, wait=False)
         result = self.device.read_config(send, float(params.get('read_timeout') or 2.0))
         if not result.ok:
             return False, f'{self.name}: read_config failed: {result.error}; nothing was set'
