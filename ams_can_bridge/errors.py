@@ -4,6 +4,24 @@ The exceptions of ams_can_bridge, in one place (as python-can's ``can/exceptions
 Every error the package raises on purpose derives from :class:`AmsCanBridgeError`, so a
 script that embeds the bridge (or runs ``log2bag``) can catch the package's errors apart from
 programming errors. The messages are written for the user: they name what to change.
+
+The hierarchy::
+
+    AmsCanBridgeError
+     +-- ConfigError (also ValueError)      cannot start with these parameters
+     |    +-- ParamError                    one parameter value that cannot be used
+     +-- ProtocolError                      the protocol layer (protocols/)
+     |    +-- MalformedFrameError           a received frame that is not a valid message
+     |    +-- EncodeRangeError (ValueError) a value to send that the wire cannot carry
+     +-- CanSendError                       the bus is not available for sending
+     +-- RefusedCommand                     a service call refused before any frame is sent
+     +-- LogFileError                       a CAN log that cannot be read at all
+
+The older import places stay valid: ``protocols.common`` (ProtocolError,
+MalformedFrameError, EncodeRangeError), ``can_io`` (CanSendError) and
+``offline.log_frames`` (LogFileError) re-export these classes.
+
+No rclpy and no python-can here: protocol code imports this module.
 """
 from __future__ import annotations
 
@@ -16,10 +34,77 @@ class ConfigError(AmsCanBridgeError, ValueError):
     """
     The bridge (or log2bag) cannot start with these parameters.
 
-    Raised by the device set-up and the node's start; ``bridge`` and ``log2bag`` print the
-    message and exit 2.
+    Raised by the device set-up (``device_set.py``, ``parameters.py``) and the node's start;
+    ``bridge`` and ``log2bag`` print the message and exit 2.
     """
 
 
 class ParamError(ConfigError):
     """One parameter value that cannot be used (the message names it and what is allowed)."""
+
+
+class ProtocolError(AmsCanBridgeError):
+    """
+    Base of every error the protocol layer (``protocols/``) raises on purpose.
+
+    ``Device.handle`` catches it for every received frame: a bad frame is counted as
+    malformed and dropped, never raised into the receive thread.
+    """
+
+
+class MalformedFrameError(ProtocolError):
+    """
+    A received frame that cannot be a valid message of its ID (count it, drop it).
+
+    Raised by every ``protocols/*.decode`` (wrong length, reserved bits, a value outside the
+    range the protocol documents) and by devices that check a frame against their config.
+    """
+
+    def __init__(self, arbitration_id: int, data: bytes, reason: str) -> None:
+        self.arbitration_id = arbitration_id
+        self.data = bytes(data)
+        self.reason = reason
+        super().__init__(
+            f'malformed frame 0x{arbitration_id:X} [{self.data.hex(" ").upper()}]: {reason}')
+
+
+class EncodeRangeError(ProtocolError, ValueError):
+    """
+    A value to send that the protocol cannot carry: out of range or off its step.
+
+    Raised by the encoders in ``protocols/``; a command service answers it as a refused
+    call, having sent nothing.
+    """
+
+    def __init__(self, field: str, value: object, allowed: str) -> None:
+        self.field = field
+        self.value = value
+        self.allowed = allowed
+        super().__init__(f'{field} = {value!r} cannot be sent: allowed {allowed}')
+
+
+class CanSendError(AmsCanBridgeError):
+    """
+    A frame could not be sent: the bus is not connected, or the driver refused it.
+
+    Raised by ``CanIo.send``; the node's ``transmit`` turns it into a failed service answer
+    (or a disarmed heartbeat) naming the bus and its state.
+    """
+
+
+class RefusedCommand(AmsCanBridgeError):
+    """
+    A service call that cannot go ahead; nothing was sent (the message says what to change).
+
+    Raised while a command's frames are built (``ros/zeva_commands.py``,
+    ``ros/ams_commands.py``, the devices' command API): configuration unset, device stale,
+    nothing to acknowledge. The service answers ``success: false`` with the message.
+    """
+
+
+class LogFileError(AmsCanBridgeError):
+    """
+    A CAN log that cannot be read at all: missing, unreadable, or a format python-can lacks.
+
+    Raised by ``offline/log_frames.py``; ``log2bag`` prints it and exits 2.
+    """

@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from ams_can_bridge.can_io.config import BusState
 from ams_can_bridge.devices.base import BatteryReport, DiagnosticReport, Level
 
 
@@ -59,10 +60,10 @@ def array_dims(rows: int, cols: int,
 
 
 _BUS_LEVELS = {
-    'connected': Level.OK,
-    'error-passive': Level.WARN,
-    'connecting': Level.WARN,  # the first attempt is still under way
-    'replay finished': Level.OK,  # a replay that reached the end of its file
+    BusState.CONNECTED: Level.OK,
+    BusState.ERROR_PASSIVE: Level.WARN,
+    BusState.CONNECTING: Level.WARN,  # the first attempt is still under way
+    BusState.REPLAY_FINISHED: Level.OK,  # a replay that reached the end of its file
 }
 
 
@@ -73,7 +74,7 @@ def bus_report(status: Any, malformed: int, interface: str) -> DiagnosticReport:
     OK when connected (or a replay that finished), WARN on error-passive, ERROR otherwise
     (error, bus-off, reconnecting, cannot open) with the reason in the message.
     """
-    state = str(status.state)
+    state = BusState(status.state)
     level = _BUS_LEVELS.get(state, Level.ERROR)
     reason = str(status.reason or '')
     message = state + (f': {reason}' if reason and level != Level.OK else '')
@@ -81,7 +82,7 @@ def bus_report(status: Any, malformed: int, interface: str) -> DiagnosticReport:
     if down_for is not None:
         message += f' (down for {down_for:.1f} s)'
     values = {
-        'state': state,
+        'state': str(state),
         'reason': reason,
         'frames in': str(status.frames_in),
         'frames out': str(status.frames_out),
@@ -92,7 +93,7 @@ def bus_report(status: Any, malformed: int, interface: str) -> DiagnosticReport:
         'frame handler errors': str(getattr(status, 'callback_errors', 0)),
         'unreadable frames': str(getattr(status, 'frames_unreadable', 0)),
         'adapter': str(getattr(status, 'hardware_id', '') or ''),
-        'replay': (('finished' if state == 'replay finished' else 'playing')
+        'replay': (('finished' if state == BusState.REPLAY_FINISHED else 'playing')
                    if interface == 'replay' else 'off'),
     }
     if down_for is not None:

@@ -166,6 +166,17 @@ def test_banks_beyond_bank_count_warn(clock):
     assert device.battery_report().cell_voltage[56:63] == pytest.approx([3.6] * 7)
 
 
+def test_messages_name_the_instance_not_the_type(clock):
+    device = AmsDevice('front', {'bank_count': 1}, clock=clock)
+    status(device)
+    cells(device, 3, 0)
+    message = device.diagnostic_report().message
+    assert 'beyond front.bank_count = 1' in message and 'set front.bank_count to 3' in message
+    assert 'ams.' not in message
+    with pytest.raises(ValueError, match=r'^front\.bank_count = 9: allowed 1\.\.5'):
+        AmsDevice('front', {'bank_count': 9}, clock=clock)
+
+
 def test_ams_bank_count_mismatch_warns(clock):
     device = make(clock, bank_count=2)
     status(device, banks=1)

@@ -87,6 +87,8 @@ def test_discharge_positive_accepts_yaml_strings_and_refuses_others(clock):
     assert make(clock, discharge_positive='false').discharge_positive is False
     with pytest.raises(ValueError, match='discharge_positive'):
         make(clock, discharge_positive='maybe')
+    with pytest.raises(ValueError, match=r"^shunt\.discharge_positive = 'maybe'"):
+        IvtSDevice('shunt', {'discharge_positive': 'maybe'}, clock=clock)
 
 
 def test_little_endian_and_base_id_settings(clock):

@@ -130,7 +130,7 @@ def test_config_range_edges_and_refusals(field, low, high, step):
     for bad in (low - step, high + step, low + step / 2, float('nan'), True, '3'):
         with pytest.raises(EncodeRangeError) as info:
             CODEC.config_frames(Bms16Config(**dict(GOOD_CONFIG, **{field: bad})))
-        assert info.value.field == f'bms16.config.{field}'
+        assert info.value.field == field
         assert f'{low:g}..{high:g}' in str(info.value)
 
 
@@ -138,7 +138,7 @@ def test_config_range_edges_and_refusals(field, low, high, step):
 def test_shunt_size_refusals_name_the_choices(bad):
     with pytest.raises(EncodeRangeError) as info:
         CODEC.config_frames(Bms16Config(**dict(GOOD_CONFIG, shunt_size_a=bad)))
-    assert info.value.field == 'bms16.config.shunt_size_a'
+    assert info.value.field == 'shunt_size_a'
     assert '0 (no shunt), 100, 200 or 500 A' in str(info.value)
 
 
@@ -197,13 +197,13 @@ def test_unknown_shunt_code_and_foreign_id_are_malformed():
 
 
 def test_telemetry_encoders_refuse_what_the_wire_cannot_carry():
-    with pytest.raises(EncodeRangeError, match='bms16.current_a'):
+    with pytest.raises(EncodeRangeError, match='current_a'):
         CODEC.encode(Bms16Status(Bms16Error.NONE, 50, 50.0, 3300.0, 20))
-    with pytest.raises(EncodeRangeError, match='bms16.cell2_v'):
+    with pytest.raises(EncodeRangeError, match='cell2_v'):
         CODEC.encode(Bms16Cells(0, (3.3, 5.2, 3.3, 3.3, 3.3, 3.3)))
     with pytest.raises(EncodeRangeError, match='exactly 4'):
         CODEC.encode(Bms16Cells(12, (3.3,) * 6))
-    with pytest.raises(EncodeRangeError, match='bms16.error'):
+    with pytest.raises(EncodeRangeError, match='error'):
         CODEC.encode(Bms16Status(9, 50, 50.0, 0.0, 20))
 
 

@@ -6,9 +6,9 @@ thread, reconnects alone after any failure, sends thread-safely and records both
 No rclpy here: the ROS node drives this API.
 """
 from ams_can_bridge.can_io.config import BusConfig, BusStatus, CanSendError, parse_options
-from ams_can_bridge.can_io.config import STATES
+from ams_can_bridge.can_io.config import BusState, STATES
 from ams_can_bridge.can_io.core import CanIo
 from ams_can_bridge.can_io.replay import ReplayBus
 
-__all__ = ['BusConfig', 'BusStatus', 'CanIo', 'CanSendError', 'ReplayBus', 'STATES',
+__all__ = ['BusConfig', 'BusState', 'BusStatus', 'CanIo', 'CanSendError', 'ReplayBus', 'STATES',
            'parse_options']

@@ -2,12 +2,39 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import enum
 import re
 
-STATES = ('connecting', 'connected', 'reconnecting', 'error', 'bus-off', 'error-passive',
-          'replay finished', 'stopped')
+from ams_can_bridge.errors import CanSendError  # noqa: F401 (imported from here too)
+
+
+class BusState(enum.StrEnum):
+    """
+    The state of the bridge's CAN bus (the receive thread's view of it).
+
+    str-valued: logs, diagnostics and ``str(state)`` show the value ('bus-off'), as before
+    the Enum, and a state still compares equal to its text.
+    """
+
+    CONNECTING = 'connecting'            # first attempt to open the bus under way
+    CONNECTED = 'connected'
+    RECONNECTING = 'reconnecting'        # was up, lost, reopening
+    ERROR = 'error'                      # never came up, retrying
+    BUS_OFF = 'bus-off'
+    ERROR_PASSIVE = 'error-passive'      # still receives
+    REPLAY_FINISHED = 'replay finished'  # a replay reached the end of its file
+    STOPPED = 'stopped'
+
+
+# The tuple of every state, from before the Enum.
+STATES = tuple(BusState)
 # States in which the receive thread is still (re)opening the bus: it may come back alone.
-RETRY_STATES = ('connecting', 'reconnecting', 'error', 'bus-off')
+RETRY_STATES = frozenset({BusState.CONNECTING, BusState.RECONNECTING, BusState.ERROR,
+                          BusState.BUS_OFF})
+# States in which the bus is down and being reopened (an outage is being timed).
+DOWN_STATES = frozenset({BusState.RECONNECTING, BusState.ERROR, BusState.BUS_OFF})
+# States in which frames flow.
+UP_STATES = frozenset({BusState.CONNECTED, BusState.ERROR_PASSIVE})
 
 # python-can options the bridge sets unless can.options gives them. slcan: python-can reads
 # the serial port with a 1 ms timeout by default, so an idle bus costs ~1000 wake-ups a
@@ -19,10 +46,6 @@ INTERFACE_DEFAULTS: dict[str, dict[str, object]] = {
 
 _INT = re.compile(r'[+-]?(0x[0-9a-fA-F]+|0o[0-7]+|0b[01]+|\d+)$')
 _FLOAT = re.compile(r'[+-]?(\d+\.\d*|\.\d+|\d+)([eE][+-]?\d+)?$')
-
-
-class CanSendError(Exception):
-    """A frame could not be sent: the bus is not connected, or the driver refused it."""
 
 
 def _convert(value: str) -> object:
@@ -124,7 +147,7 @@ class BusConfig:
 class BusStatus:
     """A snapshot of the bus state and counters (cheap to take, safe to keep)."""
 
-    state: str
+    state: BusState
     reason: str
     frames_in: int
     frames_out: int
@@ -140,4 +163,4 @@ class BusStatus:
     @property
     def connected(self) -> bool:
         """Tell whether frames flow (connected, or error-passive which still receives)."""
-        return self.state in ('connected', 'error-passive')
+        return self.state in UP_STATES

@@ -8,7 +8,9 @@ from typing import Callable
 
 import can
 
-from ams_can_bridge.can_io.config import BusConfig, BusStatus, CanSendError, RETRY_STATES
+from ams_can_bridge.can_io.config import (
+    BusConfig, BusState, BusStatus, DOWN_STATES, RETRY_STATES, UP_STATES)
+from ams_can_bridge.errors import CanSendError
 from ams_can_bridge.can_io.replay import ReplayBus
 from ams_can_bridge.protocols.common import Frame
 
@@ -27,10 +29,6 @@ _CAN_ERR_CRTL_PASSIVE = 0x10 | 0x20      # RX / TX passive
 _CAN_ERR_CRTL_ACTIVE = 0x40
 _SOCKETCAN_ERRORS = ('socketcan', 'virtual')
 
-
-# An outage lasts from entering one of these until the bus is connected again.
-_DOWN_STATES = ('reconnecting', 'error', 'bus-off')
-
 # Log format of bus state changes (the node filters these: it logs its own).
 STATE_CHANGE_FORMAT = 'CAN bus %s: %s%s'
 
@@ -38,7 +36,7 @@ STATE_CHANGE_FORMAT = 'CAN bus %s: %s%s'
 class _BusLost(Exception):
     """Raised inside the receive loop when the bus must be closed and re-opened."""
 
-    def __init__(self, state: str, reason: str) -> None:
+    def __init__(self, state: BusState, reason: str) -> None:
         super().__init__(reason)
         self.state = state
         self.reason = reason
@@ -73,7 +71,7 @@ class CanIo:
         self._state_cv = threading.Condition()  # wakes callers waiting for 'connected'
         self._bus: can.BusABC | ReplayBus | None = None
         self._recorder: can.Listener | None = None
-        self._state = 'stopped'
+        self._state = BusState.STOPPED
         self._reason = ''
         self._ever_connected = False
         self._down_since: float | None = None  # monotonic start of the current outage
@@ -101,7 +99,7 @@ class CanIo:
                 raise ValueError(f'can.record = {self.config.record!r}: cannot record there: '
                                  f'{exc}') from exc
         self._stop.clear()
-        self._set_state('connecting', '')
+        self._set_state(BusState.CONNECTING, '')
         self._thread = threading.Thread(target=self._run, name='can_io-rx', daemon=True)
         self._thread.start()
 
@@ -120,7 +118,7 @@ class CanIo:
             except Exception as exc:  # a full disk must not turn shutdown into a traceback
                 self._log.error('CAN recording %s not closed cleanly: %s',
                                 self.config.record, exc)
-        self._set_state('stopped', '', logging.DEBUG)
+        self._set_state(BusState.STOPPED, '', logging.DEBUG)
 
     def wait_connected(self, timeout: float) -> BusStatus:
         """
@@ -162,7 +160,7 @@ class CanIo:
             raise CanSendError(f'invalid frame {frame!r}: {exc}') from exc
         with self._tx_lock:
             bus = self._bus
-            if bus is None or self._state not in ('connected', 'error-passive'):
+            if bus is None or self._state not in UP_STATES:
                 self.frames_dropped_tx += 1
                 raise CanSendError(
                     f'CAN bus {self.config.hardware_id} is not connected ({self._state}'
@@ -179,16 +177,16 @@ class CanIo:
             self._record(msg)
 
     # ---------------------------------------------------------------------------- thread
-    def _set_state(self, state: str, reason: str, level: int = logging.INFO) -> None:
+    def _set_state(self, state: BusState, reason: str, level: int = logging.INFO) -> None:
         if state != self._state or reason != self._reason:
             self._log.log(level, STATE_CHANGE_FORMAT, self.config.hardware_id, state,
                           f' ({reason})' if reason else '')
         with self._state_cv:
-            if state in _DOWN_STATES:
+            if state in DOWN_STATES:
                 if self._down_since is None:
                     self._down_since = time.monotonic()
             elif self._down_since is not None:
-                if state in ('connected', 'error-passive'):
+                if state in UP_STATES:
                     self._last_outage = time.monotonic() - self._down_since
                 self._down_since = None
             self._state = state
@@ -200,7 +198,7 @@ class CanIo:
             try:
                 bus = self._open()
             except Exception as exc:
-                state = 'reconnecting' if self._ever_connected else 'error'
+                state = BusState.RECONNECTING if self._ever_connected else BusState.ERROR
                 self._set_state(state, _describe(exc), logging.WARNING)
                 self._stop.wait(self.config.reconnect_period)
                 continue
@@ -209,7 +207,7 @@ class CanIo:
             except _BusLost as lost:
                 self._set_state(lost.state, lost.reason, logging.WARNING)
             except Exception as exc:  # recv raised: adapter unplugged, driver error, ...
-                self._set_state('reconnecting', _describe(exc), logging.WARNING)
+                self._set_state(BusState.RECONNECTING, _describe(exc), logging.WARNING)
             else:
                 if isinstance(bus, ReplayBus) and bus.finished:
                     self._replay_finished(bus)
@@ -217,7 +215,7 @@ class CanIo:
             self._close_bus()
             self._stop.wait(self.config.reconnect_period)
         # stop() may have given up joining an open that hung
-        self._set_state('stopped', '', logging.DEBUG)
+        self._set_state(BusState.STOPPED, '', logging.DEBUG)
 
     def _open(self) -> can.BusABC | ReplayBus:
         cfg = self.config
@@ -240,7 +238,7 @@ class CanIo:
         if self._ever_connected:
             self.reconnects += 1
         self._ever_connected = True
-        self._set_state('connected', f'replaying {cfg.channel}' if cfg.interface == 'replay'
+        self._set_state(BusState.CONNECTED, f'replaying {cfg.channel}' if cfg.interface == 'replay'
                         else '')
         return bus
 
@@ -257,7 +255,7 @@ class CanIo:
         reason = f'{bus.played} frames played from {bus.path}'
         if bus.error:
             reason += f'; stopped at a bad entry: {bus.error}'
-        self._set_state('replay finished', reason)
+        self._set_state(BusState.REPLAY_FINISHED, reason)
 
     def _receive(self, bus: can.BusABC | ReplayBus) -> None:
         """Receive until stop (return), replay end (return) or failure (raise)."""
@@ -319,24 +317,24 @@ class CanIo:
         except Exception:  # drivers that cannot tell: nothing to learn
             return
         if state == can.BusState.ERROR:
-            raise _BusLost('bus-off', 'controller reports bus-off (BusState.ERROR)')
+            raise _BusLost(BusState.BUS_OFF, 'controller reports bus-off (BusState.ERROR)')
         if state == can.BusState.PASSIVE:
-            if self._state != 'error-passive':
-                self._set_state('error-passive', 'controller reports error-passive',
+            if self._state != BusState.ERROR_PASSIVE:
+                self._set_state(BusState.ERROR_PASSIVE, 'controller reports error-passive',
                                 logging.WARNING)
-        elif self._state == 'error-passive':
-            self._set_state('connected', '')
+        elif self._state == BusState.ERROR_PASSIVE:
+            self._set_state(BusState.CONNECTED, '')
 
     def _error_frame(self, msg: can.Message) -> None:
         err = msg.arbitration_id
         if err & _CAN_ERR_BUSOFF:
-            raise _BusLost('bus-off', 'an error frame reports the controller bus-off')
+            raise _BusLost(BusState.BUS_OFF, 'an error frame reports the controller bus-off')
         if err & _CAN_ERR_CRTL and len(msg.data) > 1:
-            if msg.data[1] & _CAN_ERR_CRTL_PASSIVE and self._state != 'error-passive':
-                self._set_state('error-passive', 'error-passive (error frame)',
+            if msg.data[1] & _CAN_ERR_CRTL_PASSIVE and self._state != BusState.ERROR_PASSIVE:
+                self._set_state(BusState.ERROR_PASSIVE, 'error-passive (error frame)',
                                 logging.WARNING)
-            elif msg.data[1] & _CAN_ERR_CRTL_ACTIVE and self._state == 'error-passive':
-                self._set_state('connected', '')
+            elif msg.data[1] & _CAN_ERR_CRTL_ACTIVE and self._state == BusState.ERROR_PASSIVE:
+                self._set_state(BusState.CONNECTED, '')
 
     def _record(self, msg: can.Message) -> None:
         # One bus, one recording: the driver's channel object (a name, a path, a number)
@@ -359,7 +357,7 @@ class CanIo:
     def _unreadable(self, exc: Exception, run: int) -> None:
         self.frames_unreadable += 1
         if run >= _UNREADABLE_LIMIT:
-            raise _BusLost('reconnecting', f'{run} unreadable messages in a row from the '
+            raise _BusLost(BusState.RECONNECTING, f'{run} unreadable messages in a row from the '
                            f'driver, last: {_describe(exc)}')
         now = time.monotonic()
         if now - self._last_unreadable_log >= _CALLBACK_LOG_EVERY:

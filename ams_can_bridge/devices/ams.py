@@ -41,15 +41,15 @@ HEALTH_OF_ERROR = {
 }
 
 
-def _bank_count(value: Any) -> int:
-    """Validate ams.bank_count (int 1..5; 3.0 from YAML is 3)."""
+def _bank_count(value: Any, param: str) -> int:
+    """Validate the bank_count parameter called param (int 1..5; 3.0 from YAML is 3)."""
     try:
         count = int(value)
         ok = count == float(value) and 1 <= count <= proto.MAX_BANKS
     except (TypeError, ValueError):
         ok = False
     if not ok:
-        raise ValueError(f'ams.bank_count = {value!r}: allowed 1..{proto.MAX_BANKS} '
+        raise ValueError(f'{param} = {value!r}: allowed 1..{proto.MAX_BANKS} '
                          '(banks of 28 cells)')
     return count
 
@@ -119,7 +119,7 @@ class AmsDevice(Device):
         base_id = self.params.get('base_id')
         self.codec = AmsCodec(proto.DEFAULT_BASE_ID if base_id is None else int(base_id))
         banks = self.params.get('bank_count')
-        self._banks = _bank_count(1 if banks is None else banks)
+        self._banks = _bank_count(1 if banks is None else banks, f'{name}.bank_count')
         self.current_sensor: Any = None  # an IvtSDevice, attached by the node
         self.state = AmsState.NOT_REPORTED
         self.status_seq = 0
@@ -168,7 +168,8 @@ class AmsDevice(Device):
     def bank_count(self) -> int:
         """Return the configured bank count (follows ams.bank_count when changed)."""
         try:
-            self._banks = _bank_count(self.params.get('bank_count', self._banks))
+            self._banks = _bank_count(self.params.get('bank_count', self._banks),
+                                      f'{self.name}.bank_count')
         except ValueError:
             pass  # the node validates the parameter; keep the last good value
         return self._banks
@@ -334,11 +335,12 @@ class AmsDevice(Device):
             warnings.append(f'status counter jumped: {self._lost_frames} frames lost so far')
         if self._beyond_banks:
             warnings.append(f'{self._beyond_banks} frames from bank(s) up to '
-                            f'{self._highest_bank} beyond ams.bank_count = {self.bank_count}: '
-                            f'set ams.bank_count to {self._highest_bank}')
+                            f'{self._highest_bank} beyond {self.name}.bank_count = '
+                            f'{self.bank_count}: set {self.name}.bank_count to '
+                            f'{self._highest_bank}')
         if word.bank_count != self.bank_count:
             warnings.append(f'AMS reports {word.bank_count} bank(s), '
-                            f'ams.bank_count = {self.bank_count}')
+                            f'{self.name}.bank_count = {self.bank_count}')
         if status.soc_pct > 100:
             warnings.append(f'SOC {status.soc_pct} % out of range (shown as unknown)')
         level = Level.ERROR if errors else Level.WARN if warnings else Level.OK

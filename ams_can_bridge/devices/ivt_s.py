@@ -49,7 +49,7 @@ def _as_bool(key: str, value: Any) -> bool:
         return value
     if isinstance(value, str) and value.lower() in ('true', 'false'):
         return value.lower() == 'true'
-    raise ValueError(f'ivt_s.{key} = {value!r}: allowed true | false')
+    raise ValueError(f'{key} = {value!r}: allowed true | false')
 
 
 class IvtSDevice(Device):
@@ -82,7 +82,7 @@ class IvtSDevice(Device):
         base_id = self.params.get('base_id')
         base_id = DEFAULT_BASE_ID if base_id is None else int(base_id)
         self.byte_order = str(self.params.get('byte_order') or 'big')
-        self.discharge_positive = _as_bool('discharge_positive',
+        self.discharge_positive = _as_bool(f'{name}.discharge_positive',
                                            self.params.get('discharge_positive', True))
         self.codec = IvtSCodec(base_id, self.byte_order)
         # Wire current/charge -> ROS sign (negative while discharging).

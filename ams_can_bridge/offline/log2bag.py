@@ -21,7 +21,7 @@ import sys
 import time
 from typing import Sequence, TextIO
 
-from ams_can_bridge.can_io.config import BusStatus
+from ams_can_bridge.can_io.config import BusState, BusStatus
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.offline.bag import BagOut, STORAGES
@@ -112,7 +112,8 @@ class Converter:
             self.write_diagnostics(self.now)
             self._next_diagnostics += self.diagnostics_period
 
-    def write_diagnostics(self, stamp: float, state: str = 'connected') -> None:
+    def write_diagnostics(self, stamp: float,
+                          state: BusState = BusState.CONNECTED) -> None:
         """Write one /diagnostics: every device and the (replayed) CAN bus, as the bridge."""
         statuses = [(f'{NODE_NAME}: {name}', device.diagnostic_report())
                     for name, device in self.devices.devices.items()]
@@ -201,7 +202,7 @@ def convert(log: str, output: str, parameters: dict, storage: str = 'mcap',
                             write)
             last = stamp
         if math.isfinite(summary.first_stamp):
-            converter.write_diagnostics(last, state='replay finished')
+            converter.write_diagnostics(last, state=BusState.REPLAY_FINISHED)
         summary.last_stamp = last
     finally:
         frames.close()

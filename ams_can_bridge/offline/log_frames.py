@@ -15,15 +15,12 @@ from typing import Any, Iterator
 import can
 
 from ams_can_bridge.can_io.replay import open_log
+from ams_can_bridge.errors import LogFileError
 
 # Readers that re-read a header when iterated anew: a blank line stands in for it.
 _NEEDS_HEADER_LINE = (can.CSVReader, can.ASCReader)
 _RESUMABLE = (can.CanutilsLogReader, can.TRCReader) + _NEEDS_HEADER_LINE
 _LINE_COUNT_CHUNK = 1 << 20
-
-
-class LogFileError(Exception):
-    """The log cannot be read at all: missing, unreadable, or a format python-can lacks."""
 
 
 class _Lines:

@@ -189,16 +189,16 @@ def check_config_value(name: str, value: object) -> int:
     if name == 'shunt_size_a':
         allowed = '0 (no shunt), 100, 200 or 500 A'
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise EncodeRangeError(f'bms16.config.{name}', value, allowed)
+            raise EncodeRangeError(name, value, allowed)
         for code, size in enumerate(SHUNT_SIZES_A):
             if value == size:
                 return code
-        raise EncodeRangeError(f'bms16.config.{name}', value, allowed)
+        raise EncodeRangeError(name, value, allowed)
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise EncodeRangeError(
-            f'bms16.config.{name}', value,
+            name, value,
             f'a number {spec.low:g}..{spec.high:g} {spec.unit}'.rstrip())
-    check_range(f'bms16.config.{name}', value, spec.low, spec.high, spec.step, spec.unit)
+    check_range(name, value, spec.low, spec.high, spec.step, spec.unit)
     return round(value / _CONFIG_SCALE[name])
 
 
@@ -253,7 +253,7 @@ class Bms16Codec:
 
     def __init__(self, base_id: int = DEFAULT_BASE_ID) -> None:
         if not 0 <= base_id <= 0x7FF - (ID_COUNT - 1):
-            raise EncodeRangeError('bms16.base_id', base_id,
+            raise EncodeRangeError('base_id', base_id,
                                    f'0..{0x7FF - (ID_COUNT - 1)} (11-bit IDs, 9 of them)')
         check_dbc()
         self.base_id = base_id
@@ -351,11 +351,11 @@ class Bms16Codec:
 
     def _encode_status(self, status: Bms16Status) -> Frame:
         error = status.error
-        check_range('bms16.error', error, 0, 8, 1)
-        check_range('bms16.soc_pct', status.soc_pct, 0, 100)
-        check_range('bms16.voltage_v', status.voltage_v, 0, 6553.5, unit='V')
-        check_range('bms16.current_a', status.current_a, -3276.8, 3276.7, unit='A')
-        check_range('bms16.temperature_c', status.temperature_c, 0, 255, unit='degC')
+        check_range('error', error, 0, 8, 1)
+        check_range('soc_pct', status.soc_pct, 0, 100)
+        check_range('voltage_v', status.voltage_v, 0, 6553.5, unit='V')
+        check_range('current_a', status.current_a, -3276.8, 3276.7, unit='A')
+        check_range('temperature_c', status.temperature_c, 0, 255, unit='degC')
         volts = round(status.voltage_v * 10)
         amps = round(status.current_a * 10) + CURRENT_OFFSET
         return self.frame(STATUS, bytes((
@@ -364,15 +364,15 @@ class Bms16Codec:
 
     def _encode_cells(self, cells: Bms16Cells) -> Frame:
         if cells.first_cell not in CELL_FRAME_FIRST:
-            raise EncodeRangeError('bms16.cells.first_cell', cells.first_cell, '0, 6 or 12')
+            raise EncodeRangeError('first_cell', cells.first_cell, '0, 6 or 12')
         index = CELL_FRAME_FIRST.index(cells.first_cell)
         count = CELL_FRAME_COUNT[index]
         if len(cells.voltages_v) != count:
-            raise EncodeRangeError(f'bms16.cells[{cells.first_cell}:].count',
+            raise EncodeRangeError(f'cells[{cells.first_cell}:].count',
                                    len(cells.voltages_v), f'exactly {count} voltages')
         data = bytearray(7)
         for k, volts in enumerate(cells.voltages_v):
-            check_range(f'bms16.cell{cells.first_cell + k + 1}_v', volts, 0, 5.11, unit='V')
+            check_range(f'cell{cells.first_cell + k + 1}_v', volts, 0, 5.11, unit='V')
             raw = round(volts * 100)
             data[k] = raw & 0xFF
             data[6] |= (raw >> 8) << k

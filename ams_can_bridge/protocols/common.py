@@ -15,6 +15,9 @@ from typing import Any, NamedTuple
 import cantools
 from cantools.database.can import Database
 
+from ams_can_bridge.errors import (  # noqa: F401 (their import place before errors.py)
+    EncodeRangeError, MalformedFrameError, ProtocolError)
+
 PACKAGE = 'ams_can_bridge'
 
 
@@ -24,31 +27,6 @@ class Frame(NamedTuple):
     arbitration_id: int
     data: bytes
     is_extended_id: bool = False
-
-
-class ProtocolError(Exception):
-    """Base of every error the protocol layer raises on purpose."""
-
-
-class MalformedFrameError(ProtocolError):
-    """A received frame that cannot be a valid message of its ID (count it, drop it)."""
-
-    def __init__(self, arbitration_id: int, data: bytes, reason: str) -> None:
-        self.arbitration_id = arbitration_id
-        self.data = bytes(data)
-        self.reason = reason
-        super().__init__(
-            f'malformed frame 0x{arbitration_id:X} [{self.data.hex(" ").upper()}]: {reason}')
-
-
-class EncodeRangeError(ProtocolError, ValueError):
-    """A value to send that the protocol cannot carry: out of range or off its step."""
-
-    def __init__(self, field: str, value: object, allowed: str) -> None:
-        self.field = field
-        self.value = value
-        self.allowed = allowed
-        super().__init__(f'{field} = {value!r} cannot be sent: allowed {allowed}')
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,7 @@ from std_srvs.srv import Trigger
 from ams_can_bridge.devices.ams_master import AmsMaster, CommandResult
 from ams_can_bridge.devices.ams import AmsDevice
 from ams_can_bridge.devices.base import Device
+from ams_can_bridge.errors import RefusedCommand
 from ams_can_bridge.protocols import ams as proto
 from ams_can_bridge.protocols.ams import (AmsCodec, CarCommand, CarStatus, ChargerCommand,
                                           ChargerStart, OverrideBankCount,
@@ -140,7 +141,7 @@ class AmsCommands:
             return False, f'{self.name}: {gate_message(self.node, what)}'
         try:
             frame = build()
-        except (EncodeRangeError, ValueError) as exc:
+        except (RefusedCommand, EncodeRangeError, ValueError) as exc:
             return False, f'{self.name}: cannot {what}: {exc}; nothing was sent'
         ok, message = self.node.transmit(frame)
         if not ok:
@@ -161,6 +162,6 @@ class AmsCommands:
     def _charge_current_frame(self) -> Frame:
         current = self.charge_current_a
         if current is None:
-            raise ValueError(f'{self.name}.charge_current_a is not set: set it to the charge '
-                             'current in A (0..25.5 in steps of 0.1)')
+            raise RefusedCommand(f'{self.name}.charge_current_a is not set: set it to the '
+                                 'charge current in A (0..25.5 in steps of 0.1)')
         return self.codec.encode(OverrideChargeCurrent(float(current)))

@@ -414,16 +414,13 @@ class BridgeNode(Node):
             ok, message = self.wait_for_bus()
             if not ok:
                 return False, message
+        can_io = self.can_io
+        if can_io is None:
+            return False, f'CAN bus {self.hardware_id} is closed: the bridge is shutting down'
         try:
-            result = self.can_io.send(frame)
+            can_io.send(frame)  # every driver failure arrives as CanSendError
         except CanSendError as exc:
             return False, f'CAN send failed on {self.hardware_id}: {exc}'
-        except Exception as exc:  # a bus error must become a service answer, not a crash
-            return False, f'CAN send failed on {self.hardware_id}: {exc}'
-        if isinstance(result, tuple):
-            return bool(result[0]), str(result[1])
-        if result is False:
-            return False, f'CAN send failed on {self.hardware_id}: {self.can_io.status().reason}'
         return True, f'sent 0x{frame.arbitration_id:X} [{frame.data.hex(" ").upper()}]'
 
     def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:

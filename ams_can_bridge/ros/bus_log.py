@@ -9,6 +9,8 @@ from __future__ import annotations
 import time
 from typing import Any
 
+from ams_can_bridge.can_io.config import BusState, UP_STATES
+
 
 class BusStateLog:
     """Turn successive BusStatus snapshots into connected / lost / reconnected lines."""
@@ -19,19 +21,19 @@ class BusStateLog:
         self.hardware_id = hardware_id
         self.channel = channel
         self.reconnect_period = reconnect_period
-        self.state = ''
+        self.state: BusState | None = None
         self.lost_at: float | None = None  # monotonic time the bus went down
         self.ever_connected = False
 
     def update(self, status: Any) -> None:
         """Log what changed since the last snapshot (nothing when the state is the same)."""
-        state = str(status.state)
+        state = BusState(status.state)
         if state == self.state:
             return
         previous, self.state = self.state, state
         reason = f': {status.reason}' if status.reason else ''
-        was_up = previous in ('connected', 'error-passive')
-        if state == 'connected':
+        was_up = previous in UP_STATES
+        if state == BusState.CONNECTED:
             if self.lost_at is not None and self.ever_connected:
                 self.log.info(f'CAN bus {self.hardware_id} reconnected after '
                               f'{time.monotonic() - self.lost_at:.1f} s')
@@ -39,11 +41,11 @@ class BusStateLog:
                 self.log.info(f'CAN bus {self.hardware_id} connected')
             self.ever_connected = True
             self.lost_at = None
-        elif state == 'error-passive':
+        elif state == BusState.ERROR_PASSIVE:
             self.log.warning(f'CAN bus {self.hardware_id} error-passive{reason}')
-        elif state == 'replay finished':
+        elif state == BusState.REPLAY_FINISHED:
             self.log.info(f'replay of {self.channel} finished')
-        elif state in ('connecting', 'stopped'):
+        elif state in (BusState.CONNECTING, BusState.STOPPED):
             self.log.debug(f'CAN bus {self.hardware_id}: {state}')
         elif was_up or self.lost_at is None:
             # the transition to "down" is logged once, not every retry of the reconnect loop

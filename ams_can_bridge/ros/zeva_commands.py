@@ -19,6 +19,7 @@ from rclpy.parameter import Parameter
 from std_srvs.srv import SetBool, Trigger
 
 from ams_can_bridge.devices.base import Device
+from ams_can_bridge.errors import RefusedCommand
 from ams_can_bridge.protocols import bms16 as bms16_proto
 from ams_can_bridge.protocols import evms3 as evms3_proto
 from ams_can_bridge.protocols.common import ConfigField, EncodeRangeError, Frame
@@ -110,9 +111,7 @@ class _ZevaCommands:
         try:
             with self._config_lock:
                 frames = list(build())  # validation happens here, before anything is sent
-        except _Refused as exc:
-            return False, f'{self.name}: cannot {what}: {exc}; nothing was sent'
-        except (EncodeRangeError, ValueError, TypeError) as exc:
+        except (RefusedCommand, EncodeRangeError, ValueError, TypeError) as exc:
             return False, f'{self.name}: cannot {what}: {exc}; nothing was sent'
         sent = []
         # A bus still opening (or reconnecting) is waited for once, before the first frame
@@ -133,17 +132,13 @@ class _ZevaCommands:
     def _require_config(self, optional: Iterable[str] = ()) -> dict[str, Any]:
         missing = self.config.missing(optional)
         if missing:
-            raise _Refused(f'{len(missing)} configuration value(s) unset: '
-                           + ', '.join(missing) + f' ({self.WRITE_HINT.format(self.name)})')
+            raise RefusedCommand(f'{len(missing)} configuration value(s) unset: '
+                                 + ', '.join(missing) + f' ({self.WRITE_HINT.format(self.name)})')
         return self.config.as_mapping()
 
     def _base_id(self, default: int) -> int:
         base = self.device.params.get('base_id')
         return default if base is None else int(base)
-
-
-class _Refused(Exception):
-    """A call that cannot go ahead (the message says what to change)."""
 
 
 class Evms3Commands(_ZevaCommands):
@@ -214,11 +209,11 @@ class Evms3Commands(_ZevaCommands):
 
     def _ack_frames(self) -> list[Frame]:
         if self.device.is_stale():
-            raise _Refused('the EVMS3 is stale (no status frame within its stale_timeout), so '
-                           'its error is unknown')
+            raise RefusedCommand('the EVMS3 is stale (no status frame within its '
+                                 'stale_timeout), so its error is unknown')
         error = getattr(self.device, 'error', None)  # the property takes the device lock
         if error is None or int(error) == 0:
-            raise _Refused('the EVMS3 reports no error to acknowledge')
+            raise RefusedCommand('the EVMS3 reports no error to acknowledge')
         return [self.codec.encode(evms3_proto.AcknowledgeError(
             evms3_proto.Evms3Error(int(error))))]
 
