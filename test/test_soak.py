@@ -9,8 +9,9 @@ end (and the invariants hold all along, as they are cumulative):
 - nothing escaped a callback, the executor or a thread; no frame handler failed;
 - every primary frame was published once, every field NaN or in protocol range;
 - the malformed counter equals the replica's; silent devices went STALE and came back;
-- every command call succeeded (those made while the bus was down waited for it), and its
-  frame reached the bus exactly once; the heartbeat counter never skipped on the bus;
+- every command call succeeded (those made while the bus was down waited for it) or was
+  refused because 2 others already waited; each success put its frame on the bus exactly
+  once; the heartbeat counter never skipped on the bus;
 - threads do not pile up across reconnects.
 """
 from __future__ import annotations
@@ -117,9 +118,13 @@ def test_soak():
         assert bridge.failures == []
         assert bridge.node.can_io.status().callback_errors == 0
         answers = [c.result() for c in calls]
-        assert all(a.success for a in answers), [a.message for a in answers if not a.success]
-        assert capture.wait_for(
-            lambda: len(capture.since(0, RESET_SOC)) == len(calls), timeout=5)
+        # a call succeeds (one made while the bus is down waits for it), or, when 2 others
+        # already wait for the bus, is refused at once as defined; never anything else
+        failed = [a.message for a in answers if not a.success]
+        assert all('2 commands already wait for it' in m for m in failed), failed
+        done = sum(a.success for a in answers)
+        assert done >= len(answers) // 2, failed
+        assert capture.wait_for(lambda: len(capture.since(0, RESET_SOC)) == done, timeout=5)
         with bridge.lock:
             present = [m for d in DEVICES for m in bridge.battery[d] if m.present]
         assert [unphysical(m) for m in present if unphysical(m)] == []
