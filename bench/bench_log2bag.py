@@ -42,20 +42,14 @@ def bare_read(path: str) -> tuple[int, float]:
     return count, time.perf_counter() - start
 
 
-def main() -> None:
-    """Measure each format and print the table."""
-    parser = argparse.ArgumentParser(description=__doc__.split('\n')[1])
-    parser.add_argument('--seconds', type=float, default=120.0,
-                        help='simulated seconds of bus traffic in the log')
-    parser.add_argument('--formats', default='log,blf,asc,csv')
-    parser.add_argument('--json', default='', help='also write the figures here')
-    args, _ = parser.parse_known_args()
+def measure(seconds: float, formats) -> list[dict]:
+    """Convert a simulated log of each format; return one figure dict per format."""
     work = tempfile.mkdtemp(prefix='bench_log2bag_')
     rows = []
     try:
-        for fmt in args.formats.split(','):
+        for fmt in formats:
             log = os.path.join(work, f'bus.{fmt}')
-            frames = write_log(log, simulators(), args.seconds)
+            frames = write_log(log, simulators(), seconds)
             read_frames, read_s = bare_read(log)
             start = time.perf_counter()
             summary = convert(log, os.path.join(work, f'bag_{fmt}'), PARAMETERS)
@@ -68,6 +62,18 @@ def main() -> None:
                          'met': frames / convert_s >= TARGET})
     finally:
         shutil.rmtree(work, ignore_errors=True)
+    return rows
+
+
+def main() -> None:
+    """Measure each format and print the table."""
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[1])
+    parser.add_argument('--seconds', type=float, default=120.0,
+                        help='simulated seconds of bus traffic in the log')
+    parser.add_argument('--formats', default='log,blf,asc,csv')
+    parser.add_argument('--json', default='', help='also write the figures here')
+    args, _ = parser.parse_known_args()
+    rows = measure(args.seconds, args.formats.split(','))
     print(f'log2bag, {args.seconds:g} s of simulated bus per format (target >= {TARGET:,.0f} '
           'frames/s)')
     print(f'{"format":<7}{"frames":>9}{"messages":>10}{"log2bag fps":>14}'

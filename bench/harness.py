@@ -78,16 +78,18 @@ def pty_pair() -> Iterator[tuple[str, str]]:
 
 
 @contextlib.contextmanager
-def process(args: Sequence[str], settle: float = 0.0,
-            stdout: int | None = subprocess.DEVNULL) -> Iterator[subprocess.Popen]:
-    """Run a child process for the block (SIGINT, then kill, at the end)."""
-    proc = subprocess.Popen(list(args), env=env(), stdout=stdout, stderr=subprocess.STDOUT
-                            if stdout is not None else None)
+def process(args: Sequence[str], settle: float = 0.0) -> Iterator[subprocess.Popen]:
+    """Run a child process for the block (SIGINT, then kill, at the end); its output is kept
+    in a temporary file and shown if it dies early."""
+    log = tempfile.TemporaryFile()
+    proc = subprocess.Popen(list(args), env=env(), stdout=log, stderr=subprocess.STDOUT)
     try:
         if settle:
             time.sleep(settle)
         if proc.poll() is not None:
-            raise RuntimeError(f'{args[:3]} exited with {proc.returncode}')
+            log.seek(0)
+            tail = log.read().decode(errors='replace')[-2000:]
+            raise RuntimeError(f'{args[:3]} exited with {proc.returncode}:\n{tail}')
         yield proc
     finally:
         if proc.poll() is None:
@@ -97,6 +99,7 @@ def process(args: Sequence[str], settle: float = 0.0,
             except subprocess.TimeoutExpired:
                 proc.kill()
                 proc.wait()
+        log.close()
 
 
 def bridge_args(params: str) -> list[str]:

@@ -1,0 +1,298 @@
+"""
+The benchmark suite: every figure of the bridge beside the reference it must beat.
+
+    ./dev bench [--quick] [--soak] [--only NAME,...] [--json bench/results.json]
+
+Each scenario runs the installed code in processes of its own, as on a car (the bridge, a
+simulator or probe on the other side of a linked pair of serial ports speaking slcan, a
+subscriber), and measures the reference in the same run: a bare python-can receive loop
+on the same bus, options and frames, or a bare python-can -> rclpy pipeline. Machines are
+noisy: compare the ratios, not the absolute figures across runs. The 10-minute memory soak
+runs only with --soak. Results are printed as one table and written as JSON (schema in
+bench/README.md).
+"""
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import harness  # noqa: E402
+from harness import (bridge_args, cpu_share, percentile, process, PYTHON,  # noqa: E402
+                     pty_pair, rss_mb, simulator_args, SLCAN_OPEN, write_params)
+
+PROCS = os.path.join(harness.BENCH, 'procs.py')
+SAME_OPTIONS = SLCAN_OPEN + ['timeout=0.1']  # what the bridge uses on slcan by default
+ROWS: list[dict] = []
+
+
+def row(scenario: str, figure: str, bridge: float, reference: float | None, unit: str,
+        target: str = '', met: bool | None = None, note: str = '') -> None:
+    """Record one line of the table."""
+    ratio = bridge / reference if reference else None
+    ROWS.append({'scenario': scenario, 'figure': figure, 'bridge': bridge,
+                 'reference': reference, 'ratio': ratio, 'unit': unit, 'target': target,
+                 'met': met, 'note': note})
+    ref = '' if reference is None else f'{reference:10.2f}'
+    rat = '' if ratio is None else f'{ratio:6.2f}x'
+    verdict = '' if met is None else ('met' if met else 'NOT met')
+    print(f'  {scenario:<22} {figure:<34} {bridge:10.2f} {ref:>10} {rat:>7} {unit:<6} '
+          f'{target:<14} {verdict}', flush=True)
+
+
+def bare_loop(channel: str, seconds: float, options: list[str]) -> tuple[float, int]:
+    """Run the bare python-can loop; return (share of a core, frames received)."""
+    proc = subprocess.Popen([PYTHON, os.path.join(harness.BENCH, 'bare_recv.py'), 'slcan',
+                             channel, str(seconds + 1.5)] + options, env=harness.env(),
+                            stdout=subprocess.PIPE)
+    time.sleep(1.0)
+    share = cpu_share(proc.pid, seconds)
+    out = proc.communicate(timeout=30)[0]
+    return share, json.loads(out)['frames']
+
+
+def cpu_slcan(seconds: float) -> None:
+    """Idle and realistic full load over slcan: bridge vs bare python-can, same options."""
+    with tempfile.TemporaryDirectory() as work, pty_pair() as (a, b):
+        params = write_params(os.path.join(work, 'p.yaml'), 'slcan', b, SLCAN_OPEN)
+        with process(bridge_args(params), settle=4.0) as bridge:
+            idle = cpu_share(bridge.pid, seconds)
+            with process(simulator_args(a), settle=2.0):
+                loaded = cpu_share(bridge.pid, seconds)
+        row('idle (slcan)', '5 devices, silent bus: CPU', idle * 100, None, '%',
+            '<= 0.5 %', idle <= 0.005)
+        with process(simulator_args(a), settle=1.0):
+            bare, frames = bare_loop(b, seconds, SAME_OPTIONS)
+            bare_default, _ = bare_loop(b, seconds, SLCAN_OPEN)
+        rate = frames / (seconds + 0.5)
+        row('full load (slcan)', f'CPU, {rate:.0f} frames/s', loaded * 100, bare * 100, '%',
+            '<= 1.3x', loaded <= 1.3 * bare, 'reference: same options (timeout=0.1)')
+        row('full load (slcan)', 'CPU per frame', loaded / rate * 1e6, bare / rate * 1e6, 'us',
+            '', None, f'python-can default options: {bare_default / rate * 1e6:.0f} us')
+
+
+def virtual_run(mode: str, seconds: float, banks: int = 5, modules: int = 16) -> dict:
+    """Run simulators + bridge or bare loop on one in-process virtual bus (procs.virtual)."""
+    with tempfile.TemporaryDirectory() as work:
+        out = os.path.join(work, 'v.json')
+        subprocess.run([PYTHON, PROCS, 'virtual', mode, str(seconds), str(banks),
+                        str(modules), out], env=harness.env(), check=True,
+                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=120)
+        with open(out, encoding='utf-8') as stream:
+            return json.load(stream)
+
+
+def cpu_virtual(seconds: float) -> None:
+    """Realistic full load on the in-process virtual bus, the simulator thread excluded."""
+    bridge, bare = virtual_run('bridge', seconds), virtual_run('bare', seconds)
+    rate = bridge['frames'] / bridge['seconds']
+    row('full load (virtual)', f'CPU, {rate:.0f} frames/s', bridge['cpu'] * 100,
+        bare['cpu'] * 100, '%', '<= 1.3x', bridge['cpu'] <= 1.3 * bare['cpu'])
+    row('full load (virtual)', 'CPU per frame', bridge['cpu'] / rate * 1e6,
+        bare['cpu'] / rate * 1e6, 'us')
+
+
+def scaling(seconds: float) -> None:
+    """CPU and frames/s as the AMS banks and BMS12 modules double (virtual bus)."""
+    base = None
+    for banks, modules in ((1, 2), (2, 4), (4, 8), (5, 16)):
+        result = virtual_run('bridge', seconds, banks, modules)
+        rate = result['frames'] / result['seconds']
+        per_frame = result['cpu'] / rate * 1e6
+        base = base or per_frame
+        row('scaling (virtual)', f'{banks} banks, {modules:>2} BMS12: {rate:.0f} frames/s',
+            result['cpu'] * 100, None, '%', 'linear', per_frame <= 1.5 * base,
+            f'{per_frame:.0f} us/frame')
+
+
+def latency_run(pipeline: str, seconds: float, rate: float, background: float) -> list[float]:
+    """Latencies (ms) frame written -> ivt_s/battery_state received in another process."""
+    with tempfile.TemporaryDirectory() as work, pty_pair() as (a, b):
+        if pipeline == 'bridge':
+            params = write_params(os.path.join(work, 'p.yaml'), 'slcan', b, SLCAN_OPEN,
+                                  devices=('ivt_s',))
+            args = bridge_args(params)
+        else:
+            args = [PYTHON, PROCS, 'reference', b, str(seconds + 12)]
+        got, sent = os.path.join(work, 'got.json'), os.path.join(work, 'sent.json')
+        with process(args, settle=3.0):
+            with process([PYTHON, PROCS, 'subscriber', str(seconds + 5), got], settle=2.5) \
+                    as sub:
+                subprocess.run([PYTHON, PROCS, 'writer', a, str(seconds), str(rate),
+                                str(background), sent], env=harness.env(), check=True,
+                               timeout=seconds + 30)
+                sub.wait(timeout=seconds + 20)
+        with open(got, encoding='utf-8') as s1, open(sent, encoding='utf-8') as s2:
+            arrivals, sends = json.load(s1), json.load(s2)
+        return [(t - sends[str(tag)]) * 1e3 for tag, t in arrivals if str(tag) in sends]
+
+
+def latency(seconds: float) -> None:
+    """p50/p99/max over slcan, idle and with background frames, beside the reference."""
+    for label, background in (('idle', 0.0), ('paced background', 1000.0)):
+        ours = latency_run('bridge', seconds, 50.0, background)
+        ref = latency_run('reference', seconds, 50.0, background)
+        for name, q in (('p50', 0.5), ('p99', 0.99), ('max', 1.0)):
+            b, r = percentile(ours, q), percentile(ref, q)
+            target = '<= 1.5x' if name == 'p99' else ''
+            row(f'latency {label}', f'{name} ({len(ours)} / {len(ref)} samples)', b, r,
+                'ms', target, (b <= 1.5 * r) if name == 'p99' else None)
+
+
+@contextlib.contextmanager
+def waiting_calls(service: str):
+    """Call a Trigger service over and over from this process (each call waits)."""
+    import rclpy
+    from std_srvs.srv import Trigger
+    rclpy.init()
+    node = rclpy.create_node('bench_waiting_caller')
+    client = node.create_client(Trigger, service)
+    stop = threading.Event()
+    calls = [0]
+
+    def loop() -> None:
+        while not stop.is_set():
+            if client.wait_for_service(timeout_sec=0.5):
+                future = client.call_async(Trigger.Request())
+                rclpy.spin_until_future_complete(node, future, timeout_sec=10.0)
+                calls[0] += 1
+    thread = threading.Thread(target=loop, daemon=True)
+    thread.start()
+    try:
+        yield calls
+    finally:
+        stop.set()
+        thread.join(timeout=12)
+        node.destroy_node()
+        rclpy.shutdown()
+
+
+def heartbeat_run(seconds: float, load: bool) -> list[float]:
+    """Heartbeat periods (ms) seen by a reader process on the adapter's side."""
+    with tempfile.TemporaryDirectory() as work, pty_pair() as (a, b):
+        params = write_params(os.path.join(work, 'p.yaml'), 'slcan', b, SLCAN_OPEN,
+                              commands=True, devices=('ams', 'ivt_s', 'evms3', 'bms16', 'sma'))
+        out = os.path.join(work, 'hb.json')
+        with process(bridge_args(params), settle=4.0):
+            calls = contextlib.nullcontext([0]) if not load else waiting_calls('/ams/enable_ts')
+            with calls as made:
+                subprocess.run([PYTHON, PROCS, 'heartbeat', a, str(seconds), '1' if load else '0',
+                                out], env=harness.env(), check=True, timeout=seconds + 30)
+        with open(out, encoding='utf-8') as stream:
+            stamps = json.load(stream)
+    if load and not made[0]:
+        print('  (warning: no waiting service call completed during the loaded run)')
+    return [(t1 - t0) * 1e3 for t0, t1 in zip(stamps, stamps[1:])]
+
+
+def heartbeat(seconds: float) -> None:
+    """AMS heartbeat period jitter, idle and under full load with a waiting call."""
+    for label, load in (('idle', False), ('load + waiting call', True)):
+        periods = heartbeat_run(seconds, load)
+        errors = [abs(p - 50.0) for p in periods]
+        missed = sum(1 for p in periods if p > 75.0)
+        p99 = percentile(errors, 0.99)
+        row(f'heartbeat {label}', f'p99 |period-50ms| ({len(periods)} periods)', p99, None,
+            'ms', '<= 2 ms, none missed', p99 <= 2.0 and missed == 0,
+            f'mean {statistics.fmean(periods):.2f} ms, missed {missed}, '
+            f'max {max(errors):.2f} ms')
+
+
+def throughput(seconds: float) -> None:
+    """Flat out: tagged IVT-S frames as fast as the writer goes; all must arrive published."""
+    for pipeline in ('bridge', 'reference'):
+        got = latency_run(pipeline, seconds, 100000.0, 0.0)
+        ROWS_T[pipeline] = len(got) / seconds
+    row('throughput (slcan)', 'frames/s published, flat out', ROWS_T['bridge'],
+        ROWS_T['reference'], 'fr/s', '', None, 'primary frames, each one message')
+
+
+ROWS_T: dict[str, float] = {}
+
+
+def soak(minutes: float) -> None:
+    """RSS growth of the bridge over a long full-load run (slcan)."""
+    with tempfile.TemporaryDirectory() as work, pty_pair() as (a, b):
+        params = write_params(os.path.join(work, 'p.yaml'), 'slcan', b, SLCAN_OPEN)
+        with process(bridge_args(params), settle=4.0) as bridge, \
+                process(simulator_args(a), settle=60.0):
+            start = rss_mb(bridge.pid)
+            time.sleep(minutes * 60)
+            end = rss_mb(bridge.pid)
+    row('memory soak (slcan)', f'RSS growth over {minutes:g} min', end - start, None, 'MB',
+        '<= 5 MB', end - start <= 5.0, f'{start:.1f} -> {end:.1f} MB')
+
+
+def log2bag(seconds: float) -> None:
+    """The log2bag conversion rate beside python-can's read of the same log."""
+    import bench_log2bag
+    for result in bench_log2bag.measure(seconds, ('log', 'blf')):
+        row('log2bag', f'.{result["format"]} frames/s', result['log2bag_fps'],
+            result['python_can_read_fps'], 'fr/s', '>= 20,000/s', result['met'])
+
+
+SCENARIOS = {
+    'cpu_slcan': lambda q: cpu_slcan(5.0 if q else 10.0),
+    'cpu_virtual': lambda q: cpu_virtual(5.0 if q else 10.0),
+    'scaling': lambda q: scaling(4.0 if q else 6.0),
+    'latency': lambda q: latency(8.0 if q else 20.0),
+    'heartbeat': lambda q: heartbeat(8.0 if q else 20.0),
+    'throughput': lambda q: throughput(3.0 if q else 5.0),
+    'log2bag': lambda q: log2bag(60.0 if q else 120.0),
+}
+
+
+def main() -> None:
+    """Run the scenarios; print the table; write the JSON."""
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[1])
+    parser.add_argument('--quick', action='store_true', help='shorter runs (noisier)')
+    parser.add_argument('--soak', action='store_true', help='also the 10-minute memory soak')
+    parser.add_argument('--soak-minutes', type=float, default=10.0)
+    parser.add_argument('--only', default='', help='comma-separated scenarios: '
+                        + ', '.join(SCENARIOS))
+    parser.add_argument('--json', default=os.path.join(harness.BENCH, 'results.json'))
+    args = parser.parse_args()
+    names = [n for n in args.only.split(',') if n] or list(SCENARIOS)
+    started = time.monotonic()
+    print(f'  {"scenario":<22} {"figure":<34} {"bridge":>10} {"reference":>10} {"ratio":>7} '
+          f'{"unit":<6} {"target":<14} verdict')
+    for name in names:
+        SCENARIOS[name](args.quick)
+    if args.soak:
+        soak(args.soak_minutes)
+    result = {
+        'machine': {'node': platform.node(), 'cpus': os.cpu_count(),
+                    'cpu': _cpu_model(), 'python': platform.python_version(),
+                    'kernel': platform.release()},
+        'date': time.strftime('%Y-%m-%d %H:%M:%S UTC', time.gmtime()),
+        'duration_s': round(time.monotonic() - started, 1),
+        'quick': args.quick,
+        'rows': ROWS,
+    }
+    with open(args.json, 'w', encoding='utf-8') as stream:
+        json.dump(result, stream, indent=2)
+    print(f'wrote {args.json} ({result["duration_s"]} s)')
+
+
+def _cpu_model() -> str:
+    try:
+        with open('/proc/cpuinfo', encoding='utf-8') as stream:
+            for line in stream:
+                if line.startswith('model name'):
+                    return line.split(':', 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor()
+
+
+if __name__ == '__main__':
+    main()
