@@ -45,6 +45,10 @@ class DeviceSet:
         return ([(i, False) for i in sorted(self.std)]
                 + [(i, True) for i in sorted(self.ext)])
 
+    def handle_targets(self, arbitration_id: int, is_extended_id: bool) -> tuple[Device, ...]:
+        """Return the devices a frame of this (id, width) goes to (empty: nobody's)."""
+        return (self.ext if is_extended_id else self.std).get(arbitration_id, ())
+
     def handle_frame(self, arbitration_id: int, data: bytes, is_extended_id: bool,
                      stamp: float) -> list[Device]:
         """Give a frame to the devices of its ID; return those for which it was primary."""

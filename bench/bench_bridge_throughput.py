@@ -60,8 +60,8 @@ def run(node: BridgeNode, bus: can.BusABC, seconds: float, rate: float | None) -
     mix = frame_mix()
     listened = [m for m in mix if m.arbitration_id != 0x123]
     # SMA IDs go to both bms16 and sma: count deliveries as the devices see them
-    fanout = sum(len((node._dispatch_ext if m.is_extended_id else node._dispatch_std)
-                     .get(m.arbitration_id, ())) for m in listened)
+    fanout = sum(len(node.device_set.handle_targets(m.arbitration_id, m.is_extended_id))
+                 for m in listened)
     start_handled = handled(node)
     sent = 0
     t0 = time.perf_counter()

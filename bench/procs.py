@@ -4,7 +4,8 @@ Child processes of the benchmarks (one role each, selected by the first argument
     python bench/procs.py subscriber SECONDS OUT.json   rclpy: ivt_s/battery_state arrival
     python bench/procs.py reference CHANNEL SECONDS     python-can recv -> rclpy publish
     python bench/procs.py writer CHANNEL SECONDS RATE BACKGROUND OUT.json
-    python bench/procs.py heartbeat CHANNEL SECONDS LOAD OUT.json
+    python bench/procs.py heartbeat CHANNEL SECONDS OUT.json
+    python bench/procs.py load CHANNEL SECONDS
     python bench/procs.py virtual MODE SECONDS BANKS MODULES OUT.json
 
 Every role that talks DDS keeps it on this machine (harness sets the environment).
@@ -107,29 +108,34 @@ def writer(channel: str, seconds: float, rate: float, background: float, out: st
         json.dump(sent, stream)
 
 
-def heartbeat(channel: str, seconds: float, load: bool, out: str) -> None:
-    """On the adapter's side: time every heartbeat frame; send the simulators' mix if load."""
+def load(channel: str, seconds: float) -> None:
+    """Send the simulators' mix towards the bridge (write only: never reads the port)."""
     import can
     from ams_can_bridge import registry
     bus = can.Bus(interface='slcan', channel=channel,
-                  **harness.parse_options(harness.SLCAN_OPEN + ['timeout=0.1']))
-    stop = threading.Event()
-
-    def send_load() -> None:
-        sims = [registry.load(registry.SIMULATORS[n])(name=n, **o) for n, o in (
-            ('ivt_s', {}), ('evms3', {'bms12_modules': 16}), ('bms16', {'send_sma': True}))]
-        t0 = time.monotonic()
-        while not stop.is_set():
+                  **harness.parse_options(harness.SLCAN_OPEN))
+    sims = [registry.load(registry.SIMULATORS[n])(name=n, **o) for n, o in (
+        ('ams', {'bank_count': 5}), ('ivt_s', {}), ('evms3', {'bms12_modules': 16}),
+        ('bms16', {'send_sma': True}))]
+    t0 = time.monotonic()
+    try:
+        while time.monotonic() - t0 < seconds:
             now = time.monotonic() - t0
             for sim in sims:
                 for f in sim.tick(now):
                     bus.send(can.Message(arbitration_id=f.arbitration_id, data=f.data,
                                          is_extended_id=f.is_extended_id))
-            stop.wait(0.002)
+            time.sleep(0.002)
+    finally:
+        bus.shutdown()
 
-    sender = threading.Thread(target=send_load, daemon=True)
-    if load:
-        sender.start()
+
+def heartbeat(channel: str, seconds: float, out: str) -> None:
+    """On the adapter's side: time every heartbeat frame (nothing else runs here)."""
+    import can
+    sys.setswitchinterval(0.001)
+    bus = can.Bus(interface='slcan', channel=channel,
+                  **harness.parse_options(harness.SLCAN_OPEN + ['timeout=0.1']))
     stamps: list[float] = []
     end = time.monotonic() + seconds
     try:
@@ -138,9 +144,6 @@ def heartbeat(channel: str, seconds: float, load: bool, out: str) -> None:
             if msg is not None and msg.arbitration_id == HEARTBEAT:
                 stamps.append(msg.timestamp)
     finally:
-        stop.set()
-        if load:
-            sender.join(timeout=2)
         bus.shutdown()
     with open(out, 'w', encoding='utf-8') as stream:
         json.dump(stamps, stream)
@@ -218,6 +221,60 @@ def virtual(mode: str, seconds: float, banks: int, modules: int, out: str) -> No
                    'seconds': t1 - t0}, stream)
 
 
+def flood(seconds: float, out: str) -> None:
+    """Flat out on one virtual bus: bare loop rate, then the bridge's, and its losses."""
+    import can
+    import rclpy
+    from rclpy.executors import MultiThreadedExecutor
+    from rclpy.parameter import Parameter
+    sys.path.insert(0, harness.BENCH.as_posix())
+    from bench_bridge_throughput import frame_mix, handled
+    from ams_can_bridge.ros.bridge_node import BridgeNode
+    mix = frame_mix()
+    channel = f'bench_flood_{os.getpid()}'
+    sender = can.Bus(interface='virtual', channel=channel)
+    bare = can.Bus(interface='virtual', channel=channel)
+    sent, start = 0, time.perf_counter()
+    while time.perf_counter() - start < seconds / 2:
+        for msg in mix:
+            sender.send(msg)
+        sent += len(mix)
+        while bare.recv(0) is not None:
+            pass
+    bare_rate = sent / (time.perf_counter() - start)
+    bare.shutdown()
+    rclpy.init()
+    node = BridgeNode(parameter_overrides=[
+        Parameter('can.interface', value='virtual'), Parameter('can.channel', value=channel),
+        Parameter('devices', value=['ams', 'ivt_s', 'bms16', 'sma', 'evms3']),
+        Parameter('evms3.bms12_modules', value=1)])
+    executor = MultiThreadedExecutor(num_threads=4)
+    executor.add_node(node)
+    threading.Thread(target=executor.spin, daemon=True).start()
+    time.sleep(1.0)
+    listened = [m for m in mix if m.arbitration_id != 0x123]
+    fanout = sum(len(node.device_set.handle_targets(m.arbitration_id, m.is_extended_id))
+                 for m in listened)
+    before, rounds, start = handled(node), 0, time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        for msg in mix:
+            sender.send(msg)
+        rounds += 1
+    expected = rounds * fanout
+    deadline = time.monotonic() + 60
+    while handled(node) - before < expected and time.monotonic() < deadline:
+        time.sleep(0.05)
+    elapsed = time.perf_counter() - start
+    done = handled(node) - before
+    executor.shutdown()
+    node.destroy_node()
+    rclpy.shutdown()
+    sender.shutdown()
+    with open(out, 'w', encoding='utf-8') as stream:
+        json.dump({'bare_rate': bare_rate, 'bridge_rate': rounds * len(mix) / elapsed,
+                   'sent': expected, 'lost': expected - done}, stream)
+
+
 if __name__ == '__main__':
     role, args = sys.argv[1], sys.argv[2:]
     if role == 'subscriber':
@@ -227,7 +284,11 @@ if __name__ == '__main__':
     elif role == 'writer':
         writer(args[0], float(args[1]), float(args[2]), float(args[3]), args[4])
     elif role == 'heartbeat':
-        heartbeat(args[0], float(args[1]), args[2] == '1', args[3])
+        heartbeat(args[0], float(args[1]), args[2])
+    elif role == 'load':
+        load(args[0], float(args[1]))
+    elif role == 'flood':
+        flood(float(args[0]), args[1])
     elif role == 'virtual':
         virtual(args[0], float(args[1]), int(args[2]), int(args[3]), args[4])
     else:

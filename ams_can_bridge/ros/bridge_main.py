@@ -17,12 +17,17 @@ import rclpy.logging
 
 from ams_can_bridge.ros.bridge_node import BridgeNode, ConfigError, NODE_NAME
 
-# Telemetry runs in one mutually exclusive group; waiting command services need the rest.
+# Waiting command services need threads of their own (telemetry does not use the executor).
 EXECUTOR_THREADS = 4
+# CPython hands the GIL over every 5 ms by default: a heartbeat thread waking while the
+# receive thread parses a burst could wait that long. 1 ms keeps the 50 ms heartbeat's
+# jitter small at a negligible cost (measured in bench/run.py, heartbeat scenario).
+GIL_SWITCH_INTERVAL = 0.001
 
 
 def main(args: list[str] | None = None) -> int:
     """Run the bridge until Ctrl-C or SIGTERM; return the process exit code."""
+    sys.setswitchinterval(GIL_SWITCH_INTERVAL)
     try:
         rclpy.init(args=args)
     except RCLError as exc:  # a params file that is missing or not YAML: no traceback

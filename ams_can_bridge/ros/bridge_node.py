@@ -257,13 +257,24 @@ class BridgeNode(Node):
         if not report.present:
             self._publish_report(name, report, device.extra_arrays())
 
+    def _publish(self, publisher: Any, msg: Any) -> None:
+        """Publish from the receive or periodic thread; after a shutdown, drop the message."""
+        try:
+            publisher.publish(msg)
+        except Exception:
+            # Ctrl-C / SIGTERM shuts the context down under these threads before the node
+            # stops them: 'context is invalid' then means "going away", not a failure.
+            if self._ready and self.context.ok():
+                raise
+
     def _publish_report(self, name: str, report: Any, arrays: dict) -> None:
         frame_id = self.device_params[name].get('frame_id', '')
-        self.battery_pubs[name].publish(convert.battery_state(report, frame_id, self._now()))
+        self._publish(self.battery_pubs[name],
+                      convert.battery_state(report, frame_id, self._now()))
         for suffix, (rows, cols, data) in arrays.items():
             pub = self.array_pubs[name].get(suffix)
             if pub is not None:
-                pub.publish(convert.multi_array(rows, cols, data))
+                self._publish(pub, convert.multi_array(rows, cols, data))
 
     def _publish_stale(self) -> None:
         for name, device in self.devices.items():
@@ -314,7 +325,7 @@ class BridgeNode(Node):
             msg.status.append(convert.diagnostic_status(
                 report, f'{self.get_name()}: {name}', self.hardware_id))
         self._levels = levels
-        self.diag_pub.publish(msg)
+        self._publish(self.diag_pub, msg)
 
     def _now(self) -> float:
         """Return the time to stamp with when no frame gives one: a replay's log time."""
@@ -328,7 +339,7 @@ class BridgeNode(Node):
         stamp = self.can_io.last_stamp if self.can_io is not None else math.nan
         if math.isfinite(stamp) and stamp != self._clock_sent:
             self._clock_sent = stamp
-            self.clock_pub.publish(Clock(clock=convert.stamp_msg(stamp)))
+            self._publish(self.clock_pub, Clock(clock=convert.stamp_msg(stamp)))
 
     def _watch(self) -> None:
         self._bus_log.update(self.can_io.status())
