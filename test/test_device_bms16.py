@@ -164,3 +164,42 @@ def test_malformed_frames_are_counted_and_change_nothing():
     assert device.frames_malformed == 3 and device.frames_received == 1
     assert device.battery_report().percentage == 0.8
     assert 'error code 9' in device.diagnostic_report().values['last malformed frame']
+
+
+def test_each_cell_frame_and_sma_frame_expires_on_its_own():
+    device, clock = make()
+    device.handle_frame(500, status(), 1.0)
+    device.handle_frame(501, bytes([0x4A] * 6 + [0]), 1.0)
+    device.handle_frame(0x351, bytes([0x28, 0x02, 0x10, 0x27, 0x10, 0x27, 0xC0, 0x01]), 1.0)
+    device.handle_frame(0x35A, bytes([0b1010_0101, 0b1000_0000]), 1.0)
+    clock.now += 1.0
+    device.handle_frame(500, status(), 2.0)
+    device.handle_frame(502, bytes([0x40] * 6 + [0x3F]), 2.0)
+    assert device.battery_report().cell_voltage[:6] == [0.74] * 6  # 1.0 s old: still fresh
+    clock.now += 0.5  # 1.5 s after cells 1..6 and the SMA frames, only 0.5 s after the rest
+    device.handle_frame(500, status(), 2.5)  # the status frame keeps coming
+    report = device.battery_report()
+    assert report.present
+    assert all(map(math.isnan, report.cell_voltage[:6]))  # their frame stopped
+    assert report.cell_voltage[6:12] == [3.20] * 6
+    diag = device.diagnostic_report()
+    assert diag.values['cell 1 V'] == 'nan' and diag.values['cell min V'] == '3.2'
+    assert 'sma charge voltage limit V' not in diag.values
+    # an expired SMA alarm is unknown, not still active
+    assert diag.level == Level.OK and 'SMA alarms' not in diag.message
+    device.handle_frame(501, bytes([0x4A] * 6 + [0]), 2.5)
+    assert device.battery_report().cell_voltage[:6] == [0.74] * 6
+
+
+@pytest.mark.parametrize('data,reason', [
+    (status(soc=101), 'SoC 101 %'),
+    (status(soc=186), 'SoC 186 %'),
+])
+def test_status_outside_the_documented_range_is_malformed(data, reason):
+    device, _ = make()
+    device.handle_frame(500, status(soc=100), 1.0)
+    assert device.battery_report().percentage == 1.0
+    assert not device.handle_frame(500, data, 2.0)
+    assert device.frames_malformed == 1
+    assert device.battery_report().percentage == 1.0  # never published as 1.01 / 1.86
+    assert reason in device.last_malformed

@@ -245,3 +245,26 @@ def test_config_round_trip(raw):
     part2 = CODEC.decode(505, frames[1].data)
     config = Bms16Config(**vars(part1), **vars(part2))
     assert CODEC.config_frames(config) == frames
+
+
+@pytest.mark.parametrize('offset,data,reason', [
+    (0, bytes([0, 101, 0, 0, 0, 0x80, 20]), 'SoC 101 %'),
+    (0, bytes([0, 186, 0, 0, 0, 0x80, 20]), 'SoC 186 %'),
+    (4, bytes([17, 10, 20, 58, 10, 20, 60, 60]), 'cells 17, allowed 12..16'),
+    (4, bytes([16, 0, 20, 58, 10, 20, 60, 60]), 'pack_capacity_ah 0, allowed 10..1000'),
+    (4, bytes([16, 10, 20, 58, 10, 20, 60, 10]), 'min_cell_v 0.5, allowed 1..5'),
+    (4, bytes([16, 10, 101, 58, 10, 20, 60, 60]), 'soc_warning_pct 101, allowed 0..100'),
+    (5, bytes([84, 25, 80, 1]), 'hysteresis_v 1.25, allowed 0..1'),
+    (5, bytes([101, 2, 80, 1]), 'max_cell_v 5.05, allowed 1..5'),
+])
+def test_values_outside_the_documented_ranges_are_malformed(offset, data, reason):
+    with pytest.raises(MalformedFrameError, match=reason):
+        CODEC.decode(CODEC.base_id + offset, data)
+
+
+def test_documented_range_edges_decode():
+    assert CODEC.decode(CODEC.base_id, bytes([0, 100, 0, 0, 0, 0x80, 20])).soc_pct == 100
+    part1 = CODEC.decode(CODEC.base_id + 4, bytes([12, 100, 100, 100, 100, 100, 100, 20]))
+    assert (part1.cells, part1.pack_capacity_ah, part1.min_cell_v) == (12, 1000.0, 1.0)
+    part2 = CODEC.decode(CODEC.base_id + 5, bytes([100, 20, 20, 3]))
+    assert (part2.max_cell_v, part2.hysteresis_v, part2.balance_v) == (5.0, 1.0, 1.0)

@@ -6,6 +6,8 @@ frames 0x351.. at fixed IDs; this device takes both. Its wire current is positiv
 discharging: the report negates it (ROS: negative while discharging).
 The number of cells comes from the ``bms16.config.cells`` parameter (declared with the
 configuration values by the command layer), 16 while that is unset.
+Every group of data expires on its own after ``stale_timeout``: each cell frame (6 cells) and
+each SMA frame, so cells whose frame stopped show NaN while the status frame keeps coming.
 """
 from __future__ import annotations
 
@@ -20,8 +22,8 @@ from ams_can_bridge.devices.sma import sma_values
 from ams_can_bridge.parameters import config_param_specs
 from ams_can_bridge.protocols import bms16 as bms16_proto
 from ams_can_bridge.protocols.bms16 import (
-    BMS16_WARNINGS, Bms16Cells, Bms16Codec, Bms16Error, Bms16Status, CELLS_3,
-    DEFAULT_BASE_ID, MAX_CELLS)
+    BMS16_WARNINGS, Bms16Cells, Bms16Codec, Bms16Error, Bms16Status, CELL_FRAME_COUNT,
+    CELL_FRAME_FIRST, CELLS_3, DEFAULT_BASE_ID, MAX_CELLS)
 from ams_can_bridge.protocols.common import MalformedFrameError
 from ams_can_bridge.protocols.sma import (
     SMA_IDS, SmaAlarms, SmaBattery, SmaBatteryInfo, SmaCodec, SmaLimits, SmaManufacturer,
@@ -78,6 +80,8 @@ class Bms16Device(Device):
         self.status_stamp = NAN
         self.cells = [NAN] * MAX_CELLS
         self.sma: dict[type, SmaReading] = {}
+        self._cells_seen = [-math.inf] * len(CELL_FRAME_FIRST)  # clock() per cell frame
+        self._sma_seen: dict[type, float] = {}
 
     @property
     def error(self) -> Bms16Error:
@@ -100,14 +104,31 @@ class Bms16Device(Device):
         if isinstance(reading, Bms16Cells):
             first = reading.first_cell
             self.cells[first:first + len(reading.voltages_v)] = reading.voltages_v
+            self._cells_seen[CELL_FRAME_FIRST.index(first)] = self.clock()
             return False
         if isinstance(reading, (SmaLimits, SmaSoc, SmaBattery, SmaAlarms, SmaManufacturer,
                                 SmaBatteryInfo)):
             self.sma[type(reading)] = reading
+            self._sma_seen[type(reading)] = self.clock()
         return False
 
+    def _fresh_cells(self) -> list[float]:
+        """Return the cell voltages (lock held), NaN where their frame is older than stale."""
+        now = self.clock()
+        cells = list(self.cells)
+        for index, first in enumerate(CELL_FRAME_FIRST):
+            if now - self._cells_seen[index] > self.stale_timeout:
+                cells[first:first + CELL_FRAME_COUNT[index]] = [NAN] * CELL_FRAME_COUNT[index]
+        return cells
+
+    def _fresh_sma(self) -> dict[type, SmaReading]:
+        """Return the SMA readings (lock held) whose frame came within stale_timeout."""
+        now = self.clock()
+        return {kind: reading for kind, reading in self.sma.items()
+                if now - self._sma_seen[kind] <= self.stale_timeout}
+
     def _battery_report(self) -> BatteryReport:
-        report = BatteryReport(cell_voltage=list(self.cells[:self.cell_count()]))
+        report = BatteryReport(cell_voltage=self._fresh_cells()[:self.cell_count()])
         capacity = self.params.get('config.pack_capacity_ah')
         if capacity is not None:
             report.capacity = report.design_capacity = float(capacity)
@@ -149,14 +170,16 @@ class Bms16Device(Device):
                 'temperature degC': str(status.temperature_c),
             })
         count = self.cell_count()
+        cells = self._fresh_cells()
         for k in range(count):
-            values[f'cell {k + 1} V'] = f'{self.cells[k]:g}'
-        known = [v for v in self.cells[:count] if not math.isnan(v)]
+            values[f'cell {k + 1} V'] = f'{cells[k]:g}'
+        known = [v for v in cells[:count] if not math.isnan(v)]
         if known:
             values['cell min V'] = f'{min(known):g}'
             values['cell max V'] = f'{max(known):g}'
-        values.update(sma_values(self.sma, prefix='sma '))
-        alarms = self.sma.get(SmaAlarms)
+        sma = self._fresh_sma()
+        values.update(sma_values(sma, prefix='sma '))
+        alarms = sma.get(SmaAlarms)
         if alarms is not None:
             # The SMA flags mirror the BMS16's state: an active one is never downgraded.
             if alarms.active_alarms:

@@ -210,6 +210,27 @@ def _config_value(name: str, raw: int) -> float | int:
     return raw / 20 if scale == 0.05 else float(raw * scale)
 
 
+def _checked_config_value(name: str, raw: int, arbitration_id: int, data: bytes) -> float | int:
+    """
+    Return the physical value; raise MalformedFrameError outside the documented range.
+
+    The BMS16 itself clamps such a value (the simulator does: ``unchecked_config_values``);
+    a frame seen on the bus with one is not a configuration the bridge can trust.
+    """
+    spec = CONFIG_FIELD[name]
+    value = _config_value(name, raw)
+    if not spec.low <= value <= spec.high:
+        raise MalformedFrameError(arbitration_id, data,
+                                  f'{name} {value:g}, allowed {spec.low:g}..{spec.high:g}')
+    return value
+
+
+def unchecked_config_values(data: bytes, part: int) -> dict[str, float | int]:
+    """Return the values of configuration frame 1 or 2 (part) as on the wire, unchecked."""
+    names = _PART1 if part == 1 else _PART2[:3]
+    return {name: _config_value(name, raw) for name, raw in zip(names, data)}
+
+
 # (message offset, signal name) -> (start bit, length, scale, offset, signed) as the fast
 # path assumes; checked against the installed DBC once per process.
 _DBC_LAYOUT = {
@@ -278,6 +299,8 @@ class Bms16Codec:
         if code >= len(_ERRORS):
             raise MalformedFrameError(arbitration_id, data,
                                       f'error code {code}, known codes are 0..8')
+        if data[1] > 100:
+            raise MalformedFrameError(arbitration_id, data, f'SoC {data[1]} %, above 100 %')
         return Bms16Status(
             error=_ERRORS[code], soc_pct=data[1],
             voltage_v=(data[2] | data[3] << 8) / 10,
@@ -293,14 +316,16 @@ class Bms16Codec:
 
     @staticmethod
     def _config1(arbitration_id: int, offset: int, data: bytes) -> Bms16ConfigPart1:
-        return Bms16ConfigPart1(*(_config_value(n, raw) for n, raw in zip(_PART1, data)))
+        return Bms16ConfigPart1(*(_checked_config_value(n, raw, arbitration_id, data)
+                                  for n, raw in zip(_PART1, data)))
 
     @staticmethod
     def _config2(arbitration_id: int, offset: int, data: bytes) -> Bms16ConfigPart2:
         if data[3] >= len(SHUNT_SIZES_A):
             raise MalformedFrameError(arbitration_id, data,
                                       f'shunt size code {data[3]}, known codes are 0..3')
-        return Bms16ConfigPart2(data[0] / 20, data[1] / 20, data[2] / 20,
+        return Bms16ConfigPart2(*(_checked_config_value(n, raw, arbitration_id, data)
+                                  for n, raw in zip(_PART2[:3], data)),
                                 SHUNT_SIZES_A[data[3]])
 
     @staticmethod

@@ -14,8 +14,9 @@ from typing import Callable
 
 from ams_can_bridge.protocols.bms16 import (
     AcknowledgeError, Bms16Cells, Bms16Codec, Bms16ConfigPart1, Bms16ConfigPart2, Bms16Error,
-    Bms16Status, CELL_FRAME_COUNT, CELL_FRAME_FIRST, CONFIG_FIELD, PowerOff, ResetSoc)
-from ams_can_bridge.protocols.common import Frame, ProtocolError
+    Bms16Status, CELL_FRAME_COUNT, CELL_FRAME_FIRST, CONFIG_1, CONFIG_2, CONFIG_FIELD,
+    PowerOff, ResetSoc, SHUNT_SIZES_A, unchecked_config_values)
+from ams_can_bridge.protocols.common import Frame, MalformedFrameError, ProtocolError
 from ams_can_bridge.protocols.sma import (
     SmaAlarms, SmaBattery, SmaCodec, SmaFlag, SmaLimits, SmaSoc)
 from ams_can_bridge.sim.base import Periodic, SimDevice
@@ -150,14 +151,32 @@ class Bms16Simulator(SimDevice):
                        round(self.temperature_c, 1)),
             alarms)]
 
+    def _clamped_config(self, arbitration_id: int,
+                        data: bytes) -> Bms16ConfigPart1 | Bms16ConfigPart2 | None:
+        """Read a configuration frame with a value out of range as the unit does (to clamp)."""
+        offset = arbitration_id - self.codec.base_id
+        if offset == CONFIG_1 and len(data) == 8:
+            return Bms16ConfigPart1(**unchecked_config_values(data, 1))
+        if offset == CONFIG_2 and len(data) == 4 and data[3] < len(SHUNT_SIZES_A):
+            return Bms16ConfigPart2(**unchecked_config_values(data, 2),
+                                    shunt_size_a=SHUNT_SIZES_A[data[3]])
+        return None
+
     def on_frame(self, frame: Frame, now: float) -> None:
         """Take configuration and commands addressed to this unit (ignored while off)."""
         if not self.powered or frame.arbitration_id not in self.codec.arbitration_ids:
             return
+        data = bytes(frame.data)
         try:
-            message = self.codec.decode(frame.arbitration_id, bytes(frame.data))
+            message = self.codec.decode(frame.arbitration_id, data)
+        except MalformedFrameError:
+            # the real unit clamps a configuration value out of range; it ignores any other
+            # frame it cannot read (a wrong length, an unknown shunt code)
+            message = self._clamped_config(frame.arbitration_id, data)
+            if message is None:
+                return
         except ProtocolError:
-            return  # the real unit ignores a frame it cannot read
+            return
         if isinstance(message, Bms16ConfigPart1):
             self.config1 = Bms16ConfigPart1(**{
                 name: (int if name == 'cells' else float)(_clamped(name, value))
