@@ -135,7 +135,7 @@ def test_one_shot_commands_answer_once_carried(rig_factory):
         response = rig.call(Trigger, f'/ams/{service}')
         assert response.success, response.message
         assert 'sent in the heartbeat' in response.message
-    rig.capture.wait_for(lambda: len(heartbeat_commands(rig, mark)) >= 20)
+    assert rig.capture.wait_for(lambda: len(heartbeat_commands(rig, mark)) >= 20)
     commands = heartbeat_commands(rig, mark)
     assert commands.count(5) == 1 and commands.count(6) == 1
     frames = rig.capture.since(mark, HEARTBEAT)

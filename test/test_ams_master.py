@@ -1,4 +1,5 @@
 """The AMS master without ROS: heartbeat schedule, counter, command field, waits, abort."""
+import statistics
 import threading
 import time
 
@@ -7,6 +8,7 @@ import pytest
 from ams_can_bridge.devices.ams_master import AmsMaster, AmsView, HeartbeatSchedule
 from ams_can_bridge.protocols.ams import AmsState, CarCommand
 from ams_can_bridge.protocols.common import Frame
+from helpers import wait_for
 
 
 def encode(command: int, bank_count: int, counter: int) -> Frame:
@@ -176,8 +178,8 @@ def test_a_second_command_is_refused_while_one_waits_but_abort_never(rig):
     master.start()
     waiter = threading.Thread(target=master.command, args=(CarCommand.ENABLE_SC, 1.0))
     waiter.start()
-    while master.current_command() != CarCommand.ENABLE_SC:
-        time.sleep(0.002)
+    wait_for(lambda: master.current_command() == CarCommand.ENABLE_SC, timeout=2.0,
+             what='ENABLE_SC in progress')
     refused = master.command(CarCommand.ENABLE_TS, 1.0)
     assert not refused.success and 'ENABLE_SC is still in progress' in refused.message
     abort = master.command(CarCommand.ABORT, 0.2)  # AMS never answers: abort times out
@@ -207,8 +209,8 @@ def test_stop_while_waiting_answers_failure_and_not_running_refuses(rig):
     waiter = threading.Thread(
         target=lambda: answers.append(master.command(CarCommand.ENABLE_SC, 5.0)))
     waiter.start()
-    while master.current_command() != CarCommand.ENABLE_SC:
-        time.sleep(0.002)
+    wait_for(lambda: master.current_command() == CarCommand.ENABLE_SC, timeout=2.0,
+             what='ENABLE_SC in progress')
     master.stop('commands_enabled was set to false')
     waiter.join(2)
     assert not answers[0].success and 'commands_enabled' in answers[0].message
@@ -226,9 +228,11 @@ def test_period_change_at_run_time(rig):
     ams.wait_frames(2)
     master.set_period(0.005)
     n = len(ams.frames)
-    t0 = time.monotonic()
     ams.wait_frames(n + 40)
-    assert time.monotonic() - t0 < 40 * 0.05 * 0.8  # clearly faster than the old period
+    # the new period is in use: the typical gap is far below the old 50 ms (the period's
+    # accuracy is a figure for bench/bench_heartbeat.py, not a test)
+    stamps = [t for t, _ in ams.frames[n:n + 40]]
+    assert statistics.median(b - a for a, b in zip(stamps, stamps[1:])) < 0.05 / 2
 
 
 def test_bus_down_while_waiting_fails_the_call_and_nothing_stale_is_replayed(rig):

@@ -1,5 +1,6 @@
 """The transmit gate and the AMS heartbeat on a real node and a real (virtual) bus."""
 import os
+import statistics
 import subprocess
 import sys
 import time
@@ -66,18 +67,22 @@ def test_heartbeat_period_and_counter_and_run_time_gate(rig_factory):
     assert any(a == 255 and b == 0 for a, b in zip(counters, counters[1:]))  # wrapped
     assert all(f.data[0] == 0x30 and len(f.data) == 2 for _, f in frames)  # 3 banks, no cmd
     times = [t for t, _ in frames]
-    mean = (times[-1] - times[0]) / (len(times) - 1)
-    # absolute schedule: the mean period holds even on a loaded machine (loose bounds)
-    assert 0.008 < mean < 0.014, mean
+    # the 10 ms parameter is in use, not the 50 ms default; the absolute schedule never
+    # sends more than one frame per slot (a late thread skips slots, it does not burst).
+    # How close the period holds is a figure for bench/bench_heartbeat.py, not a test.
+    assert statistics.median(b - a for a, b in zip(times, times[1:])) < 0.05 / 2
+    assert len(times) - 1 <= (times[-1] - times[0]) / 0.01 + 2
     assert rig.set_param('commands_enabled', False).successful
     rig.capture.wait_for(lambda: False, timeout=0.05)  # a frame already in flight lands
     mark = rig.capture.mark()
+    last_sent = rig.capture.since(0, HEARTBEAT_ID)[-1][1].data[1]
     rig.capture.wait_for(lambda: False, timeout=0.5)
     assert rig.capture.since(mark) == []
-    # on again: heartbeats again, the counter continues where it stopped
+    # on again: heartbeats again, the counter continues exactly where it stopped
     assert rig.set_param('commands_enabled', True).successful
     assert rig.capture.wait_for(lambda: len(rig.capture.since(mark)) >= 3)
-    assert (rig.capture.since(mark)[0][1].data[1] - counters[-1]) & 0xFF >= 1
+    again = [f.data[1] for _, f in rig.capture.since(mark, HEARTBEAT_ID)]
+    assert again[:3] == [(last_sent + k) & 0xFF for k in (1, 2, 3)], (last_sent, again)
 
 
 def test_period_and_bank_count_follow_parameters(rig_factory):
@@ -87,9 +92,9 @@ def test_period_and_bank_count_follow_parameters(rig_factory):
     assert rig.set_param('ams.heartbeat_period', 0.01).successful
     assert rig.set_param('ams.bank_count', 5).successful
     mark = rig.capture.mark()
-    t0 = time.monotonic()
     assert rig.capture.wait_for(lambda: len(rig.capture.since(mark)) >= 50, timeout=10)
-    assert time.monotonic() - t0 < 50 * 0.2 / 2  # clearly the new, faster period
+    times = [t for t, _ in rig.capture.since(mark)]
+    assert statistics.median(b - a for a, b in zip(times, times[1:])) < 0.2 / 2  # new period
     assert rig.capture.since(mark)[-1][1].data[0] == 0x50
     result = rig.set_param('ams.heartbeat_period', 0.001)
     assert not result.successful and 'ams.heartbeat_period' in result.reason

@@ -344,8 +344,6 @@ def test_master_view_and_other_frames(clock):
     device.handle_frame(0x305, bytes([0x11, 0x07]), STAMP)  # a master's ENABLE_SC
     device.handle_frame(0x301, bytes([0x20, 0x27, 0x32, 0x7B, 0x01]), STAMP)
     device.handle_frame(0x310, bytes([0x01, 0x00, 0x10]), STAMP)
-    device.handle_frame(0x350, bytes([100]), STAMP)
-    device.handle_frame(0x351, bytes([2]), STAMP)
     view = device.master_view()
     assert (view.state, view.status_seq, view.error_seq, view.stale) == (
         AmsState.SC_ENABLED, 1, 0, False)
@@ -353,8 +351,25 @@ def test_master_view_and_other_frames(clock):
     assert v['car status: command'] == 'ENABLE_SC' and v['car status: counter'] == '7'
     assert v['charger status: current (A)'] == '12.3'
     assert v['charger command'] == 'START at tick 16'
-    assert v['override charge current (A)'] == '10.0'
-    assert v['override bank count'] == '2'
+
+
+def test_charger_status_car_status_and_charger_command_expire_on_their_own(clock):
+    device = make(clock)
+    status(device)
+    device.handle_frame(0x305, bytes([0x11, 0x07]), STAMP)
+    device.handle_frame(0x301, bytes([0x20, 0x27, 0x32, 0x7B, 0x01]), STAMP)
+    device.handle_frame(0x310, bytes([0x01, 0x00, 0x10]), STAMP)
+    clock.now += 0.4
+    status(device, counter=1)
+    device.handle_frame(0x305, bytes([0x11, 0x08]), STAMP)  # only the car status goes on
+    v = device.diagnostic_report().values
+    assert v['charger status: SOC (%)'] == '50' and v['charger command'] == 'START at tick 16'
+    clock.now += 0.2  # 0.6 s after the charger frames (stale_timeout 0.5 s), 0.2 s after the rest
+    status(device, counter=2)
+    v = device.diagnostic_report().values
+    assert 'charger status: SOC (%)' not in v and 'charger command' not in v
+    assert v['car status: counter'] == '8'
+    assert device.diagnostic_report().level != Level.STALE
 
 
 def test_non_default_base(clock):

@@ -72,42 +72,43 @@ def test_error_names_and_warnings_follow_the_vendor_table():
         'IDLE', 'PRECHARGING', 'RUNNING', 'CHARGING', 'STOPPED', 'SETUP']
 
 
-@pytest.mark.parametrize('aid,data,why', [
-    (30, bytes([6, 0, 0, 0, 0, 0, 0, 0]), 'state 6'),
-    (30, bytes([7, 0, 0, 0, 0, 0, 0, 0]), 'state 7'),
-    (30, bytes([17 << 3, 0, 0, 0, 0, 0, 0, 0]), 'error 17'),
-    (30, bytes([31 << 3 | 2, 0, 0, 0, 0, 0, 0, 0]), 'error 31'),
-    (30, bytes([2, 0, 0, 0, 0, 0, 102, 0]), 'isolation 102'),
-    (30, bytes(7), 'DLC 7'),
-    (30, b'', 'DLC 0'),
-    (31, b'\x02', 'set state 2'),
-    (31, b'', 'set state DLC 0'),
-    (32, bytes(8), 'pack capacity raw 0'),
-    (32, bytes(7), 'config DLC 7'),
-    (33, bytes([1, 0, 0, 0, 0, 251, 0, 0]), 'BMS min cell raw 251'),
-    (33, bytes([1, 0, 0, 0, 0, 0, 0, 253]), 'balance raw 253'),
-    (34, bytes([51, 0, 0, 0, 0, 0, 0, 1]), 'hysteresis raw 51'),
-    (34, bytes([0, 0, 0, 0, 0, 0, 0, 0]), 'sleep delay 0'),
-    (35, bytes([0, 0, 0, 1, 2, 0, 0, 0]), 'enable precharge 2'),
-    (35, bytes([0, 0, 0, 21, 0, 0, 0, 0]), 'parallel strings 21'),
-    (35, bytes(7), 'config 4 DLC 7'),
-    (36, bytes(7), 'cell numbers DLC 7'),
-    (37, b'\x11', 'ack error 17'),
-    (37, b'', 'ack DLC 0'),
-    (39, b'\x00', 'power off DLC 1'),
-    (40, b'\x80\x00', 'current DLC 2'),
-    (40, b'\x80\x00\x00\x00', 'current DLC 4'),
-    (41, b'\x00', 'zero current DLC 1'),
-    (300, b'\x0e', 'BMS12 request DLC 1'),
-    (301, bytes(7), 'BMS12 cells DLC 7'),
-    (454, bytes(5), 'BMS12 temperatures DLC 5'),
-    (29, bytes(8), 'not an EVMS3 ID'),
-    (305, bytes(8), 'BMS12 type 5 is not read'),
+@pytest.mark.parametrize('aid,data,reason', [
+    (30, bytes([6, 0, 0, 0, 0, 0, 0, 0]), 'unknown state 6 (0..5)'),
+    (30, bytes([7, 0, 0, 0, 0, 0, 0, 0]), 'unknown state 7 (0..5)'),
+    (30, bytes([17 << 3, 0, 0, 0, 0, 0, 0, 0]), 'unknown error code 17 (0..16)'),
+    (30, bytes([31 << 3 | 2, 0, 0, 0, 0, 0, 0, 0]), 'unknown error code 31 (0..16)'),
+    (30, bytes([2, 0, 0, 0, 0, 0, 102, 0]), 'isolation 102 % (0..100, 101 = n/a)'),
+    (30, bytes(7), 'DLC 7, expected 8'),
+    (30, b'', 'DLC 0, expected 8'),
+    (31, b'\x02', 'set state 2, expected 0 or 1'),
+    (31, b'', 'DLC 0, expected 1'),
+    (32, bytes(8), 'pack_capacity_ah raw 0 outside 1..250'),
+    (32, bytes(7), 'DLC 7, expected 8'),
+    (33, bytes([1, 0, 0, 0, 0, 251, 0, 0]), 'bms_min_cell_v raw 251 outside 0..250'),
+    (33, bytes([1, 0, 0, 0, 0, 0, 0, 253]), 'balance voltage raw 253 outside 0..252'),
+    (34, bytes([51, 0, 0, 0, 0, 0, 0, 1]), 'bms_hysteresis_v raw 51 outside 0..50'),
+    (34, bytes([0, 0, 0, 0, 0, 0, 0, 0]), 'sleep_delay_min raw 0 outside 1..6'),
+    (35, bytes([0, 0, 0, 1, 2, 0, 0, 0]), 'enable_precharge raw 2, expected 0 or 1'),
+    (35, bytes([0, 0, 0, 21, 0, 0, 0, 0]), 'parallel_strings raw 21 outside 1..20'),
+    (35, bytes(7), 'DLC 7, expected 6 or 8'),
+    (36, bytes(7), 'DLC 7, expected 8'),
+    (37, b'\x11', 'unknown error code 17 (0..16)'),
+    (37, b'', 'DLC 0, expected 1'),
+    (39, b'\x00', 'DLC 1, expected 0'),
+    (40, b'\x80\x00', 'DLC 2, expected 3'),
+    (40, b'\x80\x00\x00\x00', 'DLC 4, expected 3'),
+    (41, b'\x00', 'DLC 1, expected 0'),
+    (300, b'\x0e', 'DLC 1, expected 2'),
+    (301, bytes(7), 'DLC 7, expected 8'),
+    (454, bytes(5), 'DLC 5, expected 2 or 8'),
+    (29, bytes(8), 'not an EVMS3/BMS12 ID of this codec'),
+    (305, bytes(8), 'not an EVMS3/BMS12 ID of this codec'),
 ])
-def test_malformed(aid, data, why):
+def test_malformed(aid, data, reason):
     with pytest.raises(MalformedFrameError) as info:
         CODEC.decode(aid, data)
-    assert info.value.arbitration_id == aid, why
+    assert info.value.arbitration_id == aid
+    assert info.value.reason == reason
 
 
 # --- commands ---------------------------------------------------------------------------------

@@ -88,13 +88,19 @@ def test_replay_real_time_keeps_the_timing(tmp_path, suffix):
 
 
 def test_replay_rate_scales_time(tmp_path):
-    path = write_log(tmp_path / 'drive.log')
+    # 2 s of log at 4x: paced to 0.5 s. The bounds say which rate played (1x would take 2 s,
+    # as fast as possible ~0 s), with 1 s of room for a loaded machine: no speed figure.
+    stretched = [(offset * 4, *rest) for offset, *rest in SEQUENCE]
+    path = write_log(tmp_path / 'drive.log', stretched)
     sink = Sink()
-    io = replay(path, 2.0, sink)
+    io = replay(path, 4.0, sink)
     try:
         wait_for(lambda: io.status().state == 'replay finished', what='replay finished')
-        span = sink.arrivals[-1] - sink.arrivals[0]
-        assert 0.22 <= span < 0.48, span       # 0.5 s at 2x = 0.25 s (1x would be 0.5)
+        assert sink.frames == EXPECTED
+        # never early: each frame at or after a quarter of its log offset
+        for (offset, *_), arrival in zip(stretched, sink.arrivals):
+            assert arrival - sink.arrivals[0] >= offset / 4 - 0.05
+        assert sink.arrivals[-1] - sink.arrivals[0] < 2.0 * 0.75  # clearly not 1x
     finally:
         io.stop()
 

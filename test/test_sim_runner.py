@@ -132,24 +132,26 @@ def test_faults_are_applied_by_device_name():
         apply_faults(devices, [('sma', 'silent', True)])
 
 
-def available_types():
-    """Return the simulator types whose module exists in this checkout."""
-    types = []
-    for kind, path in registry.SIMULATORS.items():
-        try:
-            registry.load(path)
-        except (ImportError, AttributeError):
-            continue
-        types.append(kind)
-    return types
+def test_registry_paths_all_import():
+    """Every simulator, device and command module the registry names ships (none skipped)."""
+    for table in (registry.SIMULATORS, registry.DEVICES, registry.COMMANDERS):
+        for kind, path in table.items():
+            assert isinstance(registry.load(path), type), (kind, path)
 
 
 def test_build_devices_gives_each_type_its_options():
-    types = available_types()
+    types = list(registry.SIMULATORS)
     devices = build_devices(types, ams_banks=2, bms12_modules=3, ivt_byte_order='little')
-    assert [d.name for d in devices] == types
+    by_name = {d.name: d for d in devices}
+    assert sorted(by_name) == sorted(types)
+    assert by_name['ams'].bank_count == 2
+    assert by_name['evms3'].bms12_modules == 3
+    assert by_name['ivt_s'].codec.byte_order == 'little'
+    assert by_name['bms16'].send_sma is False  # the sma simulator owns 0x351..
+    assert build_devices(['bms16'])[0].send_sma is True
     for device in devices:
-        assert device.tick(0.0) is not None
+        frames = device.tick(0.0)
+        assert frames and all(isinstance(f, Frame) for f in frames), device.name
 
 
 def run_simulator(*args, timeout=30):
@@ -172,7 +174,7 @@ def test_simulator_on_virtual_runs_for_duration_and_exits_0():
 def test_simulator_bus_that_cannot_open_exits_2_with_a_clear_message(tmp_path):
     result = run_simulator('--interface', 'slcan', '--channel', str(tmp_path / 'nothing'),
                            '--option', 'sleep_after_open=0', '--duration', '1',
-                           '--devices', ','.join(available_types()))
+                           '--devices', ','.join(registry.SIMULATORS))
     assert result.returncode == 2
     assert 'cannot open CAN bus slcan:' in result.stderr
     assert 'Traceback' not in result.stderr
@@ -181,7 +183,7 @@ def test_simulator_bus_that_cannot_open_exits_2_with_a_clear_message(tmp_path):
 def test_simulator_bad_arguments_exit_2():
     assert run_simulator('--devices', 'toaster').returncode == 2
     result = run_simulator('--fault', 'nobody:silent', '--duration', '0.1',
-                           '--devices', available_types()[0])
+                           '--devices', list(registry.SIMULATORS)[0])
     assert result.returncode == 2
     assert "'nobody'" in result.stderr
     result = run_simulator('--devices', 'ams', '--ams-banks', '9', '--duration', '0.1')
@@ -217,7 +219,7 @@ def test_simulator_across_processes_on_slcan_and_sigterm(tmp_path):
 
 
 def test_simulator_ctrl_c_exits_0_without_traceback():
-    proc = subprocess.Popen([SIMULATOR, '--devices', available_types()[0]],
+    proc = subprocess.Popen([SIMULATOR, '--devices', list(registry.SIMULATORS)[0]],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         line = proc.stderr.readline()          # the startup summary: it is running

@@ -130,11 +130,9 @@ class AmsDevice(Device):
         self._status: proto.AmsStatus | None = None
         self._stamp = NAN
         self._status_seen = -math.inf
-        self._charger: proto.AmsChargerStatus | None = None
-        self._car: proto.CarStatus | None = None
-        self._charger_cmd: proto.ChargerCommand | None = None
-        self._override_current: float | None = None
-        self._override_banks: int | None = None
+        # the other periodic frames (charger status, car status, charger command), each
+        # with the clock() it came at: each expires on its own after stale_timeout
+        self._latest: dict[type, tuple[Any, float]] = {}
         self._stuck_run = 0  # consecutive status frames repeating the counter
         self._stuck_total = 0
         self._lost_frames = 0
@@ -194,16 +192,8 @@ class AmsDevice(Device):
             if reading.error in self._active_errors:
                 self._active_errors.remove(reading.error)
             self._active_errors.append(reading.error)  # most recent last
-        elif kind is proto.AmsChargerStatus:
-            self._charger = reading
-        elif kind is proto.CarStatus:
-            self._car = reading
-        elif kind is proto.ChargerCommand:
-            self._charger_cmd = reading
-        elif kind is proto.OverrideChargeCurrent:
-            self._override_current = reading.current_a
-        elif kind is proto.OverrideBankCount:
-            self._override_banks = reading.bank_count
+        elif kind in (proto.AmsChargerStatus, proto.CarStatus, proto.ChargerCommand):
+            self._latest[kind] = (reading, now)
         return False
 
     def _on_status(self, status: proto.AmsStatus, stamp: float, now: float) -> None:
@@ -387,22 +377,25 @@ class AmsDevice(Device):
         temps = [t for t in self._temp_list() if t == t]
         if temps:
             values['cell temperature min/max (degC)'] = f'{min(temps):g}/{max(temps):g}'
-        if self._charger is not None:
-            values['charger status: SOC (%)'] = str(self._charger.soc_pct)
-            values['charger status: current (A)'] = _fmt(self._charger.charger_current_a, 1)
-            values['charger status: turn on charger'] = str(self._charger.charger_on).lower()
-        if self._car is not None:
-            values['car status: command'] = self._car.command.name
-            values['car status: bank count'] = str(self._car.bank_count)
-            values['car status: counter'] = str(self._car.counter)
-        if self._charger_cmd is not None:
-            values['charger command'] = (f'{self._charger_cmd.start.name} at tick '
-                                         f'{self._charger_cmd.time_tick}')
-        if self._override_current is not None:
-            values['override charge current (A)'] = f'{self._override_current:.1f}'
-        if self._override_banks is not None:
-            values['override bank count'] = str(self._override_banks)
+        charger = self._fresh(proto.AmsChargerStatus)
+        if charger is not None:
+            values['charger status: SOC (%)'] = str(charger.soc_pct)
+            values['charger status: current (A)'] = _fmt(charger.charger_current_a, 1)
+            values['charger status: turn on charger'] = str(charger.charger_on).lower()
+        car = self._fresh(proto.CarStatus)
+        if car is not None:
+            values['car status: command'] = car.command.name
+            values['car status: bank count'] = str(car.bank_count)
+            values['car status: counter'] = str(car.counter)
+        command = self._fresh(proto.ChargerCommand)
+        if command is not None:
+            values['charger command'] = f'{command.start.name} at tick {command.time_tick}'
         return values
+
+    def _fresh(self, kind: type) -> Any:
+        """Return the last reading of kind (lock held), None if never or not within stale."""
+        reading, seen = self._latest.get(kind, (None, -math.inf))
+        return reading if self.clock() - seen <= self.stale_timeout else None
 
     def extra_arrays(self) -> dict[str, tuple[int, int, list[float]]]:
         """Temperatures and discharge temperatures, bank x sensor, NaN until received."""
