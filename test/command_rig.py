@@ -20,6 +20,7 @@ from rclpy.parameter import Parameter
 
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.ros.bridge_node import BridgeNode
+from helpers import wait_for
 
 _channels = itertools.count()
 
@@ -68,14 +69,10 @@ class Capture:
                 if (arbitration_id is None or f.arbitration_id == arbitration_id)
                 and (extended is None or f.is_extended_id == extended)]
 
-    def wait_for(self, predicate: Callable[[], bool], timeout: float = 5.0) -> bool:
-        """Poll predicate until true or timeout; return its last value."""
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            if predicate():
-                return True
-            time.sleep(0.005)
-        return predicate()
+    def wait_for(self, predicate: Callable[[], Any], timeout: float = 5.0,
+                 what: str = 'frames on the bus') -> Any:
+        """Wait like the one helper in helpers.py (an AssertionError on timeout)."""
+        return wait_for(predicate, timeout, what)
 
 
 class Rig:

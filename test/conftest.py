@@ -9,6 +9,7 @@ import os
 import random
 
 from hypothesis import HealthCheck, settings
+import pytest
 
 # Network rule: never let DDS discovery leave the machine, and keep test runs apart.
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
@@ -21,6 +22,19 @@ settings.register_profile('long', deadline=None, max_examples=1000,
 PROFILE = os.environ.get('HYPOTHESIS_PROFILE', 'ci')
 settings.load_profile(PROFILE)
 LONG_FACTOR = 20  # how many more examples the long profile runs in the node-level fuzz
+
+
+@pytest.fixture
+def rig_factory():
+    """
+    Make bridges on a python-can virtual bus (``command_rig.Rig``); all closed afterwards.
+
+    The one bridge-on-a-virtual-bus fixture: ``rig_factory(params, **kwargs)`` returns a
+    started Rig (node, executor thread, a bus capture, service calls and parameter sets).
+    """
+    from command_rig import rigs  # imports rclpy: only for the tests that use it
+    with rigs() as make:
+        yield make
 
 
 def examples(n: int) -> int:

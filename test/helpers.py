@@ -89,15 +89,22 @@ class Clock:
         return self.now
 
 
-def wait_for(predicate: Callable[[], object], timeout: float = 5.0,
-             what: str = 'condition') -> None:
-    """Poll predicate until true; fail the test naming what did not happen."""
+def wait_for(predicate: Callable[[], Any], timeout: float = 5.0,
+             what: str = 'condition', poll: float = 0.005) -> Any:
+    """
+    Poll predicate until it is true and return its value; fail the test naming what.
+
+    The one wait of the test suite (bounded: a timeout is an AssertionError, never a hang,
+    never a silent False). A pause in which nothing may happen is ``time.sleep``.
+    """
     deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return
-        time.sleep(0.01)
-    raise AssertionError(f'timed out after {timeout} s waiting for {what}')
+    while True:
+        result = predicate()
+        if result:
+            return result
+        if time.monotonic() >= deadline:
+            raise AssertionError(f'timed out after {timeout} s waiting for {what}')
+        time.sleep(poll)
 
 
 @contextlib.contextmanager

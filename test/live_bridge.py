@@ -11,7 +11,6 @@ import itertools
 import math
 import os
 import threading
-import time
 from typing import Any, Callable
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -21,6 +20,7 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import BatteryState
 
 from ams_can_bridge.ros.bridge_node import BridgeNode
+from helpers import wait_for
 
 _ids = itertools.count()
 # Protocol ranges (PROTOCOLS.md): nothing a frame can carry lies outside these.
@@ -129,14 +129,8 @@ class LiveBridge:
 
     def wait(self, predicate: Callable[[], Any], timeout: float = 10.0,
              what: str = 'condition') -> Any:
-        """Poll predicate (every 5 ms) until true; fail naming what did not happen."""
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            result = predicate()
-            if result:
-                return result
-            time.sleep(0.005)
-        raise AssertionError(f'timed out after {timeout} s waiting for {what}')
+        """Wait like the one helper in helpers.py, 10 s by default."""
+        return wait_for(predicate, timeout, what)
 
     def close(self) -> None:
         """Stop spinning, destroy the nodes, restore the thread hook."""

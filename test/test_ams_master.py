@@ -64,10 +64,7 @@ class ScriptedAms:
             return [f.data[0] & 0x0F for _, f in self.frames]
 
     def wait_frames(self, n: int, timeout: float = 5.0) -> None:
-        deadline = time.monotonic() + timeout
-        while len(self.frames) < n and time.monotonic() < deadline:
-            time.sleep(0.002)
-        assert len(self.frames) >= n
+        wait_for(lambda: len(self.frames) >= n, timeout, f'{n} heartbeats')
 
 
 @pytest.fixture

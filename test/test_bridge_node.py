@@ -78,13 +78,10 @@ class Harness:
                                   is_extended_id=extended))
 
     def spin_until(self, predicate: Callable[[], Any], timeout: float = 10.0) -> Any:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
+        def spun() -> Any:
             self.executor.spin_once(timeout_sec=0.05)
-            result = predicate()
-            if result:
-                return result
-        raise AssertionError(f'condition not met within {timeout} s')
+            return predicate()
+        return wait_for(spun, timeout, poll=0.0)
 
     def last(self, topic: str, predicate: Callable[[Any], bool] = lambda m: True,
              timeout: float = 10.0) -> Any:

@@ -20,18 +20,11 @@ from std_srvs.srv import Trigger
 
 from ams_can_bridge.protocols import evms3 as evms3_proto
 from ams_can_bridge.ros.bridge_node import BUS_WAIT_SLOTS
-from command_rig import rigs
 from test_zeva_commands import bms16_params, EVMS3_CONFIG, evms3_params
 
 HEARTBEAT = 0x305
 ENABLE_TS, ENABLE_DRIVE, ABORT = 2, 3, 4
 CAN_ERR_BUSOFF = 0x40
-
-
-@pytest.fixture
-def rig_factory():
-    with rigs() as make:
-        yield make
 
 
 def ams(**extra):
@@ -103,7 +96,7 @@ def test_commands_disabled_during_a_waiting_call(rig_factory):
     assert 'response' in call, 'the waiting call did not answer when commands were disabled'
     assert not call['response'].success
     assert 'commands_enabled was set to false' in call['response'].message
-    rig.capture.wait_for(lambda: False, timeout=0.5)
+    time.sleep(0.5)
     late = [t for t, _, _ in heartbeats(rig) if t > switched + 0.1]
     assert late == [], f'{len(late)} heartbeat(s) more than 100 ms after the switch'
 
@@ -222,7 +215,7 @@ def test_commands_waiting_for_a_down_bus_leave_telemetry_and_disarming_running(
     refused = [c['response'].message for c in calls if 'response' in c]
     assert all('2 commands already wait for it' in m for m in refused), refused
     start = time.monotonic()
-    rig.capture.wait_for(lambda: False, timeout=1.0)
+    time.sleep(1.0)
     assert len([t for t in arrays if t > start]) >= 5  # /diagnostics did not stop
     # the supervisor can still disarm through the parameter service: the waits end at once
     result = rig.call(SetParameters, '/ams_can_bridge/set_parameters', parameters=[

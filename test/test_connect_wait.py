@@ -8,20 +8,12 @@ bus state and reason when it does not.
 """
 from __future__ import annotations
 
-import pytest
 from std_srvs.srv import Trigger
 
-from command_rig import rigs
 from slcan_peer import SlcanPeer
 
 BMS16_RESET_SOC = 507
 AMS_HEARTBEAT = 0x305
-
-
-@pytest.fixture
-def rig_factory():
-    with rigs() as make:
-        yield make
 
 
 def slcan(peer: SlcanPeer, **extra) -> dict:
