@@ -284,7 +284,13 @@ def main() -> None:
     parser.add_argument('--only', default='', help='comma-separated scenarios: '
                         + ', '.join(SCENARIOS))
     parser.add_argument('--json', default=os.path.join(harness.BENCH, 'results.json'))
+    parser.add_argument('--update-readme', metavar='README', default='',
+                        help="only rewrite the README's table from the JSON (no run)")
     args = parser.parse_args()
+    if args.update_readme:
+        with open(args.json, encoding='utf-8') as stream:
+            update_readme(args.update_readme, json.load(stream))
+        return
     names = [n for n in args.only.split(',') if n] or list(SCENARIOS)
     started = time.monotonic()
     print(f'  {"scenario":<22} {"figure":<34} {"bridge":>10} {"reference":>10} {"ratio":>7} '
@@ -305,6 +311,35 @@ def main() -> None:
     with open(args.json, 'w', encoding='utf-8') as stream:
         json.dump(result, stream, indent=2)
     print(f'wrote {args.json} ({result["duration_s"]} s)')
+
+
+def markdown(result: dict) -> str:
+    """Return the results as the README's Markdown table (with the machine line)."""
+    m = result['machine']
+    lines = [f"Taken {result['date']} on {m['cpus']} cores of {m['cpu']} (Python "
+             f"{m['python']}, Linux {m['kernel']}), a shared machine"
+             + (' (--quick)' if result['quick'] else '') + '.', '',
+             '| scenario | figure | bridge | reference | ratio | target | |',
+             '|---|---|---|---|---|---|---|']
+    for r in result['rows']:
+        ref = '' if r['reference'] is None else f"{r['reference']:,.2f}"
+        ratio = '' if r['ratio'] is None else f"{r['ratio']:.2f}x"
+        met = '' if r['met'] is None else ('met' if r['met'] else '**not met**')
+        cells = [r['scenario'], r['figure'], f"{r['bridge']:,.2f} {r['unit']}", ref, ratio,
+                 r['target'], met]
+        lines.append('| ' + ' | '.join(c.replace('|', '\\|') for c in cells) + ' |')
+    return '\n'.join(lines)
+
+
+def update_readme(path: str, result: dict) -> None:
+    """Replace the table between the bench-table markers of the README."""
+    with open(path, encoding='utf-8') as stream:
+        text = stream.read()
+    start, end = '<!-- bench-table -->', '<!-- /bench-table -->'
+    head, _, rest = text.partition(start)
+    _, _, tail = rest.partition(end)
+    with open(path, 'w', encoding='utf-8') as stream:
+        stream.write(f'{head}{start}\n{markdown(result)}\n{end}{tail}')
 
 
 def _cpu_model() -> str:
