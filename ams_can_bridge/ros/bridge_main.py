@@ -23,6 +23,7 @@ EXECUTOR_THREADS = 4
 # receive thread parses a burst could wait that long. 1 ms keeps the 50 ms heartbeat's
 # jitter small at a negligible cost (measured in bench/run.py, heartbeat scenario).
 GIL_SWITCH_INTERVAL = 0.001
+SHUTDOWN_POLL = 1.0  # s: the longest a missed shutdown wake-up can go unnoticed
 
 
 def main(args: list[str] | None = None) -> int:
@@ -46,7 +47,11 @@ def main(args: list[str] | None = None) -> int:
         executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
         executor.add_node(node)
         try:
-            executor.spin()
+            # Not executor.spin(): with no timers left on the executor (periodic work has a
+            # thread of its own) a Ctrl-C whose wake-up the executor misses would leave it
+            # waiting forever; one look per SHUTDOWN_POLL bounds that, at ~0.05 % of a core.
+            while rclpy.ok():
+                executor.spin_once(timeout_sec=SHUTDOWN_POLL)
         finally:
             executor.shutdown(timeout_sec=2.0)
     except (KeyboardInterrupt, ExternalShutdownException):
