@@ -23,6 +23,7 @@ from ams_can_bridge.protocols.ams import (AmsCodec, CarCommand, CarStatus, Charg
                                           ChargerStart, OverrideBankCount,
                                           OverrideChargeCurrent)
 from ams_can_bridge.protocols.common import EncodeRangeError, Frame
+from ams_can_bridge.ros.commander import Commander
 from ams_can_bridge.ros.zeva_commands import frame_text, gate_message
 
 CAR_COMMANDS = {
@@ -35,7 +36,7 @@ CAR_COMMANDS = {
 }
 
 
-class AmsCommands:
+class AmsCommands(Commander):
     """Car-command and charger-role services of one AMS instance."""
 
     PARAMS = AmsDevice.COMMAND_PARAMS  # declared by the node with the device

@@ -26,11 +26,11 @@ with the device (``DeviceSet``). A commander may use:
   at most ``limit`` s) for a bus that is (re)opening; the message names the state and reason;
 - ``node.service_group`` for its services, ``node.params`` (ParamRegistry), ``node.devices``.
 
-and the node calls on it (each optional): ``validate_parameter(full_name, value) -> str |
-None`` before any parameter set (a string refuses the set, as its reason);
-``on_parameters_changed({full_name: value})`` after a successful set;
-``on_commands_enabled(enabled)`` when ``commands_enabled`` changes; ``destroy()`` at
-shutdown. A missing commander module is skipped with a debug log.
+and the node calls on it the methods of ``ros.commander.Commander`` (its base class):
+``validate_parameter(full_name, value) -> str | None`` before any parameter set (a string
+refuses the set, as its reason); ``on_parameters_changed({full_name: value})`` after a
+successful set; ``on_commands_enabled(enabled)`` when ``commands_enabled`` changes;
+``destroy()`` at shutdown.
 """
 from __future__ import annotations
 
@@ -60,6 +60,7 @@ from ams_can_bridge.periodic import Periodic
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.ros import convert
 from ams_can_bridge.ros.bus_log import BusStateLog
+from ams_can_bridge.ros.commander import Commander
 from ams_can_bridge.ros.convert import format_ids, RosLogHandler
 from ams_can_bridge.ros.params import BUS_PARAMS, NODE_PARAMS, ParamError, ParamRegistry
 
@@ -92,7 +93,7 @@ class BridgeNode(Node):
         self.params = ParamRegistry(self)
         self.service_group = ReentrantCallbackGroup()
         self.devices: dict[str, Device] = {}
-        self.commanders: dict[str, Any] = {}
+        self.commanders: dict[str, Commander] = {}
         self.commands_enabled = False
         self.commands_allowed = False
         self.commands_changes = 0  # run-time changes of commands_enabled (diagnostics)
@@ -210,7 +211,10 @@ class BridgeNode(Node):
             return
         # every module COMMANDERS names ships with the package: a missing one is a broken
         # install, and the error says so (test_sim_runner.py::test_registry_paths_all_import)
-        self.commanders[name] = registry.load(path)(self, device, name)
+        cls = registry.load(path)
+        if not (isinstance(cls, type) and issubclass(cls, Commander)):
+            raise TypeError(f'{path} is not a Commander (ams_can_bridge.ros.commander)')
+        self.commanders[name] = cls(self, device, name)
 
     def _log_summary(self) -> None:
         cfg = self.bus_config
@@ -438,8 +442,7 @@ class BridgeNode(Node):
             if reason is None and self._ready:
                 value = self.params.value(param)
                 for commander in self.commanders.values():
-                    check = getattr(commander, 'validate_parameter', None)
-                    reason = check(param.name, value) if check else None
+                    reason = commander.validate_parameter(param.name, value)
                     if reason:
                         break
             if reason:
@@ -471,13 +474,9 @@ class BridgeNode(Node):
                 self.get_logger().warning(f'commands_enabled true -> false ({who}): commands '
                                           'disabled, listen only')
             for commander in self.commanders.values():
-                hook = getattr(commander, 'on_commands_enabled', None)
-                if hook:
-                    hook(self.commands_enabled)
+                commander.on_commands_enabled(self.commands_enabled)
         for commander in self.commanders.values():
-            hook = getattr(commander, 'on_parameters_changed', None)
-            if hook:
-                hook(changed)
+            commander.on_parameters_changed(changed)
 
     # --- shutdown -------------------------------------------------------------------------
     def destroy_node(self) -> None:
@@ -487,9 +486,7 @@ class BridgeNode(Node):
         if periodic is not None:
             periodic.stop()
         for commander in self.commanders.values():
-            hook = getattr(commander, 'destroy', None)
-            if hook:
-                hook()
+            commander.destroy()
         self.commanders.clear()
         if self.can_io is not None:
             self.can_io.stop()

@@ -23,6 +23,7 @@ from ams_can_bridge.errors import RefusedCommand
 from ams_can_bridge.protocols import bms16 as bms16_proto
 from ams_can_bridge.protocols import evms3 as evms3_proto
 from ams_can_bridge.protocols.common import ConfigField, EncodeRangeError, Frame
+from ams_can_bridge.ros.commander import Commander
 from ams_can_bridge.ros.config_params import ConfigValues
 
 
@@ -43,7 +44,7 @@ def frame_text(frame: Frame) -> str:
     return f'ID {frame.arbitration_id} (0x{frame.arbitration_id:X}) [{data}]'
 
 
-class _ZevaCommands:
+class _ZevaCommands(Commander):
     """Shared plumbing: config values, the gate, all-or-nothing frame sequences, services."""
 
     FIELDS: tuple[ConfigField, ...] = ()
@@ -73,9 +74,6 @@ class _ZevaCommands:
         with self._config_lock:
             self.config.update(changed)
             self._mirror()
-
-    def on_commands_enabled(self, enabled: bool) -> None:
-        """Nothing runs in the background here: services check the gate on each call."""
 
     def destroy(self) -> None:
         """Remove the services."""
