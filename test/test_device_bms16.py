@@ -203,3 +203,18 @@ def test_status_outside_the_documented_range_is_malformed(data, reason):
     assert device.frames_malformed == 1
     assert device.battery_report().percentage == 1.0  # never published as 1.01 / 1.86
     assert reason in device.last_malformed
+
+
+def test_the_device_builds_its_command_frames_at_its_base_id():
+    device, _ = make({'base_id': 0x200})
+    assert [device.ack_frame().arbitration_id, device.reset_soc_frame().arbitration_id,
+            device.power_off_frame().arbitration_id] == [0x206, 0x207, 0x208]
+    assert device.reset_soc_frame().data == b''
+    config = dict(cells=16, pack_capacity_ah=100.0, soc_warning_pct=20.0, full_voltage_v=58.0,
+                  warn_current_a=100.0, trip_current_a=200.0, temperature_limit_c=60.0,
+                  min_cell_v=3.0, max_cell_v=4.2, hysteresis_v=0.1, balance_v=4.0,
+                  shunt_size_a=200)
+    frames = device.config_frames(config)
+    assert [f.arbitration_id for f in frames] == [0x204, 0x205]
+    assert frames[0].data == bytes([16, 10, 20, 58, 10, 20, 60, 60])
+    assert frames[1].data == bytes([84, 2, 80, 2])

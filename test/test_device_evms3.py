@@ -5,6 +5,8 @@ import pytest
 
 from ams_can_bridge.devices.base import Level, PowerSupplyHealth, PowerSupplyStatus
 from ams_can_bridge.devices.evms3 import Evms3Device
+from ams_can_bridge.errors import RefusedCommand
+from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import Evms3Error, Evms3State
 from helpers import Clock
 
@@ -228,3 +230,22 @@ def test_silent_module_warns_and_its_cells_become_unknown():
     cells = device.battery_report().cell_voltage
     assert not any(math.isnan(v) for v in cells[:12])
     assert all(math.isnan(v) for v in cells[12:])
+
+
+def test_the_device_builds_its_command_frames_and_refuses_an_ack_it_cannot_back():
+    clock = Clock(1000.0)
+    device = make(clock)
+    with pytest.raises(RefusedCommand, match='stale'):
+        device.ack_frame()
+    device.handle_frame(30, status(), 1.0)
+    with pytest.raises(RefusedCommand, match='no error to acknowledge'):
+        device.ack_frame()
+    device.handle_frame(30, status(error=12), 1.0)
+    ack = device.ack_frame()
+    assert (ack.arbitration_id, ack.data, ack.is_extended_id) == (37, b'\x0c', True)
+    assert device.reset_soc_frame() == Frame(38, b'', True)
+    assert device.setup_mode_frame(True) == Frame(31, b'\x01', True)
+    short = make(clock, extended_id=False)
+    assert short.setup_mode_frame(False) == Frame(31, b'\x00', False)
+    assert Evms3Device.optional_config({'balance_mode': 'dynamic'}) == ('balance_v',)
+    assert Evms3Device.optional_config({'balance_mode': 'fixed'}) == ()

@@ -22,9 +22,9 @@ from ams_can_bridge.devices.sma import sma_values
 from ams_can_bridge.parameters import config_param_specs
 from ams_can_bridge.protocols import bms16 as bms16_proto
 from ams_can_bridge.protocols.bms16 import (
-    BMS16_WARNINGS, Bms16Cells, Bms16Codec, Bms16Error, Bms16Status, CELL_FRAME_COUNT,
+    BMS16_WARNINGS, Bms16Cells, Bms16Codec, Bms16Config, Bms16Error, Bms16Status, CELL_FRAME_COUNT,
     CELL_FRAME_FIRST, CELLS_3, DEFAULT_BASE_ID, MAX_CELLS)
-from ams_can_bridge.protocols.common import MalformedFrameError
+from ams_can_bridge.protocols.common import Frame, MalformedFrameError
 from ams_can_bridge.protocols.sma import (
     SMA_IDS, SmaAlarms, SmaBattery, SmaBatteryInfo, SmaCodec, SmaLimits, SmaManufacturer,
     SmaReading, SmaSoc)
@@ -88,6 +88,23 @@ class Bms16Device(Device):
         """Return the error code last reported (NONE until the first status frame)."""
         status = self.status
         return Bms16Error.NONE if status is None else status.error
+
+    # --- the frames the command services send (built here, on the device's own codec) --------
+    def config_frames(self, values: Mapping[str, Any]) -> list[Frame]:
+        """Build frames base + 4, base + 5 from a complete set of config values."""
+        return self.codec.bms16.config_frames(Bms16Config(**values))
+
+    def ack_frame(self) -> Frame:
+        """Build frame base + 6 (acknowledge error)."""
+        return self.codec.bms16.acknowledge_error()
+
+    def reset_soc_frame(self) -> Frame:
+        """Build frame base + 7 (reset SoC to 100 %)."""
+        return self.codec.bms16.reset_soc()
+
+    def power_off_frame(self) -> Frame:
+        """Build frame base + 8 (power off)."""
+        return self.codec.bms16.power_off()
 
     def cell_count(self) -> int:
         """Cells from the bms16.config.cells parameter, 16 while that is unset."""

@@ -22,10 +22,12 @@ from ams_can_bridge.devices.base import (
 from ams_can_bridge.devices.evms3_readback import ConfigReader, ReadResult, Send
 from ams_can_bridge.parameters import config_param_specs
 from ams_can_bridge.protocols import evms3 as evms3_proto
+from ams_can_bridge.errors import RefusedCommand
+from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import (
-    BatteryCurrent, BMS12_MAX_MODULES, Bms12Cells, Bms12Request, Bms12Temperatures,
-    ConfigReport, Evms3Codec, Evms3Error, Evms3State, Evms3Status, EVMS3_WARNINGS,
-    READBACK_IDS, RequestConfig)
+    AcknowledgeError, BatteryCurrent, BMS12_MAX_MODULES, Bms12Cells, Bms12Request,
+    Bms12Temperatures, BmsCellNumbers, ConfigReport, Evms3Codec, Evms3Config, Evms3Error,
+    Evms3State, Evms3Status, EVMS3_WARNINGS, READBACK_IDS, RequestConfig, ResetSoc, SetState)
 from ams_can_bridge.protocols.tc_charger import (
     CHARGERS, ChargerCommand, ChargerStatus, STATUS_BIT_TEXT)
 
@@ -151,6 +153,37 @@ class Evms3Device(Device):
     def read_config(self, send: Send, timeout: float) -> ReadResult:
         """Send ID 51 through send(frame) -> (ok, why); wait up to timeout s for 52..56."""
         return self.reader.read(send, timeout)
+
+    # --- the frames the command services send (built here, on the device's own codec) --------
+    @staticmethod
+    def optional_config(values: Mapping[str, Any]) -> tuple[str, ...]:
+        """Name the config values a write may leave unset: balance_v unless balancing fixed."""
+        return ('balance_v',) if values.get('balance_mode') in ('dynamic', 'off') else ()
+
+    def config_frames(self, values: Mapping[str, Any]) -> list[Frame]:
+        """Build IDs 32..36 from a complete set of config values; EncodeRangeError if bad."""
+        values = dict(values)
+        cells = values.pop('cells_per_module')
+        return self.codec.config_frames(Evms3Config.from_mapping(values)) + [
+            self.codec.encode(BmsCellNumbers(tuple(cells)))]
+
+    def ack_frame(self) -> Frame:
+        """Build ID 37 for the error shown now; RefusedCommand if stale or no error."""
+        if self.is_stale():
+            raise RefusedCommand('the EVMS3 is stale (no status frame within its '
+                                 'stale_timeout), so its error is unknown')
+        error = self.error
+        if error is None or error == Evms3Error.NONE:
+            raise RefusedCommand('the EVMS3 reports no error to acknowledge')
+        return self.codec.encode(AcknowledgeError(error))
+
+    def reset_soc_frame(self) -> Frame:
+        """Build ID 38 (reset SoC to 100 %)."""
+        return self.codec.encode(ResetSoc())
+
+    def setup_mode_frame(self, setup: bool) -> Frame:
+        """Build ID 31: Setup mode (True) or back to Idle (False)."""
+        return self.codec.encode(SetState(setup))
 
     # --- bus thread --------------------------------------------------------------------------
     def handle_frame(self, arbitration_id: int, data: bytes, stamp: float) -> bool:

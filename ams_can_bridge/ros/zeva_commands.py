@@ -134,10 +134,6 @@ class _ZevaCommands(Commander):
                                  + ', '.join(missing) + f' ({self.WRITE_HINT.format(self.name)})')
         return self.config.as_mapping()
 
-    def _base_id(self, default: int) -> int:
-        base = self.device.params.get('base_id')
-        return default if base is None else int(base)
-
 
 class Evms3Commands(_ZevaCommands):
     """EVMS3: read_config (51 -> 52..56), write_config (32..36), set_setup_mode (31), ..."""
@@ -149,15 +145,13 @@ class Evms3Commands(_ZevaCommands):
     def __init__(self, node: Any, device: Device, name: str) -> None:
         """Create the codec and the services of one EVMS3 instance."""
         super().__init__(node, device, name)
-        self.codec = evms3_proto.Evms3Codec(self._base_id(30), bms12_modules=0,
-                                            extended_id=device.is_extended_id)
         self._service(Trigger, 'write_config', self._trigger('write the configuration',
                                                              self._config_frames))
         self._service(SetBool, 'set_setup_mode', self._set_setup_mode)
-        self._service(Trigger, 'acknowledge_error', self._trigger('acknowledge the error',
-                                                                  self._ack_frames))
+        self._service(Trigger, 'acknowledge_error', self._trigger(
+            'acknowledge the error', lambda: [device.ack_frame()]))
         self._service(Trigger, 'reset_soc', self._trigger(
-            'reset the SoC', lambda: [self.codec.encode(evms3_proto.ResetSoc())]))
+            'reset the SoC', lambda: [device.reset_soc_frame()]))
         self._service(Trigger, 'read_config', self._read_config)
 
     def _check(self, name: str, value: Any) -> Any:
@@ -197,29 +191,14 @@ class Evms3Commands(_ZevaCommands):
                       f'{len(values)} parameters {self.name}.config.*')
 
     def _config_frames(self) -> list[Frame]:
-        mode = self.config.values.get('balance_mode')
-        optional = ('balance_v',) if mode in ('dynamic', 'off') else ()
-        values = self._require_config(optional)
-        cells = values.pop('cells_per_module')
-        cfg = evms3_proto.Evms3Config.from_mapping(values)
-        return self.codec.config_frames(cfg) + [
-            self.codec.encode(evms3_proto.BmsCellNumbers(tuple(cells)))]
-
-    def _ack_frames(self) -> list[Frame]:
-        if self.device.is_stale():
-            raise RefusedCommand('the EVMS3 is stale (no status frame within its '
-                                 'stale_timeout), so its error is unknown')
-        error = getattr(self.device, 'error', None)  # the property takes the device lock
-        if error is None or int(error) == 0:
-            raise RefusedCommand('the EVMS3 reports no error to acknowledge')
-        return [self.codec.encode(evms3_proto.AcknowledgeError(
-            evms3_proto.Evms3Error(int(error))))]
+        optional = self.device.optional_config(self.config.values)
+        return self.device.config_frames(self._require_config(optional))
 
     def _set_setup_mode(self, request: Any, response: Any) -> Any:
         setup = bool(request.data)
         what = 'enter Setup mode' if setup else 'return to Idle'
         response.success, response.message = self._send_frames(
-            what, lambda: [self.codec.encode(evms3_proto.SetState(setup))])
+            what, lambda: [self.device.setup_mode_frame(setup)])
         return response
 
 
@@ -231,19 +210,14 @@ class Bms16Commands(_ZevaCommands):
     def __init__(self, node: Any, device: Device, name: str) -> None:
         """Create the codec and the services of one BMS16 instance."""
         super().__init__(node, device, name)
-        self.codec = bms16_proto.Bms16Codec(self._base_id(bms16_proto.DEFAULT_BASE_ID))
-        self._service(Trigger, 'write_config', self._trigger('write the configuration',
-                                                             self._config_frames))
+        self._service(Trigger, 'write_config', self._trigger(
+            'write the configuration', lambda: device.config_frames(self._require_config())))
         self._service(Trigger, 'acknowledge_error', self._trigger(
-            'acknowledge the error', lambda: [self.codec.acknowledge_error()]))
+            'acknowledge the error', lambda: [device.ack_frame()]))
         self._service(Trigger, 'reset_soc', self._trigger(
-            'reset the SoC', lambda: [self.codec.reset_soc()]))
+            'reset the SoC', lambda: [device.reset_soc_frame()]))
         self._service(Trigger, 'power_off', self._trigger(
-            'power the BMS16 off', lambda: [self.codec.power_off()]))
+            'power the BMS16 off', lambda: [device.power_off_frame()]))
 
     def _check(self, name: str, value: Any) -> Any:
         return bms16_proto.check_config_value(name, value)
-
-    def _config_frames(self) -> list[Frame]:
-        values = self._require_config()
-        return self.codec.config_frames(bms16_proto.Bms16Config(**values))
