@@ -7,7 +7,9 @@ from ams_can_bridge import registry
 from ams_can_bridge.devices.ams import AmsDevice
 from ams_can_bridge.devices.base import Level, PowerSupplyHealth, PowerSupplyStatus
 from ams_can_bridge.devices.ivt_s import IvtSDevice
-from ams_can_bridge.protocols.ams import AmsError, AmsState
+from ams_can_bridge.errors import RefusedCommand
+from ams_can_bridge.protocols.ams import AmsError, AmsState, ChargerStart
+from ams_can_bridge.protocols.common import Frame
 from helpers import Clock
 
 STAMP = 1.7e9
@@ -418,3 +420,13 @@ def test_override_frames_are_not_consumed_so_sma_0x351_can_share_the_bus():
     device = AmsDevice('ams', {})
     assert 0x351 not in device.arbitration_ids and 0x350 not in device.arbitration_ids
     assert {0x300, 0x301, 0x311, 0x312, 0x313, 0x314} <= device.arbitration_ids
+
+
+def test_the_device_builds_its_command_frames_at_its_base_id(clock):
+    device = make(clock, base_id=0x400, bank_count=3)
+    assert device.heartbeat_frame(2, 3, 7) == Frame(0x405, bytes([0x32, 7]))
+    assert device.charger_frame(ChargerStart.START, 0x1234) == Frame(0x410, b'\x01\x12\x34')
+    assert device.charge_current_frame(12.3) == Frame(0x450, bytes([123]))
+    assert device.bank_count_frame() == Frame(0x451, bytes([3]))
+    with pytest.raises(RefusedCommand, match=r'^ams\.charge_current_a is not set'):
+        device.charge_current_frame(None)

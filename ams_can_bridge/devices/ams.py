@@ -24,7 +24,9 @@ from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, Level, ParamSpec,
     PowerSupplyHealth, PowerSupplyStatus)
 from ams_can_bridge.protocols import ams as proto
+from ams_can_bridge.errors import RefusedCommand
 from ams_can_bridge.protocols.ams import AmsCodec, AmsError, AmsState
+from ams_can_bridge.protocols.common import Frame
 
 NAN = math.nan
 ERROR_STATES = (AmsState.ERROR, AmsState.CHARGE_ERROR)
@@ -142,6 +144,26 @@ class AmsDevice(Device):
         self._cells = _Array(proto.CELLS_PER_GROUP, proto.CELL_GROUPS)
         self._temps = _Array(proto.TEMPS_PER_GROUP, proto.TEMP_GROUPS)
         self._discharge = _Array(proto.DISCHARGE_TEMPS_PER_GROUP, proto.TEMP_GROUPS)
+
+    # --- the frames the command services send (built here, on the device's own codec) --------
+    def heartbeat_frame(self, command: int, bank_count: int, counter: int) -> Frame:
+        """Build the car status (base + 0x005) the AMS master sends as its heartbeat."""
+        return self.codec.encode(proto.CarStatus(proto.CarCommand(command), bank_count, counter))
+
+    def charger_frame(self, start: proto.ChargerStart, time_tick: int) -> Frame:
+        """Build a charger command (base + 0x010): start / stop at this time tick."""
+        return self.codec.encode(proto.ChargerCommand(start, time_tick))
+
+    def charge_current_frame(self, current_a: float | None) -> Frame:
+        """Build the charge current override (base + 0x050); RefusedCommand while unset."""
+        if current_a is None:
+            raise RefusedCommand(f'{self.name}.charge_current_a is not set: set it to the '
+                                 'charge current in A (0..25.5 in steps of 0.1)')
+        return self.codec.encode(proto.OverrideChargeCurrent(float(current_a)))
+
+    def bank_count_frame(self) -> Frame:
+        """Build the bank count override (base + 0x051) with the configured bank count."""
+        return self.codec.encode(proto.OverrideBankCount(self.bank_count))
 
     @property
     def arbitration_ids(self) -> frozenset[int]:

@@ -16,12 +16,8 @@ from std_srvs.srv import Trigger
 
 from ams_can_bridge.devices.ams_master import AmsMaster, CommandResult
 from ams_can_bridge.devices.ams import AmsDevice
-from ams_can_bridge.devices.base import Device
 from ams_can_bridge.errors import RefusedCommand
-from ams_can_bridge.protocols import ams as proto
-from ams_can_bridge.protocols.ams import (AmsCodec, CarCommand, CarStatus, ChargerCommand,
-                                          ChargerStart, OverrideBankCount,
-                                          OverrideChargeCurrent)
+from ams_can_bridge.protocols.ams import CarCommand, ChargerStart
 from ams_can_bridge.protocols.common import EncodeRangeError, Frame
 from ams_can_bridge.ros.commander import Commander
 from ams_can_bridge.ros.zeva_commands import frame_text, gate_message
@@ -41,7 +37,7 @@ class AmsCommands(Commander):
 
     PARAMS = AmsDevice.COMMAND_PARAMS  # declared by the node with the device
 
-    def __init__(self, node: Any, device: Device, name: str) -> None:
+    def __init__(self, node: Any, device: AmsDevice, name: str) -> None:
         """Build the codec, the (stopped) master and the services."""
         self.node = node
         self.device = device
@@ -49,11 +45,9 @@ class AmsCommands(Commander):
         values = node.device_params.get(name, {})
         self.command_timeout = float(values.get('command_timeout') or 2.0)
         self.charge_current_a = values.get('charge_current_a')
-        base = device.params.get('base_id')
-        self.codec = AmsCodec(proto.DEFAULT_BASE_ID if base is None else int(base))
         self._t0 = time.monotonic()  # origin of the charger-command time tick
         # The heartbeat never waits for the bus: a late heartbeat is a wrong heartbeat.
-        self.master = AmsMaster(self._encode_heartbeat,
+        self.master = AmsMaster(device.heartbeat_frame,
                                 lambda frame: node.transmit(frame, wait=False),
                                 device.master_view,
                                 period=float(values.get('heartbeat_period') or 0.05),
@@ -62,14 +56,14 @@ class AmsCommands(Commander):
         for suffix, (command, what) in CAR_COMMANDS.items():
             self._service(suffix, self._car_command(command, what))
         self._service('start_charging', self._charger(
-            'start charging', lambda: self._charger_frame(ChargerStart.START)))
+            'start charging', lambda: device.charger_frame(ChargerStart.START,
+                                                           self.time_tick())))
         self._service('stop_charging', self._charger(
-            'stop charging', lambda: self._charger_frame(ChargerStart.STOP)))
+            'stop charging', lambda: device.charger_frame(ChargerStart.STOP, self.time_tick())))
         self._service('set_charge_current', self._charger(
-            'set the charge current', self._charge_current_frame))
+            'set the charge current', lambda: device.charge_current_frame(self.charge_current_a)))
         self._service('override_bank_count', self._charger(
-            'override the bank count', lambda: self.codec.encode(
-                OverrideBankCount(self.device.bank_count))))
+            'override the bank count', device.bank_count_frame))
         if node.commands_enabled:
             self.master.start()
 
@@ -150,19 +144,6 @@ class AmsCommands(Commander):
         return True, f'{self.name}: {what}: sent {frame_text(frame)}'
 
     # --- frames --------------------------------------------------------------------------
-    def _encode_heartbeat(self, command: int, bank_count: int, counter: int) -> Frame:
-        return self.codec.encode(CarStatus(CarCommand(command), bank_count, counter))
-
     def time_tick(self) -> int:
         """Return the charger time tick: ms since this node started, modulo 65536."""
         return int((time.monotonic() - self._t0) * 1000) & 0xFFFF
-
-    def _charger_frame(self, start: ChargerStart) -> Frame:
-        return self.codec.encode(ChargerCommand(start, self.time_tick()))
-
-    def _charge_current_frame(self) -> Frame:
-        current = self.charge_current_a
-        if current is None:
-            raise RefusedCommand(f'{self.name}.charge_current_a is not set: set it to the '
-                                 'charge current in A (0..25.5 in steps of 0.1)')
-        return self.codec.encode(OverrideChargeCurrent(float(current)))
