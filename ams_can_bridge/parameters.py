@@ -116,7 +116,7 @@ BUS_PARAMS = [
               high=10_000_000),
     ParamSpec('fd', bool, False, 'CAN FD bus'),
     ParamSpec('options', 'str[]', [], 'extra python-can bus arguments, key=value (slcan '
-              'defaults to timeout=0.1: an idle serial port is not polled every ms)'),
+              'defaults to timeout=0.5: an idle serial port is not polled every ms)'),
     ParamSpec('reconnect_period', float, 1.0, 's between attempts to (re)open the bus',
               low=0.01, high=3600.0),
     ParamSpec('replay_rate', float, 1.0, 'replay speed: 1.0 = real time, 0 = fast as possible',

@@ -61,7 +61,7 @@ def reference(channel: str, seconds: float) -> None:
     node = rclpy.create_node('bench_reference_pipeline')
     pub = node.create_publisher(BatteryState, '/ivt_s/battery_state', 100)
     bus = can.Bus(interface='slcan', channel=channel,
-                  **harness.parse_options(harness.SLCAN_OPEN + ['timeout=0.1']))
+                  **harness.parse_options(harness.SLCAN_OPEN + ['timeout=0.5']))
     end = time.monotonic() + seconds
     try:
         while time.monotonic() < end:
@@ -135,7 +135,7 @@ def heartbeat(channel: str, seconds: float, out: str) -> None:
     import can
     sys.setswitchinterval(0.001)
     bus = can.Bus(interface='slcan', channel=channel,
-                  **harness.parse_options(harness.SLCAN_OPEN + ['timeout=0.1']))
+                  **harness.parse_options(harness.SLCAN_OPEN + ['timeout=0.5']))
     stamps: list[float] = []
     end = time.monotonic() + seconds
     try:
