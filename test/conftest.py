@@ -30,7 +30,9 @@ def rig_factory():
     Make bridges on a python-can virtual bus (``command_rig.Rig``); all closed afterwards.
 
     The one bridge-on-a-virtual-bus fixture: ``rig_factory(params, **kwargs)`` returns a
-    started Rig (node, executor thread, a bus capture, service calls and parameter sets).
+    started Rig (node, executor thread, a bus capture that also injects frames, recorded
+    topics and diagnostics, waits through helpers.wait_for, service calls, parameter sets,
+    failures escaping callbacks or threads). A module-scoped user takes ``command_rig.rigs``.
     """
     from command_rig import rigs  # imports rclpy: only for the tests that use it
     with rigs() as make:

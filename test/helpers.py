@@ -46,6 +46,40 @@ def same(a: Any, b: Any) -> bool:
     return a == b
 
 
+# Protocol ranges (PROTOCOLS.md): nothing a frame can carry lies outside these.
+INT32_SCALED = 2 ** 31 / 1000  # IVT-S results: int32 mV / mA / mAs
+BOUNDS = {
+    'voltage': (-INT32_SCALED, INT32_SCALED),  # IVT-S U1 when an AMS uses the shunt
+    'current': (-INT32_SCALED, INT32_SCALED),
+    'charge': (-INT32_SCALED, INT32_SCALED),
+    'capacity': (0.0, 1e6),
+    'design_capacity': (0.0, 1e6),
+    'percentage': (0.0, 1.0),
+    'temperature': (-273.15, 3276.7),  # S16 0.1 degC is the widest temperature encoding
+}
+CELL_VOLTAGE = (0.0, 65.535)  # uint16 mV is the widest cell encoding
+CELL_TEMPERATURE = (-273.15, 3276.7)
+
+
+def unphysical(msg: Any) -> list[str]:
+    """List the fields of msg that are neither NaN nor a value the protocols allow."""
+    bad = []
+
+    def check(name: str, value: float, low: float, high: float) -> None:
+        if not math.isnan(value) and not (math.isfinite(value) and low <= value <= high):
+            bad.append(f'{name}={value!r}')
+    for name, (low, high) in BOUNDS.items():
+        check(name, getattr(msg, name), low, high)
+    for i, value in enumerate(msg.cell_voltage):
+        check(f'cell_voltage[{i}]', value, *CELL_VOLTAGE)
+    for i, value in enumerate(msg.cell_temperature):
+        check(f'cell_temperature[{i}]', value, *CELL_TEMPERATURE)
+    if msg.power_supply_status > 4 or msg.power_supply_health > 8 \
+            or msg.power_supply_technology > 8:
+        bad.append('enum out of range')
+    return bad
+
+
 def device_reference(path: str, names: Iterable[str],
                      parameters: dict[str, Any]) -> dict[str, list[tuple[float, tuple]]]:
     """

@@ -2,27 +2,22 @@
 The bridge node in-process on python-can 'virtual': golden frames in, exact messages out.
 
 Frames are written by hand from PROTOCOLS.md (not through the codecs or the DBC); a real
-subscriber node receives what the bridge publishes. One rclpy context for the module.
+subscriber node receives what the bridge publishes (``rig_factory``, conftest.py).
 """
 from __future__ import annotations
 
 import itertools
 import math
 import time
-from typing import Any, Callable
 
-import can
-from diagnostic_msgs.msg import DiagnosticArray
 import pytest
-import rclpy
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import BatteryState
 from std_msgs.msg import Float32MultiArray
 
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.ros.bridge_node import BridgeNode, ConfigError
+from command_rig import Rig
 from helpers import ros_context, wait_for
 
 NAN = math.nan
@@ -33,95 +28,6 @@ _ids = itertools.count()
 def context():
     with ros_context() as ctx:
         yield ctx
-
-
-class Harness:
-    """A bridge node on its own virtual channel and namespace, plus a listening node."""
-
-    def __init__(self, context: Context, params: dict[str, Any],
-                 topics: dict[str, type] = ()) -> None:
-        n = next(_ids)
-        self.ns = f'bridge_test_{n}_{int(time.time() * 1000) % 100000}'
-        self.channel = f'bridge-node-test-{self.ns}'
-        overrides = {'can.interface': 'virtual', 'can.channel': self.channel}
-        overrides.update(params)
-        self.bridge = BridgeNode(
-            context=context, namespace=self.ns,
-            parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
-        self.listener = rclpy.create_node(f'listener_{n}', context=context)
-        self.msgs: dict[str, list[Any]] = {'/diagnostics': []}
-        self.listener.create_subscription(
-            DiagnosticArray, '/diagnostics', self._diag, 50)
-        for topic, msg_type in dict(topics).items():
-            self.msgs[topic] = []
-            self.listener.create_subscription(
-                msg_type, f'/{self.ns}/{topic}',
-                lambda m, t=topic: self.msgs[t].append(m), 50)
-        self.executor = SingleThreadedExecutor(context=context)
-        self.executor.add_node(self.bridge)
-        self.executor.add_node(self.listener)
-        self.bus = can.Bus(interface='virtual', channel=self.channel)
-        # A virtual bus delivers only to buses open at send time: wait for the bridge's.
-        deadline = time.monotonic() + 10.0
-        virtual = overrides['can.interface'] == 'virtual'
-        while virtual and not self.bridge.can_io.status().connected:
-            assert time.monotonic() < deadline, 'the bridge never opened its virtual bus'
-            time.sleep(0.01)
-
-    def _diag(self, msg: DiagnosticArray) -> None:
-        # other tests (other processes) may publish on /diagnostics too: keep ours only
-        if any(s.hardware_id == self.bridge.hardware_id for s in msg.status):
-            self.msgs['/diagnostics'].append(msg)
-
-    def send(self, can_id: int, data: bytes | list[int], extended: bool = False) -> None:
-        self.bus.send(can.Message(arbitration_id=can_id, data=bytes(data),
-                                  is_extended_id=extended))
-
-    def spin_until(self, predicate: Callable[[], Any], timeout: float = 10.0) -> Any:
-        def spun() -> Any:
-            self.executor.spin_once(timeout_sec=0.05)
-            return predicate()
-        return wait_for(spun, timeout, poll=0.0)
-
-    def last(self, topic: str, predicate: Callable[[Any], bool] = lambda m: True,
-             timeout: float = 10.0) -> Any:
-        """Spin until a message on topic satisfies predicate; return the newest such."""
-        def found():
-            hits = [m for m in self.msgs[topic] if predicate(m)]
-            return hits[-1] if hits else None
-        return self.spin_until(found, timeout)
-
-    def status(self, name: str, predicate: Callable[[Any], bool] = lambda s: True,
-               timeout: float = 10.0) -> Any:
-        """Spin until a DiagnosticStatus named '<node>: name' satisfies predicate."""
-        full = f'ams_can_bridge: {name}'
-
-        def found():
-            for array in reversed(self.msgs['/diagnostics']):
-                for status in array.status:
-                    if status.name == full and predicate(status):
-                        return status
-            return None
-        return self.spin_until(found, timeout)
-
-    def close(self) -> None:
-        self.executor.shutdown()
-        self.bridge.destroy_node()
-        self.listener.destroy_node()
-        self.bus.shutdown()
-
-
-@pytest.fixture
-def harness(context):
-    made: list[Harness] = []
-
-    def make(params: dict[str, Any], topics: dict[str, type] = ()) -> Harness:
-        h = Harness(context, params, topics)
-        made.append(h)
-        return h
-    yield make
-    for h in made:
-        h.close()
 
 
 def values(status) -> dict[str, str]:
@@ -137,8 +43,8 @@ def level(status) -> int:
 
 
 # --- CAN bus diagnostics ------------------------------------------------------------------
-def test_can_bus_status_without_devices(harness):
-    h = harness({'diagnostics_period': 0.2})
+def test_can_bus_status_without_devices(rig_factory):
+    h = rig_factory({'diagnostics_period': 0.2})
     status = h.status('CAN bus', lambda s: values(s).get('state') == 'connected')
     assert level(status) == 0
     assert status.hardware_id == f'virtual:{h.channel}'
@@ -151,11 +57,11 @@ def test_can_bus_status_without_devices(harness):
 
 
 # --- parameters ---------------------------------------------------------------------------
-def test_numeric_parameters_accept_int_and_float_spellings(harness):
-    h = harness({'diagnostics_period': 1, 'can.reconnect_period': 2,
-                 'devices': ['ivt_s'], 'ivt_s.stale_timeout': 3, 'can.bitrate': 500000.0,
-                 'commands_allowed': True})
-    node = h.bridge
+def test_numeric_parameters_accept_int_and_float_spellings(rig_factory):
+    h = rig_factory({'diagnostics_period': 1, 'can.reconnect_period': 2,
+                     'devices': ['ivt_s'], 'ivt_s.stale_timeout': 3, 'can.bitrate': 500000.0,
+                     'commands_allowed': True})
+    node = h.node
     assert node.diagnostics_period == 1.0
     assert node.bus_config.reconnect_period == 2.0
     assert node.bus_config.bitrate == 500000 and isinstance(node.bus_config.bitrate, int)
@@ -167,9 +73,9 @@ def test_numeric_parameters_accept_int_and_float_spellings(harness):
     assert not bad.successful
 
 
-def test_read_only_and_commands_enabled_gate(harness):
-    h = harness({'devices': ['bms16'], 'commands_allowed': True})
-    node = h.bridge
+def test_read_only_and_commands_enabled_gate(rig_factory):
+    h = rig_factory({'devices': ['bms16'], 'commands_allowed': True})
+    node = h.node
     refused = node.set_parameters([Parameter('can.channel', value='x')])[0]
     assert not refused.successful
     ok, message = node.transmit(Frame(506, b''))
@@ -205,10 +111,10 @@ def ivt(mux: int, counter: int, value: int) -> bytes:
     return bytes([mux, counter & 0x0F]) + value.to_bytes(4, 'big', signed=True)
 
 
-def test_ivt_s_battery_state_sign_and_diagnostics(harness):
-    h = harness({'devices': ['shunt'], 'shunt.type': 'ivt_s', 'shunt.frame_id': 'pack',
-                 'diagnostics_period': 0.2},
-                {'shunt/battery_state': BatteryState})
+def test_ivt_s_battery_state_sign_and_diagnostics(rig_factory):
+    h = rig_factory({'devices': ['shunt'], 'shunt.type': 'ivt_s', 'shunt.frame_id': 'pack',
+                     'diagnostics_period': 0.2},
+                    topics={'shunt/battery_state': BatteryState})
     h.send(0x522, ivt(1, 0, 403_500))  # U1 403.5 V
     h.send(0x527, ivt(6, 0, -36_000))  # -36000 As = 10 Ah discharged (wire: + = discharge)
     h.send(0x521, ivt(0, 0, 25_000))  # +25 A on the wire = discharging
@@ -239,9 +145,9 @@ def bms16_cells(centivolts: list[int]) -> bytes:
     return bytes(v & 0xFF for v in centivolts) + bytes(6 - len(centivolts)) + bytes([high])
 
 
-def test_bms16_battery_state_and_cells(harness):
-    h = harness({'devices': ['bms16'], 'diagnostics_period': 0.2},
-                {'bms16/battery_state': BatteryState})
+def test_bms16_battery_state_and_cells(rig_factory):
+    h = rig_factory({'devices': ['bms16'], 'diagnostics_period': 0.2},
+                    topics={'bms16/battery_state': BatteryState})
     h.send(501, bms16_cells([330, 331, 250, 255, 256, 420]))
     h.send(500, bms16_status(0, 80, 523, 125, 25))  # 12.5 A discharging
     msg = h.last('bms16/battery_state', lambda m: m.present)
@@ -283,7 +189,7 @@ def int8s(values: list[int]) -> bytes:
 AIR_PLUS, AIR_MINUS, DRIVE = 1 << 15, 1 << 14, 4
 
 
-def send_ams_bank(h: Harness) -> None:
+def send_ams_bank(h: Rig) -> None:
     for group in range(4):  # 28 cells: 3.60 V + 20 mV * (group)
         h.send(0x311, [bank_group(1, group)] + [180 + group] * 7)
     h.send(0x312, [bank_group(1, 0)] + [20, 21, 22, 23, 24])
@@ -291,10 +197,11 @@ def send_ams_bank(h: Harness) -> None:
     h.send(0x313, [bank_group(1, 0)] + [30, 31, 32, 33, 34, 35, 36])
 
 
-def test_ams_without_current_sensor(harness):
-    h = harness({'devices': ['ams'], 'diagnostics_period': 0.2},
-                {'ams/battery_state': BatteryState, 'ams/temperatures': Float32MultiArray,
-                 'ams/discharge_temperatures': Float32MultiArray})
+def test_ams_without_current_sensor(rig_factory):
+    h = rig_factory({'devices': ['ams'], 'diagnostics_period': 0.2},
+                    topics={'ams/battery_state': BatteryState,
+                            'ams/temperatures': Float32MultiArray,
+                            'ams/discharge_temperatures': Float32MultiArray})
     send_ams_bank(h)
     h.send(0x300, ams_status(AIR_PLUS | AIR_MINUS | (1 << 5) | DRIVE, 180, 28, 77, 1))
     msg = h.last('ams/battery_state', lambda m: m.present)
@@ -316,11 +223,12 @@ def test_ams_without_current_sensor(harness):
     assert values(status)['state'] == 'DRIVE'
 
 
-def test_ams_with_ivt_s_current_sensor(harness):
-    h = harness({'devices': ['ams', 'shunt'], 'shunt.type': 'ivt_s',
-                 'diagnostics_period': 0.2},
-                {'ams/battery_state': BatteryState, 'shunt/battery_state': BatteryState})
-    assert h.bridge.device_params['ams']['current_sensor'] == 'shunt'
+def test_ams_with_ivt_s_current_sensor(rig_factory):
+    h = rig_factory({'devices': ['ams', 'shunt'], 'shunt.type': 'ivt_s',
+                     'diagnostics_period': 0.2},
+                    topics={'ams/battery_state': BatteryState,
+                            'shunt/battery_state': BatteryState})
+    assert h.node.device_params['ams']['current_sensor'] == 'shunt'
     h.send(0x522, ivt(1, 0, 398_000))
     h.send(0x527, ivt(6, 0, 7200))
     h.send(0x521, ivt(0, 0, -30_000))  # -30 A on the wire (discharge positive) = charging
@@ -349,9 +257,9 @@ def le16(value: int) -> bytes:
     return (value & 0xFFFF).to_bytes(2, 'little')
 
 
-def test_sma_battery_state(harness):
-    h = harness({'devices': ['sma'], 'diagnostics_period': 0.2},
-                {'sma/battery_state': BatteryState})
+def test_sma_battery_state(rig_factory):
+    h = rig_factory({'devices': ['sma'], 'diagnostics_period': 0.2},
+                    topics={'sma/battery_state': BatteryState})
     h.send(0x355, le16(64) + le16(98))  # SoC 64 %, SoH 98 %
     h.send(0x35A, bytes([0xAA] * 4 + [0xAA] * 4))  # every condition OK
     h.send(0x356, le16(5120) + le16(-153) + le16(231))  # 51.2 V, -15.3 A, 23.1 degC
@@ -372,10 +280,10 @@ def be16(*values: int) -> bytes:
     return b''.join(v.to_bytes(2, 'big') for v in values)
 
 
-def test_evms3_battery_state_with_bms12_cells(harness):
-    h = harness({'devices': ['evms3'], 'evms3.bms12_modules': 1,
-                 'evms3.config.pack_capacity_ah': 200, 'diagnostics_period': 0.2},
-                {'evms3/battery_state': BatteryState})
+def test_evms3_battery_state_with_bms12_cells(rig_factory):
+    h = rig_factory({'devices': ['evms3'], 'evms3.bms12_modules': 1,
+                     'evms3.config.pack_capacity_ah': 200, 'diagnostics_period': 0.2},
+                    topics={'evms3/battery_state': BatteryState})
     h.send(301, be16(3300, 3310, 3320, 3330), extended=True)  # BMS12 module 0, cells 1-4
     h.send(302, be16(3340, 3350, 3360, 3370), extended=True)
     h.send(303, be16(3380, 3390, 3400, 3410), extended=True)
@@ -396,9 +304,9 @@ def test_evms3_battery_state_with_bms12_cells(harness):
     assert status.hardware_id == f'virtual:{h.channel}'
 
 
-def test_commander_seam_validates_and_syncs_device_params(harness):
-    h = harness({'devices': ['evms3']})
-    node = h.bridge
+def test_commander_seam_validates_and_syncs_device_params(rig_factory):
+    h = rig_factory({'devices': ['evms3']})
+    node = h.node
     assert 'evms3' in node.commanders
     refused = node.set_parameters([Parameter('evms3.config.pack_capacity_ah', value=3)])[0]
     assert not refused.successful and 'pack_capacity_ah' in refused.reason
@@ -412,10 +320,10 @@ def stamp_seconds(msg: BatteryState) -> float:
     return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
 
 
-def test_location_serial_number_and_frame_id_parameters_reach_battery_state(harness):
-    h = harness({'devices': ['bms16'], 'bms16.location': 'rear rack, slot 2',
-                 'bms16.serial_number': 'SN-0042', 'bms16.frame_id': 'battery_link'},
-                {'bms16/battery_state': BatteryState})
+def test_location_serial_number_and_frame_id_parameters_reach_battery_state(rig_factory):
+    h = rig_factory({'devices': ['bms16'], 'bms16.location': 'rear rack, slot 2',
+                     'bms16.serial_number': 'SN-0042', 'bms16.frame_id': 'battery_link'},
+                    topics={'bms16/battery_state': BatteryState})
     h.send(500, bms16_status(0, 70, 520, 10, 24))
     msg = h.last('bms16/battery_state', lambda m: m.present)
     assert msg.location == 'rear rack, slot 2'
@@ -423,9 +331,10 @@ def test_location_serial_number_and_frame_id_parameters_reach_battery_state(harn
     assert msg.header.frame_id == 'battery_link'
 
 
-def test_stamp_is_the_receive_time_and_stale_messages_keep_the_last_one(harness):
-    h = harness({'devices': ['bms16'], 'bms16.stale_timeout': 0.8},
-                {'bms16/battery_state': BatteryState})
+def test_stamp_is_the_receive_time_and_stale_messages_keep_the_last_one(rig_factory):
+    # spin=False: the executor runs only while the test waits, so publishing can be held back
+    h = rig_factory({'devices': ['bms16'], 'bms16.stale_timeout': 0.8},
+                    topics={'bms16/battery_state': BatteryState}, spin=False)
     # Before any frame the 1 Hz stale message has no receive time: it is stamped 'now'.
     created = time.time()
     never = h.last('bms16/battery_state', lambda m: not m.present)
@@ -440,34 +349,34 @@ def test_stamp_is_the_receive_time_and_stale_messages_keep_the_last_one(harness)
 
     before1, after1, first = send_soc(61)
     assert before1 - 0.05 <= stamp_seconds(first) <= after1
-    h.spin_until(lambda: time.time() >= after1 + 0.3, timeout=5.0)
+    h.wait(lambda: time.time() >= after1 + 0.3, timeout=5.0)
     before2, after2, second = send_soc(62)
     assert before2 - 0.05 <= stamp_seconds(second) <= after2
     gap = stamp_seconds(second) - stamp_seconds(first)
     assert 0.15 <= gap <= after2 - before1 + 0.05, gap
     # Published later than received (executor held back): still the receive time.
-    frames_in = h.bridge.can_io.status().frames_in
+    frames_in = h.node.can_io.status().frames_in
     h.send(500, bms16_status(0, 63, 520, 10, 24))
-    wait_for(lambda: h.bridge.can_io.status().frames_in > frames_in, what='frame received')
+    wait_for(lambda: h.node.can_io.status().frames_in > frames_in, what='frame received')
     received_by = time.time()
     time.sleep(0.3)  # the executor does not spin: publishing waits
     third = h.last('bms16/battery_state',
                    lambda m: m.present and m.percentage == pytest.approx(0.63))
     assert stamp_seconds(third) <= received_by
     # Once stale, present:false repeats the last frame's receive time, never a newer one.
-    count = len(h.msgs['bms16/battery_state'])
-    stale = h.spin_until(lambda: [m for m in h.msgs['bms16/battery_state'][count:]
-                                  if not m.present], timeout=10.0)
+    count = len(h.messages('bms16/battery_state'))
+    stale = h.wait(lambda: [m for m in h.messages('bms16/battery_state')[count:]
+                            if not m.present], timeout=10.0)
     for msg in stale:
         assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (
             third.header.stamp.sec, third.header.stamp.nanosec)
 
 
-def test_diagnostics_published_at_once_when_a_level_changes(harness):
+def test_diagnostics_published_at_once_when_a_level_changes(rig_factory):
     # A 30 s period: only the at-once rule can explain arrays within seconds.
-    h = harness({'devices': ['bms16'], 'bms16.stale_timeout': 60.0,
-                 'diagnostics_period': 30.0})
-    h.spin_until(lambda: h.msgs['/diagnostics'], timeout=5.0)
+    h = rig_factory({'devices': ['bms16'], 'bms16.stale_timeout': 60.0,
+                     'diagnostics_period': 30.0})
+    h.wait(lambda: h.messages('/diagnostics'), timeout=5.0)
     assert level(h.status('bms16', timeout=0.1)) == 3  # never heard: STALE
     h.send(500, bms16_status(0, 80, 523, 125, 25))
     h.status('bms16', lambda s: level(s) == 0, timeout=3.0)

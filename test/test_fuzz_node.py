@@ -17,14 +17,14 @@ from __future__ import annotations
 
 import time
 
-import can
 from hypothesis import given, settings, strategies as st
 import pytest
 
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.protocols.common import Frame
+from command_rig import battery_topics, rigs
 from conftest import examples
-from live_bridge import LiveBridge, unphysical
+from helpers import unphysical
 from slcan_peer import SlcanPeer
 from test_bridge_slcan import FRAMES
 
@@ -71,65 +71,56 @@ def events(error_frames: bool, fd: bool = False):
 
 
 class Transport:
-    """Sends frames to the bridge: a virtual bus, or the adapter side of an slcan pty."""
+    """Sends frames to the bridge: its rig's virtual bus, or the adapter side of an slcan pty."""
 
-    def __init__(self, kind: str, tmp_path_factory) -> None:
+    def __init__(self, kind: str, make, peer: SlcanPeer | None) -> None:
         self.kind = kind
-        self.peer = None
+        self.peer = peer
         params = dict(PARAMS)
-        if kind in ('virtual', 'virtual-fd'):
-            channel = f'fuzz-node-{time.monotonic_ns()}'
-            params.update({'can.interface': 'virtual', 'can.channel': channel,
-                           'can.fd': kind == 'virtual-fd'})
-            self.bus = can.Bus(interface='virtual', channel=channel)
+        if peer is None:
+            params['can.fd'] = kind == 'virtual-fd'
         else:
-            self.peer = SlcanPeer(symlink=tmp_path_factory.mktemp('fuzz') / 'ttyACM_fuzz')
-            params.update({'can.interface': 'slcan', 'can.channel': self.peer.channel,
+            params.update({'can.interface': 'slcan', 'can.channel': peer.channel,
                            'can.options': ['sleep_after_open=0']})
-        self.bridge = LiveBridge(params, DEVICES)
-        self.bridge.wait(lambda: self.bridge.node.can_io.status().connected, 10, 'the bus')
-        if self.peer is not None:
-            self.peer.wait_open()
+        self.bridge = make(params, topics=battery_topics(DEVICES))  # waits for the bus
+        if peer is not None:
+            peer.wait_open()
 
     def data(self, can_id: int, extended: bool, data: bytes) -> None:
         if self.peer is not None:
             assert self.peer.send(Frame(can_id, data, extended))
         else:
-            self.bus.send(can.Message(arbitration_id=can_id, data=data, is_fd=len(data) > 8,
-                                      is_extended_id=extended))
+            self.bridge.send(can_id, data, extended, is_fd=len(data) > 8)
 
     def remote(self, can_id: int, extended: bool, dlc: int) -> None:
         if self.peer is not None:
             assert self.peer.send_remote(can_id, dlc, extended)
         else:
-            self.bus.send(can.Message(arbitration_id=can_id, is_remote_frame=True, dlc=dlc,
-                                      is_extended_id=extended))
+            self.bridge.send(can_id, b'', extended, is_remote_frame=True, dlc=dlc)
 
     def error(self, err_id: int, data: bytes) -> None:
-        self.bus.send(can.Message(arbitration_id=err_id, data=data, is_error_frame=True,
-                                  is_extended_id=True))
-
-    def close(self) -> None:
-        self.bridge.close()
-        if self.peer is not None:
-            self.peer.shutdown()
-        else:
-            self.bus.shutdown()
+        self.bridge.send(err_id, data, True, is_error_frame=True)
 
 
 @pytest.fixture(scope='module', params=['virtual', 'virtual-fd', 'slcan'])
 def live(request, tmp_path_factory):
-    transport = Transport(request.param, tmp_path_factory)
-    transport.replica = replica()
-    transport.errors_sent = 0
-    transport.markers = 0
-    yield transport
-    transport.close()
+    peer = (SlcanPeer(symlink=tmp_path_factory.mktemp('fuzz') / 'ttyACM_fuzz')
+            if request.param == 'slcan' else None)
+    try:
+        with rigs() as make:  # what rig_factory yields, for the whole module
+            transport = Transport(request.param, make, peer)
+            transport.replica = replica()
+            transport.errors_sent = 0
+            transport.markers = 0
+            yield transport
+    finally:
+        if peer is not None:
+            peer.shutdown()
 
 
 def run_stream(live: Transport, stream: list) -> None:
     bridge, devices = live.bridge, live.replica
-    before = {d: bridge.present_count(d) for d in DEVICES}
+    before = {d: bridge.present_count(f'{d}/battery_state') for d in DEVICES}
     expected = dict.fromkeys(DEVICES, 0)
     live.markers += 1
     soc = live.markers % 101
@@ -151,20 +142,22 @@ def run_stream(live: Transport, stream: list) -> None:
 
     def settled() -> bool:
         values = bridge.bus_values()
-        return (all(bridge.present_count(d) - before[d] == expected[d] for d in DEVICES)
+        return (all(bridge.present_count(f'{d}/battery_state') - before[d] == expected[d]
+                    for d in DEVICES)
                 and values.get('malformed frames') == malformed
                 and (live.peer is not None
                      or values.get('error frames') == str(live.errors_sent)))
     try:
         bridge.wait(settled, 10, 'every primary frame published and every bad one counted')
     except AssertionError:
-        got = {d: bridge.present_count(d) - before[d] for d in DEVICES}
+        got = {d: bridge.present_count(f'{d}/battery_state') - before[d] for d in DEVICES}
         raise AssertionError(f'published {got}, expected {expected}; diagnostics '
                              f'{bridge.bus_values()}, malformed expected {malformed}')
     assert bridge.failures == []
     assert bridge.node.can_io.status().callback_errors == 0
     with bridge.lock:
-        new = {d: [m for m in bridge.battery[d] if m.present][before[d]:] for d in DEVICES}
+        new = {d: [m for m in bridge.msgs[f'{d}/battery_state'] if m.present][before[d]:]
+               for d in DEVICES}
     for device, messages in new.items():
         for msg in messages:
             assert unphysical(msg) == [], (device, unphysical(msg))
