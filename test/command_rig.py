@@ -12,6 +12,7 @@ import itertools
 import os
 import threading
 import time
+import traceback
 from typing import Any, Callable, Iterator
 
 import can
@@ -145,6 +146,7 @@ class Rig:
     def _thread_failed(self, args: Any) -> None:
         self.failures.append(f'thread {args.thread.name}: {args.exc_type.__name__}: '
                              f'{args.exc_value}')
+        self._old_hook(args)  # the traceback still reaches stderr
 
     def _run(self) -> None:
         try:
@@ -152,6 +154,7 @@ class Rig:
         except Exception as exc:  # anything out of a callback ends the spin: record it
             if self.context.ok():
                 self.failures.append(f'executor: {type(exc).__name__}: {exc}')
+                traceback.print_exc()  # as an uncaught exception would: to stderr
 
     def _keep(self, topic: str, msg: Any) -> None:
         with self.lock:

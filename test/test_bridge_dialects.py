@@ -9,16 +9,16 @@ from __future__ import annotations
 import pytest
 from sensor_msgs.msg import BatteryState
 
-from test_bridge_node import context, harness, level, values  # noqa: F401 (fixtures)
+from test_bridge_node import level, values
 
 
 def le16(*numbers: int) -> bytes:
     return b''.join((n & 0xFFFF).to_bytes(2, 'little') for n in numbers)
 
 
-def test_sma_pylontech_dialect_through_the_node(harness):  # noqa: F811
-    h = harness({'devices': ['bms'], 'bms.type': 'sma', 'diagnostics_period': 0.2},
-                {'bms/battery_state': BatteryState})
+def test_sma_pylontech_dialect_through_the_node(rig_factory):
+    h = rig_factory({'devices': ['bms'], 'bms.type': 'sma', 'diagnostics_period': 0.2},
+                    topics={'bms/battery_state': BatteryState})
     h.send(0x355, le16(64, 98))
     h.send(0x359, bytes([0b0000_0100, 0, 0, 0b0000_0001, 2]))  # under-voltage alarm,
     h.send(0x35C, bytes([0b1000_0000, 0]))  # charge over-current warning; charge enable only
@@ -33,9 +33,9 @@ def test_sma_pylontech_dialect_through_the_node(harness):  # noqa: F811
     assert (got['charge enable'], got['discharge enable']) == ('yes', 'no')
 
 
-def test_sma_victron_dialect_through_the_node(harness):  # noqa: F811
-    h = harness({'devices': ['sma'], 'diagnostics_period': 0.2},
-                {'sma/battery_state': BatteryState})
+def test_sma_victron_dialect_through_the_node(rig_factory):
+    h = rig_factory({'devices': ['sma'], 'diagnostics_period': 0.2},
+                    topics={'sma/battery_state': BatteryState})
     h.send(0x35A, bytes([0xAA] * 8))  # every condition OK
     h.send(0x370, b'ACME BAT')
     h.send(0x371, b'TERY')
@@ -62,8 +62,8 @@ EVMS3_RUNNING = bytes.fromhex('02 03 E8 0F A0 82 64 41')
 EVMS3_CHARGING_ISOLATION = bytes.fromhex('63 03 E8 0F A0 82 64 41')
 
 
-def test_evms3_chargers_and_balance_through_the_node(harness):  # noqa: F811
-    h = harness({'devices': ['evms3'], 'evms3.bms12_modules': 1, 'diagnostics_period': 0.2})
+def test_evms3_chargers_and_balance_through_the_node(rig_factory):
+    h = rig_factory({'devices': ['evms3'], 'evms3.bms12_modules': 1, 'diagnostics_period': 0.2})
     h.send(30, EVMS3_RUNNING, extended=True)
     h.send(300, bytes([0x0F, 0xD2]), extended=True)  # module 0: balance to 4050 mV
     h.send(0x1806E5F4, bytes([0x0F, 0xC0, 0x00, 0x7D, 0x00, 0, 0, 0]), extended=True)
@@ -84,8 +84,8 @@ def test_evms3_chargers_and_balance_through_the_node(harness):  # noqa: F811
     assert got['module 0 balance target (mV)'] == '4050'
 
 
-def test_evms3_on_11_bit_ids_with_29_bit_chargers(harness):  # noqa: F811
-    h = harness({'devices': ['evms3'], 'evms3.extended_id': False, 'diagnostics_period': 0.2})
+def test_evms3_on_11_bit_ids_with_29_bit_chargers(rig_factory):
+    h = rig_factory({'devices': ['evms3'], 'evms3.extended_id': False, 'diagnostics_period': 0.2})
     h.send(30, EVMS3_CHARGING_ISOLATION, extended=True)  # another node's 29-bit ID 30
     h.send(30, EVMS3_RUNNING, extended=False)
     h.send(0x18FF50E5, bytes([0x0F, 0x93, 0x00, 0x62, 0x00, 0x41]), extended=True)
