@@ -154,6 +154,7 @@ class AmsMaster:
         self._clock = clock
         self._cond = threading.Condition()
         self._send_lock = threading.Lock()  # stop() returns only after an in-flight send
+        self._wake = threading.Event()  # wakes the heartbeat thread before its slot
         self._thread: threading.Thread | None = None
         self._running = False
         self._generation = 0  # a thread from before a stop/start never sends again
@@ -198,6 +199,7 @@ class AmsMaster:
                 self._request.cancelled = reason
                 self._request = None
             self._cond.notify_all()
+        self._wake.set()
         with self._send_lock:
             pass  # a frame being sent right now is on the bus before stop() returns
         if thread is not None and thread is not threading.current_thread():
@@ -210,6 +212,7 @@ class AmsMaster:
             if self._schedule is not None:
                 self._schedule.rebase(self._period, self._clock())
             self._cond.notify_all()
+        self._wake.set()
 
     def set_bank_count(self, bank_count: int) -> None:
         """Set the bank count carried by every following heartbeat."""
@@ -226,22 +229,27 @@ class AmsMaster:
 
     def _run(self, generation: int) -> None:
         while True:
+            # Sleep on an event of the thread's own, not on self._cond: waiting calls take the
+            # condition every few ms, and waking into a held lock makes the heartbeat late.
             with self._cond:
-                while self._alive(generation):
-                    wait = self._schedule.due() - self._clock()
-                    if wait <= 0:
-                        break
-                    self._cond.wait(wait)
                 if not self._alive(generation):
                     return
-                self.stats.missed_slots += self._schedule.take(self._clock())
-                request = self._request
-                command = request.command if request else CarCommand.NO_COMMAND
-                try:
-                    frame = self._encode(int(command), self.bank_count, self.counter)
-                except Exception as exc:  # a bad bank count must not kill the thread
-                    frame = None
-                    self.stats.last_error = f'cannot build the heartbeat: {exc}'
+                now = self._clock()
+                wait = self._schedule.due() - now
+                if wait <= 0:
+                    self.stats.missed_slots += self._schedule.take(now)
+                    request = self._request
+                    command = request.command if request else CarCommand.NO_COMMAND
+                    bank_count, counter = self.bank_count, self.counter
+            if wait > 0:
+                self._wake.wait(wait)
+                self._wake.clear()  # state changes come before set(): re-read it now
+                continue
+            try:
+                frame = self._encode(int(command), bank_count, counter)
+            except Exception as exc:  # a bad bank count must not kill the thread
+                frame = None
+                self.stats.last_error = f'cannot build the heartbeat: {exc}'
             # send outside the condition: a slow bus must not block service calls or abort
             with self._send_lock:
                 if not self._alive(generation):
@@ -291,6 +299,10 @@ class AmsMaster:
         first waited for the bus keeps timeout as the call's total bound.
         """
         command = CarCommand(command)
+        # The AMS view is read outside self._cond (it takes the device lock, which the
+        # receive thread holds while it decodes): the heartbeat thread takes the condition
+        # at every slot and must never wait behind a lock chain.
+        error_seq = self._view().error_seq
         with self._cond:
             if not self._running:
                 return CommandResult(False, f'{command.name} not sent: the heartbeat is not '
@@ -302,41 +314,50 @@ class AmsMaster:
             if current is not None:
                 current.cancelled = 'aborted'
             request = _Request(command, self._clock() if started is None else started,
-                               error_seq_at_start=self._view().error_seq)
+                               error_seq_at_start=error_seq)
             self._request = request
             self._cond.notify_all()
-            return self._wait(request, timeout)
+        return self._wait(request, timeout)
 
     def _wait(self, request: _Request, timeout: float) -> CommandResult:
-        """Wait (holding self._cond between polls) until the request is answered."""
+        """
+        Wait until the request is answered, taking self._cond only between view reads.
+
+        A view read before the condition is taken is at most older than what the condition
+        shows: an AMS status counted as an answer must be newer than the view the heartbeat
+        thread booked after the first carrying frame, so an older view can only answer later,
+        never wrongly.
+        """
         name = request.command.name
         deadline = request.started + timeout
         try:
             while True:
-                if request.cancelled:
-                    return CommandResult(False, f'{name}: {request.cancelled} '
-                                         f'({self._view().describe()})')
                 view = self._view()
-                if request.command in ONE_SHOT and request.carried:
-                    return CommandResult(True, f'{name} sent in the heartbeat with counter '
-                                         f'{request.first_counter}; {view.describe()}')
-                if request.command in TARGETS and request.carried:
-                    answer = self._judge(request, view)
-                    if answer is not None:
-                        return answer
-                now = self._clock()
-                if now >= deadline:
-                    sent = (f'carried in {request.carried} heartbeats' if request.carried
-                            else 'never sent (' + (self.stats.last_error or 'no slot') + ')')
-                    goal = (f'waiting for {TARGETS[request.command].name}'
-                            if request.command in TARGETS else 'waiting to be sent')
-                    return CommandResult(False, f'{name}: timeout after {timeout:g} s {goal}, '
-                                         f'{sent}; {view.describe()}')
-                self._cond.wait(min(POLL_S, deadline - now))
+                with self._cond:
+                    if request.cancelled:
+                        return CommandResult(False, f'{name}: {request.cancelled} '
+                                             f'({view.describe()})')
+                    if request.command in ONE_SHOT and request.carried:
+                        return CommandResult(True, f'{name} sent in the heartbeat with counter '
+                                             f'{request.first_counter}; {view.describe()}')
+                    if request.command in TARGETS and request.carried:
+                        answer = self._judge(request, view)
+                        if answer is not None:
+                            return answer
+                    now = self._clock()
+                    if now >= deadline:
+                        sent = (f'carried in {request.carried} heartbeats' if request.carried
+                                else 'never sent (' + (self.stats.last_error or 'no slot') + ')')
+                        goal = (f'waiting for {TARGETS[request.command].name}'
+                                if request.command in TARGETS else 'waiting to be sent')
+                        return CommandResult(False, f'{name}: timeout after {timeout:g} s '
+                                             f'{goal}, {sent}; {view.describe()}')
+                    self._cond.wait(min(POLL_S, deadline - now))
         finally:
-            request.done = True
-            if self._request is request:
-                self._request = None  # back to NO_COMMAND: nothing lingers after an answer
+            with self._cond:
+                request.done = True
+                if self._request is request:
+                    self._request = None  # back to NO_COMMAND: nothing lingers after an answer
 
     def _judge(self, request: _Request, view: AmsView) -> CommandResult | None:
         target = TARGETS[request.command]
