@@ -112,11 +112,6 @@ class Rig:
         self.capture = Capture(self.channel)
         self.context = rclpy.Context()
         rclpy.init(context=self.context)
-        overrides = {'can.interface': 'virtual', 'can.channel': self.channel, **params}
-        self.node = BridgeNode(
-            context=self.context, namespace=namespace,
-            parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
-        self.hardware_id = self.node.hardware_id
         self.client = rclpy.create_node('command_test_client', namespace=namespace,
                                         context=self.context)
         self.lock = threading.Lock()
@@ -126,6 +121,12 @@ class Rig:
             self.msgs[topic] = []
             self.client.create_subscription(
                 msg_type, topic, lambda m, t=topic: self._keep(t, m), depth)
+        # Subscribed first: a replay starts publishing as soon as the bridge exists.
+        overrides = {'can.interface': 'virtual', 'can.channel': self.channel, **params}
+        self.node = BridgeNode(
+            context=self.context, namespace=namespace,
+            parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
+        self.hardware_id = self.node.hardware_id
         self._spinning = spin
         self.executor = (MultiThreadedExecutor(num_threads=4, context=self.context) if spin
                          else SingleThreadedExecutor(context=self.context))
