@@ -29,7 +29,7 @@ def ns(msg) -> int:
     return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
 
 
-def stamps(rig, name: str) -> list[int]:
+def stamps_of(rig, name: str) -> list[int]:
     """Return the header stamps (ns) of the present battery_state messages of a device."""
     return [ns(m) for m in rig.messages(f'{name}/battery_state') if m.present]
 
@@ -50,12 +50,12 @@ def test_replay_stamps_on_log_time_and_publishes_clock(rig_factory, tmp_path):
     rig.wait(lambda: rig.node.can_io.status().state == 'replay finished', 20.0,
              'the replay to finish')
     want = sum(len(v) for v in reference.values())
-    rig.wait(lambda: sum(len(stamps(rig, name)) for name in DEVICES) >= want, 10.0,
+    rig.wait(lambda: sum(len(stamps_of(rig, name)) for name in DEVICES) >= want, 10.0,
              'every battery_state of the replay')
     time.sleep(0.1)  # the last /clock tick
     rig.close()
     for name in DEVICES:
-        got = [round(s / 1000) for s in stamps(rig, name)]
+        got = [round(s / 1000) for s in stamps_of(rig, name)]
         assert got == [round(s * 1e6) for s, _ in reference[name]], name
     clock = clock_ns(rig)
     with can.LogReader(log) as reader:
@@ -86,17 +86,17 @@ def test_live_bus_time(rig_factory, use_bus_time):
         before = time.time()
         deadline = time.monotonic() + 10.0
         t = 0.0
-        while not stamps(rig, 'ivt_s') and time.monotonic() < deadline:
+        while not stamps_of(rig, 'ivt_s') and time.monotonic() < deadline:
             for frame in sim.tick(t):
                 sender.send(can.Message(arbitration_id=frame.arbitration_id,
                                         is_extended_id=frame.is_extended_id,
                                         data=frame.data, timestamp=frame_time))
             t += 0.01
             time.sleep(0.01)
-        assert stamps(rig, 'ivt_s'), 'no battery_state'
+        assert stamps_of(rig, 'ivt_s'), 'no battery_state'
     finally:
         sender.shutdown()
-    stamp = stamps(rig, 'ivt_s')[0] / 1e9
+    stamp = stamps_of(rig, 'ivt_s')[0] / 1e9
     if use_bus_time:
         assert round(stamp * 1e6) == round(frame_time * 1e6)
     else:
