@@ -19,7 +19,7 @@ Declare = Callable[[str, ParamSpec], Any]
 
 
 class DeviceSet:
-    """Device instances by name, their parameter values and the (id, extended) dispatch."""
+    """Device instances by name (each with its typed configuration) and the dispatch."""
 
     def __init__(self, names: Iterable[str], declare: Declare,
                  clock: Callable[[], float] = time.monotonic) -> None:
@@ -28,7 +28,6 @@ class DeviceSet:
         if len(set(names)) != len(names):
             raise ConfigError(f'devices = {names}: instance names must be unique')
         self.devices: dict[str, Device] = {}
-        self.params: dict[str, dict[str, Any]] = {}
         for name in names:
             self._add(name, declare, clock)
         self._attach_current_sensors()
@@ -78,14 +77,13 @@ class DeviceSet:
         except (ValueError, TypeError) as exc:
             raise ConfigError(f'device {name!r} ({device_type}): {exc}') from None
         self.devices[name] = device
-        self.params[name] = values
 
     def _attach_current_sensors(self) -> None:
         ivts = [n for n, d in self.devices.items() if d.TYPE == 'ivt_s']
         for name, device in self.devices.items():
             if device.TYPE != 'ams':
                 continue
-            wanted = self.params[name].get('current_sensor') or ''
+            wanted = device.config.current_sensor or ''
             if not wanted:
                 if not ivts:
                     continue
@@ -96,4 +94,4 @@ class DeviceSet:
                     + (' or '.join(repr(i) for i in ivts) if ivts else "'' (none configured)")
                     + ' or add it to devices with type ivt_s')
             device.attach_current_sensor(self.devices[wanted])
-            self.params[name]['current_sensor'] = wanted
+            device.configure({'current_sensor': wanted})

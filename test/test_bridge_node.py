@@ -6,6 +6,7 @@ subscriber node receives what the bridge publishes (``rig_factory``, conftest.py
 """
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 import time
@@ -228,7 +229,7 @@ def test_ams_with_ivt_s_current_sensor(rig_factory):
                      'diagnostics_period': 0.2},
                     topics={'ams/battery_state': BatteryState,
                             'shunt/battery_state': BatteryState})
-    assert h.node.device_params['ams']['current_sensor'] == 'shunt'
+    assert h.node.devices['ams'].config.current_sensor == 'shunt'
     h.send(0x522, ivt(1, 0, 398_000))
     h.send(0x527, ivt(6, 0, 7200))
     h.send(0x521, ivt(0, 0, -30_000))  # -30 A on the wire (discharge positive) = charging
@@ -304,15 +305,27 @@ def test_evms3_battery_state_with_bms12_cells(rig_factory):
     assert status.hardware_id == f'virtual:{h.channel}'
 
 
-def test_commander_seam_validates_and_syncs_device_params(rig_factory):
+def test_device_parameters_are_checked_and_applied_by_the_device(rig_factory):
     h = rig_factory({'devices': ['evms3']})
     node = h.node
+    device = node.devices['evms3']
     assert 'evms3' in node.commanders
-    refused = node.set_parameters([Parameter('evms3.config.pack_capacity_ah', value=3)])[0]
-    assert not refused.successful and 'pack_capacity_ah' in refused.reason
-    accepted = node.set_parameters([Parameter('evms3.config.pack_capacity_ah', value=100)])[0]
+    before = device.config
+    # within the declared ROS range (any int[]), refused by the device: 16 values needed
+    refused = node.set_parameters([Parameter('evms3.config.cells_per_module', value=[12])])[0]
+    assert not refused.successful
+    assert refused.reason.startswith('evms3.config.cells_per_module = (12,) refused: allowed 16')
+    assert device.config is before  # a refused set leaves the configuration untouched
+    accepted = node.set_parameters_atomically([
+        Parameter('evms3.config.pack_capacity_ah', value=100),
+        Parameter('evms3.config.balance_mode', value='dynamic')])
     assert accepted.successful, accepted.reason
-    assert node.devices['evms3'].params['config.pack_capacity_ah'] == 100
+    # one atomic set = one new frozen configuration with both values
+    assert (device.config.config_pack_capacity_ah, device.config.config_balance_mode) == \
+        (100, 'dynamic')
+    assert before.config_pack_capacity_ah is None
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        device.config.config_pack_capacity_ah = 1
 
 
 # --- header, stamps, diagnostics on change -------------------------------------------------

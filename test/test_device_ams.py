@@ -164,7 +164,7 @@ def test_banks_beyond_bank_count_warn(clock):
     assert 'set ams.bank_count to 3' in diag.message
     assert device.frames_malformed == 0
     # the node changes the parameter at run time: bank 3 becomes visible
-    device.params['bank_count'] = 3
+    device.configure({'bank_count': 3})
     assert device.battery_report().cell_voltage[56:63] == pytest.approx([3.6] * 7)
 
 
@@ -426,7 +426,8 @@ def test_the_device_builds_its_command_frames_at_its_base_id(clock):
     device = make(clock, base_id=0x400, bank_count=3)
     assert device.heartbeat_frame(2, 3, 7) == Frame(0x405, bytes([0x32, 7]))
     assert device.charger_frame(ChargerStart.START, 0x1234) == Frame(0x410, b'\x01\x12\x34')
-    assert device.charge_current_frame(12.3) == Frame(0x450, bytes([123]))
     assert device.bank_count_frame() == Frame(0x451, bytes([3]))
     with pytest.raises(RefusedCommand, match=r'^ams\.charge_current_a is not set'):
-        device.charge_current_frame(None)
+        device.charge_current_frame()
+    device.configure({'charge_current_a': 12.3})
+    assert device.charge_current_frame() == Frame(0x450, bytes([123]))

@@ -5,6 +5,7 @@ import pytest
 
 from ams_can_bridge.devices.base import Level, PowerSupplyHealth, PowerSupplyStatus
 from ams_can_bridge.devices.bms16 import Bms16Device
+from ams_can_bridge.errors import RefusedCommand
 from ams_can_bridge.protocols.bms16 import Bms16Error
 from helpers import Clock
 
@@ -214,7 +215,10 @@ def test_the_device_builds_its_command_frames_at_its_base_id():
                   warn_current_a=100.0, trip_current_a=200.0, temperature_limit_c=60.0,
                   min_cell_v=3.0, max_cell_v=4.2, hysteresis_v=0.1, balance_v=4.0,
                   shunt_size_a=200)
-    frames = device.config_frames(config)
+    with pytest.raises(RefusedCommand, match=r'12 configuration value\(s\) unset: pack\.config'):
+        device.config_frames()
+    device.configure({'config.' + key: value for key, value in config.items()})
+    frames = device.config_frames()
     assert [f.arbitration_id for f in frames] == [0x204, 0x205]
     assert frames[0].data == bytes([16, 10, 20, 58, 10, 20, 60, 60])
     assert frames[1].data == bytes([84, 2, 80, 2])

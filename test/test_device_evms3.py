@@ -247,5 +247,6 @@ def test_the_device_builds_its_command_frames_and_refuses_an_ack_it_cannot_back(
     assert device.setup_mode_frame(True) == Frame(31, b'\x01', True)
     short = make(clock, extended_id=False)
     assert short.setup_mode_frame(False) == Frame(31, b'\x00', False)
-    assert Evms3Device.optional_config({'balance_mode': 'dynamic'}) == ('balance_v',)
-    assert Evms3Device.optional_config({'balance_mode': 'fixed'}) == ()
+    assert device.optional_config(device.config.replace({'config.balance_mode': 'dynamic'})) \
+        == ('balance_v',)
+    assert device.optional_config(device.config.replace({'config.balance_mode': 'fixed'})) == ()

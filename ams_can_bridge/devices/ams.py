@@ -17,12 +17,14 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Iterable, Mapping
 
-from ams_can_bridge.devices.ams_master import AmsView
+from ams_can_bridge.devices.ams_master import AmsMaster, AmsView
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, Level, ParamSpec,
     PowerSupplyHealth, PowerSupplyStatus)
+from ams_can_bridge.devices.ams_values import diagnostic_values
+from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.protocols import ams as proto
 from ams_can_bridge.errors import RefusedCommand
 from ams_can_bridge.protocols.ams import AmsCodec, AmsError, AmsState
@@ -43,6 +45,10 @@ HEALTH_OF_ERROR = {
 }
 
 
+def _or_one(value: Any) -> Any:
+    return 1 if value is None else value  # unset: one bank (0 is a value, and refused)
+
+
 def _bank_count(value: Any, param: str) -> int:
     """Validate the bank_count parameter called param (int 1..5; 3.0 from YAML is 3)."""
     try:
@@ -54,10 +60,6 @@ def _bank_count(value: Any, param: str) -> int:
         raise ValueError(f'{param} = {value!r}: allowed 1..{proto.MAX_BANKS} '
                          '(banks of 28 cells)')
     return count
-
-
-def _fmt(value: float, digits: int = 3) -> str:
-    return 'unknown' if value != value else f'{value:.{digits}f}'
 
 
 class _Array:
@@ -115,13 +117,13 @@ class AmsDevice(Device):
                   'unset refuses the call', low=0.0, high=25.5, step=0.1, read_only=False),
     ]
 
-    def __init__(self, name: str, params: Mapping[str, Any],
+    def __init__(self, name: str, config: DeviceConfig | Mapping[str, Any],
                  clock: Callable[[], float] = time.monotonic) -> None:
-        super().__init__(name, params, clock)
-        base_id = self.params.get('base_id')
+        super().__init__(name, config, clock)
+        base_id = self.config.base_id
         self.codec = AmsCodec(proto.DEFAULT_BASE_ID if base_id is None else int(base_id))
-        banks = self.params.get('bank_count')
-        self._banks = _bank_count(1 if banks is None else banks, f'{name}.bank_count')
+        self.bank_count = _bank_count(_or_one(self.config.bank_count), f'{name}.bank_count')
+        self.master: AmsMaster | None = None  # the car's side, made by attach_master()
         self.current_sensor: Any = None  # an IvtSDevice, attached by the node
         self.state = AmsState.NOT_REPORTED
         self.status_seq = 0
@@ -146,6 +148,18 @@ class AmsDevice(Device):
         self._discharge = _Array(proto.DISCHARGE_TEMPS_PER_GROUP, proto.TEMP_GROUPS)
 
     # --- the frames the command services send (built here, on the device's own codec) --------
+    def attach_master(self, send: Callable[[Frame], tuple[bool, str]]) -> AmsMaster:
+        """
+        Make this AMS's master (heartbeat, car commands; stopped) sending through ``send``.
+
+        The master follows ``heartbeat_period`` and ``bank_count`` on every configure().
+        """
+        config = self.config
+        self.master = AmsMaster(self.heartbeat_frame, send, self.master_view,
+                                period=float(config.heartbeat_period or 0.05),
+                                bank_count=self.bank_count)
+        return self.master
+
     def heartbeat_frame(self, command: int, bank_count: int, counter: int) -> Frame:
         """Build the car status (base + 0x005) the AMS master sends as its heartbeat."""
         return self.codec.encode(proto.CarStatus(proto.CarCommand(command), bank_count, counter))
@@ -154,8 +168,9 @@ class AmsDevice(Device):
         """Build a charger command (base + 0x010): start / stop at this time tick."""
         return self.codec.encode(proto.ChargerCommand(start, time_tick))
 
-    def charge_current_frame(self, current_a: float | None) -> Frame:
+    def charge_current_frame(self) -> Frame:
         """Build the charge current override (base + 0x050); RefusedCommand while unset."""
+        current_a = self.config.charge_current_a
         if current_a is None:
             raise RefusedCommand(f'{self.name}.charge_current_a is not set: set it to the '
                                  'charge current in A (0..25.5 in steps of 0.1)')
@@ -184,15 +199,25 @@ class AmsDevice(Device):
         with self.lock:
             self.current_sensor = ivt
 
-    @property
-    def bank_count(self) -> int:
-        """Return the configured bank count (follows ams.bank_count when changed)."""
+    def config_problems(self, config: DeviceConfig,
+                        keys: Iterable[str] | None = None) -> list[str]:
+        """Refuse a bank count the protocol cannot carry (1..5)."""
         try:
-            self._banks = _bank_count(self.params.get('bank_count', self._banks),
-                                      f'{self.name}.bank_count')
-        except ValueError:
-            pass  # the node validates the parameter; keep the last good value
-        return self._banks
+            _bank_count(_or_one(config.bank_count), f'{self.name}.bank_count')
+        except ValueError as exc:
+            return [str(exc)]
+        return []
+
+    def configure(self, changes: Mapping[str, Any]) -> DeviceConfig:
+        """Apply parameter changes; the master follows period and bank count at once."""
+        new = super().configure(changes)
+        if self.master is not None:  # outside the device lock: the master reads the state
+            self.master.set_period(float(new.heartbeat_period or 0.05))
+            self.master.set_bank_count(self.bank_count)
+        return new
+
+    def _reconfigured(self, old: DeviceConfig, new: DeviceConfig) -> None:
+        self.bank_count = _bank_count(_or_one(new.bank_count), f'{self.name}.bank_count')
 
     # --- bus thread ------------------------------------------------------------------------
     def _handle(self, reading: Any, stamp: float) -> bool:
@@ -325,7 +350,7 @@ class AmsDevice(Device):
         status = self._status
         if status is None:
             return DiagnosticReport(Level.STALE, 'no AMS status received yet',
-                                    self._values())
+                                    diagnostic_values(self))
         word = status.status
         errors, warnings = [], []
         if self.state in ERROR_STATES:
@@ -357,62 +382,7 @@ class AmsDevice(Device):
             warnings.append(f'SOC {status.soc_pct} % out of range (shown as unknown)')
         level = Level.ERROR if errors else Level.WARN if warnings else Level.OK
         message = '; '.join([f'{self.state.name}', self._relays_text()] + errors + warnings)
-        return DiagnosticReport(level, message, self._values())
-
-    def _values(self) -> dict[str, str]:
-        values: dict[str, str] = {
-            'state': self.state.name,
-            'status frames': str(self.status_seq),
-            'bank count (configured)': str(self.bank_count),
-            'active errors': self._error_text() or 'none',
-            'last error': (f'{self.last_error.name} at tick {self._last_error_tick}'
-                           if self.last_error else 'none'),
-            'error events': str(self.error_seq),
-            'counter repeats': str(self._stuck_total),
-            'frames lost (counter jumps)': str(self._lost_frames),
-            'frames beyond bank count': str(self._beyond_banks),
-            'current sensor': getattr(self.current_sensor, 'name', '') or 'none',
-        }
-        status = self._status
-        if status is not None:
-            word = status.status
-            for field in ('air_plus', 'air_minus', 'precharge', 'warn_volt', 'warn_temp',
-                          'hvdc_interlock', 'imd_error', 'ams_error'):
-                values[field] = str(getattr(word, field)).lower()
-            values.update({
-                'bank count (AMS)': str(word.bank_count),
-                'volt_min (V)': f'{status.volt_min_v:.2f}',
-                'temp_max (degC)': str(status.temp_max_c),
-                'SOC (%)': str(status.soc_pct),
-                'counter': str(status.counter),
-                'relay error AIR-': str(status.relay_error_air_minus).lower(),
-                'relay error AIR+': str(status.relay_error_air_plus).lower(),
-                'relay error precharge': str(status.relay_error_precharge).lower(),
-            })
-        cells = self._cell_list()
-        known = [c for c in cells if c == c]
-        values['cells received'] = f'{len(known)}/{len(cells)}'
-        if known:
-            values['cell min (V)'] = f'{min(known):.2f}'
-            values['cell max (V)'] = f'{max(known):.2f}'
-            values['cell sum (V)'] = f'{math.fsum(known):.2f}'
-        temps = [t for t in self._temp_list() if t == t]
-        if temps:
-            values['cell temperature min/max (degC)'] = f'{min(temps):g}/{max(temps):g}'
-        charger = self._fresh(proto.AmsChargerStatus)
-        if charger is not None:
-            values['charger status: SOC (%)'] = str(charger.soc_pct)
-            values['charger status: current (A)'] = _fmt(charger.charger_current_a, 1)
-            values['charger status: turn on charger'] = str(charger.charger_on).lower()
-        car = self._fresh(proto.CarStatus)
-        if car is not None:
-            values['car status: command'] = car.command.name
-            values['car status: bank count'] = str(car.bank_count)
-            values['car status: counter'] = str(car.counter)
-        command = self._fresh(proto.ChargerCommand)
-        if command is not None:
-            values['charger command'] = f'{command.start.name} at tick {command.time_tick}'
-        return values
+        return DiagnosticReport(level, message, diagnostic_values(self))
 
     def _fresh(self, kind: type) -> Any:
         """Return the last reading of kind (lock held), None if never or not within stale."""

@@ -13,8 +13,9 @@ import math
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Any, Callable, ClassVar, Mapping
+from typing import Any, Callable, ClassVar, Iterable, Mapping
 
+from ams_can_bridge.devices.config import DeviceConfig, make_config_class
 from ams_can_bridge.protocols.common import ProtocolError
 
 NAN = math.nan
@@ -165,19 +166,76 @@ class Device:
     # like PARAMS: the device itself reads some, e.g. a pack capacity or cell counts).
     COMMAND_PARAMS: ClassVar[list[ParamSpec]] = []
 
-    def __init__(self, name: str, params: Mapping[str, Any],
+    # The typed, frozen configuration class of the device type (devices/config.py), built
+    # from device_params() when the subclass is defined.
+    Config: ClassVar[type[DeviceConfig]] = DeviceConfig
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        cls.Config = make_config_class(cls.__name__.removesuffix('Device'), device_params(cls))
+
+    def __init__(self, name: str, config: DeviceConfig | Mapping[str, Any],
                  clock: Callable[[], float] = time.monotonic) -> None:
+        """Check the configuration (ValueError naming every bad value) and set up the state."""
         self.name = name
-        self.params = dict(params)
         self.clock = clock
         self.lock = threading.Lock()
         self.frames_received = 0
         self.frames_malformed = 0
         self.last_malformed: str = ''
         self.last_seen: float | None = None  # clock() of the last valid primary frame
-        self.stale_timeout = float(self.params.get('stale_timeout')
-                                   or 5.0 * self.BROADCAST_PERIOD)
         self.codec: Any = None
+        if not isinstance(config, DeviceConfig):
+            config = self.Config.from_values(config)
+        problems = self.config_problems(config)
+        if problems:
+            raise ValueError('; '.join(problems))
+        self.config = config
+        self._config_changes = 0
+        self.stale_timeout = self._stale_timeout(config)
+
+    # --- configuration ----------------------------------------------------------------------
+    def config_problems(self, config: DeviceConfig,
+                        keys: Iterable[str] | None = None) -> list[str]:
+        """
+        Say what is wrong with a configuration ([] = usable), each naming the parameter.
+
+        ``keys`` limits the check to the values being changed. The ranges ROS declares are
+        checked by the node before; this is what only the device type knows.
+        """
+        return []
+
+    def config_reason(self, key: str, value: Any) -> str | None:
+        """Say why '<name>.<key>' cannot take this value (None = acceptable)."""
+        try:
+            new = self.config.replace({key: value})
+        except (TypeError, ValueError) as exc:
+            return f'{self.name}.{key} = {value!r} refused: {exc}'
+        return '; '.join(self.config_problems(new, [key])) or None
+
+    def configure(self, changes: Mapping[str, Any]) -> DeviceConfig:
+        """
+        Apply parameter changes ({key: value}) as one new configuration, swapped in whole.
+
+        Raises ValueError (naming the parameter) and keeps the old configuration when a
+        value is not usable.
+        """
+        new = self.config.replace(changes)
+        problems = self.config_problems(new, changes)
+        if problems:
+            raise ValueError('; '.join(problems))
+        with self.lock:
+            old, self.config = self.config, new
+            self._config_changes += 1
+            self.stale_timeout = self._stale_timeout(new)
+            self._reconfigured(old, new)
+        return new
+
+    def _reconfigured(self, old: DeviceConfig, new: DeviceConfig) -> None:
+        """Follow a configuration change (lock held); the device types that need it."""
+
+    def _stale_timeout(self, config: DeviceConfig) -> float:
+        return float(config.stale_timeout or 5.0 * self.BROADCAST_PERIOD)
 
     # --- receive side (bus thread) -------------------------------------------------------
     @property
@@ -225,8 +283,8 @@ class Device:
 
     @property
     def revision(self) -> int:
-        """Count every frame taken, valid or not: reports can change only when it does."""
-        return self.frames_received + self.frames_malformed
+        """Count frames taken (valid or not) and configuration changes: reports change then."""
+        return self.frames_received + self.frames_malformed + self._config_changes
 
     # --- executor side ----------------------------------------------------------------
     def is_stale(self) -> bool:
@@ -246,8 +304,9 @@ class Device:
             report = self._battery_report()
         if self.is_stale():
             report = stale_report(report)
-        report.location = str(self.params.get('location', ''))
-        report.serial_number = str(self.params.get('serial_number', ''))
+        config = self.config
+        report.location = config.location or ''
+        report.serial_number = config.serial_number or ''
         return report
 
     def diagnostic_report(self) -> DiagnosticReport:

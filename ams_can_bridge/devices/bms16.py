@@ -13,11 +13,12 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Iterable, Mapping
 
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, ParamSpec,
     PowerSupplyHealth)
+from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
 from ams_can_bridge.devices.sma import sma_values
 from ams_can_bridge.parameters import config_param_specs
 from ams_can_bridge.protocols import bms16 as bms16_proto
@@ -70,11 +71,13 @@ class Bms16Device(Device):
     PARAMS: list[ParamSpec] = []
 
     COMMAND_PARAMS = config_param_specs(bms16_proto.CONFIG_FIELDS)
+    CONFIG = ConfigFields(bms16_proto.CONFIG_FIELDS, bms16_proto.check_config_value)
+    WRITE_HINT = 'set them all: the device has no read-back, a write overwrites every value'
 
-    def __init__(self, name: str, params: Mapping[str, Any],
+    def __init__(self, name: str, config: DeviceConfig | Mapping[str, Any],
                  clock: Callable[[], float] = time.monotonic) -> None:
-        super().__init__(name, params, clock)
-        base_id = self.params.get('base_id')
+        super().__init__(name, config, clock)
+        base_id = self.config.base_id
         self.codec = Bms16FrameCodec(DEFAULT_BASE_ID if base_id is None else int(base_id))
         self.status: Bms16Status | None = None
         self.status_stamp = NAN
@@ -89,9 +92,15 @@ class Bms16Device(Device):
         status = self.status
         return Bms16Error.NONE if status is None else status.error
 
+    def config_problems(self, config: DeviceConfig,
+                        keys: Iterable[str] | None = None) -> list[str]:
+        """Name every config.* value the BMS16 protocol refuses."""
+        return self.CONFIG.problems(self.name, config, keys)
+
     # --- the frames the command services send (built here, on the device's own codec) --------
-    def config_frames(self, values: Mapping[str, Any]) -> list[Frame]:
-        """Build frames base + 4, base + 5 from a complete set of config values."""
+    def config_frames(self) -> list[Frame]:
+        """Build frames base + 4, base + 5 from the configuration now (all values set)."""
+        values = self.CONFIG.complete(self.name, self.config, (), self.WRITE_HINT)
         return self.codec.bms16.config_frames(Bms16Config(**values))
 
     def ack_frame(self) -> Frame:
@@ -108,7 +117,7 @@ class Bms16Device(Device):
 
     def cell_count(self) -> int:
         """Cells from the bms16.config.cells parameter, 16 while that is unset."""
-        cells = self.params.get('config.cells')
+        cells = self.config.config_cells
         if cells is None:
             return MAX_CELLS
         return max(1, min(MAX_CELLS, int(cells)))
@@ -146,7 +155,7 @@ class Bms16Device(Device):
 
     def _battery_report(self) -> BatteryReport:
         report = BatteryReport(cell_voltage=self._fresh_cells()[:self.cell_count()])
-        capacity = self.params.get('config.pack_capacity_ah')
+        capacity = self.config.config_pack_capacity_ah
         if capacity is not None:
             report.capacity = report.design_capacity = float(capacity)
         status = self.status

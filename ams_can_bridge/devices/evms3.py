@@ -14,11 +14,12 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Iterable, Mapping
 
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, Level, ParamSpec,
     PowerSupplyHealth, PowerSupplyStatus)
+from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
 from ams_can_bridge.devices.evms3_readback import ConfigReader, ReadResult, Send
 from ams_can_bridge.parameters import config_param_specs
 from ams_can_bridge.protocols import evms3 as evms3_proto
@@ -107,20 +108,23 @@ class Evms3Device(Device):
                   low=0.1, high=30.0, read_only=False),
     ]
 
-    def __init__(self, name: str, params: Mapping[str, Any],
+    CONFIG = ConfigFields(evms3_proto.CONFIG_FIELDS, evms3_proto.check_config_value)
+    WRITE_HINT = ('set them all, or fill them from the EVMS3 with {0}/read_config: a write '
+                  'overwrites every value')
+
+    def __init__(self, name: str, config: DeviceConfig | Mapping[str, Any],
                  clock: Callable[[], float] = time.monotonic) -> None:
-        super().__init__(name, params, clock)
-        base_id = self.params.get('base_id')
-        self.base_id = self.DEFAULT_BASE_ID if base_id is None else int(base_id)
-        modules = int(self.params.get('bms12_modules') or 0)
+        super().__init__(name, config, clock)
+        config = self.config
+        self.base_id = self.DEFAULT_BASE_ID if config.base_id is None else int(config.base_id)
+        modules = int(config.bms12_modules or 0)
         if not 0 <= modules <= BMS12_MAX_MODULES:
             raise ValueError(f'{name}.bms12_modules = {modules}: allowed 0..16')
         self.bms12_modules = modules
-        extended = self.params.get('extended_id')
+        extended = config.extended_id
         self.codec = Evms3Codec(self.base_id, bms12_modules=modules,
                                 extended_id=True if extended is None else bool(extended))
-        self.module_timeout = max(self.stale_timeout, BMS12_STALE_TIMEOUT)
-        self.charger_timeout = max(self.stale_timeout, CHARGER_STALE_TIMEOUT)
+        self._reconfigured(config, config)
         # charger 1..3 -> (last reading, clock() it came)
         self._charger_commands: dict[int, tuple[ChargerCommand, float]] = {}
         self._charger_status: dict[int, tuple[ChargerStatus, float]] = {}
@@ -130,6 +134,16 @@ class Evms3Device(Device):
         self._current_seen = -math.inf
         self._modules = [_Module() for _ in range(modules)]
         self.reader = ConfigReader(self.lock, self.codec.encode(RequestConfig()))
+
+    # --- configuration ---------------------------------------------------------------------
+    def config_problems(self, config: DeviceConfig,
+                        keys: Iterable[str] | None = None) -> list[str]:
+        """Name every config.* value the EVMS3 protocol refuses."""
+        return self.CONFIG.problems(self.name, config, keys)
+
+    def _reconfigured(self, old: DeviceConfig, new: DeviceConfig) -> None:
+        self.module_timeout = max(self.stale_timeout, BMS12_STALE_TIMEOUT)
+        self.charger_timeout = max(self.stale_timeout, CHARGER_STALE_TIMEOUT)
 
     # --- what the commanding part reads ------------------------------------------------------
     @property
@@ -156,13 +170,20 @@ class Evms3Device(Device):
 
     # --- the frames the command services send (built here, on the device's own codec) --------
     @staticmethod
-    def optional_config(values: Mapping[str, Any]) -> tuple[str, ...]:
+    def optional_config(config: DeviceConfig) -> tuple[str, ...]:
         """Name the config values a write may leave unset: balance_v unless balancing fixed."""
-        return ('balance_v',) if values.get('balance_mode') in ('dynamic', 'off') else ()
+        return ('balance_v',) if config.config_balance_mode in ('dynamic', 'off') else ()
 
-    def config_frames(self, values: Mapping[str, Any]) -> list[Frame]:
-        """Build IDs 32..36 from a complete set of config values; EncodeRangeError if bad."""
-        values = dict(values)
+    def config_frames(self) -> list[Frame]:
+        """
+        Build IDs 32..36 from the configuration now; RefusedCommand naming unset values.
+
+        One configuration object is read once, so a parameter change during the call cannot
+        mix two sets of values into one write.
+        """
+        config = self.config
+        values = self.CONFIG.complete(self.name, config, self.optional_config(config),
+                                      self.WRITE_HINT.format(self.name))
         cells = values.pop('cells_per_module')
         return self.codec.config_frames(Evms3Config.from_mapping(values)) + [
             self.codec.encode(BmsCellNumbers(tuple(cells)))]
@@ -226,13 +247,13 @@ class Evms3Device(Device):
 
     # --- helpers (lock held) -----------------------------------------------------------------
     def _cells_per_module(self) -> list[int]:
-        configured = self.params.get('config.cells_per_module')
+        configured = self.config.config_cells_per_module
         if configured is not None and len(configured) >= self.bms12_modules:
             return [min(int(n), CELLS_PER_BMS12) for n in configured[:self.bms12_modules]]
         return [CELLS_PER_BMS12] * self.bms12_modules
 
     def _capacity_ah(self) -> float:
-        capacity = self.params.get('config.pack_capacity_ah')
+        capacity = self.config.config_pack_capacity_ah
         if capacity is None or isinstance(capacity, bool):
             return NAN
         capacity = float(capacity)

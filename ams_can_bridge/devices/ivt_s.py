@@ -16,6 +16,7 @@ import math
 import time
 from typing import Any, Callable, Mapping
 
+from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, Level, ParamSpec,
     PowerSupplyHealth)
@@ -76,14 +77,15 @@ class IvtSDevice(Device):
                   'discharging either way'),
     ]
 
-    def __init__(self, name: str, params: Mapping[str, Any],
+    def __init__(self, name: str, config: DeviceConfig | Mapping[str, Any],
                  clock: Callable[[], float] = time.monotonic) -> None:
-        super().__init__(name, params, clock)
-        base_id = self.params.get('base_id')
+        super().__init__(name, config, clock)
+        base_id = self.config.base_id
         base_id = DEFAULT_BASE_ID if base_id is None else int(base_id)
-        self.byte_order = str(self.params.get('byte_order') or 'big')
+        self.byte_order = str(self.config.byte_order or 'big')
         self.discharge_positive = _as_bool(f'{name}.discharge_positive',
-                                           self.params.get('discharge_positive', True))
+                                           True if self.config.discharge_positive is None
+                                           else self.config.discharge_positive)
         self.codec = IvtSCodec(base_id, self.byte_order)
         # Wire current/charge -> ROS sign (negative while discharging).
         self._sign = -1.0 if self.discharge_positive else 1.0

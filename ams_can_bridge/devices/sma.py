@@ -23,6 +23,7 @@ import math
 import time
 from typing import Any, Callable, Hashable, Mapping
 
+from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, ParamSpec,
     PowerSupplyHealth)
@@ -176,9 +177,9 @@ class SmaDevice(Device):
     DEFAULT_BASE_ID = None
     PARAMS: list[ParamSpec] = []
 
-    def __init__(self, name: str, params: Mapping[str, Any],
+    def __init__(self, name: str, config: DeviceConfig | Mapping[str, Any],
                  clock: Callable[[], float] = time.monotonic) -> None:
-        super().__init__(name, params, clock)
+        super().__init__(name, config, clock)
         self.codec = SmaCodec()
         self.readings: dict[Hashable, SmaReading] = {}
         self.seen: dict[Hashable, float] = {}  # group key -> clock() of its last frame

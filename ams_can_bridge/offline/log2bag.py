@@ -96,7 +96,7 @@ class Converter:
 
     def _write_device(self, name: str, stamp: float) -> None:
         device = self.devices.devices[name]
-        frame_id = self.devices.params[name].get('frame_id', '')
+        frame_id = self.devices.devices[name].config.frame_id or ''
         self.bag.battery_state(f'/{name}/battery_state', device.battery_report(), frame_id,
                                stamp)
         for suffix, (rows, cols, data) in device.extra_arrays().items():

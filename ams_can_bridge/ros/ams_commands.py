@@ -1,9 +1,10 @@
 """
 AMS services: car commands in the heartbeat (master role) and the charger-role frames.
 
-The heartbeat and the command/wait rules live in ``devices/ams_master.py`` (no ROS); this
-module declares the parameters, offers the services and follows ``commands_enabled``: the
-heartbeat runs exactly while commands are enabled. Service callbacks that wait run in the
+The heartbeat and the command/wait rules live in ``devices/ams_master.py`` (no ROS), the
+master is the AMS device's own (``AmsDevice.attach_master``) and follows its configuration;
+this module offers the services and follows ``commands_enabled``: the heartbeat runs exactly
+while commands are enabled. Service callbacks that wait run in the
 node's reentrant ``service_group`` and only poll the AMS state, so telemetry (other
 callback groups, other executor threads) keeps flowing and ``abort`` can always get in.
 """
@@ -14,7 +15,7 @@ from typing import Any, Callable
 
 from std_srvs.srv import Trigger
 
-from ams_can_bridge.devices.ams_master import AmsMaster, CommandResult
+from ams_can_bridge.devices.ams_master import CommandResult
 from ams_can_bridge.devices.ams import AmsDevice
 from ams_can_bridge.errors import RefusedCommand
 from ams_can_bridge.protocols.ams import CarCommand, ChargerStart
@@ -35,23 +36,14 @@ CAR_COMMANDS = {
 class AmsCommands(Commander):
     """Car-command and charger-role services of one AMS instance."""
 
-    PARAMS = AmsDevice.COMMAND_PARAMS  # declared by the node with the device
-
     def __init__(self, node: Any, device: AmsDevice, name: str) -> None:
-        """Build the codec, the (stopped) master and the services."""
+        """Attach the device's (stopped) master to the bus and offer the services."""
         self.node = node
         self.device = device
         self.name = name
-        values = node.device_params.get(name, {})
-        self.command_timeout = float(values.get('command_timeout') or 2.0)
-        self.charge_current_a = values.get('charge_current_a')
         self._t0 = time.monotonic()  # origin of the charger-command time tick
         # The heartbeat never waits for the bus: a late heartbeat is a wrong heartbeat.
-        self.master = AmsMaster(device.heartbeat_frame,
-                                lambda frame: node.transmit(frame, wait=False),
-                                device.master_view,
-                                period=float(values.get('heartbeat_period') or 0.05),
-                                bank_count=device.bank_count)
+        self.master = device.attach_master(lambda frame: node.transmit(frame, wait=False))
         self._services = []
         for suffix, (command, what) in CAR_COMMANDS.items():
             self._service(suffix, self._car_command(command, what))
@@ -61,33 +53,13 @@ class AmsCommands(Commander):
         self._service('stop_charging', self._charger(
             'stop charging', lambda: device.charger_frame(ChargerStart.STOP, self.time_tick())))
         self._service('set_charge_current', self._charger(
-            'set the charge current', lambda: device.charge_current_frame(self.charge_current_a)))
+            'set the charge current', device.charge_current_frame))
         self._service('override_bank_count', self._charger(
             'override the bank count', device.bank_count_frame))
         if node.commands_enabled:
             self.master.start()
 
     # --- hooks for the node ------------------------------------------------------------
-    def validate_parameter(self, full_name: str, value: Any) -> str | None:
-        """Nothing beyond the declared ranges (the node checks those)."""
-        return None
-
-    def on_parameters_changed(self, changed: dict[str, Any]) -> None:
-        """Follow heartbeat_period, command_timeout, charge_current_a and bank_count."""
-        prefix = self.name + '.'
-        for full_name, value in changed.items():
-            key = full_name[len(prefix):] if full_name.startswith(prefix) else None
-            if key == 'heartbeat_period':
-                self.master.set_period(float(value))
-            elif key == 'command_timeout':
-                self.command_timeout = float(value)
-            elif key == 'charge_current_a':
-                self.charge_current_a = value
-            elif key == 'bank_count':
-                with self.device.lock:
-                    self.device.params['bank_count'] = value
-                self.master.set_bank_count(self.device.bank_count)
-
     def on_commands_enabled(self, enabled: bool) -> None:
         """Start the heartbeat when commands are enabled, stop it (at once) when not."""
         if enabled:
@@ -111,7 +83,8 @@ class AmsCommands(Commander):
 
     def _car_command(self, command: CarCommand, what: str) -> Callable:
         def callback(request: Any, response: Any) -> Any:
-            timeout = self.command_timeout  # the total bound, waiting for the bus included
+            # the total bound, waiting for the bus included
+            timeout = float(self.device.config.command_timeout or 2.0)
             started = time.monotonic()
             if not self.node.commands_enabled:
                 result = CommandResult(False, gate_message(self.node, what))

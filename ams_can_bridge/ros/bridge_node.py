@@ -27,10 +27,10 @@ with the device (``DeviceSet``). A commander may use:
 - ``node.service_group`` for its services, ``node.params`` (ParamRegistry), ``node.devices``.
 
 and the node calls on it the methods of ``ros.commander.Commander`` (its base class):
-``validate_parameter(full_name, value) -> str | None`` before any parameter set (a string
-refuses the set, as its reason); ``on_parameters_changed({full_name: value})`` after a
-successful set; ``on_commands_enabled(enabled)`` when ``commands_enabled`` changes;
-``destroy()`` at shutdown.
+``on_commands_enabled(enabled)`` when ``commands_enabled`` changes; ``destroy()`` at shutdown.
+A device's parameters ``<name>.<key>`` belong to the device: the node asks the device
+(``config_reason``) before a set and applies an accepted set to it (``configure``: a new
+frozen configuration swapped in whole); commanders read ``device.config`` when called.
 """
 from __future__ import annotations
 
@@ -164,7 +164,6 @@ class BridgeNode(Node):
                               "(set can.interface to 'replay', or replay_clock to false)")
         self.device_set = DeviceSet(node['devices'], self.params.declare)
         self.devices = self.device_set.devices
-        self.device_params = self.device_set.params
         self._stale = {name: True for name in self.devices}
         filters = self.device_set.filters
         self._make_publishers()
@@ -266,7 +265,7 @@ class BridgeNode(Node):
                 raise
 
     def _publish_report(self, name: str, report: Any, arrays: dict) -> None:
-        frame_id = self.device_params[name].get('frame_id', '')
+        frame_id = self.devices[name].config.frame_id or ''
         self._publish(self.battery_pubs[name],
                       convert.battery_state(report, frame_id, self._now()))
         for suffix, (rows, cols, data) in arrays.items():
@@ -439,12 +438,9 @@ class BridgeNode(Node):
                     and param.value is True and not self.commands_allowed):
                 reason = arming_refused()
                 self.get_logger().warning(f'refused: {reason}')
-            if reason is None and self._ready:
-                value = self.params.value(param)
-                for commander in self.commanders.values():
-                    reason = commander.validate_parameter(param.name, value)
-                    if reason:
-                        break
+            prefix, _, key = param.name.partition('.')
+            if reason is None and self._ready and prefix in self.devices and key:
+                reason = self.devices[prefix].config_reason(key, self.params.value(param))
             if reason:
                 return SetParametersResult(successful=False, reason=reason)
         return SetParametersResult(successful=True)
@@ -453,12 +449,17 @@ class BridgeNode(Node):
         if not self._ready:
             return
         changed = {p.name: self.params.value(p) for p in parameters}
+        per_device: dict[str, dict[str, Any]] = {}
         for full_name, value in changed.items():
-            # keep device.params in step with '<name>.<key>' (config values, cell counts)
             prefix, _, key = full_name.partition('.')
             if prefix in self.devices and key:
-                self.devices[prefix].params[key] = value
-                self.device_params[prefix][key] = value
+                per_device.setdefault(prefix, {})[key] = value
+        for name, changes in per_device.items():
+            # one new configuration per device and set: an atomic set stays one change
+            try:
+                self.devices[name].configure(changes)
+            except ValueError as exc:  # checked key by key before; only a combination is left
+                self.get_logger().error(f'{name}: configuration change not applied: {exc}')
         if 'commands_enabled' in changed and changed['commands_enabled'] != \
                 self.commands_enabled:
             self.commands_enabled = bool(changed['commands_enabled'])
@@ -475,8 +476,6 @@ class BridgeNode(Node):
                                           'disabled, listen only')
             for commander in self.commanders.values():
                 commander.on_commands_enabled(self.commands_enabled)
-        for commander in self.commanders.values():
-            commander.on_parameters_changed(changed)
 
     # --- shutdown -------------------------------------------------------------------------
     def destroy_node(self) -> None:

@@ -20,11 +20,8 @@ from std_srvs.srv import SetBool, Trigger
 
 from ams_can_bridge.devices.base import Device
 from ams_can_bridge.errors import RefusedCommand
-from ams_can_bridge.protocols import bms16 as bms16_proto
-from ams_can_bridge.protocols import evms3 as evms3_proto
-from ams_can_bridge.protocols.common import ConfigField, EncodeRangeError, Frame
+from ams_can_bridge.protocols.common import EncodeRangeError, Frame
 from ams_can_bridge.ros.commander import Commander
-from ams_can_bridge.ros.config_params import ConfigValues
 
 
 def gate_message(node: Any, what: str) -> str:
@@ -45,36 +42,17 @@ def frame_text(frame: Frame) -> str:
 
 
 class _ZevaCommands(Commander):
-    """Shared plumbing: config values, the gate, all-or-nothing frame sequences, services."""
-
-    FIELDS: tuple[ConfigField, ...] = ()
-    WRITE_HINT = 'set them all: the device has no read-back, a write overwrites every value'
+    """Shared plumbing: the gate, all-or-nothing frame sequences, services."""
 
     def __init__(self, node: Any, device: Device, name: str) -> None:
-        """Load and check the configuration values; raises ParamError naming bad ones."""
+        """Keep the node and the device; the subclass offers the services."""
         self.node = node
         self.device = device
         self.name = name
-        self.config = ConfigValues(name, self.FIELDS, self._check)
-        self.config.load(node.device_params.get(name, {}))
-        self._mirror()
         self._send_lock = threading.Lock()  # one call's frames are never interleaved
-        # A parameter set (executor thread) and a write (service thread) run at once: the
-        # frames of one write come from one complete set of values, never from two.
-        self._config_lock = threading.Lock()
         self._services: list[Any] = []
 
     # --- hooks for the node ------------------------------------------------------------
-    def validate_parameter(self, full_name: str, value: Any) -> str | None:
-        """Refuse an out-of-range / off-step configuration value (reason = allowed range)."""
-        return self.config.reason(full_name, value)
-
-    def on_parameters_changed(self, changed: dict[str, Any]) -> None:
-        """Keep the configuration values (and the device's copy) up to date."""
-        with self._config_lock:
-            self.config.update(changed)
-            self._mirror()
-
     def destroy(self) -> None:
         """Remove the services."""
         for service in self._services:
@@ -82,15 +60,6 @@ class _ZevaCommands(Commander):
         self._services.clear()
 
     # --- helpers -------------------------------------------------------------------------
-    def _check(self, name: str, value: Any) -> Any:
-        raise NotImplementedError
-
-    def _mirror(self) -> None:
-        # the device uses some values (BMS16 cell count, EVMS3 pack capacity for SoC)
-        with self.device.lock:
-            for name, value in self.config.values.items():
-                self.device.params['config.' + name] = value
-
     def _service(self, srv_type: Any, suffix: str, handler: Callable) -> None:
         self._services.append(self.node.create_service(
             srv_type, f'{self.name}/{suffix}', handler,
@@ -107,8 +76,9 @@ class _ZevaCommands(Commander):
         if not self.node.commands_enabled:
             return False, f'{self.name}: {gate_message(self.node, what)}'
         try:
-            with self._config_lock:
-                frames = list(build())  # validation happens here, before anything is sent
+            # Validation happens here, before anything is sent; a device builds a write from
+            # one configuration object, so a parameter set meanwhile cannot mix two sets.
+            frames = list(build())
         except (RefusedCommand, EncodeRangeError, ValueError, TypeError) as exc:
             return False, f'{self.name}: cannot {what}: {exc}; nothing was sent'
         sent = []
@@ -127,26 +97,15 @@ class _ZevaCommands(Commander):
                 sent.append(frame_text(frame))
         return True, f'{self.name}: {what}: sent ' + ', '.join(sent)
 
-    def _require_config(self, optional: Iterable[str] = ()) -> dict[str, Any]:
-        missing = self.config.missing(optional)
-        if missing:
-            raise RefusedCommand(f'{len(missing)} configuration value(s) unset: '
-                                 + ', '.join(missing) + f' ({self.WRITE_HINT.format(self.name)})')
-        return self.config.as_mapping()
-
 
 class Evms3Commands(_ZevaCommands):
     """EVMS3: read_config (51 -> 52..56), write_config (32..36), set_setup_mode (31), ..."""
-
-    FIELDS = evms3_proto.CONFIG_FIELDS
-    WRITE_HINT = ('set them all, or fill them from the EVMS3 with {0}/read_config: a write '
-                  'overwrites every value')
 
     def __init__(self, node: Any, device: Device, name: str) -> None:
         """Create the codec and the services of one EVMS3 instance."""
         super().__init__(node, device, name)
         self._service(Trigger, 'write_config', self._trigger('write the configuration',
-                                                             self._config_frames))
+                                                             device.config_frames))
         self._service(SetBool, 'set_setup_mode', self._set_setup_mode)
         self._service(Trigger, 'acknowledge_error', self._trigger(
             'acknowledge the error', lambda: [device.ack_frame()]))
@@ -154,16 +113,13 @@ class Evms3Commands(_ZevaCommands):
             'reset the SoC', lambda: [device.reset_soc_frame()]))
         self._service(Trigger, 'read_config', self._read_config)
 
-    def _check(self, name: str, value: Any) -> Any:
-        return evms3_proto.check_config_value(name, value)
-
     def _read_config(self, request: Any, response: Any) -> Any:
         response.success, response.message = self._read()
         return response
 
     def _read(self) -> tuple[bool, str]:
-        params = self.node.device_params.get(self.name, {})
-        if not params.get('config_request'):
+        config = self.device.config
+        if not config.config_request:
             return False, (
                 f'{self.name}: read_config refused: {self.name}.config_request is false. ID 51 '
                 'asks the EVMS3 for its configuration, but a ZEVA motor controller takes ID 51 '
@@ -178,7 +134,7 @@ class Evms3Commands(_ZevaCommands):
                 return False, message
             with self._send_lock:
                 return self.node.transmit(frame, wait=False)
-        result = self.device.read_config(send, float(params.get('read_timeout') or 2.0))
+        result = self.device.read_config(send, float(config.read_timeout or 2.0))
         if not result.ok:
             return False, f'{self.name}: read_config failed: {result.error}; nothing was set'
         values = result.readback.parameter_values()
@@ -189,10 +145,6 @@ class Evms3Commands(_ZevaCommands):
                            f'cannot be set: {outcome.reason}; nothing was set')
         return True, (f'{self.name}: read_config: {result.readback.summary()}; set '
                       f'{len(values)} parameters {self.name}.config.*')
-
-    def _config_frames(self) -> list[Frame]:
-        optional = self.device.optional_config(self.config.values)
-        return self.device.config_frames(self._require_config(optional))
 
     def _set_setup_mode(self, request: Any, response: Any) -> Any:
         setup = bool(request.data)
@@ -205,19 +157,14 @@ class Evms3Commands(_ZevaCommands):
 class Bms16Commands(_ZevaCommands):
     """BMS16: write_config (504, 505), acknowledge_error, reset_soc, power_off (506..508)."""
 
-    FIELDS = bms16_proto.CONFIG_FIELDS
-
     def __init__(self, node: Any, device: Device, name: str) -> None:
         """Create the codec and the services of one BMS16 instance."""
         super().__init__(node, device, name)
         self._service(Trigger, 'write_config', self._trigger(
-            'write the configuration', lambda: device.config_frames(self._require_config())))
+            'write the configuration', device.config_frames))
         self._service(Trigger, 'acknowledge_error', self._trigger(
             'acknowledge the error', lambda: [device.ack_frame()]))
         self._service(Trigger, 'reset_soc', self._trigger(
             'reset the SoC', lambda: [device.reset_soc_frame()]))
         self._service(Trigger, 'power_off', self._trigger(
             'power the BMS16 off', lambda: [device.power_off_frame()]))
-
-    def _check(self, name: str, value: Any) -> Any:
-        return bms16_proto.check_config_value(name, value)
