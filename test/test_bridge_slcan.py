@@ -153,7 +153,7 @@ def test_installed_bridge_on_slcan(ros, tmp_path):
         peer.shutdown()
     assert proc.returncode == 0, output
     assert 'Traceback' not in output, output
-    assert 'evms3 (evms3): 0x1E' in output  # startup summary names the devices and IDs
+    assert 'evms3 (evms3): 0x1E' in output, output  # startup summary names the devices and IDs
 
 
 def test_bridge_exits_2_on_bad_parameters(tmp_path):
