@@ -78,11 +78,6 @@ class Capture:
                 if (arbitration_id is None or f.arbitration_id == arbitration_id)
                 and (extended is None or f.is_extended_id == extended)]
 
-    def wait_for(self, predicate: Callable[[], Any], timeout: float = 5.0,
-                 what: str = 'frames on the bus') -> Any:
-        """Wait like the one helper in helpers.py (an AssertionError on timeout)."""
-        return wait_for(predicate, timeout, what)
-
 
 class Rig:
     """

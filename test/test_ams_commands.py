@@ -29,7 +29,7 @@ def with_ams(rig_factory):
         runner.start()
         rig = rig_factory(ams_params(**params), channel=channel)
         device = rig.node.devices['ams']
-        assert rig.capture.wait_for(lambda: device.master_view().state == 1), 'no AMS IDLE'
+        assert rig.wait(lambda: device.master_view().state == 1), 'no AMS IDLE'
         return rig, sim
     yield make
     for runner in runners:
@@ -65,7 +65,7 @@ def test_start_and_stop_charging_carry_start_and_a_millisecond_tick(rig_factory)
     time.sleep(0.3)
     second = rig.call(Trigger, '/ams/stop_charging')
     assert second.success, second.message
-    assert rig.capture.wait_for(lambda: len(commands_sent(rig, mark)) >= 2)
+    assert rig.wait(lambda: len(commands_sent(rig, mark)) >= 2)
     (id1, d1), (id2, d2) = commands_sent(rig, mark)
     assert (id1, id2) == (0x310, 0x310) and len(d1) == len(d2) == 3
     assert d1[0] == 1 and d2[0] == 2  # 1 = start, 2 = stop
@@ -78,7 +78,7 @@ def test_set_charge_current_and_override_bank_count(rig_factory):
     mark = rig.capture.mark()
     assert rig.call(Trigger, '/ams/set_charge_current').success
     assert rig.call(Trigger, '/ams/override_bank_count').success
-    assert rig.capture.wait_for(lambda: len(commands_sent(rig, mark)) >= 2)
+    assert rig.wait(lambda: len(commands_sent(rig, mark)) >= 2)
     assert commands_sent(rig, mark) == [(0x350, bytes([125])), (0x351, bytes([3]))]
 
 
@@ -111,7 +111,7 @@ def test_state_command_times_out_when_no_ams_answers(rig_factory):
     assert 1 in commands  # ENABLE_SC was carried while waiting
     last = max(i for i, c in enumerate(commands) if c == 1)
     n = len(commands)
-    assert rig.capture.wait_for(lambda: len(heartbeat_commands(rig, mark)) >= n + 3)
+    assert rig.wait(lambda: len(heartbeat_commands(rig, mark)) >= n + 3)
     assert set(heartbeat_commands(rig, mark)[last + 1:]) == {0}  # back to NO_COMMAND
 
 
@@ -122,7 +122,7 @@ def test_one_shot_commands_answer_once_carried(rig_factory):
         response = rig.call(Trigger, f'/ams/{service}')
         assert response.success, response.message
         assert 'sent in the heartbeat' in response.message
-    assert rig.capture.wait_for(lambda: len(heartbeat_commands(rig, mark)) >= 20)
+    assert rig.wait(lambda: len(heartbeat_commands(rig, mark)) >= 20)
     commands = heartbeat_commands(rig, mark)
     assert commands.count(5) == 1 and commands.count(6) == 1
     frames = rig.capture.since(mark, HEARTBEAT)
@@ -156,7 +156,7 @@ def test_ams_error_answers_failure_with_state_and_error_names(with_ams):
     rig, sim = with_ams(precharge_time=10.0)
     assert rig.call(Trigger, '/ams/enable_sc').success
     call = rig.call_in_thread(Trigger, '/ams/enable_ts')
-    assert rig.capture.wait_for(lambda: sim.state.name == 'PRECHARGING')
+    assert rig.wait(lambda: sim.state.name == 'PRECHARGING')
     sim.faults.error_code = 15  # PRE_TIMEOUT
     call['thread'].join(5)
     response = call['response']
@@ -170,7 +170,7 @@ def test_abort_during_a_waiting_enable_ts(with_ams):
     assert rig.call(Trigger, '/ams/enable_sc').success
     mark = rig.capture.mark()
     call = rig.call_in_thread(Trigger, '/ams/enable_ts')
-    assert rig.capture.wait_for(lambda: sim.state.name == 'PRECHARGING')
+    assert rig.wait(lambda: sim.state.name == 'PRECHARGING')
     abort = rig.call(Trigger, '/ams/abort')
     call['thread'].join(5)
     assert abort.success and 'AMS reports IDLE' in abort.message, abort.message
@@ -184,7 +184,7 @@ def test_abort_during_a_waiting_enable_ts(with_ams):
     assert 2 not in commands[first_abort:]
     assert sim.state.name == 'IDLE'
     n = len(commands)
-    assert rig.capture.wait_for(lambda: len(heartbeat_commands(rig, mark)) >= n + 3)
+    assert rig.wait(lambda: len(heartbeat_commands(rig, mark)) >= n + 3)
     assert heartbeat_commands(rig, mark)[-1] == 0  # ABORT ends once IDLE was reported
 
 
@@ -207,7 +207,7 @@ def test_telemetry_flows_while_a_command_waits(with_ams):
                 diag_stamps.append(time.monotonic())
     rig.client.create_subscription(BatteryState, '/ams/battery_state', on_msg, 50)
     rig.client.create_subscription(DiagnosticArray, '/diagnostics', on_diag, 50)
-    assert rig.capture.wait_for(lambda: len(stamps) >= 2 and len(diag_stamps) >= 1)
+    assert rig.wait(lambda: len(stamps) >= 2 and len(diag_stamps) >= 1)
     assert rig.call(Trigger, '/ams/enable_sc').success
     t0 = time.monotonic()
     response = rig.call(Trigger, '/ams/enable_ts')  # waits in PRECHARGING until the timeout

@@ -41,7 +41,7 @@ def heartbeats(rig, mark=0):
 
 
 def wait_carried(rig, command, mark=0):
-    assert rig.capture.wait_for(lambda: any(c == command for _, c, _ in heartbeats(rig, mark)))
+    assert rig.wait(lambda: any(c == command for _, c, _ in heartbeats(rig, mark)))
 
 
 def test_bus_off_during_a_waiting_enable_ts_and_an_active_heartbeat(rig_factory):
@@ -58,7 +58,7 @@ def test_bus_off_during_a_waiting_enable_ts_and_an_active_heartbeat(rig_factory)
     assert 'will not be sent later' in response.message
     mark_down = rig.capture.mark()
     before = heartbeats(rig)
-    assert rig.capture.wait_for(
+    assert rig.wait(
         lambda: rig.node.can_io.status().reconnects >= 1 and len(heartbeats(rig, mark_down)) >= 5)
     after = heartbeats(rig, mark_down)
     # no stale ENABLE_TS when the bus returns; the counter goes on from the last frame sent
@@ -82,7 +82,7 @@ def test_abort_during_a_waiting_enable(rig_factory, service, command):
     assert sent[first_abort - 1] == command  # replaced in the very next heartbeat
     assert command not in sent[first_abort:]
     n = len(sent)
-    assert rig.capture.wait_for(lambda: len(heartbeats(rig)) >= n + 3)
+    assert rig.wait(lambda: len(heartbeats(rig)) >= n + 3)
     assert command not in [c for _, c, _ in heartbeats(rig)][first_abort:]
 
 
@@ -109,7 +109,7 @@ def test_commands_disabled_while_waiting_for_the_bus(rig_factory, tmp_path):
                       wait_connected=False)
     call = rig.call_in_thread(Trigger, '/bms16/reset_soc')
     # the call is waiting for the bus once it holds one of the node's bus-wait slots
-    assert rig.capture.wait_for(lambda: rig.node._bus_waits._value < BUS_WAIT_SLOTS)
+    assert rig.wait(lambda: rig.node._bus_waits._value < BUS_WAIT_SLOTS)
     assert rig.set_param('commands_enabled', False).successful
     call['thread'].join(3)
     assert 'response' in call, 'the call kept waiting for the bus after the switch'
@@ -143,7 +143,7 @@ def test_concurrent_zeva_calls_never_interleave_their_frames(rig_factory):
     for writer in calls:
         writer['thread'].join(5)
         assert writer['response'].success, writer['response'].message
-    assert rig.capture.wait_for(lambda: len(rig.capture.since(0)) >= 30)
+    assert rig.wait(lambda: len(rig.capture.since(0)) >= 30)
     ids = [f.arbitration_id for _, f in rig.capture.since(0)]
     assert ids.count(504) == ids.count(505) == ids.count(507) == 10
     assert all(ids[i + 1] == 505 for i, can_id in enumerate(ids) if can_id == 504), ids
@@ -186,7 +186,7 @@ def test_config_changes_during_write_config_send_one_consistent_set(rig_factory)
         stop.set()
         flipper.join(5)
         sys.setswitchinterval(interval)
-    assert rig.capture.wait_for(lambda: len(rig.capture.since(0)) >= 75)
+    assert rig.wait(lambda: len(rig.capture.since(0)) >= 75)
     sent = [bytes(f.data) for _, f in rig.capture.since(0)]
     groups = [tuple(sent[i:i + 5]) for i in range(0, len(sent), 5)]
     assert len(groups) == 15
@@ -208,9 +208,9 @@ def test_commands_waiting_for_a_down_bus_leave_telemetry_and_disarming_running(
     rig.client.create_subscription(
         DiagnosticArray, '/diagnostics', lambda m: arrays.append(time.monotonic()) if any(
             s.hardware_id == rig.node.hardware_id for s in m.status) else None, 50)
-    assert rig.capture.wait_for(lambda: len(arrays) >= 2)
+    assert rig.wait(lambda: len(arrays) >= 2)
     calls = [rig.call_in_thread(Trigger, '/bms16/reset_soc') for _ in range(6)]
-    assert rig.capture.wait_for(lambda: sum('response' in c for c in calls) >= 4)
+    assert rig.wait(lambda: sum('response' in c for c in calls) >= 4)
     # 4 answered at once; 2 wait for the bus, each holding an executor thread
     refused = [c['response'].message for c in calls if 'response' in c]
     assert all('2 commands already wait for it' in m for m in refused), refused

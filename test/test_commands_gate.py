@@ -52,8 +52,7 @@ def test_heartbeat_period_and_counter_and_run_time_gate(rig_factory):
     time.sleep(0.2)
     assert rig.capture.since(0) == []
     assert rig.set_param('commands_enabled', True).successful
-    assert rig.capture.wait_for(lambda: len(rig.capture.since(0, HEARTBEAT_ID)) >= 300,
-                                timeout=20)
+    assert rig.wait(lambda: len(rig.capture.since(0, HEARTBEAT_ID)) >= 300, timeout=20)
     frames = rig.capture.since(0, HEARTBEAT_ID)
     counters = [f.data[1] for _, f in frames]
     assert all((b - a) & 0xFF == 1 for a, b in zip(counters, counters[1:])), counters
@@ -73,7 +72,7 @@ def test_heartbeat_period_and_counter_and_run_time_gate(rig_factory):
     assert rig.capture.since(mark) == []
     # on again: heartbeats again, the counter continues exactly where it stopped
     assert rig.set_param('commands_enabled', True).successful
-    assert rig.capture.wait_for(lambda: len(rig.capture.since(mark)) >= 3)
+    assert rig.wait(lambda: len(rig.capture.since(mark)) >= 3)
     again = [f.data[1] for _, f in rig.capture.since(mark, HEARTBEAT_ID)]
     assert again[:3] == [(last_sent + k) & 0xFF for k in (1, 2, 3)], (last_sent, again)
 
@@ -81,11 +80,11 @@ def test_heartbeat_period_and_counter_and_run_time_gate(rig_factory):
 def test_period_and_bank_count_follow_parameters(rig_factory):
     rig = rig_factory({'devices': ['ams'], 'commands_allowed': True, 'commands_enabled': True,
                        'ams.heartbeat_period': 0.2})
-    assert rig.capture.wait_for(lambda: len(rig.capture.since(0)) >= 1)
+    assert rig.wait(lambda: len(rig.capture.since(0)) >= 1)
     assert rig.set_param('ams.heartbeat_period', 0.01).successful
     assert rig.set_param('ams.bank_count', 5).successful
     mark = rig.capture.mark()
-    assert rig.capture.wait_for(lambda: len(rig.capture.since(mark)) >= 50, timeout=10)
+    assert rig.wait(lambda: len(rig.capture.since(mark)) >= 50, timeout=10)
     times = [t for t, _ in rig.capture.since(mark)]
     assert statistics.median(b - a for a, b in zip(times, times[1:])) < 0.2 / 2  # new period
     assert rig.capture.since(mark)[-1][1].data[0] == 0x50

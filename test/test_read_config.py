@@ -98,7 +98,7 @@ def test_read_config_sets_every_value_then_write_sends_back_the_same_frames(
     mark = rig.capture.mark()
     response = rig.call(Trigger, WRITE)
     assert response.success, response.message
-    assert rig.capture.wait_for(lambda: len(frames(rig, mark, set(range(32, 37)))) == 5)
+    assert rig.wait(lambda: len(frames(rig, mark, set(range(32, 37)))) == 5)
     written = frames(rig, mark, set(range(32, 37)))
     assert [(i + 20, data) for i, data in written] == read  # exactly the frames read
 
@@ -115,7 +115,7 @@ def test_factory_settings_round_trip_with_dynamic_balancing(rig_factory, evms3_o
     read = frames(rig, mark, set(range(52, 57)))
     mark = rig.capture.mark()
     assert rig.call(Trigger, WRITE).success
-    assert rig.capture.wait_for(lambda: len(frames(rig, mark, set(range(32, 37)))) == 5)
+    assert rig.wait(lambda: len(frames(rig, mark, set(range(32, 37)))) == 5)
     assert [(i + 20, d) for i, d in frames(rig, mark, set(range(32, 37)))] == read
 
 

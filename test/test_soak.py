@@ -122,7 +122,7 @@ def test_soak(rig_factory):
     assert all('2 commands already wait for it' in m for m in failed), failed
     done = sum(a.success for a in answers)
     assert done >= len(answers) // 2, failed
-    assert capture.wait_for(lambda: len(capture.since(0, RESET_SOC)) == done, timeout=5)
+    assert bridge.wait(lambda: len(capture.since(0, RESET_SOC)) == done, timeout=5)
     with bridge.lock:
         present = [m for d in DEVICES for m in bridge.msgs[f'{d}/battery_state'] if m.present]
     assert [unphysical(m) for m in present if unphysical(m)] == []

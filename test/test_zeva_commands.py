@@ -40,7 +40,7 @@ def test_bms16_write_config_sends_504_then_505(rig_factory):
     mark = rig.capture.mark()
     response = rig.call(Trigger, '/bms16/write_config')
     assert response.success, response.message
-    assert rig.capture.wait_for(lambda: len(sent(rig, mark)) >= 2)
+    assert rig.wait(lambda: len(sent(rig, mark)) >= 2)
     assert sent(rig, mark) == [(504, BMS16_504, False), (505, BMS16_505, False)]
 
 
@@ -51,7 +51,7 @@ def test_bms16_commands_without_data(rig_factory, service, can_id):
     mark = rig.capture.mark()
     response = rig.call(Trigger, f'/bms16/{service}')
     assert response.success, response.message
-    assert rig.capture.wait_for(lambda: sent(rig, mark))
+    assert rig.wait(lambda: sent(rig, mark))
     assert sent(rig, mark) == [(can_id, b'', False)]
 
 
@@ -82,7 +82,7 @@ def test_bms16_config_refuses_out_of_range_and_off_step_values(rig_factory):
     assert rig.set_param('bms16.config.min_cell_v', 3).successful  # int for a float: fine
     mark = rig.capture.mark()
     assert rig.call(Trigger, '/bms16/write_config').success
-    assert rig.capture.wait_for(lambda: len(sent(rig, mark)) >= 2)
+    assert rig.wait(lambda: len(sent(rig, mark)) >= 2)
     assert sent(rig, mark)[0][1][7] == 60  # the new 3 V min cell, 0.05 V/bit
 
 
@@ -140,7 +140,7 @@ def test_evms3_write_config_sends_32_to_36_in_order(rig_factory):
     mark = rig.capture.mark()
     response = rig.call(Trigger, '/evms3/write_config')
     assert response.success, response.message
-    assert rig.capture.wait_for(lambda: len(sent(rig, mark)) >= 5)
+    assert rig.wait(lambda: len(sent(rig, mark)) >= 5)
     assert sent(rig, mark) == [(i, data, True) for i, data in EVMS3_FRAMES]
 
 
@@ -150,7 +150,7 @@ def test_evms3_dynamic_balancing_needs_no_balance_voltage(rig_factory):
     mark = rig.capture.mark()
     response = rig.call(Trigger, '/evms3/write_config')
     assert response.success, response.message
-    assert rig.capture.wait_for(lambda: len(sent(rig, mark)) >= 5)
+    assert rig.wait(lambda: len(sent(rig, mark)) >= 5)
     assert sent(rig, mark)[1][1][7] == 251
 
 
@@ -181,7 +181,7 @@ def test_evms3_config_refusals_name_the_allowed_range(rig_factory):
     assert rig.set_param('evms3.config.full_voltage_v', 402).successful  # 402 = 201 x 2 V
     mark = rig.capture.mark()
     assert rig.call(Trigger, '/evms3/write_config').success
-    assert rig.capture.wait_for(lambda: len(sent(rig, mark)) >= 5)
+    assert rig.wait(lambda: len(sent(rig, mark)) >= 5)
     assert sent(rig, mark)[0][1][2] == 201
 
 
@@ -191,7 +191,7 @@ def test_evms3_set_setup_mode(rig_factory, data, payload):
     mark = rig.capture.mark()
     response = rig.call(SetBool, '/evms3/set_setup_mode', data=data)
     assert response.success, response.message
-    assert rig.capture.wait_for(lambda: sent(rig, mark))
+    assert rig.wait(lambda: sent(rig, mark))
     assert sent(rig, mark) == [(31, payload, True)]
 
 
@@ -199,7 +199,7 @@ def test_evms3_reset_soc(rig_factory):
     rig = rig_factory(evms3_params(config={}))
     mark = rig.capture.mark()
     assert rig.call(Trigger, '/evms3/reset_soc').success
-    assert rig.capture.wait_for(lambda: sent(rig, mark))
+    assert rig.wait(lambda: sent(rig, mark))
     assert sent(rig, mark) == [(38, b'', True)]
 
 
@@ -209,15 +209,15 @@ def test_evms3_acknowledge_error_sends_the_error_reported_now(rig_factory):
     response = rig.call(Trigger, '/evms3/acknowledge_error')  # nothing heard yet: stale
     assert not response.success and 'stale' in response.message
     evms3_status(rig, state=2, error=0)
-    assert rig.capture.wait_for(lambda: rig.node.devices['evms3'].error is not None)
+    assert rig.wait(lambda: rig.node.devices['evms3'].error is not None)
     response = rig.call(Trigger, '/evms3/acknowledge_error')
     assert not response.success and 'no error' in response.message
     assert sent(rig, mark) == []
     evms3_status(rig, state=4, error=3)  # stopped, overcurrent shutdown
-    assert rig.capture.wait_for(lambda: int(rig.node.devices['evms3'].error) == 3)
+    assert rig.wait(lambda: int(rig.node.devices['evms3'].error) == 3)
     response = rig.call(Trigger, '/evms3/acknowledge_error')
     assert response.success, response.message
-    assert rig.capture.wait_for(lambda: sent(rig, mark))
+    assert rig.wait(lambda: sent(rig, mark))
     assert sent(rig, mark) == [(37, b'\x03', True)]
 
 
