@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from std_srvs.srv import Trigger
 
+from helpers import wait_for
 from slcan_peer import SlcanPeer
 
 BMS16_RESET_SOC = 507
@@ -37,11 +38,13 @@ def test_command_called_as_its_service_appears_succeeds_once_the_bus_opens(
         sync['thread'].join(10)
         assert response.success, response.message
         assert sync['response'].success, sync['response'].message
-        frames = peer.wait_received(1)
-        assert any(f.arbitration_id == BMS16_RESET_SOC for f in frames)
+        # (an answer means written to the adapter; the peer reads the pty a moment later)
+        wait_for(lambda: any(f.arbitration_id == BMS16_RESET_SOC for f in peer.received()),
+                 5.0, 'the reset_soc frame at the adapter')
         # the heartbeat carried SYNC_TIME (6 in the low nibble of byte 0) exactly once
-        synced = [f for f in peer.wait_received(1)
-                  if f.arbitration_id == AMS_HEARTBEAT and f.data[0] & 0x0F == 6]
+        synced = wait_for(lambda: [f for f in peer.received() if f.arbitration_id ==
+                                   AMS_HEARTBEAT and f.data[0] & 0x0F == 6],
+                          5.0, 'SYNC_TIME in a heartbeat at the adapter')
         assert len(synced) == 1, synced
 
 
