@@ -30,7 +30,7 @@ setup(
         'console_scripts': [
             'bridge = ams_can_bridge.ros.bridge_main:main',
             'simulator = ams_can_bridge.sim.main:main',
-            'demo = ams_can_bridge.demo:main',
+            'demo = ams_can_bridge.ros.demo:main',
             'log2bag = ams_can_bridge.offline.log2bag:main',
         ],
     },

@@ -175,3 +175,17 @@ def load_dbc_strictly(path: str, caplog: Any) -> tuple[Any, Any]:
             matrix = canmatrix.formats.loadp_flat(path)
     assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
     return db, matrix
+
+
+def run_sim(sim: Any, device: Any, seconds: float, step: float = 0.05,
+            start: float = 0.0) -> list:
+    """Tick a simulator for ``seconds`` and feed every frame to the device; return the frames."""
+    frames = []
+    t = start
+    while t < start + seconds - 1e-9:
+        for frame in sim.tick(t):
+            frames.append(frame)
+            if device is not None:
+                device.handle_frame(frame.arbitration_id, frame.data, t)
+        t += step
+    return frames

@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from ams_can_bridge.demo_view import (
+from ams_can_bridge.ros.demo_view import (
     cell_range, COLUMNS, DeviceRow, fmt_uptime, level_name, render, View)
 
 NAN = math.nan

@@ -20,7 +20,7 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import get_typestore, Stores
 import yaml
 
-from ams_can_bridge.demo_rig import build_simulators, device_parameters, DEVICES
+from ams_can_bridge.ros.demo_rig import build_simulators, device_parameters, DEVICES
 from ams_can_bridge.offline.log2bag import convert, main, Progress
 from ams_can_bridge.sim.recording import write_log
 from helpers import device_reference, same, values_of

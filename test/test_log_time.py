@@ -14,7 +14,7 @@ import pytest
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 
-from ams_can_bridge.demo_rig import build_simulators, device_parameters, DEVICES
+from ams_can_bridge.ros.demo_rig import build_simulators, device_parameters, DEVICES
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.ros.bridge_node import BridgeNode
 from ams_can_bridge.sim.recording import write_log

@@ -9,7 +9,8 @@ import pytest
 
 from ams_can_bridge.protocols.common import Frame, MalformedFrameError, msg_defs_dir
 from ams_can_bridge.protocols.evms3 import (
-    ConfigReadback, ConfigReport, Evms3Codec, Evms3Config, RequestConfig)
+    ConfigReadback, ConfigReport, Evms3Codec, RequestConfig)
+from test_protocol_evms3 import GOLDEN_CONFIG
 
 CODEC = Evms3Codec(bms12_modules=2)
 # The same bytes as the 32..35 golden frames of test_protocol_evms3, now on 52..55:
@@ -22,15 +23,7 @@ ANSWER = {
     # module 15 = 15 (high nibble of byte 7)
     56: bytes.fromhex('8C 43 00 00 00 00 00 F0'),
 }
-CONFIG = Evms3Config(
-    pack_capacity_ah=100, soc_warning_pct=20, full_voltage_v=400, warn_current_a=300,
-    trip_current_a=500, temp_warning_c=60, min_aux_voltage_v=11, min_isolation_pct=50,
-    tacho_ppr=2, fuel_gauge_full_pct=90, fuel_gauge_empty_pct=10, temp_gauge_hot_pct=80,
-    temp_gauge_cold_pct=20, bms_min_cell_v=2.8, bms_max_cell_v=3.65, balance_v=3.5,
-    balance_mode='static', bms_hysteresis_v=0.05, bms_min_temp_c=0, bms_max_temp_c=55,
-    max_charge_voltage_v=300, max_charge_current_a=30, alt_charge_voltage_v=250,
-    alt_charge_current_a=10, sleep_delay_min=3, mpi_function=1, mpo1_function=2,
-    mpo2_function=6, parallel_strings=2, enable_precharge=True, stationary_mode=False)
+CONFIG = GOLDEN_CONFIG  # the configuration of test_protocol_evms3, written and read back
 CELLS = (12, 8, 3, 4) + (0,) * 11 + (15,)
 
 

@@ -17,8 +17,8 @@ import time
 import can
 import pytest
 
-from ams_can_bridge.demo_rig import build_simulators, device_parameters
-from ams_can_bridge.demo_rig import DEVICES
+from ams_can_bridge.ros.demo_rig import build_simulators, device_parameters
+from ams_can_bridge.ros.demo_rig import DEVICES
 from ams_can_bridge.sim.runner import SimRunner
 from command_rig import battery_topics, Rig
 from helpers import device_reference, same, values_of

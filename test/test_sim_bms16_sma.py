@@ -13,6 +13,7 @@ from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.sma import SmaCodec, SmaFlag
 from ams_can_bridge.sim.bms16 import Bms16Simulator
 from ams_can_bridge.sim.sma import SmaSimulator
+from helpers import run_sim
 
 CONFIG = Bms16Config(cells=12, pack_capacity_ah=50, soc_warning_pct=20, full_voltage_v=43,
                      warn_current_a=200, trip_current_a=300, temperature_limit_c=60,
@@ -20,25 +21,12 @@ CONFIG = Bms16Config(cells=12, pack_capacity_ah=50, soc_warning_pct=20, full_vol
                      shunt_size_a=200)
 
 
-def run(sim, device, seconds, step=0.05, start=0.0):
-    """Tick the simulator and feed every frame to the device; return the frames."""
-    frames = []
-    t = start
-    while t < start + seconds - 1e-9:
-        for frame in sim.tick(t):
-            frames.append(frame)
-            if device is not None:
-                device.handle_frame(frame.arbitration_id, frame.data, t)
-        t += step
-    return frames
-
-
 def count(frames, frame_id):
     return sum(1 for f in frames if f.arbitration_id == frame_id)
 
 
 def test_bms16_sends_status_cells_and_sma_at_4_hz():
-    frames = run(Bms16Simulator(), None, 10.0)
+    frames = run_sim(Bms16Simulator(), None, 10.0)
     for frame_id in (500, 501, 502, 503, 0x351, 0x355, 0x356, 0x35A):
         assert count(frames, frame_id) == 40
     bms16, sma = Bms16Codec(), SmaCodec()
@@ -50,7 +38,7 @@ def test_bms16_sends_status_cells_and_sma_at_4_hz():
 def test_bms16_soc_follows_the_current_with_both_wire_signs():
     sim = Bms16Simulator(current_fn=lambda t: 50.0, capacity_ah=10.0)
     device = Bms16Device('bms16', {'config.pack_capacity_ah': 10.0})
-    frames = run(sim, device, 36.0)
+    frames = run_sim(sim, device, 36.0)
     assert sim.soc_pct == pytest.approx(75.0, abs=0.1)  # 50 A x 36 s = 0.5 Ah of 10 Ah
     report = device.battery_report()
     assert report.percentage == 0.75
@@ -91,7 +79,7 @@ def test_bms16_error_ack_reset_soc_and_power_off():
     sim = Bms16Simulator(current_fn=lambda t: 0.0)
     device = Bms16Device('bms16', {})
     sim.faults.error_code = 3
-    run(sim, device, 0.5)
+    run_sim(sim, device, 0.5)
     assert device.error == Bms16Error.CHARGE_DISABLED_OVERVOLTAGE
     assert device.battery_report().power_supply_health == PowerSupplyHealth.OVERVOLTAGE
     diag = device.diagnostic_report()
@@ -99,10 +87,10 @@ def test_bms16_error_ack_reset_soc_and_power_off():
     codec = Bms16Codec()
     sim.on_frame(codec.acknowledge_error(), 0.5)
     sim.on_frame(codec.reset_soc(), 0.5)
-    run(sim, device, 0.5, start=0.5)
+    run_sim(sim, device, 0.5, start=0.5)
     assert device.error == Bms16Error.NONE and device.battery_report().percentage == 1.0
     sim.on_frame(codec.power_off(), 1.0)
-    assert run(sim, None, 2.0, start=1.0) == []
+    assert run_sim(sim, None, 2.0, start=1.0) == []
     sim.power_on()
     assert sim.tick(3.0)
 
@@ -113,7 +101,7 @@ def test_bms16_low_soc_warning_from_config():
         sim.on_frame(frame, 0.0)
     sim.soc_pct = 15.0
     device = Bms16Device('bms16', {})
-    run(sim, device, 0.3)
+    run_sim(sim, device, 0.3)
     assert device.error == Bms16Error.LOW_SOC
     assert device.diagnostic_report().level == Level.WARN
 
@@ -121,36 +109,36 @@ def test_bms16_low_soc_warning_from_config():
 def test_bms16_faults_silent_malformed_drift():
     sim = Bms16Simulator(current_fn=lambda t: 0.0)
     sim.faults.silent = True
-    assert run(sim, None, 1.0) == []
+    assert run_sim(sim, None, 1.0) == []
     sim.faults.silent = False
     sim.faults.malformed = True
     device = Bms16Device('bms16', {})
-    frames = run(sim, device, 1.0, start=1.0)
+    frames = run_sim(sim, device, 1.0, start=1.0)
     assert frames and device.frames_received == 0
     assert device.frames_malformed == len(frames)
     sim.faults.malformed = False
     sim.faults.cell_drift_v = 0.3
     sim.faults.drift_cell = 5
-    run(sim, device, 0.3, start=2.0)
+    run_sim(sim, device, 0.3, start=2.0)
     cells = device.battery_report().cell_voltage
     assert cells[5] - max(cells[:5] + cells[6:]) > 0.25
 
 
 def test_simulators_are_deterministic():
     def frames(sim):
-        return run(sim, None, 5.0)
+        return run_sim(sim, None, 5.0)
     assert frames(Bms16Simulator(seed=3)) == frames(Bms16Simulator(seed=3))
     assert frames(Bms16Simulator(seed=3)) != frames(Bms16Simulator(seed=4))
     assert frames(SmaSimulator(seed=1)) == frames(SmaSimulator(seed=1))
 
 
 def test_bms16_without_sma_frames_and_other_base_id():
-    frames = run(Bms16Simulator(base_id=0x100, send_sma=False), None, 1.0)
+    frames = run_sim(Bms16Simulator(base_id=0x100, send_sma=False), None, 1.0)
     assert {f.arbitration_id for f in frames} == {0x100, 0x101, 0x102, 0x103}
 
 
 def test_sma_periods():
-    frames = run(SmaSimulator(), None, 10.0)
+    frames = run_sim(SmaSimulator(), None, 10.0)
     for frame_id in (0x351, 0x355, 0x356, 0x35A):
         assert count(frames, frame_id) == 10
     assert count(frames, 0x35E) == 2 and count(frames, 0x35F) == 2
@@ -159,7 +147,7 @@ def test_sma_periods():
 def test_sma_soc_sign_and_info_reach_the_device():
     sim = SmaSimulator(current_fn=lambda t: 50.0, capacity_ah=10.0, manufacturer='ACME')
     device = SmaDevice('sma', {})
-    run(sim, device, 37.0)
+    run_sim(sim, device, 37.0)
     report = device.battery_report()
     assert report.percentage == pytest.approx(0.75, abs=0.002)
     assert report.current == -50.0
@@ -170,7 +158,7 @@ def test_sma_soc_sign_and_info_reach_the_device():
     assert values['manufacturer'] == 'ACME' and values['soh %'] == '100'
     assert values['alarm contactor'] == 'NOT_SUPPORTED' and values['alarm general'] == 'OK'
     sim.current_fn = lambda t: -20.0
-    run(sim, device, 1.0, start=37.0)
+    run_sim(sim, device, 1.0, start=37.0)
     assert device.battery_report().current == 20.0
 
 
@@ -179,23 +167,23 @@ def test_sma_faults_alarm_warning_drift_malformed_silent():
     device = SmaDevice('sma', {})
     sim.faults.extra['alarm'] = 'low_temperature'
     sim.faults.extra['warning'] = ['high_charge_current']
-    run(sim, device, 1.0)
+    run_sim(sim, device, 1.0)
     assert device.battery_report().power_supply_health == PowerSupplyHealth.COLD
     diag = device.diagnostic_report()
     assert diag.level == Level.ERROR
     assert diag.values['warnings active'] == 'high_charge_current'
     sim.faults.extra.clear()
     sim.faults.cell_drift_v = 0.08
-    run(sim, device, 1.0, start=1.0)
+    run_sim(sim, device, 1.0, start=1.0)
     assert device.diagnostic_report().values['warnings active'] == 'cell_imbalance'
     assert sim.alarms().warnings['cell_imbalance'] is SmaFlag.ACTIVE
     sim.faults.malformed = True
     malformed_before = device.frames_malformed
-    frames = run(sim, device, 1.0, start=2.0)
+    frames = run_sim(sim, device, 1.0, start=2.0)
     assert device.frames_malformed - malformed_before == len(frames) > 0
     sim.faults.malformed = False
     sim.faults.silent = True
-    assert run(sim, device, 5.0, start=3.0) == []
+    assert run_sim(sim, device, 5.0, start=3.0) == []
     sim.faults.extra['alarm'] = 'overvoltage'
     with pytest.raises(ValueError, match='unknown SMA condition'):
         sim.alarms()

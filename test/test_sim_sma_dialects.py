@@ -6,18 +6,7 @@ from ams_can_bridge.devices.sma import SmaDevice
 from ams_can_bridge.protocols.sma import SmaCodec
 from ams_can_bridge.sim.main import build_devices, build_parser
 from ams_can_bridge.sim.sma import SmaSimulator
-
-
-def run(sim, device, seconds, step=0.05, start=0.0):
-    frames = []
-    t = start
-    while t < start + seconds - 1e-9:
-        for frame in sim.tick(t):
-            frames.append(frame)
-            if device is not None:
-                device.handle_frame(frame.arbitration_id, frame.data, t)
-        t += step
-    return frames
+from helpers import run_sim
 
 
 def ids(frames):
@@ -28,12 +17,12 @@ def ids(frames):
 
 
 def test_sma_dialect_sends_no_dialect_frames():
-    assert set(ids(run(SmaSimulator(), None, 10.0))) == {
+    assert set(ids(run_sim(SmaSimulator(), None, 10.0))) == {
         0x351, 0x355, 0x356, 0x35A, 0x35E, 0x35F}
 
 
 def test_pylontech_sends_0x359_and_0x35c_instead_of_0x35a():
-    frames = run(SmaSimulator(dialect='pylontech'), None, 10.0)
+    frames = run_sim(SmaSimulator(dialect='pylontech'), None, 10.0)
     assert ids(frames) == {0x351: 10, 0x355: 10, 0x356: 10, 0x359: 10, 0x35C: 10,
                            0x35E: 2, 0x35F: 2}
     codec = SmaCodec()
@@ -42,7 +31,7 @@ def test_pylontech_sends_0x359_and_0x35c_instead_of_0x35a():
 
 
 def test_victron_adds_0x370_to_0x377():
-    frames = run(SmaSimulator(dialect='victron'), None, 10.0)
+    frames = run_sim(SmaSimulator(dialect='victron'), None, 10.0)
     counts = ids(frames)
     assert counts[0x35A] == 10
     assert all(counts[i] == 10 for i in range(0x372, 0x378))
@@ -52,14 +41,14 @@ def test_victron_adds_0x370_to_0x377():
 def test_pylontech_reaches_the_device_with_alarms_and_enables():
     sim = SmaSimulator(dialect='pylontech', current_fn=lambda t: 10.0)
     device = SmaDevice('sma', {})
-    run(sim, device, 2.0)
+    run_sim(sim, device, 2.0)
     diag = device.diagnostic_report()
     assert diag.level == Level.OK
     assert diag.values['charge enable'] == 'yes' and diag.values['discharge enable'] == 'yes'
     assert diag.values['module count'] == '1' and 'alarms active' not in diag.values
     sim.faults.extra['alarm'] = ['high_voltage', 'contactor']  # 0x359 has no contactor bit
     sim.faults.extra['warning'] = 'low_temperature'
-    run(sim, device, 1.0, start=2.0)
+    run_sim(sim, device, 1.0, start=2.0)
     diag = device.diagnostic_report()
     assert diag.level == Level.ERROR
     assert diag.values['alarms active (0x359)'] == 'high_voltage'
@@ -82,7 +71,7 @@ def test_victron_reaches_the_device_and_follows_the_drifting_cell():
     device = SmaDevice('sma', {})
     sim.faults.drift_cell = 5
     sim.faults.cell_drift_v = 0.08
-    run(sim, device, 2.0)
+    run_sim(sim, device, 2.0)
     values = device.diagnostic_report().values
     assert values['bms name'] == 'ACME BATTERY 48V'
     assert values['max cell voltage id'] == 'C6'

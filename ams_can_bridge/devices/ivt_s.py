@@ -16,10 +16,10 @@ import math
 import time
 from typing import Any, Callable, Mapping
 
-from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, Level, ParamSpec,
     PowerSupplyHealth)
+from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.protocols.ivt_s import (
     BYTE_ORDERS, DBC_NAME, DEFAULT_BASE_ID, IvtMux, IvtResult, IvtSCodec, RAW_UNIT, SI_UNIT)
 

@@ -23,10 +23,10 @@ import math
 import time
 from typing import Any, Callable, Hashable, Mapping
 
-from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, ParamSpec,
     PowerSupplyHealth)
+from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.protocols.sma import (
     ALARMS_ID, BATTERY_ID, INFO_ID, LIMITS_ID, MANUFACTURER_ID, SmaAlarms, SmaBattery,
     SmaBatteryInfo, SmaCodec, SmaLimits, SmaManufacturer, SmaReading, SmaSoc, SOC_ID)
@@ -91,25 +91,52 @@ def _yes(flag: bool) -> str:
     return 'yes' if flag else 'no'
 
 
+def _fixed2(value: float | None) -> str:
+    return _fixed(value, 2)
+
+
+def _fixed3(value: float | None) -> str:
+    return _fixed(value, 3)
+
+
+# The plain fields of each message as diagnostics values: (label, attribute, format), per
+# group key, in the order shown. Alarms, names and cell ids follow in sma_values().
+_FIELDS: tuple[tuple[Hashable, tuple[tuple[str, str, Callable[[Any], str]], ...]], ...] = (
+    (SmaLimits, (('charge voltage limit V', 'charge_voltage_v', _fmt),
+                 ('charge current limit A', 'charge_current_a', _fmt),
+                 ('discharge current limit A', 'discharge_current_a', _fmt),
+                 ('discharge voltage limit V', 'discharge_voltage_v', _fmt))),
+    (SmaSoc, (('soc %', 'soc_pct', _fmt), ('soh %', 'soh_pct', _fmt),
+              ('soc high resolution %', 'soc_hires_pct', _fmt))),
+    (SmaBattery, (('voltage V', 'voltage_v', _fmt),
+                  ('current A (positive = charging)', 'current_a', _fmt),
+                  ('temperature degC', 'temperature_c', _fmt))),
+    (SmaManufacturer, (('manufacturer', 'name', str),)),
+    (SmaBatteryInfo, (('battery type', 'battery_type', _fmt),
+                      ('bms version', 'bms_version', _fmt),
+                      ('capacity Ah', 'capacity_ah', _fmt))),
+    (PylontechRequest, (('charge enable', 'charge_enable', _yes),
+                        ('discharge enable', 'discharge_enable', _yes),
+                        ('request charge immediately', 'request_charge_immediately', _yes))),
+    (VictronModules, (('modules OK', 'ok', _fmt),
+                      ('modules blocking charge', 'blocking_charge', _fmt),
+                      ('modules blocking discharge', 'blocking_discharge', _fmt),
+                      ('modules offline', 'offline', _fmt))),
+    (VictronCellExtremes, (('min cell voltage V', 'min_cell_v', _fixed3),
+                           ('max cell voltage V', 'max_cell_v', _fixed3),
+                           ('min cell temperature degC', 'min_temperature_c', _fixed2),
+                           ('max cell temperature degC', 'max_temperature_c', _fixed2))),
+)
+
+
 def sma_values(readings: Mapping[Hashable, SmaReading], prefix: str = '') -> dict[str, str]:
     """Diagnostic values of every SMA message in readings (keyed by ``group_key``)."""
     values: dict[str, str] = {}
-    limits = readings.get(SmaLimits)
-    if limits is not None:
-        values[prefix + 'charge voltage limit V'] = _fmt(limits.charge_voltage_v)
-        values[prefix + 'charge current limit A'] = _fmt(limits.charge_current_a)
-        values[prefix + 'discharge current limit A'] = _fmt(limits.discharge_current_a)
-        values[prefix + 'discharge voltage limit V'] = _fmt(limits.discharge_voltage_v)
-    soc = readings.get(SmaSoc)
-    if soc is not None:
-        values[prefix + 'soc %'] = _fmt(soc.soc_pct)
-        values[prefix + 'soh %'] = _fmt(soc.soh_pct)
-        values[prefix + 'soc high resolution %'] = _fmt(soc.soc_hires_pct)
-    battery = readings.get(SmaBattery)
-    if battery is not None:
-        values[prefix + 'voltage V'] = _fmt(battery.voltage_v)
-        values[prefix + 'current A (positive = charging)'] = _fmt(battery.current_a)
-        values[prefix + 'temperature degC'] = _fmt(battery.temperature_c)
+    for key, fields in _FIELDS:
+        reading = readings.get(key)
+        if reading is not None:
+            for label, attribute, show in fields:
+                values[prefix + label] = show(getattr(reading, attribute))
     alarms = readings.get(SmaAlarms)
     if alarms is not None:
         values[prefix + 'alarms active'] = ', '.join(alarms.active_alarms) or 'none'
@@ -118,20 +145,6 @@ def sma_values(readings: Mapping[Hashable, SmaReading], prefix: str = '') -> dic
             values[f'{prefix}alarm {name}'] = flag.name
         for name, flag in alarms.warnings.items():
             values[f'{prefix}warning {name}'] = flag.name
-    maker = readings.get(SmaManufacturer)
-    if maker is not None:
-        values[prefix + 'manufacturer'] = maker.name
-    info = readings.get(SmaBatteryInfo)
-    if info is not None:
-        values[prefix + 'battery type'] = _fmt(info.battery_type)
-        values[prefix + 'bms version'] = _fmt(info.bms_version)
-        values[prefix + 'capacity Ah'] = _fmt(info.capacity_ah)
-    values.update(_dialect_values(readings, prefix))
-    return values
-
-
-def _dialect_values(readings: Mapping[Hashable, Any], prefix: str) -> dict[str, str]:
-    values: dict[str, str] = {}
     pylon = readings.get(PylontechAlarms)
     if pylon is not None:
         values[prefix + 'alarms active (0x359)'] = ', '.join(pylon.active_alarms) or 'none'
@@ -140,26 +153,9 @@ def _dialect_values(readings: Mapping[Hashable, Any], prefix: str) -> dict[str, 
             for kind, active in (('alarm', pylon.alarms), ('warning', pylon.warnings)):
                 values[f'{prefix}{kind} {name} (0x359)'] = 'ACTIVE' if name in active else 'OK'
         values[prefix + 'module count'] = _fmt(pylon.module_count)
-    request = readings.get(PylontechRequest)
-    if request is not None:
-        values[prefix + 'charge enable'] = _yes(request.charge_enable)
-        values[prefix + 'discharge enable'] = _yes(request.discharge_enable)
-        values[prefix + 'request charge immediately'] = _yes(request.request_charge_immediately)
     parts = [readings.get((VictronBmsName, p)) for p in (1, 2)]
     if any(parts):
         values[prefix + 'bms name'] = ''.join(p.text if p else '' for p in parts)
-    modules = readings.get(VictronModules)
-    if modules is not None:
-        values[prefix + 'modules OK'] = _fmt(modules.ok)
-        values[prefix + 'modules blocking charge'] = _fmt(modules.blocking_charge)
-        values[prefix + 'modules blocking discharge'] = _fmt(modules.blocking_discharge)
-        values[prefix + 'modules offline'] = _fmt(modules.offline)
-    cells = readings.get(VictronCellExtremes)
-    if cells is not None:
-        values[prefix + 'min cell voltage V'] = _fixed(cells.min_cell_v, 3)
-        values[prefix + 'max cell voltage V'] = _fixed(cells.max_cell_v, 3)
-        values[prefix + 'min cell temperature degC'] = _fixed(cells.min_temperature_c, 2)
-        values[prefix + 'max cell temperature degC'] = _fixed(cells.max_temperature_c, 2)
     for kind in CELL_ID_KINDS:
         cell_id = readings.get((VictronCellId, kind))
         if cell_id is not None:

@@ -175,8 +175,8 @@ def _run(args: argparse.Namespace, stop: threading.Event) -> int:
     """Build everything, show the view until stopped, then tear down in reverse order."""
     from rclpy.executors import MultiThreadedExecutor
 
-    from ams_can_bridge.demo_rig import DemoMonitor, DemoRig
-    from ams_can_bridge.demo_view import render
+    from ams_can_bridge.ros.demo_rig import DemoMonitor, DemoRig
+    from ams_can_bridge.ros.demo_view import render
     from ams_can_bridge.ros.bridge_node import ConfigError
 
     tty = sys.stdout.isatty() and not args.plain

@@ -17,7 +17,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import BatteryState
 
-from ams_can_bridge.demo_view import cell_range, DeviceRow, level_name, View
+from ams_can_bridge.ros.demo_view import cell_range, DeviceRow, level_name, View
 from ams_can_bridge.registry import load, SIMULATORS
 from ams_can_bridge.ros.bridge_node import BridgeNode, NODE_NAME
 
