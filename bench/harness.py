@@ -37,9 +37,24 @@ def env() -> dict[str, str]:
 
 
 def cpu_seconds(pid: int) -> float:
-    """Return the CPU time (user + system, all threads) a process has used so far."""
-    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / TICKS
+    """Return the CPU time (user + system, all threads) a process has used so far.
+
+    Read from each live thread's /proc/PID/task/TID/schedstat (nanoseconds) where the kernel
+    has it: /proc/PID/stat counts in clock ticks (10 ms), which over a 3 s window of a
+    process using 8 % of a core is +-4 % from rounding alone. Threads that ended are not
+    counted, so use it on processes whose threads live for the whole measurement.
+    """
+    try:
+        total = 0
+        for tid in os.listdir(f'/proc/{pid}/task'):
+            try:
+                total += int(Path(f'/proc/{pid}/task/{tid}/schedstat').read_text().split()[0])
+            except FileNotFoundError:  # the thread ended meanwhile
+                pass
+        return total / 1e9
+    except (FileNotFoundError, ValueError, IndexError):
+        fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / TICKS
 
 
 def rss_mb(pid: int) -> float:

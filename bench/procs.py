@@ -150,10 +150,14 @@ def heartbeat(channel: str, seconds: float, out: str) -> None:
 
 
 def thread_cpu(tid: int) -> float:
-    """Return the CPU seconds of one thread of this process."""
-    with open(f'/proc/self/task/{tid}/stat', encoding='ascii') as stream:
-        fields = stream.read().rsplit(')', 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / harness.TICKS
+    """Return the CPU seconds of one thread of this process (schedstat: nanoseconds)."""
+    try:
+        with open(f'/proc/self/task/{tid}/schedstat', encoding='ascii') as stream:
+            return int(stream.read().split()[0]) / 1e9
+    except (OSError, ValueError, IndexError):
+        with open(f'/proc/self/task/{tid}/stat', encoding='ascii') as stream:
+            fields = stream.read().rsplit(')', 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / harness.TICKS
 
 
 def virtual(mode: str, seconds: float, banks: int, modules: int, out: str) -> None:

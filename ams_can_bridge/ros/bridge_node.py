@@ -68,6 +68,11 @@ NODE_NAME = 'ams_can_bridge'
 MALFORMED_LOG_PERIOD = 5.0  # s between malformed-frame log lines per device
 STALE_PUBLISH_PERIOD = 1.0  # s, battery_state present:false while stale
 WATCH_PERIOD = 0.2  # s, how fast bus state / staleness transitions are noticed
+# s: a device that keeps taking frames has its level rebuilt at most this often by the watch
+# (a report costs 40-150 us; at full load every device changes every watch, and rebuilding
+# all five reports 5 times a second was a third of the bridge's own CPU). A staleness change
+# and the first frame after a quiet spell are still noticed at the next watch.
+LEVEL_RECHECK_PERIOD = 0.5
 TELEMETRY_DEPTH = 100  # history of battery_state / array publishers
 # Commands that may wait for a down bus at once. A waiting call holds an executor thread
 # (the bridge runs 4): at most 2 wait, so telemetry, /diagnostics and the parameter
@@ -102,8 +107,9 @@ class BridgeNode(Node):
         self._ready = False
         self._replaying = False
         self._levels: dict[str, int] = {}
-        # name -> (device revision, stale, level): a report is rebuilt only after a change.
-        self._level_cache: dict[str, tuple[int, bool, int]] = {}
+        # name -> (device revision, stale, level, monotonic time of the rebuild): a report
+        # is rebuilt only after a change (see LEVEL_RECHECK_PERIOD).
+        self._level_cache: dict[str, tuple[int, bool, int, float]] = {}
         self._malformed_logged: dict[str, tuple[int, float]] = {}
         self._stale: dict[str, bool] = {}
         self._heard: set[str] = set()
@@ -283,7 +289,7 @@ class BridgeNode(Node):
         for name, device in self.devices.items():
             revision, stale = device.revision, device.is_stale()
             report = device.diagnostic_report()
-            self._level_cache[name] = (revision, stale, int(report.level))
+            self._level_cache[name] = (revision, stale, int(report.level), time.monotonic())
             reports.append((name, report))
         reports.append(('CAN bus', self._bus_report()))
         return reports
@@ -293,8 +299,10 @@ class BridgeNode(Node):
         device = self.devices[name]
         revision, stale = device.revision, device.is_stale()
         cached = self._level_cache.get(name)
-        if cached is None or cached[:2] != (revision, stale):
-            cached = (revision, stale, int(device.diagnostic_report().level))
+        now = time.monotonic()
+        if (cached is None or cached[1] != stale
+                or (cached[0] != revision and now - cached[3] >= LEVEL_RECHECK_PERIOD)):
+            cached = (revision, stale, int(device.diagnostic_report().level), now)
             self._level_cache[name] = cached
         return cached[2]
 
