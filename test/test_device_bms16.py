@@ -222,3 +222,8 @@ def test_the_device_builds_its_command_frames_at_its_base_id():
     assert [f.arbitration_id for f in frames] == [0x204, 0x205]
     assert frames[0].data == bytes([16, 10, 20, 58, 10, 20, 60, 60])
     assert frames[1].data == bytes([84, 2, 80, 2])
+
+
+def test_a_base_id_overlapping_the_sma_ids_names_the_instance():
+    with pytest.raises(ValueError, match=r'^front\.base_id = 848 overlaps the SMA IDs'):
+        Bms16Device('front', {'base_id': 0x350})

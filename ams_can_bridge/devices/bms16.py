@@ -44,12 +44,13 @@ class Bms16FrameCodec:
 
     is_extended_id = False
 
-    def __init__(self, base_id: int) -> None:
+    def __init__(self, base_id: int, instance: str = 'bms16') -> None:
         self.bms16 = Bms16Codec(base_id)
         self.sma = SmaCodec()
         own = frozenset(range(base_id + 0, base_id + CELLS_3 + 1))
         if own & SMA_IDS:
-            raise ValueError(f'bms16.base_id {base_id} overlaps the SMA IDs 0x351..0x35F')
+            raise ValueError(f'{instance}.base_id = {base_id} overlaps the SMA IDs 0x351..0x35F '
+                             '(the BMS16 sends base_id .. base_id + 3 and the SMA frames)')
         self._own = own
         self.arbitration_ids = own | SMA_IDS
 
@@ -78,7 +79,7 @@ class Bms16Device(Device):
                  clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__(name, config, clock)
         base_id = self.config.base_id
-        self.codec = Bms16FrameCodec(DEFAULT_BASE_ID if base_id is None else int(base_id))
+        self.codec = Bms16FrameCodec(DEFAULT_BASE_ID if base_id is None else int(base_id), name)
         self.status: Bms16Status | None = None
         self.status_stamp = NAN
         self.cells = [NAN] * MAX_CELLS
