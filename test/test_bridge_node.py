@@ -385,6 +385,16 @@ def test_stamp_is_the_receive_time_and_stale_messages_keep_the_last_one(rig_fact
             third.header.stamp.sec, third.header.stamp.nanosec)
 
 
+def test_a_never_heard_device_repeats_its_stale_message_with_a_new_stamp(rig_factory):
+    # The stale message is built once and republished: only a never-heard stamp moves.
+    h = rig_factory({'devices': ['bms16']}, topics={'bms16/battery_state': BatteryState})
+    msgs = h.wait(lambda: [m for m in h.messages('bms16/battery_state') if not m.present][:3]
+                  if len(h.messages('bms16/battery_state')) >= 3 else None, timeout=10.0)
+    stamps = [stamp_seconds(m) for m in msgs]
+    assert stamps[0] < stamps[1] < stamps[2], stamps
+    assert all(math.isnan(m.voltage) and len(m.cell_voltage) == 16 for m in msgs)
+
+
 def test_diagnostics_published_at_once_when_a_level_changes(rig_factory):
     # A 30 s period: only the at-once rule can explain arrays within seconds.
     h = rig_factory({'devices': ['bms16'], 'bms16.stale_timeout': 60.0,

@@ -110,6 +110,8 @@ class BridgeNode(Node):
         # name -> (device revision, stale, level, monotonic time of the rebuild): a report
         # is rebuilt only after a change (see LEVEL_RECHECK_PERIOD).
         self._level_cache: dict[str, tuple[int, bool, int, float]] = {}
+        # name -> (device revision, BatteryState, [(publisher, array msg)], stamp is now)
+        self._stale_msgs: dict[str, tuple[int, Any, list, bool]] = {}
         self._malformed_logged: dict[str, tuple[int, float]] = {}
         self._stale: dict[str, bool] = {}
         self._heard: set[str] = set()
@@ -254,11 +256,27 @@ class BridgeNode(Node):
 
     def _publish_stale_battery(self, name: str) -> None:
         device = self.devices[name]
-        report = device.battery_report()
-        # A frame may have arrived since is_stale() said so: that frame publishes itself;
-        # publishing here too would give one primary frame two present messages.
-        if not report.present:
-            self._publish_report(name, report, device.extra_arrays())
+        revision = device.revision
+        cached = self._stale_msgs.get(name)
+        if cached is None or cached[0] != revision:
+            report = device.battery_report()
+            # A frame may have arrived since is_stale() said so: that frame publishes
+            # itself; publishing here too would give one primary frame two present messages.
+            if report.present:
+                return
+            battery = convert.battery_state(report, device.config.frame_id or '', self._now())
+            arrays = [(self.array_pubs[name][suffix], convert.multi_array(rows, cols, data))
+                      for suffix, (rows, cols, data) in device.extra_arrays().items()
+                      if suffix in self.array_pubs[name]]
+            # Nothing in a silent device's message changes until a frame or a parameter does
+            # (its revision): build it once, republish it every second (idle CPU).
+            cached = (revision, battery, arrays, not math.isfinite(report.stamp))
+            self._stale_msgs[name] = cached
+        elif cached[3]:  # never heard: the stamp is "now", the rest stays
+            cached[1].header.stamp = convert.stamp_msg(self._now())
+        self._publish(self.battery_pubs[name], cached[1])
+        for publisher, msg in cached[2]:
+            self._publish(publisher, msg)
 
     def _publish(self, publisher: Any, msg: Any) -> None:
         """Publish from the receive or periodic thread; after a shutdown, drop the message."""
