@@ -2,8 +2,10 @@
 from __future__ import annotations
 
 import contextlib
+import itertools
 import logging
 import math
+import os
 import struct
 import time
 from typing import Any, Callable, Iterable, Iterator
@@ -18,6 +20,8 @@ from ams_can_bridge import registry
 from ams_can_bridge.can_io.replay import open_log
 from ams_can_bridge.devices.base import device_params
 from ams_can_bridge.protocols.common import MalformedFrameError
+
+_bridges = itertools.count()
 
 
 def f32(value: float) -> float:
@@ -150,6 +154,27 @@ def ros_context() -> Iterator[Context]:
         yield ctx
     finally:
         rclpy.try_shutdown(context=ctx)
+
+
+@contextlib.contextmanager
+def every_device_bridge(tag: str) -> Iterator[Any]:
+    """
+    Yield a bridge node with one instance of every device type on a virtual bus, not spun.
+
+    For tests that read what the node declares (parameters, services), not what it does.
+    """
+    from rclpy.parameter import Parameter
+
+    from ams_can_bridge.ros.bridge_node import BridgeNode  # the node: only where needed
+    with ros_context() as context:
+        node = BridgeNode(context=context, parameter_overrides=[
+            Parameter('devices', value=list(registry.DEVICE_TYPES)),
+            Parameter('can.interface', value='virtual'),
+            Parameter('can.channel', value=f'{tag}-{os.getpid()}-{next(_bridges)}')])
+        try:
+            yield node
+        finally:
+            node.destroy_node()
 
 
 def assert_decodes_or_malformed(codec: object, frame_id: int, data: bytes) -> None:

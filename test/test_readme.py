@@ -1,29 +1,20 @@
 """README stays true to the code: every parameter and service the node declares is in it."""
-import itertools
 from pathlib import Path
 
 import pytest
-from rclpy.parameter import Parameter
 
 from ams_can_bridge import registry
-from ams_can_bridge.ros.bridge_node import BridgeNode
-from helpers import ros_context
+from helpers import every_device_bridge
 
 README = (Path(__file__).resolve().parents[1] / 'README.md').read_text()
 ROS_BUILTIN = {'use_sim_time', 'start_type_description_service'}
 PER_INSTANCE = {'type', 'frame_id', 'location', 'serial_number'}  # documented as <name>.key
-_n = itertools.count()
 
 
 @pytest.fixture(scope='module')
 def node():
-    with ros_context() as context:
-        bridge = BridgeNode(context=context, parameter_overrides=[
-            Parameter('devices', value=list(registry.DEVICE_TYPES)),
-            Parameter('can.interface', value='virtual'),
-            Parameter('can.channel', value=f'readme-test-{next(_n)}')])
+    with every_device_bridge('readme-test') as bridge:
         yield bridge
-        bridge.destroy_node()
 
 
 def test_readme_names_every_parameter(node):

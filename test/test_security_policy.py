@@ -11,16 +11,12 @@ every device type creates.
 from __future__ import annotations
 
 import fnmatch
-import itertools
 from pathlib import Path
 import xml.etree.ElementTree as ET
 
 import pytest
-from rclpy.parameter import Parameter
 
-from ams_can_bridge import registry
-from ams_can_bridge.ros.bridge_node import BridgeNode
-from helpers import ros_context
+from helpers import every_device_bridge
 
 POLICY = Path(__file__).resolve().parents[1] / 'security' / 'policy.xml'
 XML_BASE = '{http://www.w3.org/XML/1998/namespace}base'
@@ -38,7 +34,6 @@ SCHEMA = {
     'actions': ({'call', 'execute', XML_BASE}, set(), {'action': (1, None)}),
 }
 EXPRESSIONS = {'topic', 'service', 'action'}
-_n = itertools.count()
 
 
 def schema_errors(element: ET.Element, path: str = '') -> list[str]:
@@ -110,15 +105,8 @@ def profiles(root: ET.Element) -> dict[str, Profile]:
 
 @pytest.fixture(scope='module')
 def bridge():
-    with ros_context() as context:
-        node = BridgeNode(context=context, parameter_overrides=[
-            Parameter('devices', value=list(registry.DEVICE_TYPES)),
-            Parameter('can.interface', value='virtual'),
-            Parameter('can.channel', value=f'policy-test-{next(_n)}')])
-        try:
-            yield node
-        finally:
-            node.destroy_node()
+    with every_device_bridge('policy-test') as node:
+        yield node
 
 
 def test_policy_is_valid_against_the_sros2_schema():
