@@ -252,7 +252,7 @@ class BridgeNode(Node):
     # --- publishing -----------------------------------------------------------------------
     def _publish_battery(self, name: str) -> None:
         device = self.devices[name]
-        self._publish_report(name, device.battery_report(), device.extra_arrays())
+        self._publish_messages(name, *self._messages(name, device.battery_report()))
 
     def _publish_stale_battery(self, name: str) -> None:
         device = self.devices[name]
@@ -264,18 +264,27 @@ class BridgeNode(Node):
             # itself; publishing here too would give one primary frame two present messages.
             if report.present:
                 return
-            battery = convert.battery_state(report, device.config.frame_id or '', self._now())
-            arrays = [(self.array_pubs[name][suffix], convert.multi_array(rows, cols, data))
-                      for suffix, (rows, cols, data) in device.extra_arrays().items()
-                      if suffix in self.array_pubs[name]]
             # Nothing in a silent device's message changes until a frame or a parameter does
             # (its revision): build it once, republish it every second (idle CPU).
-            cached = (revision, battery, arrays, not math.isfinite(report.stamp))
+            cached = (revision, *self._messages(name, report), not math.isfinite(report.stamp))
             self._stale_msgs[name] = cached
         elif cached[3]:  # never heard: the stamp is "now", the rest stays
             cached[1].header.stamp = convert.stamp_msg(self._now())
-        self._publish(self.battery_pubs[name], cached[1])
-        for publisher, msg in cached[2]:
+        self._publish_messages(name, cached[1], cached[2])
+
+    def _messages(self, name: str, report: Any) -> tuple[Any, list[tuple[Any, Any]]]:
+        """Build a device's BatteryState and its arrays' messages (with their publishers)."""
+        device = self.devices[name]
+        battery = convert.battery_state(report, device.config.frame_id or '', self._now())
+        pubs = self.array_pubs[name]
+        arrays = [(pubs[suffix], convert.multi_array(rows, cols, data))
+                  for suffix, (rows, cols, data) in device.extra_arrays().items()
+                  if suffix in pubs]
+        return battery, arrays
+
+    def _publish_messages(self, name: str, battery: Any, arrays: list[tuple[Any, Any]]) -> None:
+        self._publish(self.battery_pubs[name], battery)
+        for publisher, msg in arrays:
             self._publish(publisher, msg)
 
     def _publish(self, publisher: Any, msg: Any) -> None:
@@ -287,15 +296,6 @@ class BridgeNode(Node):
             # stops them: 'context is invalid' then means "going away", not a failure.
             if self._ready and self.context.ok():
                 raise
-
-    def _publish_report(self, name: str, report: Any, arrays: dict) -> None:
-        frame_id = self.devices[name].config.frame_id or ''
-        self._publish(self.battery_pubs[name],
-                      convert.battery_state(report, frame_id, self._now()))
-        for suffix, (rows, cols, data) in arrays.items():
-            pub = self.array_pubs[name].get(suffix)
-            if pub is not None:
-                self._publish(pub, convert.multi_array(rows, cols, data))
 
     def _publish_stale(self) -> None:
         for name, device in self.devices.items():
