@@ -129,6 +129,9 @@ BUS_PARAMS = [
               "stamp messages with the interface's receive timestamp (python-can "
               'Message.timestamp; the kernel\'s for SocketCAN) instead of the host clock; '
               'a replay always stamps with the log time'),
+    ParamSpec('slcan_bulk_read', bool, True,
+              'slcan only: read the serial port in blocks (the bridge\'s reader) instead of '
+              "python-can's one byte per system call; false = python-can's own reader"),
     ParamSpec('connect_wait', float, 5.0,
               's a command waits for a bus that is still opening or reconnecting '
               '(0 = fail at once)', low=0.0, high=3600.0),

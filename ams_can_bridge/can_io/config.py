@@ -102,6 +102,8 @@ class BusConfig:
     log file (format by extension, as can.Logger) that receives every frame in and out.
     use_bus_time stamps each frame with the driver's receive time (``Message.timestamp``)
     instead of the host clock; a replay always stamps with the log's own timestamps.
+    slcan_bulk_read opens slcan with the bridge's block reader (can_io/slcan.py) instead
+    of python-can's byte-per-call one.
     """
 
     interface: str = 'socketcan'
@@ -113,6 +115,7 @@ class BusConfig:
     replay_rate: float = 1.0
     record: str = ''
     use_bus_time: bool = False
+    slcan_bulk_read: bool = True
 
     def __post_init__(self) -> None:
         """Validate the values a user types, naming the field."""

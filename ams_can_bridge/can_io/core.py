@@ -12,6 +12,7 @@ from ams_can_bridge.can_io.config import (
     BusConfig, BusState, BusStatus, DOWN_STATES, RETRY_STATES, UP_STATES)
 from ams_can_bridge.errors import CanSendError
 from ams_can_bridge.can_io.replay import ReplayBus
+from ams_can_bridge.can_io.slcan import open_bulk_slcan
 from ams_can_bridge.protocols.common import Frame
 
 OnFrame = Callable[[int, bytes, bool, float], None]
@@ -221,6 +222,8 @@ class CanIo:
         cfg = self.config
         if cfg.interface == 'replay':
             bus: can.BusABC | ReplayBus = ReplayBus(cfg.channel, cfg.replay_rate)
+        elif cfg.interface == 'slcan' and cfg.slcan_bulk_read:
+            bus = open_bulk_slcan(cfg.channel, **cfg.bus_kwargs())
         else:
             bus = can.Bus(interface=cfg.interface, channel=cfg.channel, **cfg.bus_kwargs())
             if self._filters and type(bus)._apply_filters is not can.BusABC._apply_filters:

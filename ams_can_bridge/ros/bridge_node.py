@@ -157,7 +157,7 @@ class BridgeNode(Node):
                 interface=bus['interface'], channel=bus['channel'], bitrate=bus['bitrate'],
                 fd=bus['fd'], options=options, reconnect_period=bus['reconnect_period'],
                 replay_rate=bus['replay_rate'], record=bus['record'],
-                use_bus_time=bus['use_bus_time'])
+                use_bus_time=bus['use_bus_time'], slcan_bulk_read=bus['slcan_bulk_read'])
         except ValueError as exc:
             raise ConfigError(str(exc)) from None
         self.hardware_id = f"{bus['interface']}:{bus['channel']}"
