@@ -1,6 +1,7 @@
 """AMS codec: golden frames written by hand from PROTOCOLS.md section 1 (not from the DBC)."""
 import math
 
+import cantools
 from hypothesis import given, settings, strategies as st
 import pytest
 
@@ -8,7 +9,9 @@ from ams_can_bridge.protocols.ams import (
     AmsChargerStatus, AmsCodec, AmsError, AmsErrorEvent, AmsState, AmsStatus, AmsStatusWord,
     CarCommand, CarStatus, CellTemperatures, CellVoltages, ChargerCommand, ChargerStart,
     DischargeTemperatures, OverrideBankCount, OverrideChargeCurrent)
-from ams_can_bridge.protocols.common import EncodeRangeError, Frame, MalformedFrameError
+from ams_can_bridge.protocols import ams as ams_protocol
+from ams_can_bridge.protocols.common import (
+    EncodeRangeError, Frame, MalformedFrameError, msg_defs_dir)
 
 CODEC = AmsCodec()
 WORD_DRIVE = AmsStatusWord(air_plus=True, air_minus=True, bank_count=2, state=AmsState.DRIVE)
@@ -343,3 +346,104 @@ def test_round_trip(message):
     frame = CODEC.encode(message)
     assert frame.arbitration_id in CODEC.arbitration_ids
     assert _approx_equal(CODEC.decode(frame.arbitration_id, frame.data), message)
+
+
+# --- the hand decoder against cantools on the DBC -------------------------------------------
+DBC = cantools.database.load_file(str(msg_defs_dir() / 'ams.dbc'), strict=True)
+WORD_SIGNALS = {'AIR_Plus': 'air_plus', 'AIR_Minus': 'air_minus',
+                'Precharge_Relay': 'precharge', 'Warn_Volt': 'warn_volt',
+                'Warn_Temp': 'warn_temp', 'HVDC_Interlock': 'hvdc_interlock',
+                'IMD_Error': 'imd_error', 'AMS_Error': 'ams_error'}
+
+
+def _word_signals(word):
+    sig = {dbc: int(getattr(word, attr)) for dbc, attr in WORD_SIGNALS.items()}
+    sig.update(Bank_Count=word.bank_count, AMS_State=int(word.state))
+    return sig
+
+
+def _as_signals(r):
+    """Return the DBC signals a reading carries, as cantools decodes them (flags 0/1)."""
+    if isinstance(r, AmsStatus):
+        return {**_word_signals(r.status), 'Volt_min': r.volt_min_v, 'Temp_max': r.temp_max_c,
+                'SOC': r.soc_pct, 'Counter': r.counter,
+                'Relay_Error_AIR_Minus': int(r.relay_error_air_minus),
+                'Relay_Error_AIR_Plus': int(r.relay_error_air_plus),
+                'Relay_Error_Precharge': int(r.relay_error_precharge)}
+    if isinstance(r, AmsChargerStatus):
+        return {**_word_signals(r.status), 'SOC': r.soc_pct,
+                'Charger_Current': r.charger_current_a, 'Turn_On_Charger': int(r.charger_on)}
+    if isinstance(r, CarStatus):
+        return {'CMD': int(r.command), 'Bank_Count': r.bank_count, 'Counter': r.counter}
+    if isinstance(r, ChargerCommand):
+        return {'Start': int(r.start), 'Time_Tick': r.time_tick}
+    if isinstance(r, AmsErrorEvent):
+        return {'AMS_Error_ID': int(r.error), 'AMS_Time_Tick': r.time_tick}
+    if isinstance(r, OverrideChargeCurrent):
+        return {'Charge_Current': r.current_a}
+    if isinstance(r, OverrideBankCount):
+        return {'Bank_Count': r.bank_count}
+    values, prefix = ((r.voltages_v, 'Cell_Voltage_') if isinstance(r, CellVoltages) else
+                      (r.temperatures_c, 'Cell_Temperature_')
+                      if isinstance(r, CellTemperatures) else
+                      (r.temperatures_c, 'Discharge_Temperature_'))
+    return {'Bank_ID': r.bank, 'Group_ID': r.group,
+            **{f'{prefix}{k}': v for k, v in enumerate(values, 1)}}
+
+
+def _valid(can_id, sig):
+    """Tell whether the signals are a reading the codec accepts (what the spec allows)."""
+    offset = can_id - 0x300
+    if offset in (0x000, 0x001):
+        return sig['AMS_State'] <= 9 and sig['Bank_Count'] <= 5
+    if offset == 0x005:
+        return sig['CMD'] <= 6 and 1 <= sig['Bank_Count'] <= 5
+    if offset == 0x010:
+        return sig['Start'] <= 2
+    if offset in (0x011, 0x012, 0x013):
+        return 1 <= sig['Bank_ID'] <= 5 and sig['Group_ID'] <= (3 if offset == 0x011 else 1)
+    if offset == 0x014:
+        return 1 <= sig['AMS_Error_ID'] <= 23
+    if offset == 0x051:
+        return 1 <= sig['Bank_Count'] <= 5
+    return True
+
+
+def _agrees_with_cantools(can_id, data):
+    sig = DBC.get_message_by_frame_id(can_id).decode_simple(data, False, True)
+    try:
+        reading = CODEC.decode(can_id, data)
+    except MalformedFrameError:
+        assert not _valid(can_id, sig), (hex(can_id), data.hex(), sig)
+        return
+    assert _valid(can_id, sig), (hex(can_id), data.hex(), sig)
+    got = _as_signals(reading)
+    assert got == sig, (hex(can_id), data.hex())
+    # exactly what cantools computes: the same floats, ints where it gives ints
+    assert {k: type(v) for k, v in got.items()} == {k: type(v) for k, v in sig.items()}
+
+
+@pytest.mark.parametrize('can_id,dlc', sorted(DLCS.items()))
+def test_decode_equals_cantools_every_byte_value(can_id, dlc):
+    for position in range(dlc):
+        for value in range(256):
+            data = bytearray(b'\x21\x5A\xA5\x3C\xC3\x0F\xF0\x99'[:dlc])
+            data[position] = value
+            _agrees_with_cantools(can_id, bytes(data))
+
+
+@settings(max_examples=300, deadline=None)
+@given(can_id=st.sampled_from(sorted(DLCS)), data=st.binary(min_size=8, max_size=8))
+def test_decode_equals_cantools_random_frames(can_id, data):
+    _agrees_with_cantools(can_id, data[:DLCS[can_id]])
+
+
+def test_a_dbc_with_another_layout_is_refused(monkeypatch):
+    text = (msg_defs_dir() / 'ams.dbc').read_text()
+    changed = cantools.database.load_string(
+        text.replace('SG_ SOC : 39|8@0+ (1,0) [0|100]', 'SG_ SOC : 39|8@0+ (2,0) [0|200]', 1),
+        strict=True)
+    monkeypatch.setattr(ams_protocol, 'load_dbc', lambda name: changed)
+    monkeypatch.setattr(AmsCodec, '_dbc_checked', False)
+    with pytest.raises(RuntimeError, match='AMS_Status does not match the AMS codec layout'):
+        AmsCodec()

@@ -1,11 +1,13 @@
 """
 Formula-Student AMS (accumulator management system) protocol: PROTOCOLS.md section 1.
 
-Ten 11-bit messages at ``base_id + offset`` (default base 0x300). The field layout lives in
-``msg_defs/ams.dbc`` and nowhere else: this module decodes through cantools and adds what a
-DBC cannot say (valid bank/group IDs, known enum values, DLC checks, typed readings) and
-checks every value before it is encoded, so a bad command fails loudly instead of being
-clamped. Readings are frozen dataclasses; enums carry the vendor's names.
+Ten 11-bit messages at ``base_id + offset`` (default base 0x300). The field layout is
+``msg_defs/ams.dbc``: frames are encoded through cantools, and decoded by hand on that layout
+(the bus thread decodes every frame; cantools cost 4-13 us a frame), checked against the
+installed DBC when the first codec is built and against cantools in the tests. The module
+adds what a DBC cannot say (valid bank/group IDs, known enum values, DLC checks, typed
+readings) and checks every value before it is encoded, so a bad command fails loudly
+instead of being clamped. Readings are frozen dataclasses; enums carry the vendor's names.
 """
 from __future__ import annotations
 
@@ -263,32 +265,87 @@ class _Bad(Exception):
     """Internal: a decoded value is impossible (becomes MalformedFrameError with the data)."""
 
 
+# --- decoding: by hand, on the layout msg_defs/ams.dbc gives --------------------------------
+# The bus thread decodes every AMS frame (about 60/s with 5 banks): cantools took 4-13 us a
+# frame, these take about 1. The DBC stays the reference: _check_dbc() fails at the first
+# codec if the installed DBC no longer has this layout, and test_protocol_ams.py compares
+# every message with cantools on random frames. Layout per message: DLC and its signals as
+# (name, start bit (DBC numbering), length, signed, scale); every one big-endian, offset 0.
+_FLAG_SIGNALS = tuple((dbc, 7 - bit, 1, False, 1) for bit, (dbc, _) in enumerate(_STATUS_BITS))
+_WORD_SIGNALS = _FLAG_SIGNALS + (('Bank_Count', 15, 3, False, 1), ('AMS_State', 12, 5, False, 1))
+_BANK_GROUP = (('Bank_ID', 7, 3, False, 1), ('Group_ID', 2, 3, False, 1))
+_LAYOUT: dict[int, tuple[int, tuple[tuple[str, int, int, bool, float], ...]]] = {
+    STATUS: (7, _WORD_SIGNALS + (
+        ('Volt_min', 23, 8, False, CELL_VOLT_STEP), ('Temp_max', 31, 8, False, 1),
+        ('SOC', 39, 8, False, 1), ('Counter', 47, 8, False, 1),
+        ('Relay_Error_AIR_Minus', 48, 1, False, 1), ('Relay_Error_AIR_Plus', 49, 1, False, 1),
+        ('Relay_Error_Precharge', 50, 1, False, 1))),
+    CHARGER_STATUS: (5, _WORD_SIGNALS + (
+        ('SOC', 23, 8, False, 1), ('Charger_Current', 31, 8, False, CURRENT_STEP),
+        ('Turn_On_Charger', 32, 1, False, 1))),
+    CAR_STATUS: (2, (('CMD', 3, 4, False, 1), ('Bank_Count', 7, 4, False, 1),
+                     ('Counter', 15, 8, False, 1))),
+    CHARGER_COMMANDS: (3, (('Start', 1, 2, False, 1), ('Time_Tick', 15, 16, False, 1))),
+    CELL_VOLTAGES: (8, _BANK_GROUP + tuple(
+        (name, 15 + 8 * k, 8, False, CELL_VOLT_STEP) for k, name in enumerate(_CELL_SIGNALS))),
+    CELL_TEMPERATURES: (6, _BANK_GROUP + tuple(
+        (name, 15 + 8 * k, 8, True, 1) for k, name in enumerate(_TEMP_SIGNALS))),
+    DISCHARGE_TEMPERATURES: (8, _BANK_GROUP + tuple(
+        (name, 15 + 8 * k, 8, True, 1) for k, name in enumerate(_DISCHARGE_SIGNALS))),
+    ERROR: (3, (('AMS_Error_ID', 7, 8, False, 1), ('AMS_Time_Tick', 15, 16, False, 1))),
+    OVERRIDE_CHARGE_CURRENT: (1, (('Charge_Current', 7, 8, False, CURRENT_STEP),)),
+    OVERRIDE_BANK_COUNT: (1, (('Bank_Count', 7, 8, False, 1),)),
+}
+# Scaled values of a byte, as cantools computes them (raw * scale + offset).
+_VOLTS = tuple(raw * CELL_VOLT_STEP + 0 for raw in range(256))
+_AMPS = tuple(raw * CURRENT_STEP + 0 for raw in range(256))
+_SIGNED = tuple(raw - 256 if raw > 127 else raw for raw in range(256))
+_volts = _VOLTS.__getitem__
+_signed = _SIGNED.__getitem__
+
+
+def _check_dbc() -> None:
+    """Fail loudly if msg_defs/ams.dbc no longer has the layout the decoders hard-code."""
+    db = load_dbc('ams')
+    for offset, (length, signals) in _LAYOUT.items():
+        msg = db.get_message_by_name(_DBC_NAMES[offset])
+        got = (msg.length, sorted(
+            (s.name, s.start, s.length, s.is_signed, s.scale, s.offset, s.byte_order,
+             s.is_float) for s in msg.signals))
+        want = (length, sorted(
+            (name, start, bits, signed, scale, 0, 'big_endian', False)
+            for name, start, bits, signed, scale in signals))
+        if got != want:
+            raise RuntimeError(f'msg_defs/ams.dbc {msg.name} does not match the AMS codec '
+                               f'layout: {got}')
+
+
 # Status words seen so far, by their raw 16-bit value: a car sends a handful of distinct words,
-# and building a frozen dataclass costs more than the whole cantools decode (measured).
+# and building a frozen dataclass costs more than decoding the rest of the frame.
 _WORD_CACHE: dict[int, AmsStatusWord] = {}
 
 
-def _status_word(sig: dict[str, Any], data: bytes) -> AmsStatusWord:
+def _status_word(data: bytes) -> AmsStatusWord:
     raw = data[0] << 8 | data[1]  # bytes or bytearray (python-can gives the latter)
     word = _WORD_CACHE.get(raw)
     if word is not None:
         return word
-    state = _STATES.get(sig['AMS_State'])
+    state = _STATES.get(raw & 0x1F)
     if state is None:
-        raise _Bad(f'unknown AMS state {sig["AMS_State"]} (known 0..9)')
-    banks = sig['Bank_Count']
+        raise _Bad(f'unknown AMS state {raw & 0x1F} (known 0..9)')
+    banks = raw >> 5 & 0x07
     if banks > MAX_BANKS:
         raise _Bad(f'status bank count {banks} (allowed 0..{MAX_BANKS})')
-    word = AmsStatusWord(bool(sig['AIR_Plus']), bool(sig['AIR_Minus']),
-                         bool(sig['Precharge_Relay']), bool(sig['Warn_Volt']),
-                         bool(sig['Warn_Temp']), bool(sig['HVDC_Interlock']),
-                         bool(sig['IMD_Error']), bool(sig['AMS_Error']), banks, state)
+    flags = data[0]
+    word = AmsStatusWord(bool(flags & 0x80), bool(flags & 0x40), bool(flags & 0x20),
+                         bool(flags & 0x10), bool(flags & 0x08), bool(flags & 0x04),
+                         bool(flags & 0x02), bool(flags & 0x01), banks, state)
     _WORD_CACHE[raw] = word  # bounded: at most 2**16 words
     return word
 
 
-def _bank_group(sig: dict[str, Any], groups: int) -> tuple[int, int]:
-    bank, group = sig['Bank_ID'], sig['Group_ID']
+def _bank_group(data: bytes, groups: int) -> tuple[int, int]:
+    bank, group = data[0] >> 5, data[0] & 0x07
     if not 1 <= bank <= MAX_BANKS:
         raise _Bad(f'bank ID {bank} (allowed 1..{MAX_BANKS})')
     if group >= groups:
@@ -296,68 +353,67 @@ def _bank_group(sig: dict[str, Any], groups: int) -> tuple[int, int]:
     return bank, group
 
 
-def _dec_status(sig: dict[str, Any], data: bytes) -> AmsStatus:
-    return AmsStatus(_status_word(sig, data), sig['Volt_min'], sig['Temp_max'], sig['SOC'],
-                     sig['Counter'], bool(sig['Relay_Error_AIR_Minus']),
-                     bool(sig['Relay_Error_AIR_Plus']), bool(sig['Relay_Error_Precharge']))
+def _dec_status(data: bytes) -> AmsStatus:
+    relays = data[6]
+    return AmsStatus(_status_word(data), _VOLTS[data[2]], data[3], data[4], data[5],
+                     bool(relays & 0x01), bool(relays & 0x02), bool(relays & 0x04))
 
 
-def _dec_charger_status(sig: dict[str, Any], data: bytes) -> AmsChargerStatus:
-    return AmsChargerStatus(_status_word(sig, data), sig['SOC'], sig['Charger_Current'],
-                            bool(sig['Turn_On_Charger']))
+def _dec_charger_status(data: bytes) -> AmsChargerStatus:
+    return AmsChargerStatus(_status_word(data), data[2], _AMPS[data[3]], bool(data[4] & 0x01))
 
 
-def _dec_car_status(sig: dict[str, Any], data: bytes) -> CarStatus:
-    command = _COMMANDS.get(sig['CMD'])
+def _dec_car_status(data: bytes) -> CarStatus:
+    command = _COMMANDS.get(data[0] & 0x0F)
     if command is None:
-        raise _Bad(f'unknown car command {sig["CMD"]} (known 0..6)')
-    banks = sig['Bank_Count']
+        raise _Bad(f'unknown car command {data[0] & 0x0F} (known 0..6)')
+    banks = data[0] >> 4
     if not 1 <= banks <= MAX_BANKS:
         raise _Bad(f'car status bank count {banks} (allowed 1..{MAX_BANKS})')
-    return CarStatus(command, banks, sig['Counter'])
+    return CarStatus(command, banks, data[1])
 
 
-def _dec_charger_commands(sig: dict[str, Any], data: bytes) -> ChargerCommand:
-    start = _STARTS.get(sig['Start'])
+def _dec_charger_commands(data: bytes) -> ChargerCommand:
+    start = _STARTS.get(data[0] & 0x03)
     if start is None:
-        raise _Bad(f'unknown charger start command {sig["Start"]} (known 0..2)')
-    return ChargerCommand(start, sig['Time_Tick'])
+        raise _Bad(f'unknown charger start command {data[0] & 0x03} (known 0..2)')
+    return ChargerCommand(start, data[1] << 8 | data[2])
 
 
-def _dec_cells(sig: dict[str, Any], data: bytes) -> CellVoltages:
-    bank, group = _bank_group(sig, CELL_GROUPS)
-    return CellVoltages(bank, group, tuple([sig[n] for n in _CELL_SIGNALS]))
+def _dec_cells(data: bytes) -> CellVoltages:
+    bank, group = _bank_group(data, CELL_GROUPS)
+    return CellVoltages(bank, group, tuple(map(_volts, data[1:8])))
 
 
-def _dec_temps(sig: dict[str, Any], data: bytes) -> CellTemperatures:
-    bank, group = _bank_group(sig, TEMP_GROUPS)
-    return CellTemperatures(bank, group, tuple([sig[n] for n in _TEMP_SIGNALS]))
+def _dec_temps(data: bytes) -> CellTemperatures:
+    bank, group = _bank_group(data, TEMP_GROUPS)
+    return CellTemperatures(bank, group, tuple(map(_signed, data[1:6])))
 
 
-def _dec_discharge(sig: dict[str, Any], data: bytes) -> DischargeTemperatures:
-    bank, group = _bank_group(sig, TEMP_GROUPS)
-    return DischargeTemperatures(bank, group, tuple([sig[n] for n in _DISCHARGE_SIGNALS]))
+def _dec_discharge(data: bytes) -> DischargeTemperatures:
+    bank, group = _bank_group(data, TEMP_GROUPS)
+    return DischargeTemperatures(bank, group, tuple(map(_signed, data[1:8])))
 
 
-def _dec_error(sig: dict[str, Any], data: bytes) -> AmsErrorEvent:
-    error = _ERRORS.get(sig['AMS_Error_ID'])
+def _dec_error(data: bytes) -> AmsErrorEvent:
+    error = _ERRORS.get(data[0])
     if error is None:
-        raise _Bad(f'unknown AMS error ID {sig["AMS_Error_ID"]} (known 1..23)')
-    return AmsErrorEvent(error, sig['AMS_Time_Tick'])
+        raise _Bad(f'unknown AMS error ID {data[0]} (known 1..23)')
+    return AmsErrorEvent(error, data[1] << 8 | data[2])
 
 
-def _dec_override_current(sig: dict[str, Any], data: bytes) -> OverrideChargeCurrent:
-    return OverrideChargeCurrent(sig['Charge_Current'])
+def _dec_override_current(data: bytes) -> OverrideChargeCurrent:
+    return OverrideChargeCurrent(_AMPS[data[0]])
 
 
-def _dec_override_banks(sig: dict[str, Any], data: bytes) -> OverrideBankCount:
-    banks = sig['Bank_Count']
+def _dec_override_banks(data: bytes) -> OverrideBankCount:
+    banks = data[0]
     if not 1 <= banks <= MAX_BANKS:
         raise _Bad(f'override bank count {banks} (allowed 1..{MAX_BANKS})')
     return OverrideBankCount(banks)
 
 
-_DECODERS: dict[int, Callable[[dict[str, Any], bytes], Any]] = {
+_DECODERS: dict[int, Callable[[bytes], Any]] = {
     STATUS: _dec_status, CHARGER_STATUS: _dec_charger_status, CAR_STATUS: _dec_car_status,
     CHARGER_COMMANDS: _dec_charger_commands, CELL_VOLTAGES: _dec_cells,
     CELL_TEMPERATURES: _dec_temps, DISCHARGE_TEMPERATURES: _dec_discharge, ERROR: _dec_error,
@@ -507,6 +563,7 @@ class AmsCodec:
     """Frames <-> typed AMS messages at one base ID (11-bit IDs)."""
 
     is_extended_id = False
+    _dbc_checked = False
 
     def __init__(self, base_id: int = DEFAULT_BASE_ID) -> None:
         highest = 0x7FF - max(OFFSETS)
@@ -515,14 +572,14 @@ class AmsCodec:
             raise EncodeRangeError('base_id', base_id,
                                    f'0..0x{highest:X} (11-bit IDs up to base + 0x051)')
         self.base_id = base_id
+        if not AmsCodec._dbc_checked:
+            _check_dbc()
+            AmsCodec._dbc_checked = True
         db = load_dbc('ams')
-        # One dict lookup per frame: ID -> (DLC, cantools decode, reading builder).
-        self._decode_table: dict[int, tuple[int, Callable[..., dict], Callable]] = {}
+        # One dict lookup per frame: ID -> (DLC, reading builder).
+        self._decode_table: dict[int, tuple[int, Callable[[bytes], Any]]] = {
+            base_id + offset: (_LAYOUT[offset][0], _DECODERS[offset]) for offset in OFFSETS}
         self._encode_table: dict[type, tuple[int, Callable, Callable]] = {}
-        for offset in OFFSETS:
-            msg = db.get_message_by_name(_DBC_NAMES[offset])
-            self._decode_table[base_id + offset] = (msg.length, msg.decode_simple,
-                                                    _DECODERS[offset])
         for cls, (offset, encoder) in _ENCODERS.items():
             msg = db.get_message_by_name(_DBC_NAMES[offset])
             self._encode_table[cls] = (base_id + offset, msg.encode, encoder)
@@ -538,12 +595,12 @@ class AmsCodec:
         if entry is None:
             raise MalformedFrameError(arbitration_id, data,
                                       f'not an AMS ID at base 0x{self.base_id:X}')
-        length, decode_signals, build = entry
+        length, build = entry
         if len(data) != length:
             raise MalformedFrameError(arbitration_id, data,
                                       f'DLC {len(data)}, expected {length}')
         try:
-            return build(decode_signals(data, False, True), data)
+            return build(data)
         except _Bad as exc:
             raise MalformedFrameError(arbitration_id, data, str(exc)) from None
 
