@@ -54,6 +54,9 @@ class DeviceSet:
         devices = (self.ext if is_extended_id else self.std).get(arbitration_id)
         if devices is None:
             return []
+        if len(devices) == 1:  # most IDs: one device, no comprehension
+            device = devices[0]
+            return [device] if device.handle_frame(arbitration_id, data, stamp) else []
         return [d for d in devices if d.handle_frame(arbitration_id, data, stamp)]
 
     def _add(self, name: str, declare: Declare, clock: Callable[[], float]) -> None:

@@ -79,8 +79,11 @@ class _Array:
 
     def fresh(self, banks: int, now: float, max_age: float) -> list[float]:
         """Values of banks 1..banks, NaN where the group was never heard or is too old."""
+        slots = banks * self.groups
+        if slots and now - min(self.seen[:slots]) <= max_age:
+            return self.values[:slots * self.per_group]  # every group fresh: the usual case
         out = []
-        for slot in range(banks * self.groups):
+        for slot in range(slots):
             start = slot * self.per_group
             if now - self.seen[slot] <= max_age:
                 out.extend(self.values[start:start + self.per_group])
@@ -274,8 +277,11 @@ class AmsDevice(Device):
         self._highest_bank = max(self._highest_bank, reading.bank)
         if reading.bank > self.bank_count:
             self._beyond_banks += 1
-        array.put(reading.bank, reading.group,
-                  reading.voltages_v if array is self._cells else reading.temperatures_c, now)
+        if array is self._cells:
+            array.put(reading.bank, reading.group, reading.voltages_v, now)
+        else:  # floats once per frame here, not per published array
+            array.put(reading.bank, reading.group, tuple(map(float, reading.temperatures_c)),
+                      now)
 
     # --- what the commanding part waits on ------------------------------------------------
     def active_errors(self) -> list[AmsError]:
@@ -346,11 +352,11 @@ class AmsDevice(Device):
         return ', '.join(f'{label} {"closed" if closed else "open"}' for label, closed in (
             ('AIR+', word.air_plus), ('AIR-', word.air_minus), ('precharge', word.precharge)))
 
-    def _diagnostic_report(self) -> DiagnosticReport:
+    def _diagnostic_report(self, with_values: bool = True) -> DiagnosticReport:
         status = self._status
         if status is None:
             return DiagnosticReport(Level.STALE, 'no AMS status received yet',
-                                    diagnostic_values(self))
+                                    diagnostic_values(self) if with_values else {})
         word = status.status
         errors, warnings = [], []
         if self.state in ERROR_STATES:
@@ -382,7 +388,7 @@ class AmsDevice(Device):
             warnings.append(f'SOC {status.soc_pct} % out of range (shown as unknown)')
         level = Level.ERROR if errors else Level.WARN if warnings else Level.OK
         message = '; '.join([f'{self.state.name}', self._relays_text()] + errors + warnings)
-        return DiagnosticReport(level, message, diagnostic_values(self))
+        return DiagnosticReport(level, message, diagnostic_values(self) if with_values else {})
 
     def _fresh(self, kind: type) -> Any:
         """Return the last reading of kind (lock held), None if never or not within stale."""
@@ -395,8 +401,7 @@ class AmsDevice(Device):
             banks, now, age = self.bank_count, self.clock(), self._max_cell_age()
             return {
                 'temperatures': (banks, proto.TEMPS_PER_BANK,
-                                 [float(t) for t in self._temps.fresh(banks, now, age)]),
-                'discharge_temperatures': (
-                    banks, proto.DISCHARGE_TEMPS_PER_BANK,
-                    [float(t) for t in self._discharge.fresh(banks, now, age)]),
+                                 self._temps.fresh(banks, now, age)),
+                'discharge_temperatures': (banks, proto.DISCHARGE_TEMPS_PER_BANK,
+                                           self._discharge.fresh(banks, now, age)),
             }

@@ -324,10 +324,22 @@ class Device:
             report.message = f'stale: {waited} (stale_timeout {self.stale_timeout:g} s)'
         return report
 
+    def diagnostic_level(self) -> Level:
+        """
+        Return the level diagnostic_report() gives now, without building its values.
+
+        The node's watch asks for it several times a second under load, to publish early
+        on a change; the values (up to ~100 formatted strings a device) only once a second.
+        """
+        with self.lock:
+            level = self._diagnostic_report(with_values=False).level
+        return Level.STALE if self.is_stale() else level
+
     def _battery_report(self) -> BatteryReport:
         raise NotImplementedError
 
-    def _diagnostic_report(self) -> DiagnosticReport:
+    def _diagnostic_report(self, with_values: bool = True) -> DiagnosticReport:
+        """Build level, message and (with_values) the values (lock held)."""
         raise NotImplementedError
 
     def extra_arrays(self) -> dict[str, tuple[int, int, list[float]]]:

@@ -174,7 +174,7 @@ class Bms16Device(Device):
         report.present = True
         return report
 
-    def _diagnostic_report(self) -> DiagnosticReport:
+    def _diagnostic_report(self, with_values: bool = True) -> DiagnosticReport:
         status = self.status
         values: dict[str, str] = {}
         level = Level.OK
@@ -196,16 +196,17 @@ class Bms16Device(Device):
                 'current A (wire, positive = discharge)': f'{status.current_a:g}',
                 'temperature degC': str(status.temperature_c),
             })
-        count = self.cell_count()
-        cells = self._fresh_cells()
-        for k in range(count):
-            values[f'cell {k + 1} V'] = f'{cells[k]:g}'
-        known = [v for v in cells[:count] if not math.isnan(v)]
-        if known:
-            values['cell min V'] = f'{min(known):g}'
-            values['cell max V'] = f'{max(known):g}'
         sma = self._fresh_sma()
-        values.update(sma_values(sma, prefix='sma '))
+        if with_values:
+            count = self.cell_count()
+            cells = self._fresh_cells()
+            for k in range(count):
+                values[f'cell {k + 1} V'] = f'{cells[k]:g}'
+            known = [v for v in cells[:count] if not math.isnan(v)]
+            if known:
+                values['cell min V'] = f'{min(known):g}'
+                values['cell max V'] = f'{max(known):g}'
+            values.update(sma_values(sma, prefix='sma '))
         alarms = sma.get(SmaAlarms)
         if alarms is not None:
             # The SMA flags mirror the BMS16's state: an active one is never downgraded.

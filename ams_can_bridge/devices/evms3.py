@@ -267,6 +267,9 @@ class Evms3Device(Device):
     def _module_cells(self, m: int, count: int) -> list[float]:
         module = self._modules[m]
         now = self.clock()
+        frames = module.cells_seen[:(count + 3) // 4]
+        if frames and now - min(frames) <= self.module_timeout:
+            return module.cells[:count]  # every frame of these cells fresh: the usual case
         return [module.cells[i] if now - module.cells_seen[i // 4] <= self.module_timeout
                 else NAN for i in range(count)]
 
@@ -307,11 +310,36 @@ class Evms3Device(Device):
         report.present = True
         return report
 
-    def _diagnostic_report(self) -> DiagnosticReport:
+    def _diagnostic_report(self, with_values: bool = True) -> DiagnosticReport:
         status = self._status
         values: dict[str, str] = {}
         if status is None:
             return DiagnosticReport(Level.OK, 'no status frame (ID 30) yet', values)
+        if with_values:
+            self._values(status, values)
+        charger_faults = self._charger_values(values)
+        if with_values:
+            values.update(self.reader.values(self.clock()))
+        else:
+            values = {}  # the chargers' values, filled on the way to their faults
+        if status.error == Evms3Error.NONE:
+            level = Level.OK
+        elif status.error in EVMS3_WARNINGS:
+            level = Level.WARN
+        else:
+            level = Level.ERROR
+        message = f'{status.state.name}, {error_text(status.error)}'
+        silent = self._silent_modules()
+        if silent:
+            level = max(level, Level.WARN)
+            message += '; BMS12 module(s) silent: ' + ', '.join(str(m) for m in silent)
+        if charger_faults:
+            level = max(level, Level.WARN)
+            message += '; ' + '; '.join(charger_faults)
+        return DiagnosticReport(level, message, values)
+
+    def _values(self, status: Evms3Status, values: dict[str, str]) -> None:
+        """Add the status and every module's values (lock held)."""
         capacity = self._capacity_ah()
         current = self._ros_current()
         values.update({
@@ -345,23 +373,6 @@ class Evms3Device(Device):
             values[f'module {m} last heard'] = ('never' if seen == -math.inf
                                                 else f'{self.clock() - seen:.1f} s ago')
             values[f'module {m} balance target (mV)'] = self._balance_text(m)
-        charger_faults = self._charger_values(values)
-        values.update(self.reader.values(self.clock()))
-        if status.error == Evms3Error.NONE:
-            level = Level.OK
-        elif status.error in EVMS3_WARNINGS:
-            level = Level.WARN
-        else:
-            level = Level.ERROR
-        message = f'{status.state.name}, {error_text(status.error)}'
-        silent = self._silent_modules()
-        if silent:
-            level = max(level, Level.WARN)
-            message += '; BMS12 module(s) silent: ' + ', '.join(str(m) for m in silent)
-        if charger_faults:
-            level = max(level, Level.WARN)
-            message += '; ' + '; '.join(charger_faults)
-        return DiagnosticReport(level, message, values)
 
     def _balance_text(self, m: int) -> str:
         module = self._modules[m]

@@ -185,7 +185,7 @@ class IvtSDevice(Device):
             present=IvtMux.I in self._tracks,
         )
 
-    def _diagnostic_report(self) -> DiagnosticReport:
+    def _diagnostic_report(self, with_values: bool = True) -> DiagnosticReport:
         results = self._fresh_results()
         errors, warnings = [], []
         system = [DBC_NAME[r.kind] for r in results if r.system_error]
@@ -208,7 +208,7 @@ class IvtSDevice(Device):
         current, voltage = self._current_a(), self._valid(IvtMux.U1)
         summary = f'{round(current, 2) + 0.0:.2f} A, {voltage:.1f} V'  # never '-0.00'
         message = '; '.join(errors + warnings + [summary])
-        return DiagnosticReport(level, message, self._values(current))
+        return DiagnosticReport(level, message, self._values(current) if with_values else {})
 
     def _values(self, current: float) -> dict[str, str]:
         values = {

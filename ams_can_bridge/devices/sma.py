@@ -255,10 +255,10 @@ class SmaDevice(Device):
                 return health
         return PowerSupplyHealth.UNSPEC_FAILURE if active else PowerSupplyHealth.GOOD
 
-    def _diagnostic_report(self) -> DiagnosticReport:
+    def _diagnostic_report(self, with_values: bool = True) -> DiagnosticReport:
         readings, expired = self._fresh()
-        values = sma_values(readings)
-        if expired:
+        values = sma_values(readings) if with_values else {}
+        if expired and with_values:
             values['frames expired'] = ', '.join(
                 f'0x{GROUP_IDS[k]:X} ({s:.1f} s ago)' for k, s in sorted(
                     expired.items(), key=lambda item: GROUP_IDS[item[0]]))

@@ -247,11 +247,11 @@ class BridgeNode(Node):
                   stamp: float) -> None:
         for device in self.device_set.handle_frame(arbitration_id, data, is_extended_id,
                                                    stamp):
-            self._publish_battery(device.name)
+            self._publish_battery(device)
 
     # --- publishing -----------------------------------------------------------------------
-    def _publish_battery(self, name: str) -> None:
-        device = self.devices[name]
+    def _publish_battery(self, device: Device) -> None:
+        name = device.name
         self._publish_messages(name, *self._messages(name, device.battery_report()))
 
     def _publish_stale_battery(self, name: str) -> None:
@@ -277,6 +277,8 @@ class BridgeNode(Node):
         device = self.devices[name]
         battery = convert.battery_state(report, device.config.frame_id or '', self._now())
         pubs = self.array_pubs[name]
+        if not pubs:
+            return battery, []
         arrays = [(pubs[suffix], convert.multi_array(rows, cols, data))
                   for suffix, (rows, cols, data) in device.extra_arrays().items()
                   if suffix in pubs]
@@ -320,7 +322,7 @@ class BridgeNode(Node):
         now = time.monotonic()
         if (cached is None or cached[1] != stale
                 or (cached[0] != revision and now - cached[3] >= LEVEL_RECHECK_PERIOD)):
-            cached = (revision, stale, int(device.diagnostic_report().level), now)
+            cached = (revision, stale, int(device.diagnostic_level()), now)
             self._level_cache[name] = cached
         return cached[2]
 

@@ -1,0 +1,78 @@
+"""ros/convert.py: messages built by filling their slots equal the constructors' ones."""
+import math
+
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+import pytest
+from rclpy.serialization import deserialize_message, serialize_message
+from sensor_msgs.msg import BatteryState
+from std_msgs.msg import Float32MultiArray
+
+from ams_can_bridge import reports
+from ams_can_bridge.devices.base import BatteryReport, DiagnosticReport, Level
+from ams_can_bridge.ros import convert
+
+NAN = math.nan
+REPORTS = [
+    BatteryReport(),  # nothing known: NaN everywhere, no stamp
+    BatteryReport(stamp=1_700_000_000.123456789, voltage=403.2, temperature=31.5,
+                  current=-12.25, charge=55.5, capacity=60.0, design_capacity=62.0,
+                  percentage=0.925, power_supply_status=2, power_supply_health=1,
+                  power_supply_technology=2, present=True,
+                  cell_voltage=[3.6 + k / 1000 for k in range(140)] + [NAN],
+                  cell_temperature=[25, 26.5, NAN], location='rear', serial_number='S/N 7'),
+    BatteryReport(stamp=5.999999999, voltage=-0.0, cell_voltage=[1e39, -1e-45],
+                  present=False),
+]
+
+
+def wire(msg) -> str:
+    """Return what a subscriber gets, as text (NaN equals NaN there)."""
+    return repr(deserialize_message(serialize_message(msg), type(msg)))
+
+
+def by_constructor(report: BatteryReport, frame_id: str, fallback: float) -> BatteryState:
+    """Build the message the way convert did before: constructors and property setters."""
+    fields = reports.battery_fields(report)
+    msg = BatteryState(**fields)
+    sec, nanosec = reports.stamp_parts(reports.report_stamp(report, fallback))
+    msg.header.stamp = Time(sec=sec, nanosec=nanosec)
+    msg.header.frame_id = frame_id
+    return msg
+
+
+@pytest.mark.parametrize('report', REPORTS)
+def test_battery_state_serializes_like_the_constructor(report):
+    fast = convert.battery_state(report, 'pack_link', 1_800_000_000.5)
+    slow = by_constructor(report, 'pack_link', 1_800_000_000.5)
+    assert wire(fast) == wire(slow)
+    assert type(fast.header.stamp) is Time and type(fast.cell_voltage[0:0]) is type(
+        slow.cell_voltage[0:0])
+    # the message stays an ordinary one: fields read and set as usual
+    fast.header.stamp = convert.stamp_msg(2.5)
+    assert (fast.header.stamp.sec, fast.header.stamp.nanosec) == (2, 500_000_000)
+
+
+def test_multi_array_serializes_like_the_constructor():
+    fast = convert.multi_array(2, 3, [1.0, 2.5, NAN, 4, 5, -6.25], ('module', 'cell'))
+    slow = Float32MultiArray()
+    slow.layout = convert._layout(2, 3, ('module', 'cell'))
+    slow.data = [1.0, 2.5, NAN, 4.0, 5.0, -6.25]
+    assert wire(fast) == wire(slow)
+    assert [(d.label, d.size, d.stride) for d in fast.layout.dim] == [
+        ('module', 2, 6), ('cell', 3, 3)]
+
+
+def test_diagnostic_status_serializes_like_the_constructor():
+    report = DiagnosticReport(Level.WARN, 'two things', {'a': '1', 'b key': 'x y', 'c': ''})
+    fast = convert.diagnostic_status(report, 'bridge: ams', 'slcan:/dev/x')
+    slow = DiagnosticStatus(level=b'\x01', name='bridge: ams', message='two things',
+                            hardware_id='slcan:/dev/x',
+                            values=[KeyValue(key=k, value=v) for k, v in report.values.items()])
+    assert wire(fast) == wire(slow)
+    assert fast.values == slow.values  # KeyValue equality works on the slot-built ones
+
+
+def test_stamp_msg():
+    assert wire(convert.stamp_msg(12.25)) == wire(Time(sec=12, nanosec=250_000_000))
+    assert (convert.stamp_msg(NAN).sec, convert.stamp_msg(-1.0).nanosec) == (0, 0)
