@@ -67,6 +67,11 @@ _BUS_LEVELS = {
 }
 
 
+def bus_level(status: Any) -> Level:
+    """Return the level bus_report() gives a BusStatus, without building the report."""
+    return _BUS_LEVELS.get(BusState(status.state), Level.ERROR)
+
+
 def bus_report(status: Any, malformed: int, interface: str) -> DiagnosticReport:
     """
     Build the CAN bus DiagnosticReport from a CanIo BusStatus and the devices' counters.
@@ -75,7 +80,7 @@ def bus_report(status: Any, malformed: int, interface: str) -> DiagnosticReport:
     (error, bus-off, reconnecting, cannot open) with the reason in the message.
     """
     state = BusState(status.state)
-    level = _BUS_LEVELS.get(state, Level.ERROR)
+    level = bus_level(status)
     reason = str(status.reason or '')
     message = state + (f': {reason}' if reason and level != Level.OK else '')
     down_for = getattr(status, 'down_for', None)

@@ -49,7 +49,7 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import BatteryState
 from std_msgs.msg import Float32MultiArray
 
-from ams_can_bridge import registry
+from ams_can_bridge import registry, reports
 from ams_can_bridge.can_io import BusConfig, CanIo, CanSendError, parse_options
 from ams_can_bridge.can_io.config import RETRY_STATES
 from ams_can_bridge.can_io.core import STATE_CHANGE_FORMAT
@@ -305,14 +305,14 @@ class BridgeNode(Node):
                 self._publish_stale_battery(name)
 
     def _statuses(self) -> list[tuple[str, Any]]:
-        reports = []
+        statuses = []
         for name, device in self.devices.items():
             revision, stale = device.revision, device.is_stale()
             report = device.diagnostic_report()
             self._level_cache[name] = (revision, stale, int(report.level), time.monotonic())
-            reports.append((name, report))
-        reports.append(('CAN bus', self._bus_report()))
-        return reports
+            statuses.append((name, report))
+        statuses.append(('CAN bus', self._bus_report()))
+        return statuses
 
     def _device_level(self, name: str) -> int:
         """Return a device's diagnostic level, rebuilding its report only after a change."""
@@ -335,9 +335,9 @@ class BridgeNode(Node):
         report.values['commands_enabled changes'] = str(self.commands_changes)
         return report
 
-    def _levels_changed(self) -> bool:
+    def _levels_changed(self, status: Any) -> bool:
         levels = {name: self._device_level(name) for name in self.devices}
-        levels['CAN bus'] = int(self._bus_report().level)
+        levels['CAN bus'] = int(reports.bus_level(status))
         return levels != self._levels
 
     def publish_diagnostics(self) -> None:
@@ -367,7 +367,8 @@ class BridgeNode(Node):
             self._publish(self.clock_pub, Clock(clock=convert.stamp_msg(stamp)))
 
     def _watch(self) -> None:
-        self._bus_log.update(self.can_io.status())
+        status = self.can_io.status()
+        self._bus_log.update(status)
         now = time.monotonic()
         for name, device in self.devices.items():
             stale = device.is_stale()
@@ -389,7 +390,7 @@ class BridgeNode(Node):
                 self.get_logger().warning(
                     f'{name}: {count} malformed frame(s) so far, dropped; last: '
                     f'{device.last_malformed}')
-        if self._levels_changed():
+        if self._levels_changed(status):
             self.publish_diagnostics()
 
     # --- commands seam --------------------------------------------------------------------
