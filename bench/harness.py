@@ -74,16 +74,24 @@ def cpu_share(pid: int, seconds: float) -> float:
 
 @contextlib.contextmanager
 def pty_pair() -> Iterator[tuple[str, str]]:
-    """Yield two linked serial ports (socat), as an slcan adapter's two sides."""
+    """Yield two linked serial ports, as an slcan adapter's two sides.
+
+    socat where it is installed (BENCH_PTY_LINK=python forces the other way); else
+    bench/pty_link.py, the same link in Python, so a machine with nothing but Python runs
+    the suite.
+    """
     work = tempfile.mkdtemp(prefix='bench_pty_')
     a, b = os.path.join(work, 'A'), os.path.join(work, 'B')
-    proc = subprocess.Popen(['socat', f'pty,raw,echo=0,link={a}', f'pty,raw,echo=0,link={b}'],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    if shutil.which('socat') and os.environ.get('BENCH_PTY_LINK') != 'python':
+        args = ['socat', f'pty,raw,echo=0,link={a}', f'pty,raw,echo=0,link={b}']
+    else:
+        args = [PYTHON, str(BENCH / 'pty_link.py'), a, b]
+    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         deadline = time.monotonic() + 5.0
         while not (os.path.exists(a) and os.path.exists(b)):
             if time.monotonic() > deadline:
-                raise RuntimeError('socat did not create the linked ptys')
+                raise RuntimeError(f'{args[0]} did not create the linked ptys')
             time.sleep(0.02)
         yield a, b
     finally:
