@@ -209,6 +209,8 @@ class Evms3Device(Device):
     # --- bus thread --------------------------------------------------------------------------
     def handle_frame(self, arbitration_id: int, data: bytes, stamp: float) -> bool:
         """Decode and apply one frame; a bad 52..56 also fails a read_config waiting now."""
+        if arbitration_id not in READBACK_IDS:  # nearly every frame
+            return Device.handle_frame(self, arbitration_id, data, stamp)
         malformed = self.frames_malformed
         primary = super().handle_frame(arbitration_id, data, stamp)
         if self.frames_malformed != malformed and arbitration_id in READBACK_IDS:
@@ -217,6 +219,12 @@ class Evms3Device(Device):
         return primary
 
     def _handle(self, reading: Any, stamp: float) -> bool:
+        # most frequent first: 3 cell frames a module and second, 4 status frames a second
+        if isinstance(reading, Bms12Cells):
+            module = self._modules[reading.module]
+            module.cells[reading.first_cell:reading.first_cell + 4] = reading.voltages_v
+            module.cells_seen[reading.first_cell // 4] = self.clock()
+            return False
         if isinstance(reading, Evms3Status):
             self._status = reading
             self._stamp = stamp
@@ -224,10 +232,6 @@ class Evms3Device(Device):
         if isinstance(reading, BatteryCurrent):
             self._current_a = reading.current_a
             self._current_seen = self.clock()
-        elif isinstance(reading, Bms12Cells):
-            module = self._modules[reading.module]
-            module.cells[reading.first_cell:reading.first_cell + 4] = reading.voltages_v
-            module.cells_seen[reading.first_cell // 4] = self.clock()
         elif isinstance(reading, Bms12Temperatures):
             module = self._modules[reading.module]
             module.temps = tuple(float(t) for t in reading.temperatures_c)

@@ -167,7 +167,8 @@ class IvtSDevice(Device):
     # --- executor side ---------------------------------------------------------------------
     def _battery_report(self) -> BatteryReport:
         current = self._current_a()
-        results = self._fresh_results()
+        now, timeout = self.clock(), self.stale_timeout
+        results = [t.result for t in self._tracks.values() if now - t.seen <= timeout]
         if any(r.system_error for r in results):
             health = PowerSupplyHealth.UNSPEC_FAILURE
         elif results:

@@ -68,13 +68,22 @@ def battery_state(report: BatteryReport, frame_id: str,
     msg = _new(BatteryState)
     msg._check_fields = False
     msg._header = header
-    for slot, value in zip(_BATTERY_SLOTS, fields.values()):
-        setattr(msg, slot, value)
+    msg._voltage = fields['voltage']
+    msg._temperature = fields['temperature']
+    msg._current = fields['current']
+    msg._charge = fields['charge']
+    msg._capacity = fields['capacity']
+    msg._design_capacity = fields['design_capacity']
+    msg._percentage = fields['percentage']
+    msg._power_supply_status = fields['power_supply_status']
+    msg._power_supply_health = fields['power_supply_health']
+    msg._power_supply_technology = fields['power_supply_technology']
+    msg._present = fields['present']
+    msg._cell_voltage = fields['cell_voltage']
+    msg._cell_temperature = fields['cell_temperature']
+    msg._location = fields['location']
+    msg._serial_number = fields['serial_number']
     return msg
-
-
-# the slot of each reports.battery_fields() key, in its order
-_BATTERY_SLOTS = tuple('_' + key for key in reports.battery_fields(BatteryReport()))
 
 
 def key_value(key: str, value: str) -> KeyValue:
