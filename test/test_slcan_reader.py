@@ -150,3 +150,21 @@ def test_can_io_opens_the_reader_the_parameter_names(bulk, expected):
             assert [Frame(*f) for f in sink.frames] == FRAMES
         finally:
             io.stop()
+
+
+def test_falls_back_to_python_cans_reader_if_its_internals_change(monkeypatch, caplog):
+    """A python-can release without the line buffer this reader fills: warn, read as before."""
+    original = slcanBus.__init__
+
+    def renamed_buffer(self, *args, **kwargs):
+        original(self, *args, **kwargs)
+        self._buffer = None  # as if python-can had renamed it
+    monkeypatch.setattr(slcanBus, '__init__', renamed_buffer)
+    with SlcanPeer() as peer:
+        bus = _open(BulkReadSlcanBus, peer)
+        try:
+            assert bus._bulk is False
+            assert "python-can's own byte-per-call reader" in caplog.text
+        finally:
+            bus._buffer = bytearray()
+            bus.shutdown()

@@ -12,6 +12,7 @@ Used for ``can.interface: slcan`` unless ``can.slcan_bulk_read`` is false.
 """
 from __future__ import annotations
 
+import logging
 import time
 
 import can
@@ -23,6 +24,7 @@ _CR = 0x0D
 _BEL = 0x07
 # One read takes at most this much: a full pty/USB buffer is a few kB; lines are <= 150.
 _MAX_READ = 4096
+_log = logging.getLogger(__name__)
 
 
 class BulkReadSlcanBus(slcanBus):
@@ -35,7 +37,22 @@ class BulkReadSlcanBus(slcanBus):
     default), so a stop is seen as quickly as with python-can's reader.
     """
 
+    _bulk = False  # python-can's reader until __init__ has checked (it may read while opening)
+
+    def __init__(self, *args: object, **kwargs: object) -> None:
+        """Open as python-can does; check that its reader keeps what this one relies on."""
+        super().__init__(*args, **kwargs)
+        # python-can's own line buffer and pyserial port: if a python-can release renames
+        # them, fall back to its reader rather than fail (setup.py allows python-can >= 4.4).
+        self._bulk = (isinstance(getattr(self, '_buffer', None), bytearray)
+                      and hasattr(getattr(self, 'serialPortOrig', None), 'in_waiting'))
+        if not self._bulk:
+            _log.warning("slcan: python-can's slcanBus internals changed; reading with "
+                         "python-can's own byte-per-call reader")
+
     def _read(self, timeout: float | None) -> str | None:
+        if not self._bulk:
+            return super()._read(timeout)
         buffer = self._buffer
         line = self._next_line(buffer)
         if line is not None:
