@@ -58,7 +58,7 @@ from ams_can_bridge.devices.base import Device
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.periodic import Periodic
 from ams_can_bridge.protocols.common import Frame
-from ams_can_bridge.ros import convert
+from ams_can_bridge.ros import convert, diag_cdr
 from ams_can_bridge.ros.bus_log import BusStateLog
 from ams_can_bridge.ros.commander import Commander
 from ams_can_bridge.ros.convert import format_ids, RosLogHandler
@@ -195,6 +195,8 @@ class BridgeNode(Node):
                     Float32MultiArray, f'{name}/{suffix}', TELEMETRY_DEPTH)
                 for suffix in device.extra_arrays()}
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        encoder = diag_cdr.DiagnosticsEncoder()
+        self._diag_encoder = encoder if encoder.check() else None
         # One thread for all periodic work (see periodic.py: why not executor timers).
         self.periodic = Periodic(f'{NODE_NAME}-periodic', self._stdlib_logger('periodic'))
         self.periodic.every(self.diagnostics_period, self.publish_diagnostics)
@@ -342,14 +344,15 @@ class BridgeNode(Node):
 
     def publish_diagnostics(self) -> None:
         """Publish one DiagnosticArray: every device plus the CAN bus."""
-        msg = DiagnosticArray()
-        msg.header.stamp = convert.stamp_msg(self._now())
-        levels = {}
-        for name, report in self._statuses():
-            levels[name] = int(report.level)
-            msg.status.append(convert.diagnostic_status(
-                report, f'{self.get_name()}: {name}', self.hardware_id))
-        self._levels = levels
+        stamp = self._now()
+        node = self.get_name()
+        named = self._statuses()
+        self._levels = {name: int(report.level) for name, report in named}
+        statuses = [(f'{node}: {name}', report) for name, report in named]
+        if self._diag_encoder is not None:  # serialized here (diag_cdr.py), published raw
+            msg = self._diag_encoder.encode(stamp, statuses, self.hardware_id)
+        else:
+            msg = diag_cdr.diagnostic_array(stamp, statuses, self.hardware_id)
         self._publish(self.diag_pub, msg)
 
     def _now(self) -> float:

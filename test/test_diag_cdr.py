@@ -1,0 +1,67 @@
+"""ros/diag_cdr.py: the bridge's own /diagnostics serialization reads back as rclpy's message."""
+from diagnostic_msgs.msg import DiagnosticArray
+import pytest
+from rclpy.serialization import deserialize_message
+
+from ams_can_bridge import registry
+from ams_can_bridge.device_set import DeviceSet
+from ams_can_bridge.devices.base import DiagnosticReport, Level
+from ams_can_bridge.ros import diag_cdr
+from helpers import Clock
+
+PARAMS = {'ams.bank_count': 2, 'evms3.bms12_modules': 3}
+SIM_OPTIONS = {'ams': {'bank_count': 2}, 'evms3': {'bms12_modules': 3},
+               'bms16': {'send_sma': True}}
+
+
+def statuses_over_time():
+    """Yield the (name, report) list of five devices, once per simulated second."""
+    clock = Clock()
+    devices = DeviceSet(list(registry.DEVICE_TYPES),
+                        lambda name, spec: PARAMS.get(name, spec.default), clock=clock)
+    sims = [registry.load(registry.SIMULATORS[n])(**SIM_OPTIONS.get(n, {}))
+            for n in registry.DEVICE_TYPES if n != 'sma']
+    t = 0.0
+    for second in range(4):
+        for _ in range(20):
+            for sim in sims:
+                for f in sim.tick(t):
+                    devices.handle_frame(f.arbitration_id, f.data, f.is_extended_id, t)
+            t += 0.05
+            clock.now += 0.05
+        yield [(f'bridge: {name}', d.diagnostic_report()) for name, d in
+               devices.devices.items()]
+
+
+def assert_reads_back(encoder, stamp, statuses, hardware_id='slcan:/dev/ttyACM0'):
+    got = deserialize_message(encoder.encode(stamp, statuses, hardware_id), DiagnosticArray)
+    assert got == diag_cdr.diagnostic_array(stamp, statuses, hardware_id)
+
+
+def test_the_bridges_reports_second_after_second():
+    encoder = diag_cdr.DiagnosticsEncoder()
+    assert encoder.check()
+    count = 0
+    for statuses in statuses_over_time():
+        assert_reads_back(encoder, 1_700_000_000.25 + count, statuses)
+        count += sum(len(r.values) for _, r in statuses)
+    assert count > 200  # the pairs' cache was used and updated, not only filled
+
+
+@pytest.mark.parametrize('frame_text', ['', 'a', 'ab', 'abc', 'abcd', 'ünï'])
+def test_every_alignment_and_a_changed_value(frame_text):
+    encoder = diag_cdr.DiagnosticsEncoder()
+    statuses = [(f'n{frame_text}', DiagnosticReport(Level.WARN, frame_text * 2, {
+                    frame_text: frame_text, 'k' + frame_text: 'v', 'x': '1'})),
+                ('', DiagnosticReport(Level.STALE, '', {})),
+                (frame_text * 3, DiagnosticReport(Level.OK, 'm', {'a': frame_text}))]
+    assert_reads_back(encoder, 5.5, statuses, frame_text)
+    statuses[0][1].values['x'] = '22'  # the same key with a new value is encoded anew
+    statuses[2][1].values['new key'] = 'z'
+    assert_reads_back(encoder, float('nan'), statuses, frame_text)
+    assert_reads_back(encoder, 5.5, [], frame_text)
+
+
+def test_a_wrong_encoding_fails_the_start_check(monkeypatch):
+    monkeypatch.setattr(diag_cdr, '_pair', lambda key, value: diag_cdr.cdr_string(key))
+    assert not diag_cdr.DiagnosticsEncoder().check()
