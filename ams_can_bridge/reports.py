@@ -69,7 +69,7 @@ _BUS_LEVELS = {
 
 def bus_level(status: Any) -> Level:
     """Return the level bus_report() gives a BusStatus, without building the report."""
-    return _BUS_LEVELS.get(BusState(status.state), Level.ERROR)
+    return _BUS_LEVELS.get(status.state, Level.ERROR)  # a BusState is its own text
 
 
 def bus_report(status: Any, malformed: int, interface: str) -> DiagnosticReport:

@@ -316,10 +316,12 @@ class BridgeNode(Node):
         statuses.append(('CAN bus', self._bus_report()))
         return statuses
 
-    def _device_level(self, name: str) -> int:
+    def _device_level(self, name: str, stale: bool | None = None) -> int:
         """Return a device's diagnostic level, rebuilding its report only after a change."""
         device = self.devices[name]
-        revision, stale = device.revision, device.is_stale()
+        revision = device.revision
+        if stale is None:
+            stale = device.is_stale()
         cached = self._level_cache.get(name)
         now = time.monotonic()
         if (cached is None or cached[1] != stale
@@ -337,8 +339,9 @@ class BridgeNode(Node):
         report.values['commands_enabled changes'] = str(self.commands_changes)
         return report
 
-    def _levels_changed(self, status: Any) -> bool:
-        levels = {name: self._device_level(name) for name in self.devices}
+    def _levels_changed(self, status: Any, stale: dict[str, bool] | None = None) -> bool:
+        stale = stale or {}
+        levels = {name: self._device_level(name, stale.get(name)) for name in self.devices}
         levels['CAN bus'] = int(reports.bus_level(status))
         return levels != self._levels
 
@@ -393,7 +396,7 @@ class BridgeNode(Node):
                 self.get_logger().warning(
                     f'{name}: {count} malformed frame(s) so far, dropped; last: '
                     f'{device.last_malformed}')
-        if self._levels_changed(status):
+        if self._levels_changed(status, self._stale):
             self.publish_diagnostics()
 
     # --- commands seam --------------------------------------------------------------------

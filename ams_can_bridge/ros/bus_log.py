@@ -27,9 +27,9 @@ class BusStateLog:
 
     def update(self, status: Any) -> None:
         """Log what changed since the last snapshot (nothing when the state is the same)."""
-        state = BusState(status.state)
-        if state == self.state:
+        if status.state == self.state:  # 5 times a second: no enum lookup for "no change"
             return
+        state = BusState(status.state)
         previous, self.state = self.state, state
         reason = f': {status.reason}' if status.reason else ''
         was_up = previous in UP_STATES
