@@ -1,4 +1,4 @@
-"""ros/convert.py: messages built by filling their slots equal the constructors' ones."""
+"""ros/convert.py: its message objects read off the wire as ones built field by field."""
 import math
 
 from builtin_interfaces.msg import Time
@@ -70,7 +70,7 @@ def test_diagnostic_status_serializes_like_the_constructor():
                             hardware_id='slcan:/dev/x',
                             values=[KeyValue(key=k, value=v) for k, v in report.values.items()])
     assert wire(fast) == wire(slow)
-    assert fast.values == slow.values  # KeyValue equality works on the slot-built ones
+    assert fast.values == slow.values
 
 
 def test_stamp_msg():
