@@ -254,19 +254,9 @@ class BridgeNode(Node):
 
     # --- publishing -----------------------------------------------------------------------
     def _publish_battery(self, device: Device) -> None:
-        name = device.name
-        report = device.battery_report()
-        if not self._raw_telemetry:
-            self._publish_messages(name, *self._messages(name, report))
-            return
-        # serialized here (diag_cdr.py), published raw: the same fields, a third the cost
-        self._publish(self.battery_pubs[name], diag_cdr.battery_state(
-            report, device.config.frame_id or '', self._now()))
-        pubs = self.array_pubs[name]
-        if pubs:
-            for suffix, (rows, cols, data) in device.extra_arrays().items():
-                if suffix in pubs:
-                    self._publish(pubs[suffix], diag_cdr.multi_array(rows, cols, data))
+        # serialized by diag_cdr.py and published raw unless its start check failed
+        self._publish_messages(device.name, *self._messages(
+            device.name, device.battery_report(), raw=self._raw_telemetry))
 
     def _publish_stale_battery(self, name: str) -> None:
         device = self.devices[name]
@@ -286,14 +276,21 @@ class BridgeNode(Node):
             cached[1].header.stamp = convert.stamp_msg(self._now())
         self._publish_messages(name, cached[1], cached[2])
 
-    def _messages(self, name: str, report: Any) -> tuple[Any, list[tuple[Any, Any]]]:
-        """Build a device's BatteryState and its arrays' messages (with their publishers)."""
+    def _messages(self, name: str, report: Any,
+                  raw: bool = False) -> tuple[Any, list[tuple[Any, Any]]]:
+        """
+        Build a device's BatteryState and its arrays' messages (with their publishers).
+
+        raw: as CDR bytes (diag_cdr.py; rclpy's conversion of the objects was most of a
+        publish), else as message objects (the stale messages, whose stamp may move).
+        """
         device = self.devices[name]
-        battery = convert.battery_state(report, device.config.frame_id or '', self._now())
+        build = diag_cdr if raw else convert
+        battery = build.battery_state(report, device.config.frame_id or '', self._now())
         pubs = self.array_pubs[name]
         if not pubs:
             return battery, []
-        arrays = [(pubs[suffix], convert.multi_array(rows, cols, data))
+        arrays = [(pubs[suffix], build.multi_array(rows, cols, data))
                   for suffix, (rows, cols, data) in device.extra_arrays().items()
                   if suffix in pubs]
         return battery, arrays
