@@ -90,9 +90,14 @@ def test_soak(rig_factory):
                         5, 'bms16 STALE after silence')
             stale_seen += 1
         elif phase == 'drop':
+            reconnects = bridge.node.can_io.status().reconnects
             capture.bus.send(can.Message(arbitration_id=0x40, is_error_frame=True,
                                          data=bytes(8)))
-            bridge.wait(lambda: not connected(), 5, 'the bus to drop')
+            # down, or already back (on a loaded machine an outage of one reconnect
+            # period, 0.2 s, can pass between two polls of this thread)
+            bridge.wait(lambda: not connected()
+                        or bridge.node.can_io.status().reconnects > reconnects,
+                        5, 'the bus to drop')
             drops += 1
             if rng.random() < 0.5:  # a command while the bus is down waits for it
                 calls.append(client.call_async(Trigger.Request()))
