@@ -56,7 +56,7 @@ def heartbeat_commands(rig, mark=0):
     return [f.data[0] & 0x0F for _, f in rig.capture.since(mark, HEARTBEAT)]
 
 
-# --- charger role: frames written by hand from PROTOCOLS.md section 1 ---------------------
+# --- charger role: frames written by hand from docs/protocols.md section 1 ---------------------
 def test_start_and_stop_charging_carry_start_and_a_millisecond_tick(rig_factory):
     rig = rig_factory(ams_params())
     mark = rig.capture.mark()

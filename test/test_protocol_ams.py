@@ -1,4 +1,4 @@
-"""AMS codec: golden frames written by hand from PROTOCOLS.md section 1 (not from the DBC)."""
+"""AMS codec: golden frames written by hand from docs/protocols.md section 1 (not from the DBC)."""
 import math
 
 import cantools

@@ -93,7 +93,7 @@ class _Array:
 
 
 class AmsDevice(Device):
-    """Formula-Student AMS (accumulator management system), PROTOCOLS.md section 1."""
+    """Formula-Student AMS (accumulator management system), docs/protocols.md section 1."""
 
     TYPE = 'ams'
     BROADCAST_PERIOD = 0.1

@@ -1,5 +1,5 @@
 """
-Formula-Student AMS (accumulator management system) protocol: PROTOCOLS.md section 1.
+Formula-Student AMS (accumulator management system) protocol: docs/protocols.md section 1.
 
 Ten 11-bit messages at ``base_id + offset`` (default base 0x300). The field layout is
 ``msg_defs/ams.dbc``: frames are encoded through cantools, and decoded by hand on that layout
@@ -20,7 +20,7 @@ from ams_can_bridge.protocols.common import (
 
 DEFAULT_BASE_ID = 0x300
 
-# Offsets from the base ID (PROTOCOLS.md section 1 table).
+# Offsets from the base ID (docs/protocols.md section 1 table).
 STATUS = 0x000
 CHARGER_STATUS = 0x001
 CAR_STATUS = 0x005

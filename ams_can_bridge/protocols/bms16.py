@@ -1,5 +1,5 @@
 """
-ZEVA BMS16 (11-bit / 500 kbit/s variant): frames <-> typed readings (PROTOCOLS.md s. 4).
+ZEVA BMS16 (11-bit / 500 kbit/s variant): frames <-> typed readings (docs/protocols.md section 4).
 
 Nine IDs from ``base_id`` (default 500 = 0x1F4), every multi-byte field little-endian:
 

@@ -1,7 +1,7 @@
 """
 ZEVA EVMS3 and its BMS12 cell modules: 29-bit frames <-> typed readings and commands.
 
-PROTOCOLS.md section 3 (EVMS3 CAN protocol rev 1.1; BMS12 from ZEVA's open firmware).
+docs/protocols.md section 3 (EVMS3 CAN protocol rev 1.1; BMS12 from ZEVA's open firmware).
 IDs of the EVMS3 are ``base_id + 0..11`` (30 status .. 41 zero current sensor by default);
 BMS12 module ``m`` uses ``300 + 10 m + t`` (t = 0 request, 1..3 cells, 4 temperatures).
 29-bit by default; ``extended_id=False`` for a firmware built with 11-bit IDs. The TC chargers

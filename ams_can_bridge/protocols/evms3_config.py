@@ -1,7 +1,7 @@
 """
 ZEVA EVMS3 configuration: the typed config, its wire layout (IDs 32..36) and the read-back.
 
-The 32 setting bytes of IDs 32..35 and the cell counts of ID 36 (PROTOCOLS.md section 3), in
+The 32 setting bytes of IDs 32..35 and the cell counts of ID 36 (docs/protocols.md section 3), in
 physical units with the ranges the wire allows (``CONFIG_FIELDS``: the encoder refuses,
 instead of clamping, any value the EVMS would silently limit). ZEVA's open EVMS3 firmware
 (MIT, August 2021) also reports them: ID 51 asks, 52..55 answer in the layout of 32..35 and

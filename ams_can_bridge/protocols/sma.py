@@ -1,5 +1,5 @@
 """
-SMA Sunny Island BMS protocol: frames <-> typed readings (PROTOCOLS.md s. 5).
+SMA Sunny Island BMS protocol: frames <-> typed readings (docs/protocols.md section 5).
 
 Fixed 11-bit IDs, little-endian fields; sent by SMA-compatible BMSs (Pylontech, BYD, ...)
 and by the ZEVA BMS16 next to its own frames:

@@ -4,7 +4,7 @@ Simulated ZEVA EVMS3 with its CAN current sensor and BMS12 cell modules.
 What the bus of an EVMS3 conversion carries: the status (ID 30, 4 Hz), the current sensor
 (ID 40, 10 Hz), and every 0.5 s the EVMS polls each BMS12 module (t = 0) which answers with
 its cells (t = 1..3) and temperatures (t = 4). Remaining Ah integrates the current profile;
-pack voltage is the sum of the module cells. Reacts like PROTOCOLS.md section 3 says: 31 set
+pack voltage is the sum of the module cells. Reacts like docs/protocols.md section 3 says: 31 set
 state, 32..35 configuration stored only once all four arrived, 36 cell numbers, 37 clears
 the matching error, 38 resets SoC to full, 39 powers off (silent until ``power_on()``), 51
 is answered with the whole configuration on 52..56 (the stored one, else FACTORY_CONFIG;
