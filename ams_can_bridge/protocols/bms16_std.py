@@ -166,12 +166,13 @@ def check_config_value(name: str, value: Any) -> Any:
 
 
 def config_from_mapping(values: Mapping[str, Any]) -> Bms16StdConfig:
-    """Build the configuration from {field: value}; balance_v may be left out unless static."""
+    """Build the configuration (values checked and normalized); balance_v only if static."""
     names = list(Bms16StdConfig.__dataclass_fields__)
     missing = [n for n in names if values.get(n) is None and n != 'balance_v']
     if missing:
         raise EncodeRangeError(missing[0], None, 'a value (unset: ' + ', '.join(missing) + ')')
-    return Bms16StdConfig(**{n: values.get(n) for n in names})
+    return Bms16StdConfig(**{n: None if values.get(n) is None
+                             else check_config_value(n, values[n]) for n in names})
 
 
 def config_payloads(cfg: Bms16StdConfig) -> list[bytes]:
