@@ -1,7 +1,9 @@
 """
-BMS16 standard form on a real node: telemetry, write_config (IDs 36, 32..35, 20 ms apart as
-ZEVA's Monitor sends them), power off on 39, acknowledge 37, reset SoC 38, and the refusals.
-Golden frames: test_protocol_bms16_std.py (written by hand from the Monitor firmware).
+BMS16 standard form on a real node: telemetry, services and their refusals.
+
+write_config sends IDs 36, 32..35, 20 ms apart as ZEVA's Monitor sends them; power off is
+39, acknowledge 37, reset SoC 38. Golden frames: test_protocol_bms16_std.py (written by hand
+from the Monitor firmware).
 """
 import can
 from std_srvs.srv import Trigger

@@ -272,7 +272,7 @@ class Bms16StdCodec:
         return Frame(self.base_id + offset, bytes(data), True)
 
     def config_frames(self, cfg: Bms16StdConfig) -> list[Frame]:
-        """IDs 36, 32, 33, 34, 35 in the Monitor's order (EncodeRangeError before any)."""
+        """Build IDs 36, 32, 33, 34, 35 in the Monitor's order (EncodeRangeError before any)."""
         payloads = config_payloads(cfg)
         module1 = cfg.cells - CELLS_PER_MODULE  # the Monitor's split: 8 on module 0
         cell_numbers = bytes([CELLS_PER_MODULE | module1 << 4]) + bytes(7)
