@@ -208,3 +208,22 @@ def test_variant_parameter_picks_the_wire_form():
 def test_base_id_overlapping_the_fixed_ids_is_refused():
     with pytest.raises(ConfigError, match='overlap'):
         DeviceSet(['bms16'], _declare({'bms16.variant': 'standard', 'bms16.base_id': 35}))
+
+
+def test_readme_and_example_cover_every_standard_form_parameter():
+    from pathlib import Path
+
+    import yaml
+    root = Path(__file__).resolve().parents[1]
+    readme = (root / 'README.md').read_text()
+    specs = device_params(registry.device_class('bms16', 'standard'))
+    missing = [s.key for s in specs if s.key.startswith('config.')
+               and f'`bms16.{s.key}`' not in readme]
+    assert not missing and '`bms16.variant`' in readme, missing
+    example = yaml.safe_load((root / 'config' / 'bms16_standard.yaml').read_text())
+    bms16 = example['/**']['ros__parameters']['bms16']
+    assert bms16['variant'] == 'standard'
+    assert set(bms16['config']) == {s.key[len('config.'):] for s in specs
+                                    if s.key.startswith('config.')}
+    for name, value in bms16['config'].items():
+        check_config_value(name, value)  # every example value is one the wire allows
