@@ -8,6 +8,7 @@ RenderBMSDetails, the settings in TransmitSettings / bms16maximums / RenderSetti
 """
 import math
 
+from hypothesis import given, settings, strategies as st
 import pytest
 
 from ams_can_bridge import registry
@@ -19,7 +20,7 @@ from ams_can_bridge.protocols.bms16_std import (
 from ams_can_bridge.protocols.common import EncodeRangeError, Frame, MalformedFrameError
 from ams_can_bridge.protocols.evms3 import (
     AcknowledgeError, BatteryCurrent, Bms12Cells, Evms3Error, Evms3State, PowerOff, ResetSoc)
-from helpers import Clock
+from helpers import assert_decodes_or_malformed, Clock
 
 # state RUNNING (2) | error LOW_SOC_WARNING (10) << 3 = 0x52; 123.4 Ah = 0x04D2;
 # 52.8 V = 0x0210; byte 5 = 255 (BMS16 marker); byte 6 unused; 25 degC + 40 = 0x41
@@ -227,3 +228,23 @@ def test_readme_and_example_cover_every_standard_form_parameter():
                                     if s.key.startswith('config.')}
     for name, value in bms16['config'].items():
         check_config_value(name, value)  # every example value is one the wire allows
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.sampled_from([30, 40, 301, 302, 311, 312]), st.binary(max_size=8))
+def test_any_frame_decodes_or_is_malformed_and_never_crashes_the_device(frame_id, data):
+    assert_decodes_or_malformed(Bms16StdCodec(), frame_id, data)
+    device = std_device()
+    device.handle_frame(frame_id, data, 0.0)  # never raises
+    report = device.battery_report()
+    assert math.isnan(report.voltage) or 0 <= report.voltage <= 6553.5
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(0, 5), st.integers(0, 16), st.integers(0, 0xFFFF), st.integers(0, 0xFFFF),
+       st.integers(0, 255))
+def test_status_round_trip(state, error, ah, volts, temp):
+    data = bytes([state | error << 3, ah >> 8, ah & 0xFF, volts >> 8, volts & 0xFF, 255, 0,
+                  temp])
+    codec = Bms16StdCodec()
+    assert codec.encode(codec.decode(30, data)).data == data
