@@ -73,7 +73,14 @@ class DeviceSet:
             raise ConfigError(
                 f'{name}.type: unknown device type for instance {name!r}; set {name}.type to '
                 'one of ' + ', '.join(registry.DEVICE_TYPES))
-        cls = registry.device_class(device_type)
+        variant = None
+        variants = registry.VARIANTS.get(device_type)
+        if variants:
+            # read first: the variant decides which parameters the instance has
+            variant = declare(f'{name}.variant', ParamSpec(
+                'variant', str, next(iter(variants)), 'wire form of the ' + device_type + ': '
+                + ', '.join(variants) + ' (docs/protocols.md)', choices=tuple(variants)))
+        cls = registry.device_class(device_type, variant)
         values = {spec.key: declare(f'{name}.{spec.key}', spec) for spec in device_params(cls)}
         try:
             device = cls(name, values, clock)

@@ -27,6 +27,19 @@ SIMULATORS = {
     'sma': 'ams_can_bridge.sim.sma:SmaSimulator',
 }
 
+# Device types with more than one wire form: '<name>.variant' picks the device and simulator
+# classes (the first variant is the default; DEVICES / SIMULATORS name the default's classes).
+# BMS16: 'inverter' = the 11-bit / 500 kbit/s units "intended for CAN integration with
+# inverters" (docs/protocols.md section 4), 'standard' = the EVMS3 protocol (section 6).
+VARIANTS = {
+    'bms16': {
+        'inverter': ('ams_can_bridge.devices.bms16:Bms16Device',
+                     'ams_can_bridge.sim.bms16:Bms16Simulator'),
+        'standard': ('ams_can_bridge.devices.bms16_std:Bms16StdDevice',
+                     'ams_can_bridge.sim.bms16_std:Bms16StdSimulator'),
+    },
+}
+
 # ROS command services per device type (issue: commanding); only these types have any.
 COMMANDERS = {
     'ams': 'ams_can_bridge.ros.ams_commands:AmsCommands',
@@ -41,9 +54,26 @@ def load(path: str) -> Any:
     return getattr(importlib.import_module(module), name)
 
 
-def device_class(device_type: str) -> Any:
-    """Return the Device subclass for a type name, with a clear error for unknown types."""
+def device_class(device_type: str, variant: str | None = None) -> Any:
+    """Return the Device subclass for a type (and variant), with a clear error if unknown."""
     if device_type not in DEVICES:
         raise ValueError(f'unknown device type {device_type!r}: use one of '
                          + ', '.join(DEVICE_TYPES))
-    return load(DEVICES[device_type])
+    if variant is None:
+        return load(DEVICES[device_type])
+    return load(_variant(device_type, variant)[0])
+
+
+def simulator_class(device_type: str, variant: str | None = None) -> Any:
+    """Return the simulator class for a type (and variant)."""
+    if variant is None:
+        return load(SIMULATORS[device_type])
+    return load(_variant(device_type, variant)[1])
+
+
+def _variant(device_type: str, variant: str) -> tuple[str, str]:
+    variants = VARIANTS.get(device_type, {})
+    if variant not in variants:
+        raise ValueError(f'{device_type} has no variant {variant!r}'
+                         + (': use one of ' + ', '.join(variants) if variants else ''))
+    return variants[variant]

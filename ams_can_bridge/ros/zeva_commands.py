@@ -13,6 +13,7 @@ frame of a call is built (and so validated) before the first one is sent.
 from __future__ import annotations
 
 import threading
+import time
 from typing import Any, Callable, Iterable
 
 from rclpy.parameter import Parameter
@@ -155,12 +156,19 @@ class Evms3Commands(_ZevaCommands):
 
 
 class Bms16Commands(_ZevaCommands):
-    """BMS16: write_config (504, 505), acknowledge_error, reset_soc, power_off (506..508)."""
+    """
+    BMS16: write_config, acknowledge_error, reset_soc, power_off.
+
+    Variant inverter: 504, 505 / 506 / 507 / 508. Variant standard (EVMS3 protocol): IDs 36,
+    32..35 with the device's pause after each (ZEVA's Monitor: 20 ms) / 37 / 38 / 39.
+    """
 
     def __init__(self, node: Any, device: Device, name: str) -> None:
         """Create the codec and the services of one BMS16 instance."""
         super().__init__(node, device, name)
-        self._service(Trigger, 'write_config', self._trigger(
+        gap = float(getattr(device, 'CONFIG_FRAME_GAP', 0.0))
+        self._service(Trigger, 'write_config', self._paced_trigger(
+            'write the configuration', device.config_frames, gap) if gap else self._trigger(
             'write the configuration', device.config_frames))
         self._service(Trigger, 'acknowledge_error', self._trigger(
             'acknowledge the error', lambda: [device.ack_frame()]))
@@ -168,3 +176,38 @@ class Bms16Commands(_ZevaCommands):
             'reset the SoC', lambda: [device.reset_soc_frame()]))
         self._service(Trigger, 'power_off', self._trigger(
             'power the BMS16 off', lambda: [device.power_off_frame()]))
+
+    def _paced_trigger(self, what: str, build: Callable[[], Iterable[Frame]],
+                       gap: float) -> Callable:
+        """Make a Trigger callback that sends its frames in order, ``gap`` s after each."""
+        def callback(request: Any, response: Any) -> Any:
+            response.success, response.message = self._send_paced(what, build, gap)
+            return response
+        return callback
+
+    def _send_paced(self, what: str, build: Callable[[], Iterable[Frame]],
+                    gap: float) -> tuple[bool, str]:
+        # As _send_frames (gate, every frame built and so validated first, the bus waited
+        # for once), with the pause the device needs after each frame; the send lock is held
+        # throughout, so no other call's frame lands between two of these.
+        if not self.node.commands_enabled:
+            return False, f'{self.name}: {gate_message(self.node, what)}'
+        try:
+            frames = list(build())
+        except (RefusedCommand, EncodeRangeError, ValueError, TypeError) as exc:
+            return False, f'{self.name}: cannot {what}: {exc}; nothing was sent'
+        ok, message = self.node.wait_for_bus()
+        if not ok:
+            return False, f'{self.name}: cannot {what}: {message}; nothing was sent'
+        sent: list[str] = []
+        with self._send_lock:
+            for frame in frames:
+                ok, message = self.node.transmit(frame, wait=False)
+                if not ok:
+                    done = ', '.join(sent) if sent else 'nothing'
+                    return False, (f'{self.name}: {what} failed at {frame_text(frame)}: '
+                                   f'{message}; sent before it: {done}')
+                sent.append(frame_text(frame))
+                time.sleep(gap)
+        return True, (f'{self.name}: {what}: sent ' + ', '.join(sent)
+                      + f' ({gap * 1000:g} ms apart)')

@@ -72,6 +72,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help='frames the SMA BMS sends beyond 0x351..0x35F: sma (0x35A alarms), '
                         'pylontech (0x359 alarms and 0x35C instead of 0x35A) or victron '
                         '(0x35A plus 0x370..0x377); default sma')
+    p.add_argument('--bms16-variant', choices=tuple(registry.VARIANTS['bms16']), default=None,
+                   help='BMS16 wire form: inverter (11-bit, 500 kbit/s, IDs 500.. and SMA; '
+                        'default) or standard (EVMS3 protocol, 29-bit: IDs 30.., 301.., 40)')
     p.add_argument('--fault', type=_fault, action='append', default=[],
                    metavar='DEVICE:KIND[=VALUE]',
                    help='inject a fault: silent, malformed, error=CODE, drift=VOLTS, '
@@ -90,12 +93,13 @@ def build_devices(types: Sequence[str], ams_banks: int | None = None,
                   bms12_modules: int | None = None,
                   ivt_byte_order: str | None = None,
                   sma_dialect: str | None = None, evms3_charge_after: float | None = None,
-                  evms3_chargers: int | None = None) -> list[SimDevice]:
+                  evms3_chargers: int | None = None,
+                  bms16_variant: str | None = None) -> list[SimDevice]:
     """Instantiate the simulators named by type (instance name = type name)."""
     devices: list[SimDevice] = []
     ams = None
     for kind in sorted(types, key=_ORDER.index):
-        cls = registry.load(registry.SIMULATORS[kind])
+        cls = registry.simulator_class(kind, bms16_variant if kind == 'bms16' else None)
         kwargs: dict[str, Any] = {'name': kind}
         if kind == 'ams' and ams_banks is not None:
             kwargs['bank_count'] = ams_banks
@@ -171,7 +175,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         options = parse_options(args.option)
         devices = build_devices(args.devices, args.ams_banks, args.bms12_modules,
                                 args.ivt_byte_order, args.sma_dialect,
-                                args.evms3_charge_after, args.evms3_chargers)
+                                args.evms3_charge_after, args.evms3_chargers,
+                                args.bms16_variant)
         apply_faults(devices, args.fault)
     except (ValueError, TypeError, ImportError) as exc:
         print(f'simulator: {exc}', file=sys.stderr)

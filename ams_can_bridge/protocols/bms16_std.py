@@ -1,0 +1,312 @@
+"""
+ZEVA BMS16 in its standard form: the EVMS3 protocol, 29-bit, 250 kbit/s (docs/protocols.md s. 6).
+
+ZEVA's "CAN bus protocol for BMS16v2": the standard BMS16 uses the CAN format of the EVMS3
+and BMS12, with the data it does not have sent as zero. What the BMS16 puts where comes from
+ZEVA's EVMS Monitor firmware (EVMS_Monitor3.c, Common.h), the display that drives it:
+
+- ``base_id`` + 0 (ID 30): the EVMS3 status frame; **byte 5 = 255** marks a BMS16 (an EVMS3
+  sends its aux voltage there), byte 6 is not used, byte 7 = temperature + 40 (0 = none);
+- BMS12 frames of modules 0 and 1 (IDs 301, 302 and 311, 312): cells 1..8 and 9..16;
+- ID 40 (fixed, as in the Monitor): the shunt current, 24-bit BE, mA + 8388608;
+- ``base_id`` + 2..5 (IDs 32..35): the 32 EVMS3 setting bytes, several with BMS16 meanings
+  (slot 2 full voltage in 1 V steps, slot 6 number of cells, slot 7 shunt size);
+  ``base_id`` + 6 (ID 36): cells per BMS12 module, as the Monitor sends it;
+- ``base_id`` + 7 / 8 / 9 (IDs 37 / 38 / 39): acknowledge error (the code) / reset SoC /
+  power off.
+
+The EVMS3/BMS12 codec (``protocols.evms3``) reads the BMS12 frames; the status frame is read
+here because its bytes 5 and 6 mean something else on a BMS16.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+from ams_can_bridge.protocols.common import (
+    check_dlc, check_range, ConfigField, EncodeRangeError, Frame, MalformedFrameError)
+from ams_can_bridge.protocols.evms3 import (
+    AcknowledgeError, BatteryCurrent, Bms12Cells, Evms3Codec, Evms3Error, Evms3State, PowerOff,
+    ResetSoc)
+
+DEFAULT_BASE_ID = 30                  # Common.h CAN_BASE_ID
+BMS16_MARKER = 255                    # status byte 5 of a BMS16 (EVMS_Monitor3.c)
+CAN_CURRENT_SENSOR_ID = 40            # Common.h: a fixed ID, not base-relative
+BMS12_BASE_ID = 300                   # Common.h BMS_BASE_ID
+CURRENT_OFFSET_MA = 8388608
+STATUS, SET_STATE, CONFIG1, CONFIG2, CONFIG3, CONFIG4 = range(6)
+CELL_NUMBERS, ACK_ERROR, RESET_SOC, POWER_OFF = range(6, 10)
+ID_COUNT = 10                         # base_id + 0 .. base_id + 9
+MAX_CELLS = 16
+CELLS_PER_MODULE = 8                  # reply 1 and 2 of a BMS12 frame set: 4 + 4 cells
+# BMS12 frames the BMS16 sends: (module, type) -> first cell (0-based) of the 4 in the frame
+CELL_FRAMES = {(0, 1): 0, (0, 2): 4, (1, 1): 8, (1, 2): 12}
+CELL_IDS = {BMS12_BASE_ID + 10 * m + t: first for (m, t), first in CELL_FRAMES.items()}
+CONFIG_GAP_S = 0.02                   # the Monitor waits 20 ms after each settings frame
+SHUNT_SIZES_A = (0, 100, 200, 500)    # slot 7 code 0..3 (the Monitor's "None", "100A", ...)
+BALANCE_DYNAMIC = 251
+BALANCE_OFF = 252
+BALANCE_MODES = ('static', 'dynamic', 'off')
+SLOTS = 32                            # setting bytes in IDs 32..35
+
+
+@dataclass(frozen=True, slots=True)
+class Bms16StdStatus:
+    """ID 30 of a BMS16: state, error, remaining Ah, pack voltage, temperature."""
+
+    state: Evms3State
+    error: Evms3Error
+    amp_hours_ah: float
+    pack_voltage_v: float
+    temperature_c: int | None  # None: no sensor (raw 0)
+
+
+@dataclass(frozen=True, slots=True)
+class Bms16StdConfig:
+    """Slots of IDs 32..35 a BMS16 uses (physical units); every other slot is sent as 0."""
+
+    pack_capacity_ah: int
+    soc_warning_pct: int
+    full_voltage_v: int
+    warn_current_a: int
+    trip_current_a: int
+    cells: int
+    shunt_size_a: int
+    min_cell_v: float
+    max_cell_v: float
+    balance_mode: str
+    balance_v: float | None  # used only when balance_mode is 'static'
+    hysteresis_v: float
+    min_temp_c: int
+    max_temp_c: int
+    max_charge_voltage_v: int
+    max_charge_current_a: int
+    stationary_mode: bool
+    reverse_current_display: bool
+    night_brightness: int
+
+
+# Byte slots with a linear meaning: name, type, slot, scale, offset, raw low, raw high, unit,
+# what. Ranges: the Monitor's minimums[] and bms16maximums[] (Common.h), scales from its
+# RenderSettings (capacity x5 Ah, currents x10 A, full voltage x1 V for a BMS16).
+_LINEAR = (
+    ('pack_capacity_ah', int, 0, 5, 0, 1, 250, 'Ah', 'pack capacity'),
+    ('soc_warning_pct', int, 1, 1, 0, 0, 99, '%', 'SoC below which the BMS16 warns'),
+    ('full_voltage_v', int, 2, 1, 0, 5, 70, 'V', 'pack voltage that counts as full'),
+    ('warn_current_a', int, 3, 10, 0, 1, 121, 'A',
+     'overcurrent warning threshold (1210 = off: the Monitor shows OFF above 1200 A)'),
+    ('trip_current_a', int, 4, 10, 0, 1, 121, 'A',
+     'overcurrent shutdown threshold (1210 = off)'),
+    ('cells', int, 6, 1, 0, 8, 16, '', 'number of cells in series (slot 6, NUM_CELLS)'),
+    ('min_cell_v', float, 13, 0.01, 1.5, 0, 250, 'V', 'minimum cell voltage'),
+    ('max_cell_v', float, 14, 0.01, 2.0, 0, 250, 'V', 'maximum cell voltage'),
+    ('hysteresis_v', float, 16, 0.01, 0, 0, 50, 'V', 'hysteresis on the cell voltage limits'),
+    ('min_temp_c', int, 17, 1, -40, 0, 141, 'degC', 'minimum temperature (-40 = off)'),
+    ('max_temp_c', int, 18, 1, -40, 0, 141, 'degC', 'maximum temperature (101 = off)'),
+    ('max_charge_voltage_v', int, 19, 1, 0, 0, 70, 'V', 'charger voltage'),
+    ('max_charge_current_a', int, 20, 1, 0, 0, 127, 'A',
+     'charger current (bit 7 of its byte belongs to the charger voltage)'),
+    ('night_brightness', int, 31, 1, 0, 0, 10, '', "the Monitor's night brightness, x10 %"),
+)
+_BOOLS = (('stationary_mode', 29, 'stationary (non-vehicle) mode'),
+          ('reverse_current_display', 30, "the Monitor shows the current's sign reversed"))
+_SHUNT_SLOT, _BALANCE_SLOT = 7, 15
+
+
+def _phys(typ: type, scale: float, offset: float, raw: int) -> float:
+    return int(raw * scale + offset) if typ is int else round(raw * scale + offset, 6)
+
+
+def _build_fields() -> tuple[ConfigField, ...]:
+    by_name: dict[str, ConfigField] = {}
+    for name, typ, _, scale, offset, rlo, rhi, unit, what in _LINEAR:
+        low, high = _phys(typ, scale, offset, rlo), _phys(typ, scale, offset, rhi)
+        by_name[name] = ConfigField(name, typ, low, high, scale, unit,
+                                    f'{what} ({low:g}..{high:g} {unit})'.replace(' )', ')'))
+    by_name['shunt_size_a'] = ConfigField(
+        'shunt_size_a', int, 0, 500, None, 'A',
+        'current shunt size: 0 (no shunt), 100, 200 or 500 A (slot 7, SHUNT_SIZE)')
+    by_name['balance_mode'] = ConfigField(
+        'balance_mode', str, description='balancing: static (at balance_v), dynamic or off',
+        choices=BALANCE_MODES)
+    by_name['balance_v'] = ConfigField(
+        'balance_v', float, 2.0, 4.5, 0.01, 'V',
+        'static balance voltage (2.00..4.50 V), used only when balance_mode is static')
+    for name, _, what in _BOOLS:
+        by_name[name] = ConfigField(name, bool, description=what)
+    return tuple(by_name[name] for name in Bms16StdConfig.__dataclass_fields__)
+
+
+CONFIG_FIELDS: tuple[ConfigField, ...] = _build_fields()
+CONFIG_FIELD = {f.name: f for f in CONFIG_FIELDS}
+
+
+def check_config_value(name: str, value: Any) -> Any:
+    """Validate one value (physical units) and return it normalized; EncodeRangeError if not."""
+    spec = CONFIG_FIELD.get(name)
+    if spec is None:
+        raise EncodeRangeError(name, value, 'one of ' + ', '.join(CONFIG_FIELD))
+    if spec.type is bool:
+        if isinstance(value, bool) or (isinstance(value, int) and value in (0, 1)):
+            return bool(value)
+        raise EncodeRangeError(name, value, 'true or false')
+    if spec.type is str:
+        if value not in spec.choices:
+            raise EncodeRangeError(name, value, 'one of ' + ', '.join(spec.choices))
+        return value
+    if name == 'shunt_size_a':
+        if isinstance(value, bool) or value not in SHUNT_SIZES_A:
+            raise EncodeRangeError(name, value, '0 (no shunt), 100, 200 or 500 A')
+        return int(value)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise EncodeRangeError(name, value,
+                               f'a number {spec.low:g}..{spec.high:g} {spec.unit}'.rstrip())
+    check_range(name, value, spec.low, spec.high, spec.step, spec.unit)
+    return int(round(value)) if spec.type is int else round(float(value), 6)
+
+
+def config_from_mapping(values: Mapping[str, Any]) -> Bms16StdConfig:
+    """Build the configuration (values checked and normalized); balance_v only if static."""
+    names = list(Bms16StdConfig.__dataclass_fields__)
+    missing = [n for n in names if values.get(n) is None and n != 'balance_v']
+    if missing:
+        raise EncodeRangeError(missing[0], None, 'a value (unset: ' + ', '.join(missing) + ')')
+    return Bms16StdConfig(**{n: None if values.get(n) is None
+                             else check_config_value(n, values[n]) for n in names})
+
+
+def config_payloads(cfg: Bms16StdConfig) -> list[bytes]:
+    """Return the payloads of IDs 32..35: 32 slots, the unused ones 0 (EncodeRangeError)."""
+    slots = bytearray(SLOTS)
+    for name, _, slot, scale, offset, _, _, _, _ in _LINEAR:
+        value = check_config_value(name, getattr(cfg, name))
+        slots[slot] = int(round((value - offset) / scale))
+    slots[_SHUNT_SLOT] = SHUNT_SIZES_A.index(check_config_value('shunt_size_a',
+                                                                cfg.shunt_size_a))
+    mode = check_config_value('balance_mode', cfg.balance_mode)
+    if mode == 'static':
+        balance = check_config_value('balance_v', cfg.balance_v)
+        slots[_BALANCE_SLOT] = int(round((balance - 2.0) / 0.01))
+    else:
+        slots[_BALANCE_SLOT] = BALANCE_DYNAMIC if mode == 'dynamic' else BALANCE_OFF
+    for name, slot, _ in _BOOLS:
+        slots[slot] = int(check_config_value(name, getattr(cfg, name)))
+    return [bytes(slots[8 * k:8 * k + 8]) for k in range(4)]
+
+
+def decode_config(payloads: list[bytes]) -> dict[str, Any]:
+    """Read the four payloads of IDs 32..35 back into values; ValueError for a raw value."""
+    slots = b''.join(payloads)
+    if len(slots) != SLOTS:
+        raise ValueError(f'{len(slots)} setting bytes, expected {SLOTS}')
+    values: dict[str, Any] = {}
+    for name, typ, slot, scale, offset, rlo, rhi, _, _ in _LINEAR:
+        if not rlo <= slots[slot] <= rhi:
+            raise ValueError(f'{name} raw {slots[slot]} outside {rlo}..{rhi}')
+        values[name] = _phys(typ, scale, offset, slots[slot])
+    if slots[_SHUNT_SLOT] >= len(SHUNT_SIZES_A):
+        raise ValueError(f'shunt size code {slots[_SHUNT_SLOT]} outside 0..3')
+    values['shunt_size_a'] = SHUNT_SIZES_A[slots[_SHUNT_SLOT]]
+    raw = slots[_BALANCE_SLOT]
+    if raw > BALANCE_OFF:
+        raise ValueError(f'balance voltage raw {raw} outside 0..252')
+    values['balance_mode'] = ('dynamic' if raw == BALANCE_DYNAMIC else
+                              'off' if raw == BALANCE_OFF else 'static')
+    values['balance_v'] = round(2.0 + raw * 0.01, 2) if raw <= 250 else None
+    for name, slot, _ in _BOOLS:
+        values[name] = bool(slots[slot])
+    return values
+
+
+class Bms16StdCodec:
+    """Frames of a standard-form BMS16: its status, cells and current; its commands."""
+
+    is_extended_id = True
+
+    def __init__(self, base_id: int = DEFAULT_BASE_ID) -> None:
+        """Use IDs base_id .. base_id + 9, 40 and 301, 302, 311, 312 (ValueError on overlap)."""
+        if not 0 <= base_id <= 0x1FFFFFFF - (ID_COUNT - 1):
+            raise ValueError(f'base_id {base_id} outside 0..0x{0x1FFFFFFF - ID_COUNT + 1:X} '
+                             '(29-bit IDs, 10 of them)')
+        own = set(range(base_id, base_id + ID_COUNT))
+        fixed = {CAN_CURRENT_SENSOR_ID} | set(CELL_IDS)
+        if own & fixed:
+            raise ValueError(f'base_id {base_id}: IDs {base_id}..{base_id + ID_COUNT - 1} '
+                             f'overlap the fixed IDs 40 (current) or 301..312 (cells)')
+        self.base_id = base_id
+        self._bms12 = Evms3Codec(bms12_modules=2)  # reads the BMS12 frames of modules 0, 1
+        # received: the status, the cell frames and the current (the rest are sent to it)
+        self.arbitration_ids = frozenset({base_id + STATUS, CAN_CURRENT_SENSOR_ID}
+                                         | set(CELL_IDS))
+
+    # --- decode ---------------------------------------------------------------------------
+    def decode(self, arbitration_id: int, data: bytes) -> Any:
+        """Frame -> Bms16StdStatus / Bms12Cells / BatteryCurrent; MalformedFrameError if bad."""
+        if arbitration_id == self.base_id + STATUS:
+            return self._status(arbitration_id, data)
+        if arbitration_id in CELL_IDS:
+            return self._bms12.decode(arbitration_id, data)
+        if arbitration_id == CAN_CURRENT_SENSOR_ID:
+            check_dlc(arbitration_id, data, 3)
+            return BatteryCurrent((int.from_bytes(data, 'big') - CURRENT_OFFSET_MA) / 1000)
+        raise MalformedFrameError(arbitration_id, data, 'not an ID of this BMS16')
+
+    @staticmethod
+    def _status(aid: int, data: bytes) -> Bms16StdStatus:
+        check_dlc(aid, data, 8)
+        if data[5] != BMS16_MARKER:
+            raise MalformedFrameError(
+                aid, data, f'byte 5 = {data[5]}, not the BMS16 marker 255: the status of '
+                'another device (an EVMS3 sends its aux voltage there), not decoded')
+        state, error = data[0] & 0x07, data[0] >> 3
+        if state > 5:
+            raise MalformedFrameError(aid, data, f'unknown state {state} (0..5)')
+        if error > 16:
+            raise MalformedFrameError(aid, data, f'unknown error code {error} (0..16)')
+        return Bms16StdStatus(Evms3State(state), Evms3Error(error),
+                              (data[1] << 8 | data[2]) / 10, (data[3] << 8 | data[4]) / 10,
+                              data[7] - 40 if data[7] else None)
+
+    # --- encode ---------------------------------------------------------------------------
+    def _frame(self, offset: int, data: bytes) -> Frame:
+        return Frame(self.base_id + offset, bytes(data), True)
+
+    def config_frames(self, cfg: Bms16StdConfig) -> list[Frame]:
+        """Build IDs 36, 32, 33, 34, 35 in the Monitor's order (EncodeRangeError before any)."""
+        payloads = config_payloads(cfg)
+        module1 = cfg.cells - CELLS_PER_MODULE  # the Monitor's split: 8 on module 0
+        cell_numbers = bytes([CELLS_PER_MODULE | module1 << 4]) + bytes(7)
+        return [self._frame(CELL_NUMBERS, cell_numbers)] + [
+            self._frame(CONFIG1 + k, p) for k, p in enumerate(payloads)]
+
+    def encode(self, msg: Any) -> Frame:
+        """Command or (for the simulator) reading -> Frame; EncodeRangeError if out of range."""
+        if isinstance(msg, AcknowledgeError):
+            if not 0 <= int(msg.error) <= 16:
+                raise EncodeRangeError('error', msg.error, '0..16')
+            return self._frame(ACK_ERROR, bytes([int(msg.error)]))
+        if isinstance(msg, ResetSoc):
+            return self._frame(RESET_SOC, b'')
+        if isinstance(msg, PowerOff):
+            return self._frame(POWER_OFF, b'')
+        if isinstance(msg, Bms16StdStatus):
+            return self._encode_status(msg)
+        if isinstance(msg, Bms12Cells):
+            return self._bms12.encode(msg)
+        if isinstance(msg, BatteryCurrent):
+            check_range('current_a', msg.current_a, -8388.608, 8388.607, 0.001, 'A')
+            raw = int(round(msg.current_a * 1000)) + CURRENT_OFFSET_MA
+            return Frame(CAN_CURRENT_SENSOR_ID, raw.to_bytes(3, 'big'), True)
+        raise TypeError(f'cannot encode {type(msg).__name__} as a BMS16 (standard) frame')
+
+    def _encode_status(self, msg: Bms16StdStatus) -> Frame:
+        check_range('state', int(msg.state), 0, 5, 1)
+        check_range('error', int(msg.error), 0, 16, 1)
+        check_range('amp_hours_ah', msg.amp_hours_ah, 0, 6553.5, unit='Ah')
+        check_range('pack_voltage_v', msg.pack_voltage_v, 0, 6553.5, unit='V')
+        temp = 0 if msg.temperature_c is None else msg.temperature_c + 40
+        check_range('temperature_c + 40', temp, 1 if msg.temperature_c is not None else 0, 255)
+        ah, volts = round(msg.amp_hours_ah * 10), round(msg.pack_voltage_v * 10)
+        return self._frame(STATUS, bytes([
+            int(msg.state) | int(msg.error) << 3, ah >> 8, ah & 0xFF, volts >> 8,
+            volts & 0xFF, BMS16_MARKER, 0, round(temp)]))

@@ -1,0 +1,117 @@
+"""
+BMS16 standard form on a real node: telemetry, services and their refusals.
+
+write_config sends IDs 36, 32..35, 20 ms apart as ZEVA's Monitor sends them; power off is
+39, acknowledge 37, reset SoC 38. Golden frames: test_protocol_bms16_std.py (written by hand
+from the Monitor firmware).
+"""
+import can
+from std_srvs.srv import Trigger
+
+from command_rig import battery_topics
+from test_protocol_bms16_std import CONFIG, EVMS3_STATUS, GOLDEN_WRITE, STATUS
+
+MARK_ID = 0x7FF  # a frame nobody sends: once the capture has it, anything before it is there
+
+
+def params(enabled=True, config=CONFIG):
+    out = {'devices': ['bms16'], 'bms16.variant': 'standard', 'commands_allowed': True,
+           'commands_enabled': enabled}
+    out.update({f'bms16.config.{k}': v for k, v in config.items()})
+    return out
+
+
+def sent_after(rig, mark):
+    """Frames the bridge sent after mark, up to a marker frame of ours (so nothing is late)."""
+    sender = can.Bus(interface='virtual', channel=rig.channel)  # the capture hears others
+    try:
+        sender.send(can.Message(arbitration_id=MARK_ID, data=b'\x01', is_extended_id=False))
+    finally:
+        sender.shutdown()
+    rig.wait(lambda: any(f.arbitration_id == MARK_ID for _, f in rig.capture.since(mark)),
+             what='the marker frame')
+    frames = [f for _, f in rig.capture.since(mark)]
+    return [(f.arbitration_id, f.data, f.is_extended_id) for f in frames
+            if f.arbitration_id != MARK_ID and f.data != STATUS and f.data != EVMS3_STATUS]
+
+
+def heard(rig):
+    rig.send(30, STATUS, extended=True)
+    rig.wait(lambda: not rig.node.devices['bms16'].is_stale(), what='the BMS16 status')
+
+
+def test_status_reaches_battery_state(rig_factory):
+    rig = rig_factory(params(enabled=False), topics=battery_topics(['bms16']))
+    rig.send(30, STATUS, extended=True)
+    msg = rig.last('bms16/battery_state', lambda m: m.present)
+    assert round(msg.voltage, 3) == 52.8 and round(msg.charge, 3) == 123.4
+    assert round(msg.percentage, 4) == round(123.4 / 200, 4)  # config.pack_capacity_ah 200
+
+
+def test_write_config_sends_36_then_32_to_35_paced(rig_factory):
+    rig = rig_factory(params())
+    heard(rig)
+    listener = can.Bus(interface='virtual', channel=rig.channel)  # its timestamps: send time
+    try:
+        mark = rig.capture.mark()
+        response = rig.call(Trigger, '/bms16/write_config')
+        assert response.success, response.message
+        assert sent_after(rig, mark) == [(i, d, True) for i, d in GOLDEN_WRITE]
+        stamps = []
+        while len(stamps) < len(GOLDEN_WRITE):
+            msg = listener.recv(2.0)
+            assert msg is not None, 'the write did not reach the listener'
+            if 32 <= msg.arbitration_id <= 36:
+                stamps.append(msg.timestamp)
+        gaps = [b - a for a, b in zip(stamps, stamps[1:])]
+        assert min(gaps) >= 0.019, gaps  # the Monitor's CanTX(..., 20): 20 ms after each
+    finally:
+        listener.shutdown()
+
+
+def test_write_config_refused_while_only_an_evms3_is_heard(rig_factory):
+    rig = rig_factory(params())
+    rig.send(30, EVMS3_STATUS, extended=True)
+    rig.wait(lambda: rig.node.devices['bms16'].frames_malformed, what='the EVMS3 status')
+    mark = rig.capture.mark()
+    response = rig.call(Trigger, '/bms16/write_config')
+    assert not response.success and 'byte 5 = 255' in response.message
+    assert sent_after(rig, mark) == []
+
+
+def test_write_config_names_missing_values_and_sends_nothing(rig_factory):
+    rig = rig_factory(params(config={k: v for k, v in CONFIG.items() if k != 'cells'}))
+    heard(rig)
+    mark = rig.capture.mark()
+    response = rig.call(Trigger, '/bms16/write_config')
+    assert not response.success and 'bms16.config.cells' in response.message
+    assert sent_after(rig, mark) == []
+
+
+def test_maintenance_frames(rig_factory):
+    rig = rig_factory(params(config={}))
+    heard(rig)
+    for service, frame in (('power_off', (39, b'', True)), ('reset_soc', (38, b'', True)),
+                           ('acknowledge_error', (37, b'\x0a', True))):
+        mark = rig.capture.mark()
+        response = rig.call(Trigger, f'/bms16/{service}')
+        assert response.success, response.message
+        assert sent_after(rig, mark) == [frame], service
+
+
+def test_nothing_sent_while_commands_disabled(rig_factory):
+    rig = rig_factory(params(enabled=False))
+    heard(rig)
+    mark = rig.capture.mark()
+    for service in ('write_config', 'power_off'):
+        response = rig.call(Trigger, f'/bms16/{service}')
+        assert not response.success and 'commands_enabled' in response.message
+    assert sent_after(rig, mark) == []
+
+
+def test_config_parameters_refuse_values_outside_the_monitors_ranges(rig_factory):
+    rig = rig_factory(params())
+    for name, value in (('cells', 7), ('full_voltage_v', 71), ('pack_capacity_ah', 1252),
+                        ('shunt_size_a', 250)):
+        result = rig.set_param(f'bms16.config.{name}', value)
+        assert not result.successful and f'bms16.config.{name}' in result.reason
