@@ -43,6 +43,7 @@ from ams_can_bridge.protocols.common import (
     check_dlc, check_range, EncodeRangeError, Frame, MalformedFrameError)
 
 # Pylontech
+PYLONTECH_KEEPALIVE_ID = 0x305  # inverter -> BMS, "every second", 8 zero bytes
 PYLONTECH_ALARMS_ID = 0x359
 PYLONTECH_REQUEST_ID = 0x35C
 # Victron
@@ -305,7 +306,13 @@ def decode_dialect(arbitration_id: int, data: bytes) -> DialectReading:
     return decoder(arbitration_id, data)
 
 
-# --- encode (simulator, tests) ---------------------------------------------------------------
+# --- encode (simulator, tests; the bridge's keep-alive) ---------------------------------------
+def keepalive_frame() -> Frame:
+    """The inverter's keep-alive 0x305: eight zero bytes (Pylontech CAN protocol)."""
+    return Frame(PYLONTECH_KEEPALIVE_ID, bytes(8))
+
+
+
 def _put_u16(field: str, value: float | None, scale: int, unit: str,
              high: float | None = None) -> bytes:
     if value is None:
