@@ -72,6 +72,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help='frames the SMA BMS sends beyond 0x351..0x35F: sma (0x35A alarms), '
                         'pylontech (0x359 alarms and 0x35C instead of 0x35A) or victron '
                         '(0x35A plus 0x370..0x377); default sma')
+    p.add_argument('--sma-soc-frame', choices=('sma', 'byd', 'diybms'), default=None,
+                   help='0x355 as the SMA BMS sends it: sma (with the high-resolution SoC), '
+                        'byd (zeros after the SoH) or diybms (SoC only, DLC 2); default sma')
     p.add_argument('--fault', type=_fault, action='append', default=[],
                    metavar='DEVICE:KIND[=VALUE]',
                    help='inject a fault: silent, malformed, error=CODE, drift=VOLTS, '
@@ -90,7 +93,8 @@ def build_devices(types: Sequence[str], ams_banks: int | None = None,
                   bms12_modules: int | None = None,
                   ivt_byte_order: str | None = None,
                   sma_dialect: str | None = None, evms3_charge_after: float | None = None,
-                  evms3_chargers: int | None = None) -> list[SimDevice]:
+                  evms3_chargers: int | None = None,
+                  sma_soc_frame: str | None = None) -> list[SimDevice]:
     """Instantiate the simulators named by type (instance name = type name)."""
     devices: list[SimDevice] = []
     ams = None
@@ -104,8 +108,10 @@ def build_devices(types: Sequence[str], ams_banks: int | None = None,
                                ('charge_after_s', evms3_charge_after)):
                 if value is not None:
                     kwargs[key] = value
-        elif kind == 'sma' and sma_dialect is not None:
-            kwargs['dialect'] = sma_dialect
+        elif kind == 'sma':
+            for key, value in (('dialect', sma_dialect), ('soc_layout', sma_soc_frame)):
+                if value is not None:
+                    kwargs[key] = value
         elif kind == 'bms16' and 'sma' in types and _accepts(cls, 'send_sma'):
             # The BMS16 also speaks SMA (0x351...): two sources of one ID would clash.
             kwargs['send_sma'] = False
@@ -171,7 +177,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         options = parse_options(args.option)
         devices = build_devices(args.devices, args.ams_banks, args.bms12_modules,
                                 args.ivt_byte_order, args.sma_dialect,
-                                args.evms3_charge_after, args.evms3_chargers)
+                                args.evms3_charge_after, args.evms3_chargers,
+                                args.sma_soc_frame)
         apply_faults(devices, args.fault)
     except (ValueError, TypeError, ImportError) as exc:
         print(f'simulator: {exc}', file=sys.stderr)
