@@ -12,11 +12,11 @@ Commands: the only frame this device sends is the inverter keep-alive 0x305
 
 Dialects (``protocols.sma_dialects``): Pylontech-style BMSs send their alarms in 0x359
 instead of 0x35A; an active 0x359 alarm is ERROR and a warning WARN, exactly as in 0x35A,
-and both feed the health. 0x35C (charge / discharge enable), the module counts (0x359, 0x372)
-the Victron name and cell ids, the energy counters (0x378), installed capacity (0x379),
-product name (0x382) and the online status (0x35A byte 7) are diagnostics values. Victron's 0x373 (min/max cell
-voltage and temperature) is shown in V and degC and gives BatteryState.temperature (the
-hottest cell) when 0x356 carries none.
+and both feed the health. 0x35C (charge / discharge enable, charge requests), the module
+counts (0x359, 0x372), the Victron name and cell ids, the energy counters (0x378), installed
+capacity (0x379), product name (0x382) and the online status (0x35A byte 7) are diagnostics
+values. Victron's 0x373 (min/max cell voltage and temperature) is shown in V and degC and
+gives BatteryState.temperature (the hottest cell) when 0x356 carries none.
 
 Every frame (group) expires on its own: a value older than ``stale_timeout`` is unknown
 again (NaN, left out of the diagnostics values and listed under 'frames expired'), so a BMS

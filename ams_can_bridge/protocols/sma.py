@@ -22,8 +22,8 @@ Decisions:
   ("not available"); encoders write them for None.
 - Devices differ in how many bytes they send, so each message accepts a DLC range and a
   field the frame is too short for decodes as None (0x35A: NOT_SUPPORTED): 0x351 6..8,
-  0x355 2 or 4..8 (diyBMS sends the SoC alone; 3 would split the SoH), 0x356 6..8, 0x35A 1..8, 0x35E 1..8, 0x35F 6..8.
-  Anything else is malformed.
+  0x355 2 or 4..8 (diyBMS sends the SoC alone; 3 would split the SoH), 0x356 6..8,
+  0x35A 1..8, 0x35E 1..8, 0x35F 6..8. Anything else is malformed.
 - 0x355: real batteries put zeros, not 0xFFFF, in the unused high-resolution SoC (a BYD
   LVS sends ``43 00 64 00 00 00 00 00`` at 67 %): it is used only when it agrees with the
   integer SoC within HIRES_AGREEMENT_PCT, else the integer SoC (``SmaSoc.percent``).
@@ -120,7 +120,7 @@ class SmaSoc:
 
     @property
     def percent(self) -> float | None:
-        """SoC in % to publish: the high-resolution one only where it agrees, else the integer."""
+        """Return the SoC (%) to publish: the high-resolution one where it agrees, else integer."""
         if self.hires_used:
             return self.soc_hires_pct
         return None if self.soc_pct is None else float(self.soc_pct)

@@ -24,9 +24,10 @@ Decisions:
   an alarm means the same to the device whichever dialect reported it. Bits the dialect does
   not define are ignored (copies of the Pylontech frame use them differently); 0x359 bytes
   after byte 4 and 0x35C bytes after byte 0 are not interpreted.
-- Accepted DLCs: 0x359 4..8 (DLC 4: module count not sent, None), 0x35C 1..8, 0x372 2, 4, 6
-  or 8 (Victron-style short frames: the counts not sent are None; an odd DLC splits one), 0x373 8, 0x378 4..8 (DLC < 8:
-  discharged energy None), 0x379 2..8, the ASCII frames 1..8. Anything else is malformed.
+- Accepted DLCs: 0x359 4..8 (DLC 4: module count not sent, None), 0x35C 1..8, 0x372 2, 4,
+  6 or 8 (Victron-style short frames: the counts not sent are None; an odd DLC would split
+  one), 0x373 8, 0x378 4..8 (DLC < 8: discharged energy None), 0x379 2..8, the ASCII frames
+  1..8. Anything else is malformed.
 - 0xFFFF in a U16 field and 0xFFFFFFFF in a U32 field are "not available" (None), as in
   the SMA frames.
   A min cell voltage above the max one (or a min temperature above the max) is malformed, and
@@ -216,7 +217,7 @@ def encode_ascii(field: str, text: str) -> bytes:
 
 
 def _u16s(data: bytes) -> list[int | None]:
-    """The four U16 fields; a field the frame is too short for is None."""
+    """Return the four U16 fields; a field the frame is too short for is None."""
     raws = (data[i] | data[i + 1] << 8 if len(data) >= i + 2 else INVALID_U16
             for i in range(0, 8, 2))
     return [None if raw == INVALID_U16 else raw for raw in raws]
@@ -308,9 +309,8 @@ def decode_dialect(arbitration_id: int, data: bytes) -> DialectReading:
 
 # --- encode (simulator, tests; the bridge's keep-alive) ---------------------------------------
 def keepalive_frame() -> Frame:
-    """The inverter's keep-alive 0x305: eight zero bytes (Pylontech CAN protocol)."""
+    """Build the inverter's keep-alive 0x305: eight zero bytes (Pylontech CAN protocol)."""
     return Frame(PYLONTECH_KEEPALIVE_ID, bytes(8))
-
 
 
 def _put_u16(field: str, value: float | None, scale: int, unit: str,

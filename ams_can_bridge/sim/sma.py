@@ -31,7 +31,8 @@ from typing import Callable
 
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.sma import (
-    SMA_CONDITIONS, SOC_LAYOUTS, SmaAlarms, SmaBattery, SmaBatteryInfo, SmaCodec, SmaFlag, SmaLimits,
+    SMA_CONDITIONS, SmaAlarms, SmaBattery, SmaBatteryInfo, SmaCodec, SmaFlag, SmaLimits,
+    SOC_LAYOUTS,
     SmaManufacturer, SmaSoc)
 from ams_can_bridge.protocols.sma_dialects import (
     CELL_ID_KINDS, KELVIN_OFFSET, PYLONTECH_CONDITION_NAMES, PylontechAlarms, PylontechRequest,
