@@ -45,6 +45,7 @@ COMMANDERS = {
     'ams': 'ams_can_bridge.ros.ams_commands:AmsCommands',
     'evms3': 'ams_can_bridge.ros.zeva_commands:Evms3Commands',
     'bms16': 'ams_can_bridge.ros.zeva_commands:Bms16Commands',
+    'sma': 'ams_can_bridge.ros.sma_commands:SmaCommands',
 }
 
 

@@ -31,7 +31,7 @@ def test_ids_and_constants():
     device, _ = make()
     assert device.TYPE == 'sma' and device.DEFAULT_BASE_ID is None
     assert device.arbitration_ids == {0x351, 0x355, 0x356, 0x35A, 0x35E, 0x35F,
-                                      0x359, 0x35C, *range(0x370, 0x378)}
+                                      0x359, 0x35C, *range(0x370, 0x37A), 0x382}
     assert device.stale_timeout == 5 * device.BROADCAST_PERIOD
 
 

@@ -66,12 +66,12 @@ def test_pylontech_undefined_bits_and_short_frames():
 @pytest.mark.parametrize('byte0, charge, discharge, asks', [
     (0b1100_0000, True, True, False), (0b1000_0000, True, False, False),
     (0b0100_0000, False, True, False), (0b0010_0000, False, False, True),
-    (0b0001_1111, False, False, False)])
+    (0b0000_0111, False, False, False)])
 def test_pylontech_request_golden(byte0, charge, discharge, asks):
     reading = CODEC.decode(0x35C, bytes([byte0, 0x00]))
     assert reading == PylontechRequest(charge, discharge, asks)
     assert CODEC.decode(0x35C, bytes([byte0])) == reading  # DLC 1 is enough
-    if not byte0 & 0x1F:
+    if not byte0 & 0x07:
         assert CODEC.encode(reading) == Frame(0x35C, bytes([byte0, 0x00]))
     with pytest.raises(MalformedFrameError, match='DLC 0'):
         CODEC.decode(0x35C, b'')
@@ -149,7 +149,8 @@ def test_dbc_agrees_with_the_golden_frames(caplog):
                       'Warning_UnderVoltage', 'Warning_UnderTemperature'}
     assert pylon['ModuleCount'] == 3
     assert db.decode_message(0x35C, bytes([0b1010_0000, 0]), decode_choices=False) == {
-        'ChargeEnable': 1, 'DischargeEnable': 0, 'RequestChargeImmediately': 1}
+        'ChargeEnable': 1, 'DischargeEnable': 0, 'RequestChargeImmediately': 1,
+        'ForceChargeRequestII': 0, 'FullChargeRequest': 0}
     cells = db.decode_message(0x373, CELLS_GOLDEN)
     assert cells['MinCellVoltage'] == pytest.approx(3.3)
     assert cells['MaxCellVoltage'] == pytest.approx(3.312)

@@ -97,3 +97,33 @@ def test_command_line_chooses_the_dialect():
     assert build_devices(['sma'])[0].dialect == 'sma'
     with pytest.raises(SystemExit):
         build_parser().parse_args(['--sma-dialect', 'byd'])
+
+
+def test_byd_soc_frame_has_zero_padding_and_the_bridge_keeps_the_soc():
+    device = SmaDevice('sma', {})
+    frames = run_sim(SmaSimulator(soc_layout='byd'), device, 3.0)
+    socs = [f for f in frames if f.arbitration_id == 0x355]
+    assert socs and all(len(f.data) == 8 and f.data[4:] == bytes(4) for f in socs)
+    integer_soc = socs[-1].data[0] | socs[-1].data[1] << 8
+    assert 0 < integer_soc <= 100
+    assert device.battery_report().percentage == pytest.approx(integer_soc / 100)
+
+
+def test_diybms_soc_frame_is_the_soc_alone():
+    device = SmaDevice('sma', {})
+    frames = run_sim(SmaSimulator(soc_layout='diybms'), device, 3.0)
+    socs = [f for f in frames if f.arbitration_id == 0x355]
+    assert socs and all(len(f.data) == 2 for f in socs)
+    assert device.battery_report().percentage == pytest.approx(socs[-1].data[0] / 100)
+    assert device.frames_malformed == 0
+
+
+def test_command_line_chooses_the_soc_frame():
+    args = build_parser().parse_args(['--devices', 'sma', '--sma-soc-frame', 'byd'])
+    [sim] = build_devices(args.devices, sma_soc_frame=args.sma_soc_frame)
+    assert sim.soc_layout == 'byd'
+    assert build_devices(['sma'])[0].soc_layout == 'sma'
+    with pytest.raises(ValueError, match='sma, byd, diybms'):
+        SmaSimulator(soc_layout='pylontech')
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(['--sma-soc-frame', 'pylontech'])

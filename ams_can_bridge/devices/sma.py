@@ -2,15 +2,21 @@
 SMA Sunny Island protocol BMS state: 0x351..0x35F and its dialects -> BatteryState, diagnostics.
 
 Fixed IDs (no base_id). The primary frame is 0x356 (voltage, current, temperature); SoC comes
-from 0x355 (the high-resolution SoC when the BMS sends one), capacity from 0x35F. The wire
-current is already positive while charging, the ROS sign. "Not available" markers become NaN.
+from 0x355 (the high-resolution SoC only where it agrees with the integer one: real BMSs put
+zeros there), capacity from 0x35F, and charge = capacity x SoC while both are known and
+fresh (NaN otherwise). The wire current is already positive while charging, the ROS sign.
+"Not available" markers become NaN.
+
+Commands: the only frame this device sends is the inverter keep-alive 0x305
+(``inverter_keepalive``, devices/sma_keepalive.py), while commands are enabled.
 
 Dialects (``protocols.sma_dialects``): Pylontech-style BMSs send their alarms in 0x359
 instead of 0x35A; an active 0x359 alarm is ERROR and a warning WARN, exactly as in 0x35A,
-and both feed the health. 0x35C (charge / discharge enable), the module counts (0x359, 0x372)
-and the Victron name and cell ids are diagnostics values. Victron's 0x373 (min/max cell
-voltage and temperature) is shown in V and degC and gives BatteryState.temperature (the
-hottest cell) when 0x356 carries none.
+and both feed the health. 0x35C (charge / discharge enable, charge requests), the module
+counts (0x359, 0x372), the Victron name and cell ids, the energy counters (0x378), installed
+capacity (0x379), product name (0x382) and the online status (0x35A byte 7) are diagnostics
+values. Victron's 0x373 (min/max cell voltage and temperature) is shown in V and degC and
+gives BatteryState.temperature (the hottest cell) when 0x356 carries none.
 
 Every frame (group) expires on its own: a value older than ``stale_timeout`` is unknown
 again (NaN, left out of the diagnostics values and listed under 'frames expired'), so a BMS
@@ -27,14 +33,18 @@ from ams_can_bridge.devices.base import (
     BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, ParamSpec,
     PowerSupplyHealth)
 from ams_can_bridge.devices.config import DeviceConfig
+from ams_can_bridge.devices.sma_keepalive import InverterKeepalive, KEEPALIVE_PERIOD
+from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.sma import (
     ALARMS_ID, BATTERY_ID, INFO_ID, LIMITS_ID, MANUFACTURER_ID, SmaAlarms, SmaBattery,
     SmaBatteryInfo, SmaCodec, SmaLimits, SmaManufacturer, SmaReading, SmaSoc, SOC_ID)
 from ams_can_bridge.protocols.sma_dialects import (
     CELL_ID_KINDS, PYLONTECH_ALARMS_ID, PYLONTECH_CONDITION_NAMES, PYLONTECH_REQUEST_ID,
     PylontechAlarms, PylontechRequest, VICTRON_BMS_NAME1_ID, VICTRON_CELL_EXTREMES_ID,
-    VICTRON_MIN_VOLTAGE_CELL_ID, VICTRON_MODULES_ID, VictronBmsName, VictronCellExtremes,
-    VictronCellId, VictronModules)
+    VICTRON_ENERGY_ID, VICTRON_INSTALLED_CAPACITY_ID, VICTRON_MIN_VOLTAGE_CELL_ID,
+    VICTRON_MODULES_ID, VICTRON_PRODUCT_NAME_ID, VictronBmsName, VictronCellExtremes,
+    VictronCellId, VictronEnergy, VictronInstalledCapacity, VictronModules, VictronProductName,
+    keepalive_frame)
 
 # Alarm -> BatteryState health, first match wins (the most specific health first).
 ALARM_HEALTH = (
@@ -58,9 +68,13 @@ GROUP_IDS: dict[Hashable, int] = {
     VictronModules: VICTRON_MODULES_ID, VictronCellExtremes: VICTRON_CELL_EXTREMES_ID,
     **{(VictronCellId, kind): VICTRON_MIN_VOLTAGE_CELL_ID + k
        for k, kind in enumerate(CELL_ID_KINDS)},
+    VictronEnergy: VICTRON_ENERGY_ID, VictronInstalledCapacity: VICTRON_INSTALLED_CAPACITY_ID,
+    VictronProductName: VICTRON_PRODUCT_NAME_ID,
 }
 IDENTITY_GROUPS = frozenset({SmaManufacturer, SmaBatteryInfo, (VictronBmsName, 1),
-                             (VictronBmsName, 2)})
+                             (VictronBmsName, 2), VictronEnergy, VictronInstalledCapacity,
+                             VictronProductName})
+ONLINE_TEXT = {True: 'online', False: 'offline', None: 'not sent'}
 ALARM_GROUPS = (SmaAlarms, PylontechAlarms)
 
 
@@ -117,7 +131,9 @@ _FIELDS: tuple[tuple[Hashable, tuple[tuple[str, str, Callable[[Any], str]], ...]
                       ('capacity Ah', 'capacity_ah', _fmt))),
     (PylontechRequest, (('charge enable', 'charge_enable', _yes),
                         ('discharge enable', 'discharge_enable', _yes),
-                        ('request charge immediately', 'request_charge_immediately', _yes))),
+                        ('request charge immediately', 'request_charge_immediately', _yes),
+                        ('force charge request II', 'force_charge_request_ii', _yes),
+                        ('full charge request', 'full_charge_request', _yes))),
     (VictronModules, (('modules OK', 'ok', _fmt),
                       ('modules blocking charge', 'blocking_charge', _fmt),
                       ('modules blocking discharge', 'blocking_discharge', _fmt),
@@ -126,6 +142,10 @@ _FIELDS: tuple[tuple[Hashable, tuple[tuple[str, str, Callable[[Any], str]], ...]
                            ('max cell voltage V', 'max_cell_v', _fixed3),
                            ('min cell temperature degC', 'min_temperature_c', _fixed2),
                            ('max cell temperature degC', 'max_temperature_c', _fixed2))),
+    (VictronEnergy, (('energy charged kWh', 'charged_kwh', _fmt),
+                     ('energy discharged kWh', 'discharged_kwh', _fmt))),
+    (VictronInstalledCapacity, (('installed capacity Ah', 'capacity_ah', _fmt),)),
+    (VictronProductName, (('product name', 'text', str),)),
 )
 
 
@@ -141,6 +161,7 @@ def sma_values(readings: Mapping[Hashable, SmaReading], prefix: str = '') -> dic
     if alarms is not None:
         values[prefix + 'alarms active'] = ', '.join(alarms.active_alarms) or 'none'
         values[prefix + 'warnings active'] = ', '.join(alarms.active_warnings) or 'none'
+        values[prefix + 'system status (0x35A byte 7)'] = ONLINE_TEXT[alarms.online]
         for name, flag in alarms.alarms.items():
             values[f'{prefix}alarm {name}'] = flag.name
         for name, flag in alarms.warnings.items():
@@ -172,6 +193,12 @@ class SmaDevice(Device):
     BROADCAST_PERIOD = 1.0
     DEFAULT_BASE_ID = None
     PARAMS: list[ParamSpec] = []
+    COMMAND_PARAMS = [
+        ParamSpec('inverter_keepalive', bool, False,
+                  'send the inverter keep-alive 0x305 (8 zero bytes) every '
+                  f'{KEEPALIVE_PERIOD:g} s while commands_enabled, for BMSs that wait for an '
+                  'inverter (Pylontech protocol); false = never', read_only=False),
+    ]
 
     def __init__(self, name: str, config: DeviceConfig | Mapping[str, Any],
                  clock: Callable[[], float] = time.monotonic) -> None:
@@ -180,6 +207,32 @@ class SmaDevice(Device):
         self.readings: dict[Hashable, SmaReading] = {}
         self.seen: dict[Hashable, float] = {}  # group key -> clock() of its last frame
         self.battery_stamp = NAN
+        self.keepalive: InverterKeepalive | None = None  # made by attach_keepalive()
+
+    # --- commands ------------------------------------------------------------------------
+    def keepalive_frame(self) -> Frame:
+        """Build the inverter keep-alive 0x305 the bridge sends in the inverter's place."""
+        return keepalive_frame()
+
+    def attach_keepalive(self, send: Callable[[Frame], tuple[bool, str]],
+                         log: Callable[[str], None],
+                         period: float = KEEPALIVE_PERIOD) -> InverterKeepalive:
+        """
+        Make this device's (disarmed) keep-alive sending through ``send``.
+
+        It follows ``inverter_keepalive`` on every configure(); the caller arms it while
+        commands are enabled.
+        """
+        self.keepalive = InverterKeepalive(self.keepalive_frame, send, log, self.name, period)
+        self.keepalive.set_enabled(bool(self.config.inverter_keepalive))
+        return self.keepalive
+
+    def configure(self, changes: Mapping[str, Any]) -> DeviceConfig:
+        """Apply parameter changes; the keep-alive follows inverter_keepalive at once."""
+        new = super().configure(changes)
+        if self.keepalive is not None:  # outside the device lock: stopping joins a thread
+            self.keepalive.set_enabled(bool(new.inverter_keepalive))
+        return new
 
     def _handle(self, reading: Any, stamp: float) -> bool:
         key = group_key(reading)
@@ -213,13 +266,12 @@ class SmaDevice(Device):
         report = BatteryReport()
         soc = readings.get(SmaSoc)
         if soc is not None:
-            pct = soc.soc_hires_pct if soc.soc_hires_pct is not None else soc.soc_pct
-            report.percentage = _nan(pct) / 100
+            report.percentage = _nan(soc.percent) / 100
         info = readings.get(SmaBatteryInfo)
         if info is not None:
             report.capacity = report.design_capacity = _nan(info.capacity_ah)
-            if not math.isnan(report.capacity):
-                report.charge = report.capacity * report.percentage
+            # Remaining Ah only where both are known and fresh: NaN times anything is NaN.
+            report.charge = report.capacity * report.percentage
         if any(k in readings for k in ALARM_GROUPS):
             report.power_supply_health = self._health(readings)
         battery = readings.get(SmaBattery)
@@ -258,6 +310,8 @@ class SmaDevice(Device):
     def _diagnostic_report(self, with_values: bool = True) -> DiagnosticReport:
         readings, expired = self._fresh()
         values = sma_values(readings) if with_values else {}
+        if with_values and self.keepalive is not None:
+            values['inverter keep-alive (0x305)'] = self.keepalive.describe()
         if expired and with_values:
             values['frames expired'] = ', '.join(
                 f'0x{GROUP_IDS[k]:X} ({s:.1f} s ago)' for k, s in sorted(

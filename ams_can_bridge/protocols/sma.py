@@ -6,13 +6,15 @@ and by the ZEVA BMS16 next to its own frames:
 
 - 0x351 limits: charge voltage U16 0.1 V, charge / discharge current S16 0.1 A,
   discharge voltage U16 0.1 V;
-- 0x355 SoC U16 %, SoH U16 %, optional high-resolution SoC U16 0.01 %;
+- 0x355 SoC U16 %, SoH U16 %, optional high-resolution SoC U16 0.01 %; the SoC to publish
+  is ``SmaSoc.percent``;
 - 0x356 voltage S16 0.01 V, current S16 0.1 A (**positive = charging**), temperature
   S16 0.1 degC;
 - 0x35A alarms (bytes 0..3) and warnings (bytes 4..7), 2 bits per condition
-  (1 active, 2 OK, 0 or 3 not supported);
+  (1 active, 2 OK, 0 or 3 not supported); byte 7 bits 2-3 carry Victron's system
+  online / offline status, not a warning;
 - 0x35E manufacturer name, ASCII; 0x35F battery type, BMS version, capacity Ah;
-- the Pylontech (0x359, 0x35C) and Victron (0x370..0x377) dialects: ``sma_dialects``.
+- the Pylontech (0x359, 0x35C) and Victron (0x370..0x382) dialects: ``sma_dialects``.
 
 Decisions:
 
@@ -20,7 +22,13 @@ Decisions:
   ("not available"); encoders write them for None.
 - Devices differ in how many bytes they send, so each message accepts a DLC range and a
   field the frame is too short for decodes as None (0x35A: NOT_SUPPORTED): 0x351 6..8,
-  0x355 4..8, 0x356 6..8, 0x35A 1..8, 0x35E 1..8, 0x35F 6..8. Anything else is malformed.
+  0x355 2 or 4..8 (diyBMS sends the SoC alone; 3 would split the SoH), 0x356 6..8,
+  0x35A 1..8, 0x35E 1..8, 0x35F 6..8. Anything else is malformed.
+- 0x355: real batteries put zeros, not 0xFFFF, in the unused high-resolution SoC (a BYD
+  LVS sends ``43 00 64 00 00 00 00 00`` at 67 %): it is used only when it agrees with the
+  integer SoC within HIRES_AGREEMENT_PCT, else the integer SoC (``SmaSoc.percent``).
+- 0x351 bytes 6-7 (discharge voltage limit) absent or zero mean "no limit" (None), not 0 V:
+  Pylontech-style BMSs send DLC 6 or zeros there.
 - The manufacturer name drops trailing NUL / space padding; a byte that is not printable
   ASCII becomes '?' (a vendor's odd byte is not worth losing the frame for).
 - SMA defines no "generator" alarm (warning byte only); the pair is decoded like the others
@@ -48,8 +56,17 @@ INFO_ID = 0x35F
 SMA_IDS = frozenset({LIMITS_ID, SOC_ID, BATTERY_ID, ALARMS_ID, MANUFACTURER_ID, INFO_ID})
 INVALID_S16 = -0x8000
 INVALID_U16 = 0xFFFF
+# %: the high-resolution SoC counts only within this of the integer SoC (section 5).
+HIRES_AGREEMENT_PCT = 1.0
+# 0x35A byte 7 bits 2-3: Victron's system status (2 = online, 1 = offline), not a warning.
+ONLINE_BYTE = 7
+ONLINE_SHIFT = 2
+ONLINE_CODES = {2: True, 1: False}
+# 0x355 as BMS families send it: 'sma' SoC, SoH, high-resolution SoC (6 bytes); 'byd' SoC,
+# SoH and zeros (8 bytes, BYD LVS); 'diybms' the SoC alone (DLC 2).
+SOC_LAYOUTS = ('sma', 'byd', 'diybms')
 DLC_RANGE = {
-    LIMITS_ID: (6, 7, 8), SOC_ID: (4, 5, 6, 7, 8), BATTERY_ID: (6, 7, 8),
+    LIMITS_ID: (6, 7, 8), SOC_ID: (2, 4, 5, 6, 7, 8), BATTERY_ID: (6, 7, 8),
     ALARMS_ID: tuple(range(1, 9)), MANUFACTURER_ID: tuple(range(1, 9)), INFO_ID: (6, 7, 8),
 }
 
@@ -73,6 +90,8 @@ SMA_CONDITIONS = (
     'high_charge_current', 'contactor', 'short_circuit', 'bms_internal',
     'cell_imbalance', 'reserved1', 'reserved2', 'generator',
 )
+# The warning whose pair (byte 7 bits 2-3) Victron-style BMSs use for the online status.
+ONLINE_CONDITION = 'reserved1'
 
 
 @dataclass(frozen=True)
@@ -93,6 +112,19 @@ class SmaSoc:
     soh_pct: int | None
     soc_hires_pct: float | None = None
 
+    @property
+    def hires_used(self) -> bool:
+        """Tell whether the high-resolution SoC agrees with the integer one (and is used)."""
+        return (self.soc_pct is not None and self.soc_hires_pct is not None
+                and abs(self.soc_hires_pct - self.soc_pct) <= HIRES_AGREEMENT_PCT)
+
+    @property
+    def percent(self) -> float | None:
+        """Return the SoC (%) to publish: the high-resolution one where it agrees, else integer."""
+        if self.hires_used:
+            return self.soc_hires_pct
+        return None if self.soc_pct is None else float(self.soc_pct)
+
 
 @dataclass(frozen=True)
 class SmaBattery:
@@ -109,10 +141,16 @@ def _all_not_supported() -> dict[str, SmaFlag]:
 
 @dataclass(frozen=True)
 class SmaAlarms:
-    """0x35A: every condition's alarm and warning flag, keyed by SMA_CONDITIONS names."""
+    """
+    0x35A: every condition's alarm and warning flag, keyed by SMA_CONDITIONS names.
+
+    ``online``: Victron's system status in byte 7 bits 2-3 (True online, False offline, None
+    not sent); that pair is never the 'reserved1' warning.
+    """
 
     alarms: dict[str, SmaFlag] = field(default_factory=_all_not_supported)
     warnings: dict[str, SmaFlag] = field(default_factory=_all_not_supported)
+    online: bool | None = None
 
     def __post_init__(self) -> None:
         # Conditions left out are NOT_SUPPORTED, so a partial dict equals its decoded frame.
@@ -206,6 +244,7 @@ _DBC_LAYOUT = {
     (ALARMS_ID, 'Alarm_HighVoltage'): (2, 2, 1, False),
     (ALARMS_ID, 'Warning_General'): (32, 2, 1, False),
     (ALARMS_ID, 'Warning_Generator'): (62, 2, 1, False),
+    (ALARMS_ID, 'SystemOnline'): (58, 2, 1, False),
     (INFO_ID, 'Capacity'): (32, 16, 1, False),
     (PYLONTECH_ALARMS_ID, 'Alarm_OverVoltage'): (1, 1, 1, False),
     (PYLONTECH_ALARMS_ID, 'Warning_BmsInternal'): (27, 1, 1, False),
@@ -253,8 +292,9 @@ class SmaCodec:
 
     @staticmethod
     def _limits(data: bytes) -> SmaLimits:
+        discharge_v = _u16(data, 6, 10)
         return SmaLimits(_u16(data, 0, 10), _s16(data, 2, 10), _s16(data, 4, 10),
-                         _u16(data, 6, 10))
+                         discharge_v or None)  # 0 = no limit sent, not 0 V
 
     @staticmethod
     def _soc(data: bytes) -> SmaSoc:
@@ -281,9 +321,12 @@ class SmaCodec:
         object.__setattr__(alarms, 'alarms', {
             name: _FLAGS[(padded[k >> 2] >> ((k & 3) << 1)) & 3]
             for k, name in enumerate(SMA_CONDITIONS)})
-        object.__setattr__(alarms, 'warnings', {
-            name: _FLAGS[(padded[4 + (k >> 2)] >> ((k & 3) << 1)) & 3]
-            for k, name in enumerate(SMA_CONDITIONS)})
+        warnings = {name: _FLAGS[(padded[4 + (k >> 2)] >> ((k & 3) << 1)) & 3]
+                    for k, name in enumerate(SMA_CONDITIONS)}
+        warnings[ONLINE_CONDITION] = SmaFlag.NOT_SUPPORTED  # that pair is the online status
+        object.__setattr__(alarms, 'warnings', warnings)
+        object.__setattr__(alarms, 'online',
+                           ONLINE_CODES.get(padded[ONLINE_BYTE] >> ONLINE_SHIFT & 3))
         return alarms
 
     @staticmethod
@@ -295,6 +338,17 @@ class SmaCodec:
         return SmaBatteryInfo(_u16(data, 0), _u16(data, 2), _u16(data, 4))
 
     # --- encode ---------------------------------------------------------------------
+    def encode_soc(self, message: SmaSoc, layout: str = 'sma') -> Frame:
+        """0x355 laid out as a BMS family sends it (SOC_LAYOUTS; the simulator's variants)."""
+        if layout == 'sma':
+            return self.encode(message)
+        if layout not in SOC_LAYOUTS:
+            raise EncodeRangeError('sma.soc_layout', layout, 'one of ' + ', '.join(SOC_LAYOUTS))
+        soc = _put_u16('soc_pct', message.soc_pct, 1, '%', 100)
+        if layout == 'diybms':
+            return Frame(SOC_ID, soc)
+        return Frame(SOC_ID, soc + _put_u16('soh_pct', message.soh_pct, 1, '%', 100) + bytes(4))
+
     def encode(self, message: SmaReading) -> Frame:
         """Encode any SMA message (None fields as invalid markers); EncodeRangeError else."""
         if isinstance(message, SmaLimits):
@@ -327,6 +381,10 @@ class SmaCodec:
 
     @staticmethod
     def _encode_flags(message: SmaAlarms) -> bytes:
+        if message.warnings.get(ONLINE_CONDITION, SmaFlag.NOT_SUPPORTED) != 0:
+            raise EncodeRangeError(f'sma.warnings.{ONLINE_CONDITION}',
+                                   message.warnings[ONLINE_CONDITION],
+                                   'NOT_SUPPORTED (byte 7 bits 2-3 carry SmaAlarms.online)')
         data = bytearray(8)
         for kind, flags, first in (('alarms', message.alarms, 0),
                                    ('warnings', message.warnings, 4)):
@@ -336,4 +394,6 @@ class SmaCodec:
                     raise EncodeRangeError(f'sma.{kind}.{name}', flag,
                                            'SmaFlag NOT_SUPPORTED, ACTIVE or OK')
                 data[first + (k >> 2)] |= int(flag) << ((k & 3) << 1)
+        if message.online is not None:
+            data[ONLINE_BYTE] |= (2 if message.online else 1) << ONLINE_SHIFT
         return bytes(data)

@@ -8,11 +8,15 @@ widely used open implementations of the Pylontech and Victron CAN protocols):
   (bit 1 over-voltage, bit 2 under-voltage, bit 3 over-temperature, bit 4 under-temperature,
   bit 7 discharge over-current), byte 1 alarms (bit 0 charge over-current, bit 3 BMS
   internal), bytes 2 and 3 the same bits as warnings, byte 4 the module count; and **0x35C**
-  byte 0: bit 7 charge enable, bit 6 discharge enable, bit 5 request to charge immediately.
+  byte 0: bit 7 charge enable, bit 6 discharge enable, bit 5 request to charge immediately
+  (Pylontech's "force charge request I"), bit 4 force charge request II, bit 3 full charge
+  request (docs/protocols.md section 5).
 - Victron-compatible BMSs add **0x370/0x371** (BMS name, ASCII, 8 + 8 bytes), **0x372**
   (U16 LE: modules OK, blocking charge, blocking discharge, offline), **0x373** (U16 LE: min
-  cell mV, max cell mV, min cell temperature K, max cell temperature K) and **0x374..0x377**
-  (ASCII ids of the min/max voltage cell and the min/max temperature cell).
+  cell mV, max cell mV, min cell temperature K, max cell temperature K), **0x374..0x377**
+  (ASCII ids of the min/max voltage cell and the min/max temperature cell), **0x378** (U32
+  LE 0.1 kWh: energy charged, energy discharged), **0x379** (U16 LE installed capacity Ah)
+  and **0x382** (product name, ASCII).
 
 Decisions:
 
@@ -20,9 +24,12 @@ Decisions:
   an alarm means the same to the device whichever dialect reported it. Bits the dialect does
   not define are ignored (copies of the Pylontech frame use them differently); 0x359 bytes
   after byte 4 and 0x35C bytes after byte 0 are not interpreted.
-- Accepted DLCs: 0x359 4..8 (DLC 4: module count not sent, None), 0x35C 1..8, 0x372 and
-  0x373 8, the ASCII frames 1..8. Anything else is malformed.
-- 0xFFFF in a U16 field of 0x372/0x373 is "not available" (None), as in the SMA frames.
+- Accepted DLCs: 0x359 4..8 (DLC 4: module count not sent, None), 0x35C 1..8, 0x372 2, 4,
+  6 or 8 (Victron-style short frames: the counts not sent are None; an odd DLC would split
+  one), 0x373 8, 0x378 4..8 (DLC < 8: discharged energy None), 0x379 2..8, the ASCII frames
+  1..8. Anything else is malformed.
+- 0xFFFF in a U16 field and 0xFFFFFFFF in a U32 field are "not available" (None), as in
+  the SMA frames.
   A min cell voltage above the max one (or a min temperature above the max) is malformed, and
   so is a temperature above MAX_TEMPERATURE_K (3549 K = 3275.85 degC, inside the 3276.7 degC
   the SMA frames themselves can carry): such a value would reach BatteryState.temperature.
@@ -37,6 +44,7 @@ from ams_can_bridge.protocols.common import (
     check_dlc, check_range, EncodeRangeError, Frame, MalformedFrameError)
 
 # Pylontech
+PYLONTECH_KEEPALIVE_ID = 0x305  # inverter -> BMS, "every second", 8 zero bytes
 PYLONTECH_ALARMS_ID = 0x359
 PYLONTECH_REQUEST_ID = 0x35C
 # Victron
@@ -48,19 +56,26 @@ VICTRON_MIN_VOLTAGE_CELL_ID = 0x374
 VICTRON_MAX_VOLTAGE_CELL_ID = 0x375
 VICTRON_MIN_TEMPERATURE_CELL_ID = 0x376
 VICTRON_MAX_TEMPERATURE_CELL_ID = 0x377
+VICTRON_ENERGY_ID = 0x378
+VICTRON_INSTALLED_CAPACITY_ID = 0x379
+VICTRON_PRODUCT_NAME_ID = 0x382
 
 PYLONTECH_IDS = frozenset({PYLONTECH_ALARMS_ID, PYLONTECH_REQUEST_ID})
-VICTRON_IDS = frozenset(range(VICTRON_BMS_NAME1_ID, VICTRON_MAX_TEMPERATURE_CELL_ID + 1))
+VICTRON_IDS = frozenset(range(VICTRON_BMS_NAME1_ID, VICTRON_INSTALLED_CAPACITY_ID + 1)) | {
+    VICTRON_PRODUCT_NAME_ID}
 DIALECT_IDS = PYLONTECH_IDS | VICTRON_IDS
 _ASCII_DLC = tuple(range(1, 9))
 DIALECT_DLC = {
     PYLONTECH_ALARMS_ID: (4, 5, 6, 7, 8), PYLONTECH_REQUEST_ID: _ASCII_DLC,
     VICTRON_BMS_NAME1_ID: _ASCII_DLC, VICTRON_BMS_NAME2_ID: _ASCII_DLC,
-    VICTRON_MODULES_ID: (8,), VICTRON_CELL_EXTREMES_ID: (8,),
+    VICTRON_MODULES_ID: (2, 4, 6, 8), VICTRON_CELL_EXTREMES_ID: (8,),
+    VICTRON_ENERGY_ID: tuple(range(4, 9)), VICTRON_INSTALLED_CAPACITY_ID: tuple(range(2, 9)),
+    VICTRON_PRODUCT_NAME_ID: _ASCII_DLC,
     VICTRON_MIN_VOLTAGE_CELL_ID: _ASCII_DLC, VICTRON_MAX_VOLTAGE_CELL_ID: _ASCII_DLC,
     VICTRON_MIN_TEMPERATURE_CELL_ID: _ASCII_DLC, VICTRON_MAX_TEMPERATURE_CELL_ID: _ASCII_DLC,
 }
 INVALID_U16 = 0xFFFF
+INVALID_U32 = 0xFFFFFFFF
 KELVIN_OFFSET = 273.15
 MAX_TEMPERATURE_K = 3549
 
@@ -73,7 +88,9 @@ PYLONTECH_CONDITIONS = (
 PYLONTECH_CONDITION_NAMES = tuple(name for name, _, _ in PYLONTECH_CONDITIONS)
 CHARGE_ENABLE_BIT = 7
 DISCHARGE_ENABLE_BIT = 6
-REQUEST_CHARGE_IMMEDIATELY_BIT = 5
+REQUEST_CHARGE_IMMEDIATELY_BIT = 5  # Pylontech: "force charge request I"
+FORCE_CHARGE_REQUEST_II_BIT = 4
+FULL_CHARGE_REQUEST_BIT = 3
 # 0x374..0x377 in ID order
 CELL_ID_KINDS = ('min_voltage', 'max_voltage', 'min_temperature', 'max_temperature')
 
@@ -104,6 +121,8 @@ class PylontechRequest:
     charge_enable: bool
     discharge_enable: bool
     request_charge_immediately: bool = False
+    force_charge_request_ii: bool = False
+    full_charge_request: bool = False
 
 
 @dataclass(frozen=True)
@@ -152,8 +171,31 @@ class VictronCellId:
     text: str
 
 
+@dataclass(frozen=True)
+class VictronEnergy:
+    """0x378: energy charged into and discharged from the battery over its life, kWh."""
+
+    charged_kwh: float | None
+    discharged_kwh: float | None
+
+
+@dataclass(frozen=True)
+class VictronInstalledCapacity:
+    """0x379: installed capacity, Ah (diagnostics; BatteryState.capacity comes from 0x35F)."""
+
+    capacity_ah: int | None
+
+
+@dataclass(frozen=True)
+class VictronProductName:
+    """0x382: product (battery family) name, ASCII."""
+
+    text: str
+
+
 DialectReading = Union[PylontechAlarms, PylontechRequest, VictronBmsName, VictronModules,
-                       VictronCellExtremes, VictronCellId]
+                       VictronCellExtremes, VictronCellId, VictronEnergy,
+                       VictronInstalledCapacity, VictronProductName]
 
 
 def _celsius(kelvin: int | None) -> float | None:
@@ -175,8 +217,17 @@ def encode_ascii(field: str, text: str) -> bytes:
 
 
 def _u16s(data: bytes) -> list[int | None]:
-    raws = (data[i] | data[i + 1] << 8 for i in range(0, 8, 2))
+    """Return the four U16 fields; a field the frame is too short for is None."""
+    raws = (data[i] | data[i + 1] << 8 if len(data) >= i + 2 else INVALID_U16
+            for i in range(0, 8, 2))
     return [None if raw == INVALID_U16 else raw for raw in raws]
+
+
+def _u32(data: bytes, i: int) -> int | None:
+    if len(data) < i + 4:
+        return None
+    raw = int.from_bytes(data[i:i + 4], 'little')
+    return None if raw == INVALID_U32 else raw
 
 
 # --- decode ------------------------------------------------------------------------------------
@@ -191,7 +242,9 @@ def _pylontech_request(aid: int, data: bytes) -> PylontechRequest:
     b0 = data[0]
     return PylontechRequest(bool(b0 >> CHARGE_ENABLE_BIT & 1),
                             bool(b0 >> DISCHARGE_ENABLE_BIT & 1),
-                            bool(b0 >> REQUEST_CHARGE_IMMEDIATELY_BIT & 1))
+                            bool(b0 >> REQUEST_CHARGE_IMMEDIATELY_BIT & 1),
+                            bool(b0 >> FORCE_CHARGE_REQUEST_II_BIT & 1),
+                            bool(b0 >> FULL_CHARGE_REQUEST_BIT & 1))
 
 
 def _bms_name(aid: int, data: bytes) -> VictronBmsName:
@@ -220,12 +273,28 @@ def _cell_id(aid: int, data: bytes) -> VictronCellId:
     return VictronCellId(CELL_ID_KINDS[aid - VICTRON_MIN_VOLTAGE_CELL_ID], ascii_text(data))
 
 
+def _energy(aid: int, data: bytes) -> VictronEnergy:
+    charged, discharged = _u32(data, 0), _u32(data, 4)
+    return VictronEnergy(None if charged is None else charged / 10,
+                         None if discharged is None else discharged / 10)
+
+
+def _installed_capacity(aid: int, data: bytes) -> VictronInstalledCapacity:
+    return VictronInstalledCapacity(_u16s(data)[0])
+
+
+def _product_name(aid: int, data: bytes) -> VictronProductName:
+    return VictronProductName(ascii_text(data))
+
+
 DIALECT_DECODERS: dict[int, Callable[[int, bytes], DialectReading]] = {
     PYLONTECH_ALARMS_ID: _pylontech_alarms, PYLONTECH_REQUEST_ID: _pylontech_request,
     VICTRON_BMS_NAME1_ID: _bms_name, VICTRON_BMS_NAME2_ID: _bms_name,
     VICTRON_MODULES_ID: _modules, VICTRON_CELL_EXTREMES_ID: _cell_extremes,
     **{i: _cell_id for i in range(VICTRON_MIN_VOLTAGE_CELL_ID,
                                   VICTRON_MAX_TEMPERATURE_CELL_ID + 1)},
+    VICTRON_ENERGY_ID: _energy, VICTRON_INSTALLED_CAPACITY_ID: _installed_capacity,
+    VICTRON_PRODUCT_NAME_ID: _product_name,
 }
 
 
@@ -238,7 +307,12 @@ def decode_dialect(arbitration_id: int, data: bytes) -> DialectReading:
     return decoder(arbitration_id, data)
 
 
-# --- encode (simulator, tests) ---------------------------------------------------------------
+# --- encode (simulator, tests; the bridge's keep-alive) ---------------------------------------
+def keepalive_frame() -> Frame:
+    """Build the inverter's keep-alive 0x305: eight zero bytes (Pylontech CAN protocol)."""
+    return Frame(PYLONTECH_KEEPALIVE_ID, bytes(8))
+
+
 def _put_u16(field: str, value: float | None, scale: int, unit: str,
              high: float | None = None) -> bytes:
     if value is None:
@@ -246,6 +320,13 @@ def _put_u16(field: str, value: float | None, scale: int, unit: str,
     top = (INVALID_U16 - 1) / scale if high is None else high
     check_range(f'sma.{field}', value, 0, top, 1 / scale, unit)
     return round(value * scale).to_bytes(2, 'little')
+
+
+def _put_u32(field: str, kwh: float | None) -> bytes:
+    if kwh is None:
+        return INVALID_U32.to_bytes(4, 'little')
+    check_range(f'sma.{field}', kwh, 0, (INVALID_U32 - 1) / 10, 0.1, 'kWh')
+    return round(kwh * 10).to_bytes(4, 'little')
 
 
 def _names(field: str, names: frozenset[str]) -> frozenset[str]:
@@ -273,7 +354,9 @@ def encode_dialect(message: DialectReading) -> Frame:
     if isinstance(message, PylontechRequest):
         b0 = (message.charge_enable << CHARGE_ENABLE_BIT
               | message.discharge_enable << DISCHARGE_ENABLE_BIT
-              | message.request_charge_immediately << REQUEST_CHARGE_IMMEDIATELY_BIT)
+              | message.request_charge_immediately << REQUEST_CHARGE_IMMEDIATELY_BIT
+              | message.force_charge_request_ii << FORCE_CHARGE_REQUEST_II_BIT
+              | message.full_charge_request << FULL_CHARGE_REQUEST_BIT)
         return Frame(PYLONTECH_REQUEST_ID, bytes([b0, 0]))
     if isinstance(message, VictronBmsName):
         if message.part not in (1, 2):
@@ -298,4 +381,14 @@ def encode_dialect(message: DialectReading) -> Frame:
                                    'one of ' + ', '.join(CELL_ID_KINDS))
         return Frame(VICTRON_MIN_VOLTAGE_CELL_ID + CELL_ID_KINDS.index(message.kind),
                      encode_ascii(f'sma.victron.{message.kind}_cell_id', message.text))
+    if isinstance(message, VictronEnergy):
+        data = b''.join(_put_u32(f'victron.{n}', getattr(message, n))
+                        for n in ('charged_kwh', 'discharged_kwh'))
+        return Frame(VICTRON_ENERGY_ID, data)
+    if isinstance(message, VictronInstalledCapacity):
+        return Frame(VICTRON_INSTALLED_CAPACITY_ID,
+                     _put_u16('victron.installed_capacity_ah', message.capacity_ah, 1, 'Ah'))
+    if isinstance(message, VictronProductName):
+        return Frame(VICTRON_PRODUCT_NAME_ID,
+                     encode_ascii('sma.victron.product_name', message.text))
     raise TypeError(f'not an SMA, Pylontech or Victron message: {message!r}')

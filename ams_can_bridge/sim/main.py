@@ -75,6 +75,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--bms16-variant', choices=tuple(registry.VARIANTS['bms16']), default=None,
                    help='BMS16 wire form: inverter (11-bit, 500 kbit/s, IDs 500.. and SMA; '
                         'default) or standard (EVMS3 protocol, 29-bit: IDs 30.., 301.., 40)')
+    p.add_argument('--sma-soc-frame', choices=('sma', 'byd', 'diybms'), default=None,
+                   help='0x355 as the SMA BMS sends it: sma (with the high-resolution SoC), '
+                        'byd (zeros after the SoH) or diybms (SoC only, DLC 2); default sma')
     p.add_argument('--fault', type=_fault, action='append', default=[],
                    metavar='DEVICE:KIND[=VALUE]',
                    help='inject a fault: silent, malformed, error=CODE, drift=VOLTS, '
@@ -94,7 +97,8 @@ def build_devices(types: Sequence[str], ams_banks: int | None = None,
                   ivt_byte_order: str | None = None,
                   sma_dialect: str | None = None, evms3_charge_after: float | None = None,
                   evms3_chargers: int | None = None,
-                  bms16_variant: str | None = None) -> list[SimDevice]:
+                  bms16_variant: str | None = None,
+                  sma_soc_frame: str | None = None) -> list[SimDevice]:
     """Instantiate the simulators named by type (instance name = type name)."""
     devices: list[SimDevice] = []
     ams = None
@@ -108,8 +112,10 @@ def build_devices(types: Sequence[str], ams_banks: int | None = None,
                                ('charge_after_s', evms3_charge_after)):
                 if value is not None:
                     kwargs[key] = value
-        elif kind == 'sma' and sma_dialect is not None:
-            kwargs['dialect'] = sma_dialect
+        elif kind == 'sma':
+            for key, value in (('dialect', sma_dialect), ('soc_layout', sma_soc_frame)):
+                if value is not None:
+                    kwargs[key] = value
         elif kind == 'bms16' and 'sma' in types and _accepts(cls, 'send_sma'):
             # The BMS16 also speaks SMA (0x351...): two sources of one ID would clash.
             kwargs['send_sma'] = False
@@ -176,7 +182,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         devices = build_devices(args.devices, args.ams_banks, args.bms12_modules,
                                 args.ivt_byte_order, args.sma_dialect,
                                 args.evms3_charge_after, args.evms3_chargers,
-                                args.bms16_variant)
+                                args.bms16_variant, args.sma_soc_frame)
         apply_faults(devices, args.fault)
     except (ValueError, TypeError, ImportError) as exc:
         print(f'simulator: {exc}', file=sys.stderr)

@@ -12,6 +12,10 @@ enable, charge request) instead of 0x35A, as Pylontech-family BMSs do; ``victron
 the SMA frames the BMS name (0x370/0x371, with the info frames), the module counts (0x372),
 the min/max cell voltage and temperature (0x373) and their cell ids (0x374..0x377), every 1 s.
 
+0x355 layout (``soc_layout``, the simulator's ``--sma-soc-frame``): ``sma`` (SoC, SoH,
+high-resolution SoC; 6 bytes), ``byd`` (SoC, SoH and four zero bytes, as a BYD LVS sends
+it) or ``diybms`` (the SoC alone, DLC 2, as diyBMS sends it): ``protocols.sma.SOC_LAYOUTS``.
+
 Faults: ``silent``; ``malformed`` (frames without data: malformed for every SMA ID, where a
 dropped byte may still be a valid DLC); ``extra['alarm']`` / ``extra['warning']``: a
 condition name or a list of them (``protocols.sma.SMA_CONDITIONS``) reported ACTIVE;
@@ -28,6 +32,7 @@ from typing import Callable
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.sma import (
     SMA_CONDITIONS, SmaAlarms, SmaBattery, SmaBatteryInfo, SmaCodec, SmaFlag, SmaLimits,
+    SOC_LAYOUTS,
     SmaManufacturer, SmaSoc)
 from ams_can_bridge.protocols.sma_dialects import (
     CELL_ID_KINDS, KELVIN_OFFSET, PYLONTECH_CONDITION_NAMES, PylontechAlarms, PylontechRequest,
@@ -71,10 +76,15 @@ class SmaSimulator(SimDevice):
     def __init__(self, name: str | None = None,
                  current_fn: Callable[[float], float] | None = None,
                  capacity_ah: float = 100.0, manufacturer: str = 'SIMBMS',
-                 seed: int = 0, dialect: str = 'sma', bms_name: str = 'SIMBMS 16S LFP') -> None:
+                 seed: int = 0, dialect: str = 'sma', bms_name: str = 'SIMBMS 16S LFP',
+                 soc_layout: str = 'sma') -> None:
         super().__init__(name)
         if dialect not in DIALECTS:
             raise ValueError(f'SMA dialect {dialect!r}: use one of ' + ', '.join(DIALECTS))
+        if soc_layout not in SOC_LAYOUTS:
+            raise ValueError(f'SMA 0x355 layout {soc_layout!r}: use one of '
+                             + ', '.join(SOC_LAYOUTS))
+        self.soc_layout = soc_layout
         if not 1 <= len(bms_name) <= 16:
             raise ValueError(f'bms_name {bms_name!r}: 1..16 ASCII characters (0x370 + 0x371)')
         self.dialect = dialect
@@ -184,7 +194,8 @@ class SmaSimulator(SimDevice):
                     messages.append(VictronBmsName(2, self.bms_name[8:]))
         if self.faults.silent or not messages:
             return []
-        frames = [self.codec.encode(m) for m in messages]
+        frames = [self.codec.encode_soc(m, self.soc_layout) if isinstance(m, SmaSoc)
+                  else self.codec.encode(m) for m in messages]
         if self.faults.malformed:
             return [sma_empty(f) for f in frames]
         return frames

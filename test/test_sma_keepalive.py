@@ -1,0 +1,146 @@
+"""
+The inverter keep-alive 0x305 (sma.inverter_keepalive, docs/protocols.md section 5).
+
+Pylontech's protocol has the inverter reply every second with 0x305, eight zero bytes; a
+robot has no inverter, so the bridge sends it: only while commands_enabled and
+inverter_keepalive are both true, stopping at once on disarm, start/stop logged once.
+"""
+import threading
+import time
+
+from sensor_msgs.msg import BatteryState
+
+from ams_can_bridge.devices.sma import SmaDevice
+from ams_can_bridge.devices.sma_keepalive import InverterKeepalive
+from ams_can_bridge.protocols.common import Frame
+from command_rig import rigs
+from helpers import wait_for
+
+ZERO_305 = Frame(0x305, bytes([0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00]))
+PERIOD = 0.02  # s, unit tests only; the bridge uses 1 s
+
+
+class Sink:
+    """Records what a keep-alive sends and logs."""
+
+    def __init__(self) -> None:
+        self.frames: list[Frame] = []
+        self.lines: list[str] = []
+        self.lock = threading.Lock()
+
+    def send(self, frame: Frame) -> tuple[bool, str]:
+        with self.lock:
+            self.frames.append(frame)
+        return True, 'sent'
+
+    def count(self) -> int:
+        with self.lock:
+            return len(self.frames)
+
+
+def keepalive(sink: Sink) -> tuple[SmaDevice, InverterKeepalive]:
+    device = SmaDevice('sma', {})
+    return device, device.attach_keepalive(sink.send, sink.lines.append, period=PERIOD)
+
+
+def ticks_of_another_keepalive(n: int) -> None:
+    """Wait (bounded) until n periods have passed, counted by a second keep-alive's frames."""
+    other = Sink()
+    clock = InverterKeepalive(lambda: ZERO_305, other.send, lambda line: None, 'clock', PERIOD)
+    clock.set_enabled(True)
+    clock.set_armed(True)
+    try:
+        wait_for(lambda: other.count() >= n, 10.0, f'{n} keep-alive periods')
+    finally:
+        clock.stop('done')
+
+
+def test_runs_only_while_armed_and_enabled():
+    sink = Sink()
+    device, ka = keepalive(sink)
+    ka.set_armed(True)  # commands enabled, inverter_keepalive false (the default)
+    assert not ka.running
+    device.configure({'inverter_keepalive': True})
+    assert ka.running
+    wait_for(lambda: sink.count() >= 3, 10.0, 'three keep-alives')
+    assert set(sink.frames) == {ZERO_305}
+    ka.set_armed(False)
+    assert not ka.running
+    stopped = sink.count()
+    ticks_of_another_keepalive(10)
+    assert sink.count() == stopped  # nothing after the disarm returned
+    assert device.diagnostic_report().values['inverter keep-alive (0x305)'] == (
+        'off: commands_enabled is false')
+
+
+def test_parameter_off_stops_it_at_once_and_logs_once():
+    sink = Sink()
+    device, ka = keepalive(sink)
+    device.configure({'inverter_keepalive': True})
+    assert not ka.running  # not armed yet
+    ka.set_armed(True)
+    wait_for(lambda: sink.count() >= 5, 10.0, 'five keep-alives')
+    assert device.diagnostic_report().values['inverter keep-alive (0x305)'].startswith(
+        'sending 0x305 every 0.02 s')
+    device.configure({'inverter_keepalive': False})
+    stopped = sink.count()
+    ticks_of_another_keepalive(10)
+    assert sink.count() == stopped
+    # one line for the start, one for the stop: never a line per frame
+    assert len(sink.lines) == 2, sink.lines
+    assert 'started' in sink.lines[0] and '0x305' in sink.lines[0]
+    assert 'stopped' in sink.lines[1] and 'sma.inverter_keepalive is false' in sink.lines[1]
+
+
+def test_failed_sends_are_counted_not_logged():
+    lines = []
+    calls = []
+
+    def refuse(frame):
+        calls.append(frame)
+        return False, 'CAN bus virtual:x is down'
+    ka = InverterKeepalive(lambda: ZERO_305, refuse, lines.append, 'sma', PERIOD)
+    ka.set_enabled(True)
+    ka.set_armed(True)
+    wait_for(lambda: len(calls) >= 4, 10.0, 'four attempts')
+    assert 'failed, last: CAN bus virtual:x is down' in ka.describe()
+    ka.stop('test over')
+    assert len(lines) == 2 and 'test over' in lines[1]
+
+
+def rig_params(enabled=True, keepalive=True):
+    return {'devices': ['sma'], 'commands_allowed': True, 'commands_enabled': enabled,
+            'sma.inverter_keepalive': keepalive}
+
+
+def battery(rig):
+    return rig.messages('sma/battery_state')
+
+
+def test_bridge_sends_the_keepalive_only_while_commands_are_enabled():
+    with rigs() as make:
+        rig = make(rig_params(), topics={'sma/battery_state': BatteryState})
+        assert rig.wait(lambda: len(rig.capture.since(0, 0x305)) >= 2, 10.0)
+        assert {f for _, f in rig.capture.since(0, 0x305)} == {ZERO_305}
+        assert rig.set_param('commands_enabled', False).successful
+        mark = rig.capture.mark()
+        # > 1.5 keep-alive periods pass, counted by the bridge's answers to our frames
+        for k in range(16):
+            rig.send(0x356, [0xBE, 0x14, 0xF9, 0xFF, 0x8C, 0x00])
+            assert rig.wait(lambda: len(battery(rig)) >= k + 1, 10.0)
+            time.sleep(0.1)  # pacing only: what counts is the bridge's answers
+        assert rig.capture.since(mark, 0x305) == []
+        assert rig.status('sma', lambda s: any(
+            v.key == 'inverter keep-alive (0x305)' and v.value == 'off: commands_enabled is false'
+            for v in s.values))
+
+
+def test_bridge_never_sends_it_by_default():
+    with rigs() as make:
+        rig = make(rig_params(keepalive=False))
+        commander = rig.node.commanders['sma']
+        assert not commander.keepalive.running
+        assert rig.set_param('sma.inverter_keepalive', True).successful
+        assert rig.wait(lambda: len(rig.capture.since(0, 0x305)) >= 1, 10.0)
+        assert rig.set_param('sma.inverter_keepalive', False).successful
+        assert not commander.keepalive.running
