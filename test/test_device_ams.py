@@ -431,3 +431,21 @@ def test_the_device_builds_its_command_frames_at_its_base_id(clock):
         device.charge_current_frame()
     device.configure({'charge_current_a': 12.3})
     assert device.charge_current_frame() == Frame(0x450, bytes([123]))
+
+
+def test_a_padding_ams_is_decoded_and_never_stale(clock):
+    """Frames padded to 8 bytes (docs/protocols.md section 1, DLC) count as received."""
+    device = make(clock)
+    for counter in range(12):  # 1.2 s of status every 100 ms, each padded with 0xFF
+        clock.now += 0.1
+        data = bytes([0xC0, 1 << 5 | AmsState.DRIVE, 180, 35, 77, counter, 0, 0xFF])
+        assert device.handle_frame(0x300, data, STAMP) is True
+        assert not device.is_stale()
+    # cells and temperatures padded too (0x012 has a 6-byte layout)
+    device.handle_frame(0x312, bytes([0x20, 20, 21, 22, 23, 24, 0, 0]), STAMP)
+    assert device.frames_malformed == 0
+    assert device.battery_report().present
+    assert device.extra_arrays()['temperatures'][2][:5] == [20.0, 21.0, 22.0, 23.0, 24.0]
+    # one byte short of the layout is malformed and keeps nothing
+    assert device.handle_frame(0x300, bytes([0xC0, 0x24, 180, 35, 77, 12]), STAMP) is False
+    assert device.frames_malformed == 1
