@@ -186,8 +186,15 @@ DLCS = {0x300: 7, 0x301: 5, 0x305: 2, 0x310: 3, 0x311: 8, 0x312: 6, 0x313: 8, 0x
 @pytest.mark.parametrize('can_id,dlc', sorted(DLCS.items()))
 def test_shorter_than_the_layout_is_malformed(can_id, dlc):
     for length in range(dlc):
-        with pytest.raises(MalformedFrameError,
-                           match=f'DLC {length}, expected at least {dlc}'):
+        with pytest.raises(MalformedFrameError, match=f'DLC {length}, expected {dlc}..8'):
+            CODEC.decode(can_id, bytes([0x21] * length))
+
+
+@pytest.mark.parametrize('can_id', sorted(DLCS))
+def test_longer_than_classic_can_is_malformed(can_id):
+    # a CAN FD frame (12, 64 bytes) is no padded classic AMS frame
+    for length in (9, 12, 64):
+        with pytest.raises(MalformedFrameError, match=f'DLC {length}, expected'):
             CODEC.decode(can_id, bytes([0x21] * length))
 
 
