@@ -31,6 +31,10 @@ def diagnostic_values(self: Any) -> dict[str, str]:
         'frames beyond bank count': str(self._beyond_banks),
         'current sensor': getattr(self.current_sensor, 'name', '') or 'none',
     }
+    if self.current_sensor is not None:
+        values['pack voltage channel'] = str(self.config.pack_voltage_channel or 'U1')
+    capacity = self.config.design_capacity_ah
+    values['design capacity (Ah)'] = 'unset' if capacity is None else f'{float(capacity):g}'
     status = self._status
     if status is not None:
         word = status.status
