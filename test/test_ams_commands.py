@@ -143,6 +143,23 @@ def test_full_sequence_sc_ts_drive_abort(with_ams):
     assert 7 in states and states.index(7) < states.index(3)
 
 
+def test_enable_drive_from_idle_is_refused_at_once_naming_ts_active(with_ams):
+    rig, sim = with_ams(**{'ams.command_timeout': 30.0})  # waiting it out would fail the call
+    mark = rig.capture.mark()
+    response = rig.call(Trigger, '/ams/enable_drive', timeout=10.0)
+    assert not response.success
+    assert 'ENABLE_DRIVE refused: the AMS is in IDLE' in response.message, response.message
+    assert 'it must be TS_ACTIVE first (call enable_sc, then enable_ts)' in response.message
+    assert 'nothing was sent' in response.message
+    # nothing sent beyond the heartbeat, which runs on with NO_COMMAND
+    n = len(heartbeat_commands(rig, mark))
+    assert rig.wait(lambda: len(heartbeat_commands(rig, mark)) >= n + 5)
+    assert set(heartbeat_commands(rig, mark)) == {0}
+    bridge_ids = {BASE + 0x010, BASE + 0x050, BASE + 0x051}
+    assert not [f for _, f in rig.capture.since(mark) if f.arbitration_id in bridge_ids]
+    assert sim.state.name == 'IDLE'
+
+
 def test_silent_ams_times_out(with_ams):
     rig, sim = with_ams(**{'ams.command_timeout': 0.5})
     sim.faults.silent = True

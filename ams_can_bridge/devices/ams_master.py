@@ -22,6 +22,13 @@ The command field carries at most one request at a time (the bus frame has one f
 
 Only AMS status frames received *after* the request was first carried count as an answer,
 so a state reported before the request can never confirm it.
+
+A state command the AMS cannot carry out from the state it reports now is refused at once,
+naming the state it must be in first (``PRECONDITIONS``, docs/protocols.md section 1): the
+seed's car path is IDLE -> SC_ENABLED -> TS_ACTIVE -> DRIVE, one command a step, so
+ENABLE_TS needs SC_ENABLED and ENABLE_DRIVE needs TS_ACTIVE. Nothing is carried then (the
+heartbeat goes on with NO_COMMAND). While the state is unknown (no status yet, or stale) the
+command is carried as before: only the AMS can answer it.
 """
 from __future__ import annotations
 
@@ -44,6 +51,42 @@ TARGETS = {
 }
 ONE_SHOT = (CarCommand.SET_BANK_COUNT, CarCommand.SYNC_TIME)
 ERROR_STATES = (AmsState.ERROR, AmsState.CHARGE_ERROR)
+# State command -> (the state it is given in, every state it can still succeed from): the
+# state itself, the target already reached, and PRECHARGING on the way to TS_ACTIVE.
+PRECONDITIONS = {
+    CarCommand.ENABLE_SC: (AmsState.IDLE, (AmsState.IDLE, AmsState.SC_ENABLED)),
+    CarCommand.ENABLE_TS: (AmsState.SC_ENABLED, (AmsState.SC_ENABLED, AmsState.PRECHARGING,
+                                                 AmsState.TS_ACTIVE)),
+    CarCommand.ENABLE_DRIVE: (AmsState.TS_ACTIVE, (AmsState.TS_ACTIVE, AmsState.DRIVE)),
+}
+# The car path and the service that takes the AMS from each state to the next.
+CAR_PATH = (AmsState.IDLE, AmsState.SC_ENABLED, AmsState.TS_ACTIVE)
+STEP_SERVICE = {AmsState.IDLE: 'enable_sc', AmsState.SC_ENABLED: 'enable_ts',
+                AmsState.TS_ACTIVE: 'enable_drive'}
+
+
+def precondition_refusal(command: CarCommand, view: AmsView) -> str:
+    """Say why command cannot succeed from the AMS state in view ('' = it may)."""
+    rule = PRECONDITIONS.get(command)
+    if rule is None or view.status_seq == 0 or view.stale or view.state == 0:
+        return ''  # not a state command, or the state is unknown: let the AMS answer
+    required, possible = rule
+    if view.state in possible:
+        return ''
+    state = AmsState(view.state)
+    goal = CAR_PATH.index(required)
+    if state is AmsState.PRECHARGING and required is AmsState.TS_ACTIVE:
+        hint = 'wait for TS_ACTIVE, or call abort'
+    else:
+        if state in CAR_PATH and CAR_PATH.index(state) < goal:
+            steps = [STEP_SERVICE[s] for s in CAR_PATH[CAR_PATH.index(state):goal]]
+        else:  # past the required state, in an error or a charging state: back to IDLE
+            steps = ['abort'] + [STEP_SERVICE[s] for s in CAR_PATH[:goal]]
+        hint = 'call ' + ', then '.join(steps)
+    return (f'{command.name} refused: the AMS is in {state.name}, and {command.name} can '
+            f'only succeed from {required.name}: it must be {required.name} first '
+            f'({hint}); nothing was sent, the heartbeat carries NO_COMMAND; '
+            f'{view.describe()}')
 
 
 def state_name(code: int) -> str:
@@ -302,7 +345,8 @@ class AmsMaster:
         # The AMS view is read outside self._cond (it takes the device lock, which the
         # receive thread holds while it decodes): the heartbeat thread takes the condition
         # at every slot and must never wait behind a lock chain.
-        error_seq = self._view().error_seq
+        view = self._view()
+        error_seq = view.error_seq
         with self._cond:
             if not self._running:
                 return CommandResult(False, f'{command.name} not sent: the heartbeat is not '
@@ -311,6 +355,9 @@ class AmsMaster:
             if command != CarCommand.ABORT and current is not None:
                 return CommandResult(False, f'{command.name} refused: {current.command.name} is '
                                      'still in progress (wait for its answer, or call abort)')
+            refusal = precondition_refusal(command, view)
+            if refusal:
+                return CommandResult(False, refusal)
             if current is not None:
                 current.cancelled = 'aborted'
             request = _Request(command, self._clock() if started is None else started,
