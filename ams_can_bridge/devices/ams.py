@@ -24,6 +24,7 @@ import math
 import time
 from typing import Any, Callable, Iterable, Mapping
 
+from ams_can_bridge.devices.ams_charger import ChargerRepeater
 from ams_can_bridge.devices.ams_master import AmsMaster, AmsView
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, Level, ParamSpec,
@@ -142,6 +143,7 @@ class AmsDevice(Device):
         self.codec = AmsCodec(proto.DEFAULT_BASE_ID if base_id is None else int(base_id))
         self.bank_count = _bank_count(_or_one(self.config.bank_count), f'{name}.bank_count')
         self.master: AmsMaster | None = None  # the car's side, made by attach_master()
+        self.charger: ChargerRepeater | None = None  # the periodic START, attach_charger()
         self.current_sensor: Any = None  # an IvtSDevice, attached by the node
         self.state = AmsState.NOT_REPORTED
         self.status_seq = 0
@@ -177,6 +179,12 @@ class AmsDevice(Device):
                                 period=float(config.heartbeat_period or 0.05),
                                 bank_count=self.bank_count)
         return self.master
+
+    def attach_charger(self, send: Callable[[Frame], tuple[bool, str]],
+                       tick: Callable[[], int], logger: Any) -> ChargerRepeater:
+        """Make this AMS's charger START repeater (disarmed) sending through ``send``."""
+        self.charger = ChargerRepeater(self.charger_frame, send, tick, logger, self.name)
+        return self.charger
 
     def heartbeat_frame(self, command: int, bank_count: int, counter: int) -> Frame:
         """Build the car status (base + 0x005) the AMS master sends as its heartbeat."""
