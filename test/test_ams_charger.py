@@ -4,7 +4,6 @@ import time
 
 from ams_can_bridge.devices.ams import AmsDevice
 from ams_can_bridge.devices.ams_charger import CHARGER_COMMAND_PERIOD, ChargerRepeater
-from ams_can_bridge.protocols.common import Frame
 from helpers import wait_for
 
 

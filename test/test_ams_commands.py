@@ -61,7 +61,7 @@ CHARGER = BASE + 0x010
 
 
 def charger_frames(rig, mark=0):
-    """Data of every charger command (0x310) since mark."""
+    """Return the data of every charger command (0x310) since mark."""
     return [f.data for _, f in rig.capture.since(mark, CHARGER)]
 
 
