@@ -21,9 +21,9 @@ def with_ams(rig_factory):
     """Node + simulated AMS (3 banks) on one virtual channel, commands enabled."""
     runners = []
 
-    def make(precharge_time=0.3, **params):
+    def make(precharge_time=0.3, sim_options=None, **params):
         channel = unique_channel('ams')
-        sim = AmsSimulator(bank_count=3, precharge_time=precharge_time)
+        sim = AmsSimulator(bank_count=3, precharge_time=precharge_time, **(sim_options or {}))
         runner = SimRunner(can.Bus(interface='virtual', channel=channel), [sim])
         runners.append(runner)
         runner.start()
@@ -57,20 +57,57 @@ def heartbeat_commands(rig, mark=0):
 
 
 # --- charger role: frames written by hand from docs/protocols.md section 1 ---------------------
-def test_start_and_stop_charging_carry_start_and_a_millisecond_tick(rig_factory):
+CHARGER = BASE + 0x010
+
+
+def charger_frames(rig, mark=0):
+    """Return the data of every charger command (0x310) since mark."""
+    return [f.data for _, f in rig.capture.since(mark, CHARGER)]
+
+
+def test_start_charging_repeats_start_every_100_ms_until_stop_charging(rig_factory):
     rig = rig_factory(ams_params())
     mark = rig.capture.mark()
     first = rig.call(Trigger, '/ams/start_charging')
     assert first.success, first.message
-    time.sleep(0.3)
+    assert 'repeated every 100 ms until stop_charging' in first.message
+    assert rig.wait(lambda: len(charger_frames(rig, mark)) >= 4)  # the first START + 3 repeats
+    again = rig.call(Trigger, '/ams/start_charging')
+    assert again.success and 'already repeated' in again.message, again.message
     second = rig.call(Trigger, '/ams/stop_charging')
     assert second.success, second.message
-    assert rig.wait(lambda: len(commands_sent(rig, mark)) >= 2)
-    (id1, d1), (id2, d2) = commands_sent(rig, mark)
-    assert (id1, id2) == (0x310, 0x310) and len(d1) == len(d2) == 3
-    assert d1[0] == 1 and d2[0] == 2  # 1 = start, 2 = stop
-    tick1, tick2 = d1[1] << 8 | d1[2], d2[1] << 8 | d2[2]  # big-endian time tick
-    assert 250 <= (tick2 - tick1) & 0xFFFF <= 2000  # ms between the two calls
+    assert 'the repeated START has ended' in second.message
+    # stopped for good: 15 more heartbeats (20 ms each: three 100 ms periods), no START
+    assert rig.wait(lambda: any(d[0] == 2 for d in charger_frames(rig, mark)))
+    stop_at = mark + next(i for i, (_, f) in enumerate(rig.capture.since(mark))
+                          if f.arbitration_id == CHARGER and f.data[0] == 2)
+    assert rig.wait(lambda: len(heartbeat_commands(rig, stop_at)) >= 15)
+    frames = charger_frames(rig, mark)
+    # docs/protocols.md section 1: DLC 3, b0 bits 1..0 = 1 START / 2 STOP, b1..2 = tick (BE)
+    assert all(len(d) == 3 for d in frames)
+    assert [d[0] for d in frames] == [1] * (len(frames) - 1) + [2]  # STOP once, last
+    assert len(frames) >= 5
+    ticks = [d[1] << 8 | d[2] for d in frames]
+    steps = [(b - a) & 0xFFFF for a, b in zip(ticks, ticks[1:])]
+    assert all(0 < step < 2000 for step in steps), ticks  # ms, each frame its own tick
+    status = rig.status('ams', lambda s: any(
+        kv.key == 'charger START repeated' and kv.value.startswith('no') for kv in s.values))
+    assert status is not None
+
+
+def test_disarm_stops_the_repeated_start_at_once_and_rearming_does_not_resume_it(
+        rig_factory):
+    rig = rig_factory(ams_params())
+    mark = rig.capture.mark()
+    assert rig.call(Trigger, '/ams/start_charging').success
+    assert rig.wait(lambda: len(charger_frames(rig, mark)) >= 3)
+    assert rig.set_param('commands_enabled', False).successful
+    disarmed = rig.capture.mark()
+    assert rig.set_param('commands_enabled', True).successful
+    # the heartbeat is back; 15 heartbeats = three 100 ms periods without a charger frame
+    assert rig.wait(lambda: len(heartbeat_commands(rig, disarmed)) >= 15)
+    assert charger_frames(rig, disarmed) == []  # no START, and no STOP while disarmed
+    assert set(d[0] for d in charger_frames(rig, mark)) == {1}
 
 
 def test_set_charge_current_and_override_bank_count(rig_factory):
@@ -141,6 +178,36 @@ def test_full_sequence_sc_ts_drive_abort(with_ams):
     # TS_ACTIVE came after PRECHARGING, as the AMS reported it on the bus
     states = [f.data[1] & 0x1F for _, f in rig.capture.since(0, BASE)]
     assert 7 in states and states.index(7) < states.index(3)
+
+
+def test_enable_drive_from_idle_is_refused_at_once_naming_ts_active(with_ams):
+    rig, sim = with_ams(**{'ams.command_timeout': 30.0})  # waiting it out would fail the call
+    mark = rig.capture.mark()
+    response = rig.call(Trigger, '/ams/enable_drive', timeout=10.0)
+    assert not response.success
+    assert 'ENABLE_DRIVE refused: the AMS is in IDLE' in response.message, response.message
+    assert 'it must be TS_ACTIVE first (call enable_sc, then enable_ts)' in response.message
+    assert 'nothing was sent' in response.message
+    # nothing sent beyond the heartbeat, which runs on with NO_COMMAND
+    n = len(heartbeat_commands(rig, mark))
+    assert rig.wait(lambda: len(heartbeat_commands(rig, mark)) >= n + 5)
+    assert set(heartbeat_commands(rig, mark)) == {0}
+    bridge_ids = {BASE + 0x010, BASE + 0x050, BASE + 0x051}
+    assert not [f for _, f in rig.capture.since(mark) if f.arbitration_id in bridge_ids]
+    assert sim.state.name == 'IDLE'
+
+
+def test_an_ams_watching_the_charger_keeps_charging_while_start_repeats(with_ams):
+    # an AMS that leaves CHARGING 0.5 s after the last charger command (5 missed periods)
+    rig, sim = with_ams(precharge_time=0.1, sim_options={'charger_timeout': 0.5})
+    assert rig.call(Trigger, '/ams/start_charging').success
+    assert rig.wait(lambda: sim.state.name == 'CHARGING')
+    mark = rig.capture.mark()
+    # 2 s of heartbeats (20 ms): four times the AMS's charger timeout, still CHARGING
+    assert rig.wait(lambda: len(heartbeat_commands(rig, mark)) >= 100)
+    assert sim.state.name == 'CHARGING'
+    assert rig.call(Trigger, '/ams/stop_charging').success
+    assert rig.wait(lambda: sim.state.name == 'IDLE')
 
 
 def test_silent_ams_times_out(with_ams):

@@ -140,6 +140,7 @@ def test_timeout_when_the_ams_never_answers(rig):
 @pytest.mark.parametrize('behaviour, text', [('error', 'ERROR'), ('error_event', 'SC_BROKEN')])
 def test_error_answers_failure_with_state_and_error(rig, behaviour, text):
     ams, master = rig(behaviour)
+    ams.state = AmsState.SC_ENABLED  # where ENABLE_TS can succeed from
     master.start()
     result = master.command(CarCommand.ENABLE_TS, timeout=2.0)
     assert not result.success
@@ -148,6 +149,7 @@ def test_error_answers_failure_with_state_and_error(rig, behaviour, text):
 
 def test_abort_replaces_a_waiting_command_in_the_next_heartbeat(rig):
     ams, master = rig('never', period=0.02)
+    ams.state = AmsState.SC_ENABLED
     master.start()
     answers = {}
     waiter = threading.Thread(
@@ -173,12 +175,12 @@ def test_a_second_command_is_refused_while_one_waits_but_abort_never(rig):
     ams, master = rig('never', period=0.01)
     ams.state = AmsState.TS_ACTIVE  # stuck there: it will not obey the abort either
     master.start()
-    waiter = threading.Thread(target=master.command, args=(CarCommand.ENABLE_SC, 1.0))
+    waiter = threading.Thread(target=master.command, args=(CarCommand.ENABLE_DRIVE, 1.0))
     waiter.start()
-    wait_for(lambda: master.current_command() == CarCommand.ENABLE_SC, timeout=2.0,
-             what='ENABLE_SC in progress')
+    wait_for(lambda: master.current_command() == CarCommand.ENABLE_DRIVE, timeout=2.0,
+             what='ENABLE_DRIVE in progress')
     refused = master.command(CarCommand.ENABLE_TS, 1.0)
-    assert not refused.success and 'ENABLE_SC is still in progress' in refused.message
+    assert not refused.success and 'ENABLE_DRIVE is still in progress' in refused.message
     abort = master.command(CarCommand.ABORT, 0.2)  # AMS never answers: abort times out
     assert not abort.success and 'waiting for IDLE' in abort.message
     assert 'AMS state: TS_ACTIVE' in abort.message
@@ -243,6 +245,7 @@ def test_bus_down_while_waiting_fails_the_call_and_nothing_stale_is_replayed(rig
         sent_ok.append(frame)
         return ams.send(frame)
     master._send = send  # the bus between master and AMS, which we can pull out
+    ams.state = AmsState.SC_ENABLED
     master.start()
     ams.wait_frames(3)
     answers = []
@@ -264,3 +267,60 @@ def test_bus_down_while_waiting_fails_the_call_and_nothing_stale_is_replayed(rig
     assert after and all(f.data[0] & 0x0F == 0 for f in after)
     # the counter goes on from the last frame actually sent (lost slots are not counted)
     assert (after[0].data[1] - sent_ok[before - 1].data[1]) & 0xFF == 1
+
+
+@pytest.mark.parametrize('state, command, required, steps', [
+    (AmsState.IDLE, CarCommand.ENABLE_DRIVE, 'TS_ACTIVE', 'call enable_sc, then enable_ts'),
+    (AmsState.SC_ENABLED, CarCommand.ENABLE_DRIVE, 'TS_ACTIVE', 'call enable_ts'),
+    (AmsState.IDLE, CarCommand.ENABLE_TS, 'SC_ENABLED', 'call enable_sc'),
+    (AmsState.DRIVE, CarCommand.ENABLE_TS, 'SC_ENABLED', 'call abort, then enable_sc'),
+    (AmsState.ERROR, CarCommand.ENABLE_SC, 'IDLE', 'call abort'),
+    (AmsState.TS_ACTIVE, CarCommand.ENABLE_SC, 'IDLE', 'call abort'),
+    (AmsState.CHARGING, CarCommand.ENABLE_DRIVE, 'TS_ACTIVE',
+     'call abort, then enable_sc, then enable_ts'),
+    (AmsState.PRECHARGING, CarCommand.ENABLE_DRIVE, 'TS_ACTIVE', 'wait for TS_ACTIVE'),
+])
+def test_a_command_that_cannot_succeed_from_the_state_is_refused_at_once(
+        rig, state, command, required, steps):
+    ams, master = rig(period=0.01)
+    ams.state = state
+    master.start()
+    ams.wait_frames(2)  # the AMS has reported its state
+    n = len(ams.frames)
+    result = master.command(command, timeout=30.0)  # at once, not after 30 s
+    assert not result.success
+    assert f'{command.name} refused: the AMS is in {state.name}' in result.message
+    assert f'it must be {required} first ({steps}' in result.message, result.message
+    assert 'nothing was sent' in result.message
+    ams.wait_frames(n + 5)
+    assert set(ams.commands()[n:]) == {0}  # the heartbeat runs on with NO_COMMAND only
+    assert ams.state is state
+
+
+@pytest.mark.parametrize('state, command', [
+    (AmsState.IDLE, CarCommand.ENABLE_SC), (AmsState.SC_ENABLED, CarCommand.ENABLE_TS),
+    (AmsState.PRECHARGING, CarCommand.ENABLE_TS), (AmsState.TS_ACTIVE, CarCommand.ENABLE_DRIVE),
+    (AmsState.DRIVE, CarCommand.ENABLE_DRIVE), (AmsState.ERROR, CarCommand.ABORT),
+    (AmsState.CHARGING, CarCommand.SET_BANK_COUNT), (AmsState.DRIVE, CarCommand.SYNC_TIME),
+])
+def test_commands_that_can_succeed_are_carried(rig, state, command):
+    ams, master = rig('never', period=0.01)
+    ams.state = state
+    master.start()
+    ams.wait_frames(2)
+    result = master.command(command, timeout=0.1)
+    assert 'refused' not in result.message
+    assert int(command) in ams.commands()
+
+
+def test_an_unknown_or_stale_state_never_refuses(rig):
+    ams, master = rig('never', period=0.01)
+    ams.state = AmsState.IDLE
+    stale = AmsView(int(AmsState.IDLE), 5, 0, '', True)
+    master._view = lambda: stale  # the last IDLE is stale: maybe no longer true
+    master.start()
+    result = master.command(CarCommand.ENABLE_DRIVE, timeout=0.1)
+    assert 'refused' not in result.message and 'timeout' in result.message
+    master._view = lambda: AmsView()  # no status frame yet
+    result = master.command(CarCommand.ENABLE_DRIVE, timeout=0.1)
+    assert 'refused' not in result.message and 'timeout' in result.message

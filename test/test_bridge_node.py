@@ -226,19 +226,22 @@ def test_ams_without_current_sensor(rig_factory):
 
 def test_ams_with_ivt_s_current_sensor(rig_factory):
     h = rig_factory({'devices': ['ams', 'shunt'], 'shunt.type': 'ivt_s',
-                     'diagnostics_period': 0.2},
+                     'diagnostics_period': 0.2, 'ams.pack_voltage_channel': 'U2',
+                     'ams.design_capacity_ah': 20.0},
                     topics={'ams/battery_state': BatteryState,
                             'shunt/battery_state': BatteryState})
     assert h.node.devices['ams'].config.current_sensor == 'shunt'
-    h.send(0x522, ivt(1, 0, 398_000))
-    h.send(0x527, ivt(6, 0, 7200))
+    h.send(0x522, ivt(1, 0, 12_000))  # U1 12 V: not the pack here
+    h.send(0x523, ivt(2, 0, 398_000))  # U2 398 V: ams.pack_voltage_channel
+    h.send(0x527, ivt(6, 0, 7200))  # As counter: never the charge
     h.send(0x521, ivt(0, 0, -30_000))  # -30 A on the wire (discharge positive) = charging
     h.last('shunt/battery_state', lambda m: m.present)
     h.send(0x300, ams_status(AIR_PLUS | AIR_MINUS | (1 << 5) | 8, 180, 30, 50, 7))
     msg = h.last('ams/battery_state', lambda m: m.present)
     assert msg.voltage == pytest.approx(398.0)
     assert msg.current == pytest.approx(30.0)
-    assert msg.charge == pytest.approx(-2.0)
+    assert msg.charge == pytest.approx(10.0)  # 20 Ah x SOC 50 %
+    assert msg.design_capacity == pytest.approx(20.0)
     assert msg.power_supply_status == BatteryState.POWER_SUPPLY_STATUS_CHARGING
     assert len(msg.cell_voltage) == 28 and all(math.isnan(v) for v in msg.cell_voltage)
 

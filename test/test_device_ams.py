@@ -383,7 +383,7 @@ def test_non_default_base(clock):
 
 def ivt_frame(ivt, kind, value, counter=0):
     """IVT-S result: b0 mux ID, b1 counter, b2..5 signed BE (mA / mV / As)."""
-    scale = 1000 if kind in (0, 1) else 1
+    scale = 1000 if kind in (0, 1, 2, 3) else 1  # mA, mV; As as is
     data = bytes([kind, counter]) + round(value * scale).to_bytes(4, 'big', signed=True)
     ivt.handle_frame(0x521 + kind, data, STAMP)
 
@@ -400,11 +400,11 @@ def test_pack_values_from_the_real_ivt_s(clock):
     assert report.power_supply_status == PowerSupplyStatus.UNKNOWN
     ivt_frame(ivt, 0, 120.5)  # I: wire positive = discharge (IVT-S default mounting)
     ivt_frame(ivt, 1, 98.7)  # U1
-    ivt_frame(ivt, 6, 3600)  # As -> 1 Ah discharged
+    ivt_frame(ivt, 6, 3600)  # As counter: 1 Ah since the sensor's reset, not the charge
     report = device.battery_report()
     assert report.current == pytest.approx(-120.5)
     assert report.voltage == pytest.approx(98.7)
-    assert report.charge == pytest.approx(-1.0)
+    assert math.isnan(report.charge) and math.isnan(report.design_capacity)
     assert report.power_supply_status == PowerSupplyStatus.DISCHARGING
     ivt_frame(ivt, 0, -20.0)
     assert device.battery_report().power_supply_status == PowerSupplyStatus.CHARGING
@@ -431,3 +431,62 @@ def test_the_device_builds_its_command_frames_at_its_base_id(clock):
         device.charge_current_frame()
     device.configure({'charge_current_a': 12.3})
     assert device.charge_current_frame() == Frame(0x450, bytes([123]))
+
+
+def test_a_padding_ams_is_decoded_and_never_stale(clock):
+    """Frames padded to 8 bytes (docs/protocols.md section 1, DLC) count as received."""
+    device = make(clock)
+    for counter in range(12):  # 1.2 s of status every 100 ms, each padded with 0xFF
+        clock.now += 0.1
+        data = bytes([0xC0, 1 << 5 | AmsState.DRIVE, 180, 35, 77, counter, 0, 0xFF])
+        assert device.handle_frame(0x300, data, STAMP) is True
+        assert not device.is_stale()
+    # cells and temperatures padded too (0x012 has a 6-byte layout)
+    device.handle_frame(0x312, bytes([0x20, 20, 21, 22, 23, 24, 0, 0]), STAMP)
+    assert device.frames_malformed == 0
+    assert device.battery_report().present
+    assert device.extra_arrays()['temperatures'][2][:5] == [20.0, 21.0, 22.0, 23.0, 24.0]
+    # one byte short of the layout is malformed and keeps nothing
+    assert device.handle_frame(0x300, bytes([0xC0, 0x24, 180, 35, 77, 12]), STAMP) is False
+    assert device.frames_malformed == 1
+
+
+def test_charge_is_design_capacity_times_soc_never_the_ivt_s_counter(clock):
+    """BatteryState.charge = remaining Ah: design_capacity_ah x SOC, NaN while unset."""
+    ivt = IvtSDevice('ivt_s', {}, clock=clock)
+    device = make(clock)
+    device.attach_current_sensor(ivt)
+    ivt_frame(ivt, 6, -7200)  # As counter after a drive: -2 Ah, meaningless as a charge
+    status(device, soc=77)
+    report = device.battery_report()
+    assert math.isnan(report.charge) and math.isnan(report.design_capacity)
+    assert device.diagnostic_report().values['design capacity (Ah)'] == 'unset'
+    device = make(clock, design_capacity_ah=20)  # YAML may spell it as an int
+    device.attach_current_sensor(ivt)
+    status(device, soc=77)
+    report = device.battery_report()
+    assert report.design_capacity == pytest.approx(20.0)
+    assert report.charge == pytest.approx(15.4)  # 20 Ah x 77 %
+    assert math.isnan(report.capacity)  # the last full capacity is not measured
+    assert device.diagnostic_report().values['design capacity (Ah)'] == '20'
+    status(device, soc=101, counter=1)  # SOC out of range: unknown, and so the charge
+    report = device.battery_report()
+    assert math.isnan(report.percentage) and math.isnan(report.charge)
+
+
+@pytest.mark.parametrize('channel,kind', [('U1', 1), ('U2', 2), ('U3', 3)])
+def test_pack_voltage_from_the_chosen_ivt_s_channel(clock, channel, kind):
+    ivt = IvtSDevice('ivt_s', {}, clock=clock)
+    params = {} if channel == 'U1' else {'pack_voltage_channel': channel}  # U1 by default
+    device = make(clock, **params)
+    device.attach_current_sensor(ivt)
+    status(device)
+    for k, volts in ((1, 101.1), (2, 202.2), (3, 303.3)):  # a different value on each
+        ivt_frame(ivt, k, volts)
+    assert device.battery_report().voltage == pytest.approx(101.1 * kind)
+    assert device.diagnostic_report().values['pack voltage channel'] == channel
+
+
+def test_pack_voltage_channel_is_one_of_u1_u2_u3():
+    spec = next(p for p in AmsDevice.PARAMS if p.key == 'pack_voltage_channel')
+    assert (spec.default, spec.choices) == ('U1', ('U1', 'U2', 'U3'))

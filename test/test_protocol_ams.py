@@ -184,11 +184,46 @@ DLCS = {0x300: 7, 0x301: 5, 0x305: 2, 0x310: 3, 0x311: 8, 0x312: 6, 0x313: 8, 0x
 
 
 @pytest.mark.parametrize('can_id,dlc', sorted(DLCS.items()))
-def test_wrong_dlc(can_id, dlc):
-    for length in (dlc - 1, dlc + 1):
-        if 0 <= length <= 8:
-            with pytest.raises(MalformedFrameError, match=f'DLC {length}, expected {dlc}'):
-                CODEC.decode(can_id, bytes([0x21] * length))
+def test_shorter_than_the_layout_is_malformed(can_id, dlc):
+    for length in range(dlc):
+        with pytest.raises(MalformedFrameError, match=f'DLC {length}, expected {dlc}..8'):
+            CODEC.decode(can_id, bytes([0x21] * length))
+
+
+@pytest.mark.parametrize('can_id', sorted(DLCS))
+def test_longer_than_classic_can_is_malformed(can_id):
+    # a CAN FD frame (12, 64 bytes) is no padded classic AMS frame
+    for length in (9, 12, 64):
+        with pytest.raises(MalformedFrameError, match=f'DLC {length}, expected'):
+            CODEC.decode(can_id, bytes([0x21] * length))
+
+
+# The same readings as GOLDEN, padded to 8 bytes with the fillers firmwares use (0x00, 0xFF,
+# 0xAA, 0x55): docs/protocols.md section 1, "DLC". Written by hand, byte by byte.
+PADDED = [
+    (0x300, 'C0 44 B4 23 4D 09 05 FF', GOLDEN[0][2]),
+    (0x300, 'C0 44 B4 23 4D 09 05 00', GOLDEN[0][2]),
+    (0x301, '20 27 32 7B 01 00 00 00', GOLDEN[2][2]),
+    (0x301, '20 27 32 7B 01 FF FF FF', GOLDEN[2][2]),
+    (0x305, '32 FE 00 00 00 00 00 00', GOLDEN[3][2]),
+    (0x305, '32 FE 55', GOLDEN[3][2]),
+    (0x310, '02 12 34 AA AA AA AA AA', GOLDEN[4][2]),
+    (0x312, '21 FF 80 19 00 7F 00 00', GOLDEN[6][2]),
+    (0x312, '21 FF 80 19 00 7F FF', GOLDEN[6][2]),
+    (0x314, '11 AB CD 00 00 00 00 00', GOLDEN[8][2]),
+    (0x350, 'FF 00 00 00 00 00 00 00', GOLDEN[9][2]),
+    (0x351, '04 FF FF FF FF FF FF FF', GOLDEN[10][2]),
+]
+
+
+@pytest.mark.parametrize('can_id,data,reading', PADDED)
+def test_padded_frames_decode_as_their_layout(can_id, data, reading):
+    assert _approx_equal(CODEC.decode(can_id, bytes.fromhex(data)), reading)
+
+
+def test_padding_is_never_sent():
+    # the bridge sends the layout's length: the padding rule is for receiving only
+    assert CODEC.encode(GOLDEN[4][2]).data == bytes.fromhex('02 12 34')
 
 
 @pytest.mark.parametrize('can_id,length', [(0x311, 8), (0x312, 6), (0x313, 8)])

@@ -1,4 +1,5 @@
 """AMS simulator: state machine, heartbeat watchdog, relays, physics, periods, faults."""
+import math
 import pytest
 
 from ams_can_bridge import registry
@@ -358,3 +359,39 @@ def test_bridge_device_reads_the_simulator():
     diag = device.diagnostic_report()
     assert diag.level == Level.OK, diag.message
     assert diag.message == 'DRIVE; AIR+ closed, AIR- closed, precharge open'
+
+
+def test_padded_frames_keep_the_bridge_device_fresh():
+    """--ams-pad: every frame 8 bytes; the real AmsDevice decodes them all, never stale."""
+    clock_now = [0.0]
+    device = AmsDevice('ams', {'bank_count': 2}, clock=lambda: clock_now[0])
+    bench = Bench(AmsSimulator(bank_count=2, pad=True), banks=2)
+    drive(bench)
+    bench.run(1.2)
+    assert bench.frames and {len(f.data) for _, f in bench.frames} == {8}
+    for t, frame in bench.frames:
+        clock_now[0] = t
+        device.handle_frame(frame.arbitration_id, frame.data, 1.0e9 + t)
+        assert not device.is_stale(), f'stale at {t:.3f} s'
+    assert device.frames_malformed == 0
+    report = device.battery_report()
+    assert report.present and not any(math.isnan(v) for v in report.cell_voltage)
+    assert device.state is AmsState.DRIVE
+    # the malformed fault wins over padding: one byte short of the layout
+    bench.sim.faults.malformed = True
+    bench.frames = []
+    bench.run(0.2)
+    for _, frame in bench.frames:
+        with pytest.raises(MalformedFrameError, match='DLC'):
+            bench.codec.decode(frame.arbitration_id, frame.data)
+
+
+def test_periodic_start_keeps_charging_under_the_charger_watchdog():
+    """0x010 every 100 ms (seed 003): repeated STARTs keep CHARGING; silence ends it."""
+    bench = Bench(AmsSimulator(charger_timeout=0.5, precharge_time=0.1))
+    for _ in range(20):  # 2 s of START every 100 ms
+        bench.send(ChargerCommand(ChargerStart.START, 0))
+        bench.run(0.1, heartbeat=False)
+    assert bench.sim.state is AmsState.CHARGING
+    bench.run(0.6, heartbeat=False)  # the charger went silent
+    assert bench.sim.state is AmsState.IDLE

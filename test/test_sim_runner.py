@@ -152,10 +152,11 @@ def test_a_commander_must_implement_destroy():
 
 def test_build_devices_gives_each_type_its_options():
     types = list(registry.SIMULATORS)
-    devices = build_devices(types, ams_banks=2, bms12_modules=3, ivt_byte_order='little')
+    devices = build_devices(types, ams_banks=2, bms12_modules=3, ivt_byte_order='little',
+                            ams_pad=True)
     by_name = {d.name: d for d in devices}
     assert sorted(by_name) == sorted(types)
-    assert by_name['ams'].bank_count == 2
+    assert by_name['ams'].bank_count == 2 and by_name['ams'].pad is True
     assert by_name['evms3'].bms12_modules == 3
     assert by_name['ivt_s'].codec.byte_order == 'little'
     assert by_name['bms16'].send_sma is False  # the sma simulator owns 0x351..

@@ -4,10 +4,15 @@ Formula-Student AMS state: status, relays, errors, cells and temperatures, count
 The primary frame is the AMS status (base + 0x000). Cells (28 per bank), cell temperatures
 (10 per bank) and discharge temperatures (14 per bank) arrive per bank and group every
 second; each group goes back to NaN when it has not been heard for ``CELL_STALE_FACTOR``
-x ``stale_timeout`` (never a stale number shown as live). Pack voltage, current and charge
-come from the attached IVT-S when there is one (the node attaches ``current_sensor``);
-without one the voltage is the sum of the cells once all are received and the current is
-unknown.
+x ``stale_timeout`` (never a stale number shown as live). Pack voltage (its channel chosen by
+``pack_voltage_channel``, U1 by default) and current come from the attached IVT-S when there
+is one (the node attaches ``current_sensor``); without one the voltage is the sum of the
+cells once all are received and the current is unknown.
+
+``charge`` is the charge in the battery (sensor_msgs: Ah), never the IVT-S As counter: that
+counts from the sensor's last reset and goes negative after a drive. The AMS reports only a
+SOC, so ``charge`` = ``design_capacity_ah`` x SOC when that parameter is set, NaN otherwise
+(docs/protocols.md section 1).
 
 Error bookkeeping: an AMS error event (0x014) stays *active* until the AMS next returns
 from ERROR / CHARGE_ERROR to another state, so a short error is not missed between two
@@ -19,6 +24,7 @@ import math
 import time
 from typing import Any, Callable, Iterable, Mapping
 
+from ams_can_bridge.devices.ams_charger import ChargerRepeater
 from ams_can_bridge.devices.ams_master import AmsMaster, AmsView
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, Level, ParamSpec,
@@ -29,6 +35,7 @@ from ams_can_bridge.protocols import ams as proto
 from ams_can_bridge.errors import RefusedCommand
 from ams_can_bridge.protocols.ams import AmsCodec, AmsError, AmsState
 from ams_can_bridge.protocols.common import Frame
+from ams_can_bridge.protocols.ivt_s import IvtMux
 
 NAN = math.nan
 ERROR_STATES = (AmsState.ERROR, AmsState.CHARGE_ERROR)
@@ -37,6 +44,8 @@ COUNTER_RECOVERY_FRAMES = 10
 # Cells/temperatures are sent every 1 s, the status every 0.1 s: a group is stale after
 # this many status stale_timeouts (default 10 x 0.5 s = 5 s = 5 missed cell frames).
 CELL_STALE_FACTOR = 10.0
+# The IVT-S voltage results one may wire to the pack (ams.pack_voltage_channel).
+PACK_VOLTAGE_CHANNELS = ('U1', 'U2', 'U3')
 HEALTH_OF_ERROR = {
     AmsError.CELL_VOLTAGE_HIGH: PowerSupplyHealth.OVERVOLTAGE,
     AmsError.CELL_VOLTAGE_LOW: PowerSupplyHealth.DEAD,
@@ -100,8 +109,15 @@ class AmsDevice(Device):
     DEFAULT_BASE_ID = proto.DEFAULT_BASE_ID
     PARAMS = [
         ParamSpec('current_sensor', str, '',
-                  "name of the ivt_s instance whose current/voltage/charge fill this pack's "
+                  "name of the ivt_s instance whose current and voltage fill this pack's "
                   "BatteryState ('' = the first ivt_s configured, if any)"),
+        ParamSpec('pack_voltage_channel', str, 'U1',
+                  'IVT-S voltage result measuring the pack (U1, U2 or U3: how the sensor is '
+                  'wired)', choices=PACK_VOLTAGE_CHANNELS),
+        ParamSpec('design_capacity_ah', float, None,
+                  'pack capacity in Ah: BatteryState design_capacity, and charge = this x '
+                  'the AMS SOC; unset = both NaN (the AMS does not report its capacity)',
+                  low=0.0, high=100000.0),
         ParamSpec('bank_count', int, 1,
                   'number of banks (28 cells, 10 temperatures, 14 discharge temperatures '
                   'each); also sent to the AMS in every car-status heartbeat',
@@ -127,6 +143,7 @@ class AmsDevice(Device):
         self.codec = AmsCodec(proto.DEFAULT_BASE_ID if base_id is None else int(base_id))
         self.bank_count = _bank_count(_or_one(self.config.bank_count), f'{name}.bank_count')
         self.master: AmsMaster | None = None  # the car's side, made by attach_master()
+        self.charger: ChargerRepeater | None = None  # the periodic START, attach_charger()
         self.current_sensor: Any = None  # an IvtSDevice, attached by the node
         self.state = AmsState.NOT_REPORTED
         self.status_seq = 0
@@ -163,6 +180,12 @@ class AmsDevice(Device):
                                 bank_count=self.bank_count)
         return self.master
 
+    def attach_charger(self, send: Callable[[Frame], tuple[bool, str]],
+                       tick: Callable[[], int], logger: Any) -> ChargerRepeater:
+        """Make this AMS's charger START repeater (disarmed) sending through ``send``."""
+        self.charger = ChargerRepeater(self.charger_frame, send, tick, logger, self.name)
+        return self.charger
+
     def heartbeat_frame(self, command: int, bank_count: int, counter: int) -> Frame:
         """Build the car status (base + 0x005) the AMS master sends as its heartbeat."""
         return self.codec.encode(proto.CarStatus(proto.CarCommand(command), bank_count, counter))
@@ -198,7 +221,7 @@ class AmsDevice(Device):
 
     # --- configuration ---------------------------------------------------------------------
     def attach_current_sensor(self, ivt: Any) -> None:
-        """Use this IVT-S device (current_a/voltage_v/charge_ah) for the pack values."""
+        """Use this IVT-S device (current_a / voltage_v) for the pack values."""
         with self.lock:
             self.current_sensor = ivt
 
@@ -306,13 +329,18 @@ class AmsDevice(Device):
     def _temp_list(self) -> list[float]:
         return self._temps.fresh(self.bank_count, self.clock(), self._max_cell_age())
 
-    def _pack(self) -> tuple[float, float, float]:
-        """Voltage, current (ROS sign), charge: from the IVT-S, else the cell sum."""
+    def _pack(self) -> tuple[float, float]:
+        """Voltage and current (ROS sign): from the IVT-S, else the cell sum and NaN."""
         ivt = self.current_sensor
         if ivt is not None:
-            return ivt.voltage_v(), ivt.current_a(), ivt.charge_ah()
+            channel = IvtMux[str(self.config.pack_voltage_channel or 'U1')]
+            return ivt.voltage_v(channel), ivt.current_a()
         cells = self._cell_list()
-        return (math.fsum(cells) if cells else NAN), NAN, NAN  # any NaN cell -> NaN sum
+        return (math.fsum(cells) if cells else NAN), NAN  # any NaN cell -> NaN sum
+
+    def _design_capacity(self) -> float:
+        capacity = self.config.design_capacity_ah
+        return NAN if capacity is None else float(capacity)
 
     def _health(self) -> PowerSupplyHealth:
         if self._status is None:
@@ -325,7 +353,7 @@ class AmsDevice(Device):
         return PowerSupplyHealth.GOOD
 
     def _battery_report(self) -> BatteryReport:
-        voltage, current, charge = self._pack()
+        voltage, current = self._pack()
         temps = [t for t in self._temp_list() if t == t]
         status = self._status
         if temps:
@@ -333,14 +361,16 @@ class AmsDevice(Device):
         else:
             temperature = float(status.temp_max_c) if status else NAN
         soc = status.soc_pct if status else None
+        percentage = soc / 100.0 if soc is not None and soc <= 100 else NAN
+        capacity = self._design_capacity()
         if self.state is AmsState.CHARGING:
             supply = PowerSupplyStatus.CHARGING
         else:
             supply = current_status(current)
         return BatteryReport(
-            stamp=self._stamp, voltage=voltage, current=current, charge=charge,
-            temperature=temperature,
-            percentage=soc / 100.0 if soc is not None and soc <= 100 else NAN,
+            stamp=self._stamp, voltage=voltage, current=current,
+            charge=capacity * percentage,  # NaN unless both are known
+            design_capacity=capacity, temperature=temperature, percentage=percentage,
             power_supply_status=supply, power_supply_health=self._health(),
             present=status is not None, cell_voltage=self._cell_list())
 

@@ -22,6 +22,13 @@ The command field carries at most one request at a time (the bus frame has one f
 
 Only AMS status frames received *after* the request was first carried count as an answer,
 so a state reported before the request can never confirm it.
+
+A state command the AMS cannot carry out from the state it reports now is refused at once,
+naming the state it must be in first (``ams_preconditions.py``, docs/protocols.md 1.4): the
+seed's car path is IDLE -> SC_ENABLED -> TS_ACTIVE -> DRIVE, one command a step, so
+ENABLE_TS needs SC_ENABLED and ENABLE_DRIVE needs TS_ACTIVE. Nothing is carried then (the
+heartbeat goes on with NO_COMMAND). While the state is unknown (no status yet, or stale) the
+command is carried as before: only the AMS can answer it.
 """
 from __future__ import annotations
 
@@ -31,6 +38,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Callable
 
+from ams_can_bridge.devices.ams_preconditions import precondition_refusal
 from ams_can_bridge.protocols.ams import AmsState, CarCommand
 from ams_can_bridge.protocols.common import Frame
 
@@ -302,7 +310,8 @@ class AmsMaster:
         # The AMS view is read outside self._cond (it takes the device lock, which the
         # receive thread holds while it decodes): the heartbeat thread takes the condition
         # at every slot and must never wait behind a lock chain.
-        error_seq = self._view().error_seq
+        view = self._view()
+        error_seq = view.error_seq
         with self._cond:
             if not self._running:
                 return CommandResult(False, f'{command.name} not sent: the heartbeat is not '
@@ -311,6 +320,9 @@ class AmsMaster:
             if command != CarCommand.ABORT and current is not None:
                 return CommandResult(False, f'{command.name} refused: {current.command.name} is '
                                      'still in progress (wait for its answer, or call abort)')
+            refusal = precondition_refusal(command, view)
+            if refusal:
+                return CommandResult(False, refusal)
             if current is not None:
                 current.cancelled = 'aborted'
             request = _Request(command, self._clock() if started is None else started,

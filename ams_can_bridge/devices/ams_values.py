@@ -31,6 +31,16 @@ def diagnostic_values(self: Any) -> dict[str, str]:
         'frames beyond bank count': str(self._beyond_banks),
         'current sensor': getattr(self.current_sensor, 'name', '') or 'none',
     }
+    if self.current_sensor is not None:
+        values['pack voltage channel'] = str(self.config.pack_voltage_channel or 'U1')
+    repeater = self.charger
+    if repeater is not None:  # what the bridge itself sends in the charger role
+        values['charger START repeated'] = (
+            f'yes, every {repeater.period * 1000:g} ms ({repeater.frames_sent} sent)'
+            if repeater.active else 'no' + (f' (last: {repeater.last_stop})'
+                                            if repeater.last_stop else ''))
+    capacity = self.config.design_capacity_ah
+    values['design capacity (Ah)'] = 'unset' if capacity is None else f'{float(capacity):g}'
     status = self._status
     if status is not None:
         word = status.status

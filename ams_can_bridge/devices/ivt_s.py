@@ -123,10 +123,10 @@ class IvtSDevice(Device):
         with self.lock:
             return self._current_a()
 
-    def voltage_v(self) -> float:
-        """Voltage U1 in V; NaN if unknown, stale or flagged invalid by the sensor."""
+    def voltage_v(self, channel: IvtMux = IvtMux.U1) -> float:
+        """Voltage U1 (or U2/U3) in V; NaN if unknown, stale or flagged invalid."""
         with self.lock:
-            return self._valid(IvtMux.U1)
+            return self._valid(channel)
 
     def charge_ah(self) -> float:
         """Charge counter (As / 3600) in Ah, ROS sign like the current; NaN if unknown."""

@@ -5,9 +5,11 @@ Ten 11-bit messages at ``base_id + offset`` (default base 0x300). The field layo
 ``msg_defs/ams.dbc``: frames are encoded through cantools, and decoded by hand on that layout
 (the bus thread decodes every frame; cantools cost 4-13 us a frame), checked against the
 installed DBC when the first codec is built and against cantools in the tests. The module
-adds what a DBC cannot say (valid bank/group IDs, known enum values, DLC checks, typed
+adds what a DBC cannot say (valid bank/group IDs, known enum values, DLC checks: a frame
+padded beyond its layout up to 8 bytes is accepted, a shorter one is malformed; typed
 readings) and checks every value before it is encoded, so a bad command fails loudly
-instead of being clamped. Readings are frozen dataclasses; enums carry the vendor's names.
+instead of being clamped.
+Readings are frozen dataclasses; enums carry the vendor's names.
 """
 from __future__ import annotations
 
@@ -35,6 +37,7 @@ OFFSETS = (STATUS, CHARGER_STATUS, CAR_STATUS, CHARGER_COMMANDS, CELL_VOLTAGES,
            CELL_TEMPERATURES, DISCHARGE_TEMPERATURES, ERROR, OVERRIDE_CHARGE_CURRENT,
            OVERRIDE_BANK_COUNT)
 
+MAX_DLC = 8  # classic CAN: frames padded up to 8 bytes are accepted
 MAX_BANKS = 5
 CELLS_PER_GROUP = 7
 CELL_GROUPS = 4
@@ -596,9 +599,13 @@ class AmsCodec:
             raise MalformedFrameError(arbitration_id, data,
                                       f'not an AMS ID at base 0x{self.base_id:X}')
         length, build = entry
-        if len(data) != length:
+        # Longer is padding (AMS firmwares commonly send 8 bytes, and the seed's size rows
+        # contradict its own field lists): the bytes past the layout are ignored. Shorter
+        # cannot carry the fields, and beyond 8 (CAN FD) is no classic AMS frame: malformed
+        # (docs/protocols.md section 1).
+        if not length <= len(data) <= MAX_DLC:
             raise MalformedFrameError(arbitration_id, data,
-                                      f'DLC {len(data)}, expected {length}')
+                                      f'DLC {len(data)}, expected {length}..{MAX_DLC}')
         try:
             return build(data)
         except _Bad as exc:

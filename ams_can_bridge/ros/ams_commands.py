@@ -4,12 +4,16 @@ AMS services: car commands in the heartbeat (master role) and the charger-role f
 The heartbeat and the command/wait rules live in ``devices/ams_master.py`` (no ROS), the
 master is the AMS device's own (``AmsDevice.attach_master``) and follows its configuration;
 this module offers the services and follows ``commands_enabled``: the heartbeat runs exactly
-while commands are enabled. Service callbacks that wait run in the
+while commands are enabled. ``start_charging`` sends START and has the device's
+``ChargerRepeater`` (``devices/ams_charger.py``) repeat it every 100 ms until
+``stop_charging`` (STOP sent once) or commands are disabled (nothing sent); the two calls
+are serialised, so a STOP is never followed by a START. Service callbacks that wait run in the
 node's reentrant ``service_group`` and only poll the AMS state, so telemetry (other
 callback groups, other executor threads) keeps flowing and ``abort`` can always get in.
 """
 from __future__ import annotations
 
+import threading
 import time
 from typing import Any, Callable
 
@@ -44,32 +48,37 @@ class AmsCommands(Commander):
         self._t0 = time.monotonic()  # origin of the charger-command time tick
         # The heartbeat never waits for the bus: a late heartbeat is a wrong heartbeat.
         self.master = device.attach_master(lambda frame: node.transmit(frame, wait=False))
+        # The repeats never wait for the bus either: one that cannot go out ends the request.
+        self.charger = device.attach_charger(lambda frame: node.transmit(frame, wait=False),
+                                             self.time_tick, node.get_logger())
+        self._charging_lock = threading.Lock()  # start/stop_charging one at a time
         self._services = []
         for suffix, (command, what) in CAR_COMMANDS.items():
             self._service(suffix, self._car_command(command, what))
-        self._service('start_charging', self._charger(
-            'start charging', lambda: device.charger_frame(ChargerStart.START,
-                                                           self.time_tick())))
-        self._service('stop_charging', self._charger(
-            'stop charging', lambda: device.charger_frame(ChargerStart.STOP, self.time_tick())))
+        self._service('start_charging', self._start_charging)
+        self._service('stop_charging', self._stop_charging)
         self._service('set_charge_current', self._charger(
             'set the charge current', device.charge_current_frame))
         self._service('override_bank_count', self._charger(
             'override the bank count', device.bank_count_frame))
         if node.commands_enabled:
             self.master.start()
+            self.charger.arm()
 
     # --- hooks for the node ------------------------------------------------------------
     def on_commands_enabled(self, enabled: bool) -> None:
-        """Start the heartbeat when commands are enabled, stop it (at once) when not."""
+        """Start the heartbeat when commands are enabled; stop it and the charger repeat."""
         if enabled:
             self.master.start()
+            self.charger.arm()  # a charging request ended by the disarm is not resumed
         else:
+            self.charger.disarm('commands_enabled was set to false; no STOP sent')
             self.master.stop('commands_enabled was set to false while waiting; the heartbeat '
                              'stopped')
 
     def destroy(self) -> None:
-        """Stop the heartbeat and remove the services."""
+        """Stop the heartbeat, the charger repeat, and remove the services."""
+        self.charger.disarm('the bridge is shutting down')
         self.master.stop('the bridge is shutting down')
         for service in self._services:
             self.node.destroy_service(service)
@@ -97,6 +106,37 @@ class AmsCommands(Commander):
             response.success, response.message = result.success, f'{self.name}: {result.message}'
             return response
         return callback
+
+    def _start_charging(self, request: Any, response: Any) -> Any:
+        with self._charging_lock:
+            if self.node.commands_enabled and self.charger.active:
+                response.success = True
+                response.message = (f'{self.name}: start charging: START is already repeated '
+                                    f'every {self.charger.period * 1000:g} ms; nothing more '
+                                    'sent')
+                return response
+            ok, message = self._send_one('start charging', lambda: self.device.charger_frame(
+                ChargerStart.START, self.time_tick()))
+            if ok:
+                refused = self.charger.begin()
+                message += (f'; not repeated: {refused}' if refused else
+                            f', repeated every {self.charger.period * 1000:g} ms until '
+                            'stop_charging or commands_enabled false')
+                ok = not refused
+        response.success, response.message = ok, message
+        return response
+
+    def _stop_charging(self, request: Any, response: Any) -> Any:
+        with self._charging_lock:
+            # the repeat ends first: no START can follow the STOP on the bus
+            repeated = (self.node.commands_enabled
+                        and self.charger.halt('stop_charging'))
+            ok, message = self._send_one('stop charging', lambda: self.device.charger_frame(
+                ChargerStart.STOP, self.time_tick()))
+            if repeated:
+                message += '; the repeated START has ended'
+        response.success, response.message = ok, message
+        return response
 
     def _charger(self, what: str, build: Callable[[], Frame]) -> Callable:
         def callback(request: Any, response: Any) -> Any:

@@ -17,9 +17,15 @@ charging state) with all relays open; only ABORT (or a charger STOP while chargi
 
 Heartbeat loss: in the car states (SC_ENABLED, the car's PRECHARGING, TS_ACTIVE, DRIVE) the
 AMS opens its relays and returns to IDLE when no car status came for ``heartbeat_timeout``
-(default 0.5 s, 10 missed 50 ms heartbeats). Charging states are not watched by default,
-because a charger may send START once (the bridge's ``start_charging`` does); set
-``charger_timeout`` to watch the charger commands the same way.
+(default 0.5 s, 10 missed 50 ms heartbeats). Charger commands (0x010) are periodic (100 ms):
+a repeated START while charging is the charger keeping its request alive and changes
+nothing. Charging states are not watched by default (the seed gives the AMS no charger
+timeout, and a charger may send START once); set ``charger_timeout`` to return to IDLE when
+the charger commands stop for that long.
+
+``pad=True`` sends every frame padded to 8 bytes with 0x00, as AMS firmwares with a fixed
+DLC do (the bridge must accept it: docs/protocols.md section 1). ``faults.malformed`` wins
+over it (frames one byte short of their layout).
 
 Relays (status word, 1 = closed): PRECHARGING closes AIR- and the precharge relay;
 TS_ACTIVE, DRIVE and CHARGING close AIR- and AIR+; every other state opens all.
@@ -68,7 +74,7 @@ class AmsSimulator(SimDevice):
     """
     AMS model for the simulator, the demo, tests and benchmarks (see the module docstring).
 
-    Faults honoured: silent, malformed (wrong DLC on every frame), error_code (an AmsError
+    Faults honoured: silent, malformed (every frame one byte short), error_code (an AmsError
     value), cell_drift_v / drift_cell, extra['stuck_counter'] (status counter stops),
     extra['imd_error'] (IMD error bit).
     """
@@ -80,7 +86,7 @@ class AmsSimulator(SimDevice):
                  seed: int = 0, *, capacity_ah: float = 20.0, initial_soc: float = 0.8,
                  charge_current_a: float = 10.0, precharge_time: float = 0.5,
                  init_charging_time: float = 0.2, heartbeat_timeout: float = 0.5,
-                 charger_timeout: float | None = None) -> None:
+                 charger_timeout: float | None = None, pad: bool = False) -> None:
         super().__init__(name)
         if not 1 <= bank_count <= proto.MAX_BANKS:
             raise ValueError(f'bank_count = {bank_count}: allowed 1..{proto.MAX_BANKS}')
@@ -94,6 +100,7 @@ class AmsSimulator(SimDevice):
         self.init_charging_time = init_charging_time
         self.heartbeat_timeout = heartbeat_timeout
         self.charger_timeout = charger_timeout
+        self.pad = bool(pad)
         rng = random.Random(seed)
         cells = proto.CELLS_PER_BANK * self.bank_count
         self._cell_spread = [rng.uniform(-0.01, 0.01) for _ in range(cells)]
@@ -349,4 +356,7 @@ class AmsSimulator(SimDevice):
             return []
         if self.faults.malformed:
             frames = [self.corrupt(f) for f in frames]
+        elif self.pad:
+            frames = [Frame(f.arbitration_id, f.data.ljust(8, b'\x00'), f.is_extended_id)
+                      for f in frames]
         return frames

@@ -59,6 +59,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--devices', type=_device_list, default=list(_ORDER),
                    help='comma list of ' + ', '.join(registry.SIMULATORS) + ' (default all)')
     p.add_argument('--ams-banks', type=int, default=None, metavar='N', help='AMS banks 1..5')
+    p.add_argument('--ams-pad', action='store_true',
+                   help='the AMS pads every frame to 8 bytes (DLC 8), as some firmwares do')
     p.add_argument('--bms12-modules', type=int, default=None, metavar='N',
                    help='BMS12 modules behind the EVMS3, 0..16')
     p.add_argument('--evms3-charge-after', type=float, default=None, metavar='S',
@@ -98,15 +100,19 @@ def build_devices(types: Sequence[str], ams_banks: int | None = None,
                   sma_dialect: str | None = None, evms3_charge_after: float | None = None,
                   evms3_chargers: int | None = None,
                   bms16_variant: str | None = None,
-                  sma_soc_frame: str | None = None) -> list[SimDevice]:
+                  sma_soc_frame: str | None = None,
+                  ams_pad: bool = False) -> list[SimDevice]:
     """Instantiate the simulators named by type (instance name = type name)."""
     devices: list[SimDevice] = []
     ams = None
     for kind in sorted(types, key=_ORDER.index):
         cls = registry.simulator_class(kind, bms16_variant if kind == 'bms16' else None)
         kwargs: dict[str, Any] = {'name': kind}
-        if kind == 'ams' and ams_banks is not None:
-            kwargs['bank_count'] = ams_banks
+        if kind == 'ams':
+            if ams_banks is not None:
+                kwargs['bank_count'] = ams_banks
+            if ams_pad:
+                kwargs['pad'] = True
         elif kind == 'evms3':
             for key, value in (('bms12_modules', bms12_modules), ('chargers', evms3_chargers),
                                ('charge_after_s', evms3_charge_after)):
@@ -182,7 +188,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         devices = build_devices(args.devices, args.ams_banks, args.bms12_modules,
                                 args.ivt_byte_order, args.sma_dialect,
                                 args.evms3_charge_after, args.evms3_chargers,
-                                args.bms16_variant, args.sma_soc_frame)
+                                bms16_variant=args.bms16_variant,
+                                sma_soc_frame=args.sma_soc_frame, ams_pad=args.ams_pad)
         apply_faults(devices, args.fault)
     except (ValueError, TypeError, ImportError) as exc:
         print(f'simulator: {exc}', file=sys.stderr)
