@@ -542,3 +542,6 @@ def test_dbc_agrees_on_the_configuration(dbc):
     assert got['AltChargeVoltageLow'] + got['AltChargeVoltageBit8'] == cfg.alt_charge_voltage_v
     assert got['ParallelStrings'] == cfg.parallel_strings
     assert got['EnablePrecharge'] == 1
+    assert got['ReverseCurrentDisplay'] == 1 and got['NightBrightness'] == 7  # settings 30, 31
+    temps = dbc.decode_message(454 | X, bytes.fromhex('41 00 00 00 00 00 00 00'))
+    assert temps['Temperature1'] == 25 and str(temps['Temperature2']) == 'No sensor'
