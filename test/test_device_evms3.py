@@ -294,8 +294,8 @@ def test_write_in_the_monitors_order_while_idle_or_setup(state):
 def test_write_refused_in_any_other_state_naming_it(state, name):
     device = configured()
     device.handle_frame(30, status(state=state), 1.0)
-    with pytest.raises(RefusedCommand, match=f'reports {name}: .* only while it reports '
-                                            'IDLE or SETUP'):
+    with pytest.raises(RefusedCommand,
+                       match=f'reports {name}: .* only while it reports IDLE or SETUP'):
         device.config_frames()
 
 

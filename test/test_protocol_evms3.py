@@ -13,7 +13,8 @@ import pytest
 from ams_can_bridge.protocols.common import EncodeRangeError, Frame, MalformedFrameError
 from ams_can_bridge.protocols.common import msg_defs_dir
 from ams_can_bridge.protocols.evms3 import (
-    ConfigReadback, ConfigReport, AcknowledgeError, BatteryCurrent, Bms12Cells, Bms12Request, Bms12Temperatures,
+    AcknowledgeError, BatteryCurrent, Bms12Cells, Bms12Request, Bms12Temperatures,
+    ConfigReadback, ConfigReport,
     BmsCellNumbers, check_config_value, CONFIG_FIELDS, Evms3Codec, Evms3Config,
     Evms3Error, Evms3State, Evms3Status, EVMS3_WARNINGS, PowerOff, ResetSoc,
     OtherTraffic, SetState, ZeroCurrentSensor)
@@ -67,7 +68,8 @@ def test_error_names_and_warnings_follow_the_vendor_table():
         'NONE', 'CORRUPT_SETTINGS', 'OVERCURRENT_WARNING', 'OVERCURRENT_SHUTDOWN',
         'LOW_CELL_WARNING', 'BMS_SHUTDOWN', 'HIGH_CELL_WARNING', 'BMS_ENDED_CHARGE',
         'BMS_OVER_TEMP', 'BMS_UNDER_TEMP', 'LOW_SOC_WARNING', 'OVERTEMPERATURE',
-        'ISOLATION_ERROR', 'LOW_12V', 'PRECHARGE_FAILED', 'CONTACTOR_SWITCH_ERROR', 'BMS_COMMS_ERROR']
+        'ISOLATION_ERROR', 'LOW_12V', 'PRECHARGE_FAILED', 'CONTACTOR_SWITCH_ERROR',
+        'BMS_COMMS_ERROR']
     assert EVMS3_WARNINGS == {2, 4, 6, 10}
     assert [s.name for s in Evms3State] == [
         'IDLE', 'PRECHARGING', 'RUNNING', 'CHARGING', 'STOPPED', 'SETUP']
@@ -365,7 +367,8 @@ EXPECTED_RANGES = {
     'pack_capacity_ah': (5, 1250, 5), 'soc_warning_pct': (0, 99, 1),
     'full_voltage_v': (10, 502, 2), 'warn_current_a': (10, 1210, 10),
     'trip_current_a': (10, 1210, 10), 'temp_warning_c': (0, 151, 1),
-    'min_aux_voltage_v': (8, 16, 1), 'night_brightness': (0, 10, 1), 'min_isolation_pct': (0, 99, 1), 'tacho_ppr': (1, 6, 1),
+    'min_aux_voltage_v': (8, 16, 1), 'night_brightness': (0, 10, 1),
+    'min_isolation_pct': (0, 99, 1), 'tacho_ppr': (1, 6, 1),
     'fuel_gauge_full_pct': (0, 100, 1), 'fuel_gauge_empty_pct': (0, 100, 1),
     'temp_gauge_hot_pct': (0, 100, 1), 'temp_gauge_cold_pct': (0, 100, 1),
     'bms_min_cell_v': (1.5, 4.0, 0.01), 'bms_max_cell_v': (2.0, 4.5, 0.01),

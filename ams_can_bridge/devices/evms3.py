@@ -209,7 +209,7 @@ class Evms3Device(Device):
 
     def check_writable(self) -> None:
         """
-        RefusedCommand unless the EVMS3 reports IDLE or SETUP now (and is an EVMS3).
+        Refuse (RefusedCommand) unless the EVMS3 reports IDLE or SETUP now and is an EVMS3.
 
         ZEVA's Monitor offers setup only from IDLE, and the EVMS3 writes its EEPROM with
         interrupts disabled; a BMS16 in its standard form (ID 30 byte 5 = 255) has another
