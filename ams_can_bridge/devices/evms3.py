@@ -24,8 +24,10 @@ from typing import Any, Callable, Iterable, Mapping
 
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, Level, ParamSpec,
-    PowerSupplyHealth, PowerSupplyStatus)
+    PowerSupplyStatus)
 from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
+from ams_can_bridge.devices.evms3_health import (  # noqa: F401 (error_* re-exported)
+    error_health, error_text, STATIONARY_ACTIONS, WRITABLE_STATES)
 from ams_can_bridge.devices.evms3_readback import ConfigReader, ReadResult, Send
 from ams_can_bridge.parameters import config_param_specs
 from ams_can_bridge.protocols import evms3 as evms3_proto
@@ -46,44 +48,6 @@ CELLS_PER_BMS12 = 12  # t = 1..3 carry 3 x 4 cells: a module cannot report more
 BMS12_STALE_TIMEOUT = 3.0
 # TC chargers and the EVMS's commands to them come about once a second: five missed.
 CHARGER_STALE_TIMEOUT = 5.0
-
-WRITABLE_STATES = (Evms3State.IDLE, Evms3State.SETUP)
-# Stationary mode (setting 29): what the EVMS3 firmware does on these warnings.
-STATIONARY_ACTIONS = {
-    Evms3Error.LOW_CELL_WARNING: 'main contactor opened (stationary mode)',
-    Evms3Error.HIGH_CELL_WARNING: 'charging disabled (stationary mode)',
-}
-
-_HEALTH = {
-    Evms3Error.BMS_SHUTDOWN: PowerSupplyHealth.DEAD,
-    Evms3Error.HIGH_CELL_WARNING: PowerSupplyHealth.OVERVOLTAGE,
-    Evms3Error.BMS_ENDED_CHARGE: PowerSupplyHealth.OVERVOLTAGE,
-    Evms3Error.BMS_OVER_TEMP: PowerSupplyHealth.OVERHEAT,
-    Evms3Error.OVERTEMPERATURE: PowerSupplyHealth.OVERHEAT,
-    Evms3Error.BMS_UNDER_TEMP: PowerSupplyHealth.COLD,
-}
-
-
-def error_health(error: Evms3Error, stationary: bool | None = False) -> PowerSupplyHealth:
-    """Map an EVMS3 error code to sensor_msgs power_supply_health."""
-    if stationary and error == Evms3Error.LOW_CELL_WARNING:
-        return PowerSupplyHealth.DEAD  # undervoltage: the pack is disconnected
-    if error in _HEALTH:
-        return _HEALTH[error]
-    if error == Evms3Error.NONE or error in EVMS3_WARNINGS:
-        return PowerSupplyHealth.GOOD
-    return PowerSupplyHealth.UNSPEC_FAILURE
-
-
-def error_text(error: Evms3Error, stationary: bool | None = False) -> str:
-    """Say 'no error', 'warning NAME (n)' or 'error NAME (n)', with what stationary mode does."""
-    if error == Evms3Error.NONE:
-        return 'no error'
-    kind = 'warning' if error in EVMS3_WARNINGS else 'error'
-    text = f'{kind} {error.name} ({int(error)})'
-    if stationary and error in STATIONARY_ACTIONS:
-        text += ': ' + STATIONARY_ACTIONS[error]
-    return text
 
 
 class _Module:
