@@ -20,7 +20,7 @@ from std_srvs.srv import Trigger
 
 from ams_can_bridge.protocols import evms3 as evms3_proto
 from ams_can_bridge.ros.bridge_node import BUS_WAIT_SLOTS
-from test_zeva_commands import bms16_params, EVMS3_CONFIG, evms3_params
+from test_zeva_commands import bms16_params, EVMS3_CONFIG, evms3_in, evms3_params
 
 HEARTBEAT = 0x305
 ENABLE_TS, ENABLE_DRIVE, ABORT = 2, 3, 4
@@ -157,12 +157,12 @@ def test_config_changes_during_write_config_send_one_consistent_set(rig_factory)
     def frames(config):
         values = {k: tuple(v) if isinstance(v, list) else v for k, v in config.items()}
         cells = values.pop('cells_per_module')
-        return [bytes(f.data) for f in codec.config_frames(
-            evms3_proto.Evms3Config.from_mapping(values)) + [codec.encode(
-                evms3_proto.BmsCellNumbers(cells))]]
+        return [bytes(f.data) for f in [codec.encode(evms3_proto.BmsCellNumbers(cells))]
+                + codec.config_frames(evms3_proto.Evms3Config.from_mapping(values))]
     sets = {tuple(frames(EVMS3_CONFIG)): 'A', tuple(frames(other)): 'B'}
     assert len(sets) == 2
     rig = rig_factory(evms3_params())
+    evms3_in(rig, 0)  # IDLE: configuration may be written
     stop = threading.Event()
     from rclpy.parameter import Parameter
 

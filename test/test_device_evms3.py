@@ -200,7 +200,8 @@ def test_bms12_cells_nan_until_received():
     assert values['module 1 cells'] == '4/12 received'
     assert values['module 1 cell min (V)'] == '3.300'
     assert values['module 1 cell max (V)'] == '3.303'
-    assert values['module 1 temperatures (degC)'] == '25, -40'
+    # raw 0 = no sensor (BMS12 firmware LineariseTemp), never -40 degC
+    assert values['module 1 temperatures (degC)'] == '25, no sensor'
     assert values['module 0 temperatures (degC)'] == 'unknown, unknown'
 
 
@@ -250,3 +251,125 @@ def test_the_device_builds_its_command_frames_and_refuses_an_ack_it_cannot_back(
     assert device.optional_config(device.config.replace({'config.balance_mode': 'dynamic'})) \
         == ('balance_v',)
     assert device.optional_config(device.config.replace({'config.balance_mode': 'fixed'})) == ()
+
+
+# --- issue 17 "Field truth": EVMS3 firmware and ZEVA Monitor facts --------------------------
+FULL_CONFIG = {
+    'pack_capacity_ah': 100, 'soc_warning_pct': 20, 'full_voltage_v': 400,
+    'warn_current_a': 300, 'trip_current_a': 500, 'temp_warning_c': 60,
+    'min_aux_voltage_v': 16, 'min_isolation_pct': 50, 'tacho_ppr': 2,
+    'fuel_gauge_full_pct': 90, 'fuel_gauge_empty_pct': 10, 'temp_gauge_hot_pct': 80,
+    'temp_gauge_cold_pct': 20, 'bms_min_cell_v': 2.8, 'bms_max_cell_v': 3.65,
+    'balance_v': 3.5, 'balance_mode': 'static', 'bms_hysteresis_v': 0.05,
+    'bms_min_temp_c': 0, 'bms_max_temp_c': 55, 'max_charge_voltage_v': 300,
+    'max_charge_current_a': 30, 'alt_charge_voltage_v': 250, 'alt_charge_current_a': 10,
+    'sleep_delay_min': 6, 'mpi_function': 1, 'mpo1_function': 2, 'mpo2_function': 6,
+    'parallel_strings': 2, 'enable_precharge': True, 'stationary_mode': False,
+    'reverse_current_display': True, 'night_brightness': 7,
+    'cells_per_module': [12, 8] + [0] * 14,
+}
+# Written by hand: the Monitor's order (EVMS_Monitor3.c TransmitSettings) 36, 32, 33, 34, 35
+FULL_CONFIG_FRAMES = [
+    Frame(36, bytes.fromhex('8C 00 00 00 00 00 00 00'), True),  # 12 | 8 << 4
+    Frame(32, bytes.fromhex('14 14 C8 1E 32 3C 10 32'), True),  # aux 16 V (Common.h max)
+    Frame(33, bytes.fromhex('02 5A 0A 50 14 82 A5 96'), True),
+    Frame(34, bytes.fromhex('05 28 5F 2C 9E FA 0A 06'), True),  # sleep 6 = never
+    Frame(35, bytes.fromhex('01 02 06 02 01 00 01 07'), True),  # settings 30, 31 = 1, 7
+]
+
+
+def configured(clock=None, **params):
+    return make(clock, **{**{f'config.{k}': v for k, v in FULL_CONFIG.items()}, **params})
+
+
+@pytest.mark.parametrize('state', [0, 5])
+def test_write_in_the_monitors_order_while_idle_or_setup(state):
+    device = configured()
+    device.handle_frame(30, status(state=state), 1.0)
+    assert device.config_frames() == FULL_CONFIG_FRAMES
+
+
+@pytest.mark.parametrize('state,name', [
+    (1, 'PRECHARGING'), (2, 'RUNNING'), (3, 'CHARGING'), (4, 'STOPPED')])
+def test_write_refused_in_any_other_state_naming_it(state, name):
+    device = configured()
+    device.handle_frame(30, status(state=state), 1.0)
+    with pytest.raises(RefusedCommand,
+                       match=f'reports {name}: .* only while it reports IDLE or SETUP'):
+        device.config_frames()
+
+
+def test_write_refused_when_never_heard_or_stale():
+    clock = Clock(1000.0)
+    device = configured(clock)
+    with pytest.raises(RefusedCommand, match='never heard'):
+        device.config_frames()
+    device.handle_frame(30, status(state=0), 1.0)
+    clock.now += 2.0
+    with pytest.raises(RefusedCommand, match='stale .*last state IDLE'):
+        device.config_frames()
+
+
+def test_min_aux_voltage_16_and_cells_per_module_limits():
+    # Common.h maximums[MIN_AUX_VOLTAGE] = 16; cells 0 or 4..12 a module
+    device = configured()
+    assert device.config_reason('config.min_aux_voltage_v', 16) is None
+    assert 'refused' in device.config_reason('config.min_aux_voltage_v', 17)
+    for bad in (13, 15, 3):
+        reason = device.config_reason('config.cells_per_module', [12, bad] + [0] * 14)
+        assert reason and 'cells_per_module' in reason and 'refused' in reason, reason
+    assert device.config_reason('config.cells_per_module', [4, 12] + [0] * 14) is None
+
+
+@pytest.mark.parametrize('error,health,level,action', [
+    (4, PowerSupplyHealth.DEAD, Level.ERROR, 'main contactor opened (stationary mode)'),
+    (6, PowerSupplyHealth.OVERVOLTAGE, Level.WARN, 'charging disabled (stationary mode)'),
+])
+def test_stationary_mode_warnings_say_what_the_evms_did(error, health, level, action):
+    # EVMS3 firmware, stationary version: BMS_LOW_WARNING clears MAIN_CTR, BMS_HIGH_WARNING
+    # clears CHARGE_ENABLE
+    device = make(**{'config.stationary_mode': True})
+    device.handle_frame(30, status(state=2, error=error), 1.0)
+    assert device.battery_report().power_supply_health == health
+    diag = device.diagnostic_report()
+    assert diag.level == level
+    assert diag.message.endswith(action), diag.message
+    assert diag.values['stationary mode'] == 'yes'
+    vehicle = make(**{'config.stationary_mode': False})
+    vehicle.handle_frame(30, status(state=2, error=4), 1.0)
+    assert vehicle.battery_report().power_supply_health == PowerSupplyHealth.GOOD
+    assert vehicle.diagnostic_report().message == 'RUNNING, warning LOW_CELL_WARNING (4)'
+
+
+def test_stationary_mode_from_a_read_back_seen_on_the_bus():
+    from test_protocol_evms3_readback import ANSWER
+    device = make()
+    device.handle_frame(30, status(state=2, error=4), 1.0)
+    assert device.diagnostic_report().values['stationary mode'] == 'unknown'
+    for frame_id, data in {**ANSWER, 55: bytes.fromhex('01 02 06 02 01 01 01 07')}.items():
+        device.handle_frame(frame_id, data, 1.0)
+    assert device.battery_report().power_supply_health == PowerSupplyHealth.DEAD
+    assert 'main contactor opened' in device.diagnostic_report().message
+
+
+def test_bms16_marker_is_named_and_refuses_a_write():
+    # EVMS_Monitor3.c: ID 30 with evmsStatusBytes[5] == 255 -> isBMS16
+    device = configured()
+    device.handle_frame(30, bytes.fromhex('00 03 E8 0F A0 FF 64 41'), 1.0)  # IDLE, byte 5 255
+    diag = device.diagnostic_report()
+    assert diag.message.startswith('BMS16 marker heard (ID 30 byte 5 = 255)')
+    assert diag.level == Level.WARN
+    assert diag.values['aux voltage (V)'] == 'n/a (255: BMS16 marker)'
+    with pytest.raises(RefusedCommand, match='BMS16'):
+        device.config_frames()
+
+
+def test_voltage_multiplier_2_scales_the_full_and_charge_voltages():
+    # Common.h PACK_VOLTAGE_MULTIPLIER 2 (800 V builds): full voltage 4 V a step
+    device = configured(voltage_multiplier=2, **{'config.full_voltage_v': 800,
+                                                 'config.max_charge_voltage_v': 600})
+    device.handle_frame(30, status(state=0), 1.0)
+    frames = device.config_frames()
+    assert frames[1].data[2] == 200 and frames[3].data[3:5] == bytes([0x2C, 0x9E])
+    assert 'refused' in device.config_reason('config.full_voltage_v', 802)
+    assert 'refused' in make().config_reason('config.full_voltage_v', 800)

@@ -62,12 +62,51 @@ def test_malformed_packet_is_named():
 
     def send(frame):
         device.handle_frame(52, ANSWER[52], 1.0)
-        device.handle_frame(53, bytes([7]) + ANSWER[53][1:], 1.0)  # tacho 7: not 1..6
+        device.handle_frame(54, ANSWER[54][:7] + b'\x00', 1.0)  # sleep delay 0: not 1..6
         return True, 'sent'
     result = device.read_config(send, timeout=0.1)
     assert not result.ok
     assert 'missing ID 53 (config 2)' in result.error
-    assert 'tacho_ppr raw 7 outside 1..6' in result.error
+    assert 'sleep_delay_min raw 0 outside 1..6' in result.error
+
+
+def test_monitor_traffic_does_not_fail_a_read_in_flight():
+    # EVMS_Monitor3.c: ID 31 DLC 2 while editing a gauge setting (TransmitGaugeState), ID 52
+    # DLC 1 on entering setup and DLC 8 (its motor-controller settings) in TransmitSettings
+    device = make()
+    monitor = [(31, bytes.fromhex('02 50')), (31, bytes.fromhex('03 14')), (52, b'\x00'),
+               (52, bytes.fromhex('64 96 50 3C 12 01 00 00'))]
+
+    def send(frame):
+        for frame_id, data in monitor:
+            device.handle_frame(frame_id, data, 1.0)
+        for frame_id, data in ANSWER.items():
+            device.handle_frame(frame_id, data, 1.0)
+        return True, 'sent'
+    result = device.read_config(send, timeout=1.0)
+    assert result.ok, result.error
+    assert result.readback.config == CONFIG
+    assert device.frames_malformed == 0
+
+
+def test_sentinel_settings_show_off_and_never_in_the_diagnostics():
+    # EVMS3 firmware: raw 121 current = off, 151 over-temperature = off, BMS min temp raw 0
+    # and max temp raw 141 = off, CAN power-down delay 6 = never
+    clock = Clock(1000.0)
+    device = make(clock)
+    device.handle_frame(30, STATUS_OK, 1.0)
+    answer = {**ANSWER, 52: bytes.fromhex('14 14 C8 79 79 97 0B 32'),
+              54: bytes.fromhex('05 00 8D 2C 9E FA 0A 06')}
+    for frame_id, data in answer.items():
+        device.handle_frame(frame_id, data, 1.0)
+    values = device.diagnostic_report().values
+    assert values['config warn_current_a (A)'] == 'off (1210)'
+    assert values['config trip_current_a (A)'] == 'off (1210)'
+    assert values['config temp_warning_c (degC)'] == 'off (151)'
+    assert values['config bms_min_temp_c (degC)'] == 'off (-40)'
+    assert values['config bms_max_temp_c (degC)'] == 'off (101)'
+    assert values['config sleep_delay_min (min)'] == 'never (6)'
+    assert values['config min_aux_voltage_v (V)'] == '11'
 
 
 def test_refused_send_and_a_second_read_at_once():

@@ -9,7 +9,7 @@ import pytest
 
 from ams_can_bridge.protocols.common import Frame, MalformedFrameError, msg_defs_dir
 from ams_can_bridge.protocols.evms3 import (
-    ConfigReadback, ConfigReport, Evms3Codec, RequestConfig)
+    ConfigReadback, ConfigReport, Evms3Codec, OtherTraffic, RequestConfig)
 from test_protocol_evms3 import GOLDEN_CONFIG
 
 CODEC = Evms3Codec(bms12_modules=2)
@@ -18,13 +18,14 @@ ANSWER = {
     52: bytes.fromhex('14 14 C8 1E 32 3C 0B 32'),  # 100/5, 20, 400/2, 300/10, 500/10, 60 ..
     53: bytes.fromhex('02 5A 0A 50 14 82 A5 96'),  # .. 2.80 V = 1.50 + 1.30, 3.65, 3.50 V
     54: bytes.fromhex('05 28 5F 2C 9E FA 0A 03'),  # 300 V: 0x2C + 9th bit in 0x9E (30 A)
-    55: bytes.fromhex('01 02 06 02 01 00 00 00'),
-    # module 0 = 12 (low nibble of byte 0), module 1 = 8, module 2 = 3, module 3 = 4,
-    # module 15 = 15 (high nibble of byte 7)
-    56: bytes.fromhex('8C 43 00 00 00 00 00 F0'),
+    # .. bytes 6-7: reverse current display 1, night brightness 7 (settings 30, 31)
+    55: bytes.fromhex('01 02 06 02 01 00 01 07'),
+    # module 0 = 12 (low nibble of byte 0), module 1 = 8, module 2 = 4, module 3 = 5,
+    # module 15 = 12 (high nibble of byte 7)
+    56: bytes.fromhex('8C 54 00 00 00 00 00 C0'),
 }
 CONFIG = GOLDEN_CONFIG  # the configuration of test_protocol_evms3, written and read back
-CELLS = (12, 8, 3, 4) + (0,) * 11 + (15,)
+CELLS = (12, 8, 4, 5) + (0,) * 11 + (12,)
 
 
 def test_request_is_id_51_without_data():
@@ -40,10 +41,11 @@ def test_answer_golden_joins_into_one_configuration():
     assert readback == ConfigReadback(CONFIG, CELLS, ())
     assert readback.summary() == (
         '100 Ah, full 400 V, cells 2.80..3.65 V, balance static 3.50 V, charge 300 V 30 A, '
-        '5 BMS12 module(s) with 42 cells')
+        '5 BMS12 module(s) with 41 cells')
     values = readback.parameter_values()
     assert values['balance_v'] == 3.5 and values['balance_mode'] == 'static'
-    assert values['cells_per_module'] == list(CELLS) and len(values) == 32
+    assert values['cells_per_module'] == list(CELLS) and len(values) == 34
+    assert values['reverse_current_display'] is True and values['night_brightness'] == 7
     assert CODEC.report_frames(CONFIG, CELLS) == [
         Frame(i, data, True) for i, data in ANSWER.items()]
 
@@ -68,11 +70,19 @@ def test_partial_answer_names_what_is_missing():
 
 
 def test_answer_values_out_of_range_are_malformed():
-    with pytest.raises(MalformedFrameError, match='tacho_ppr raw 7'):
-        CODEC.decode(53, bytes([7]) + ANSWER[53][1:])
+    with pytest.raises(MalformedFrameError, match='sleep_delay_min raw 0'):
+        CODEC.decode(54, ANSWER[54][:7] + b'\x00')
     with pytest.raises(MalformedFrameError, match='DLC 7'):
-        CODEC.decode(52, ANSWER[52][:7])
-    assert CODEC.decode(55, ANSWER[55][:6]).values['parallel_strings'] == 2  # 6 like 35
+        CODEC.decode(54, ANSWER[54][:7])
+    with pytest.raises(MalformedFrameError, match='DLC 6'):
+        CODEC.decode(55, ANSWER[55][:6])  # bytes 6-7 are settings 30-31
+
+
+def test_52_and_53_that_are_no_evms3_packet_are_other_traffic():
+    # Common.h: 52/53 are also MC_RECEIVE_SETTINGS_ID / MC_SEND_SETTINGS_ID
+    assert isinstance(CODEC.decode(53, bytes([7]) + ANSWER[53][1:]), OtherTraffic)
+    assert isinstance(CODEC.decode(52, ANSWER[52][:7]), OtherTraffic)
+    assert isinstance(CODEC.decode(52, b'\x00'), OtherTraffic)
 
 
 def test_ids_51_to_56_are_fixed_and_51_is_not_listened_to():
@@ -95,4 +105,4 @@ def test_dbc_has_the_read_back_messages():
     assert decoded['BmsMinVoltage'] == pytest.approx(2.8)
     assert decoded['BalanceVoltage'] == pytest.approx(3.5)
     cells = db.get_message_by_frame_id(56, force_extended_id=True).decode(ANSWER[56])
-    assert (cells['Module0Cells'], cells['Module1Cells'], cells['Module15Cells']) == (12, 8, 15)
+    assert (cells['Module0Cells'], cells['Module1Cells'], cells['Module15Cells']) == (12, 8, 12)

@@ -11,6 +11,7 @@ import can
 import pytest
 from std_srvs.srv import Trigger
 
+from ams_can_bridge.protocols.evms3 import Evms3State
 from ams_can_bridge.sim.evms3 import Evms3Simulator
 from ams_can_bridge.sim.runner import SimRunner
 from test_protocol_evms3_readback import CELLS, CONFIG
@@ -26,7 +27,7 @@ def evms3_on():
 
     def start(rig, **kwargs):
         bus = can.Bus(interface='virtual', channel=rig.channel)
-        sim = Evms3Simulator(bms12_modules=0, **kwargs)
+        sim = Evms3Simulator(bms12_modules=0, **{'state': Evms3State.IDLE, **kwargs})
         runner = SimRunner(bus, [sim], tick_period=0.005)
         runner.start()
         started.append((runner, bus))
@@ -78,20 +79,21 @@ def test_read_config_sets_every_value_then_write_sends_back_the_same_frames(
         rig_factory, evms3_on):
     rig = rig_factory(params())
     sim = evms3_on(rig)
-    sim.stored_config, sim.cell_numbers = CONFIG, CELLS  # a configured EVMS3
+    sim.load(CONFIG, CELLS)  # a configured EVMS3
     assert all(v is None for v in config_values(rig).values())
     mark = rig.capture.mark()
     response = rig.call(Trigger, READ)
     assert response.success, response.message
     assert response.message == (
         'evms3: read_config: 100 Ah, full 400 V, cells 2.80..3.65 V, balance static 3.50 V, '
-        'charge 300 V 30 A, 5 BMS12 module(s) with 42 cells; set 32 parameters '
+        'charge 300 V 30 A, 5 BMS12 module(s) with 41 cells; set 34 parameters '
         'evms3.config.*')
     assert frames(rig, mark, {51}) == [(51, b'')]
     values = config_values(rig)
     assert values['pack_capacity_ah'] == 100 and values['bms_max_cell_v'] == 3.65
     assert values['balance_mode'] == 'static' and values['balance_v'] == 3.5
     assert values['enable_precharge'] is True and list(values['cells_per_module']) == list(CELLS)
+    assert values['reverse_current_display'] is True and values['night_brightness'] == 7
     read = frames(rig, mark, set(range(52, 57)))
     assert [i for i, _ in read] == [52, 53, 54, 55, 56]
 
@@ -100,7 +102,8 @@ def test_read_config_sets_every_value_then_write_sends_back_the_same_frames(
     assert response.success, response.message
     assert rig.wait(lambda: len(frames(rig, mark, set(range(32, 37)))) == 5)
     written = frames(rig, mark, set(range(32, 37)))
-    assert [(i + 20, data) for i, data in written] == read  # exactly the frames read
+    assert [i for i, _ in written] == [36, 32, 33, 34, 35]  # the Monitor's order
+    assert sorted((i + 20, data) for i, data in written) == read  # exactly the bytes read
 
 
 def test_factory_settings_round_trip_with_dynamic_balancing(rig_factory, evms3_on):
@@ -109,14 +112,31 @@ def test_factory_settings_round_trip_with_dynamic_balancing(rig_factory, evms3_o
     mark = rig.capture.mark()
     response = rig.call(Trigger, READ)
     assert response.success, response.message
-    assert 'balance dynamic' in response.message and 'set 31 parameters' in response.message
+    assert 'balance dynamic' in response.message and 'set 33 parameters' in response.message
     values = config_values(rig)
     assert values['balance_mode'] == 'dynamic' and values['balance_v'] is None
     read = frames(rig, mark, set(range(52, 57)))
     mark = rig.capture.mark()
     assert rig.call(Trigger, WRITE).success
     assert rig.wait(lambda: len(frames(rig, mark, set(range(32, 37)))) == 5)
-    assert [(i + 20, d) for i, d in frames(rig, mark, set(range(32, 37)))] == read
+    assert sorted((i + 20, d) for i, d in frames(rig, mark, set(range(32, 37)))) == read
+
+
+def test_written_cell_counts_survive_a_power_cycle(rig_factory, evms3_on):
+    # The EVMS3 saves settings and cell counts to EEPROM only when ID 35 arrives; ID 36 only
+    # changes RAM. The simulator does the same: sent after 35, new counts would be lost here.
+    rig = rig_factory(params())
+    sim = evms3_on(rig)
+    sim.load(CONFIG, CELLS)
+    assert rig.call(Trigger, READ).success
+    new = [12, 12, 4] + [0] * 13
+    assert rig.set_param('evms3.config.cells_per_module', new).successful
+    assert rig.wait(lambda: rig.node.devices['evms3'].state is Evms3State.IDLE)
+    response = rig.call(Trigger, WRITE)
+    assert response.success, response.message
+    assert rig.wait(lambda: sim.eeprom_writes == 1)
+    sim.power_cycle()
+    assert sim.cell_numbers == tuple(new) and sim.stored_config == CONFIG
 
 
 def test_partial_answer_fails_and_sets_nothing(rig_factory, evms3_on):

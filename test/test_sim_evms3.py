@@ -11,7 +11,7 @@ from ams_can_bridge.protocols.common import Frame, MalformedFrameError
 from ams_can_bridge.protocols.evms3 import (
     AcknowledgeError, BatteryCurrent, Bms12Cells, Bms12Request,
     BmsCellNumbers, Evms3Codec, Evms3Config, Evms3Error, Evms3State, Evms3Status, PowerOff,
-    ResetSoc, SetState)
+    ConfigReadback, ResetSoc, SetState)
 from ams_can_bridge.sim.evms3 import Evms3Simulator
 
 CODEC = Evms3Codec()
@@ -23,7 +23,8 @@ CONFIG = Evms3Config(
     balance_mode='static', bms_hysteresis_v=0.05, bms_min_temp_c=0, bms_max_temp_c=55,
     max_charge_voltage_v=300, max_charge_current_a=30, alt_charge_voltage_v=250,
     alt_charge_current_a=10, sleep_delay_min=3, mpi_function=1, mpo1_function=2,
-    mpo2_function=6, parallel_strings=1, enable_precharge=True, stationary_mode=False)
+    mpo2_function=6, parallel_strings=1, enable_precharge=True, stationary_mode=False,
+    reverse_current_display=False, night_brightness=10)
 
 
 def run(sim, start, stop, step=0.01):
@@ -84,22 +85,43 @@ def test_current_sign_and_amp_hours():
     assert charging.remaining_ah == pytest.approx(90.05, abs=0.001)
 
 
-def test_config_is_stored_only_after_all_four_packets():
+def test_config_goes_to_ram_and_is_saved_only_on_35():
+    # EVMS3 firmware: 32..35 write settings[] (RAM) at once; only 35 sets saveToEepromFlag
     sim = Evms3Simulator()
     frames = CODEC.config_frames(CONFIG)
-    for f in (frames[2], frames[0], frames[3]):
+    for f in (frames[2], frames[0], frames[1]):
         sim.on_frame(f, 0.0)
-        assert sim.stored_config is None
-    assert sorted(sim.config_parts) == [1, 3, 4]
-    sim.on_frame(frames[1], 0.0)
-    assert sim.stored_config == CONFIG
-    assert sim.config_parts == {}
+        assert sim.stored_config is None and sim.eeprom_writes == 0
+    assert sim.ram_config.pack_capacity_ah == 60  # in use at once
+    sim.on_frame(frames[3], 0.0)
+    assert sim.stored_config == CONFIG and sim.eeprom_writes == 1
     assert sim.capacity_ah == 60.0
-    # one packet of a new configuration changes nothing stored
+    # one packet of a new configuration changes RAM, not EEPROM
     sim.on_frame(CODEC.config_frames(dataclasses.replace(CONFIG, pack_capacity_ah=70))[0], 1.0)
-    assert sim.stored_config == CONFIG
+    assert sim.stored_config == CONFIG and sim.ram_config.pack_capacity_ah == 70
     readings = run(sim, 1.0, 2.0)
     assert last(readings, Bms12Request).balance_mv == 4100  # static balance from the config
+    sim.power_cycle()
+    assert sim.ram_config == CONFIG
+
+
+@pytest.mark.parametrize('order,kept', [
+    ((36, 32, 33, 34, 35), True),   # the Monitor's order (TransmitSettings)
+    ((32, 33, 34, 35, 36), False),  # 36 after the save on 35: RAM only, lost at power-up
+])
+def test_cell_counts_survive_a_power_cycle_only_before_35(order, kept):
+    sim = Evms3Simulator(state=Evms3State.IDLE)
+    cells = (12, 10) + (0,) * 14
+    frames = {f.arbitration_id: f for f in CODEC.config_frames(CONFIG)}
+    frames[36] = CODEC.encode(BmsCellNumbers(cells))
+    for can_id in order:
+        sim.on_frame(frames[can_id], 0.0)
+    assert sim.cell_numbers == cells  # RAM: looks written either way
+    sim.power_cycle()
+    assert (sim.cell_numbers == cells) is kept
+    answer = ConfigReadback.join(CODEC.decode(f.arbitration_id, f.data)
+                                 for f in sim.config_answer())
+    assert (answer.cells_per_module == cells) is kept
 
 
 def test_reset_soc_and_cell_numbers():
@@ -120,13 +142,17 @@ def test_set_state_and_acknowledge_error():
     assert last(run(sim, 0.3, 0.6), Evms3Status).error is Evms3Error.ISOLATION_ERROR
     send(sim, AcknowledgeError(Evms3Error.ISOLATION_ERROR))
     assert last(run(sim, 0.6, 0.9), Evms3Status).error is Evms3Error.NONE
-    send(sim, SetState(True))
-    readings = run(sim, 0.9, 1.2)
+    send(sim, SetState(True))  # RUNNING: the firmware enters Setup only from IDLE
+    assert last(run(sim, 0.9, 1.2), Evms3Status).state is Evms3State.RUNNING
+    sim.state = Evms3State.IDLE  # key off: the request still pending takes it to Setup
+    readings = run(sim, 1.2, 1.5)
     assert last(readings, Evms3Status).state is Evms3State.SETUP
     assert last(readings, BatteryCurrent).current_a == 0.0
+    send(sim, SetState(True, 2, 80))  # the Monitor editing the fuel gauge: stays in Setup
+    assert last(run(sim, 1.5, 1.8), Evms3Status).state is Evms3State.SETUP
     send(sim, SetState(False))
-    assert last(run(sim, 1.2, 1.5), Evms3Status).state is Evms3State.IDLE
-    assert len(sim.received) == 4
+    assert last(run(sim, 1.8, 2.1), Evms3Status).state is Evms3State.IDLE
+    assert len(sim.received) == 5
 
 
 def test_power_off_and_bad_commands():

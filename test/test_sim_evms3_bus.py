@@ -73,7 +73,8 @@ def test_stored_config_sets_target_and_balancing():
         balance_mode='dynamic', bms_hysteresis_v=0.05, bms_min_temp_c=0, bms_max_temp_c=55,
         max_charge_voltage_v=49, max_charge_current_a=16, alt_charge_voltage_v=45,
         alt_charge_current_a=8, sleep_delay_min=3, mpi_function=0, mpo1_function=0,
-        mpo2_function=0, parallel_strings=1, enable_precharge=True, stationary_mode=False)
+        mpo2_function=0, parallel_strings=1, enable_precharge=True, stationary_mode=False,
+        reverse_current_display=False, night_brightness=10)
     for frame in CODEC.config_frames(cfg):
         sim.on_frame(frame, 0.0)
     readings = run(sim, 0.0, 2.0)

@@ -109,34 +109,62 @@ EVMS3_CONFIG = {
     'alt_charge_current_a': 6, 'sleep_delay_min': 5, 'mpi_function': 1, 'mpo1_function': 2,
     'mpo2_function': 3, 'parallel_strings': 1, 'enable_precharge': True,
     'stationary_mode': False, 'cells_per_module': [12, 12, 12, 12, 8] + [0] * 11,
+    'reverse_current_display': False, 'night_brightness': 10,
 }
+# ZEVA's Monitor order (EVMS_Monitor3.c TransmitSettings): 36 first, then 32..35; the EVMS3
+# saves to EEPROM when 35 arrives, so the cell counts must come before it.
 EVMS3_FRAMES = [
+    # module 2n in the low nibble of byte n
+    (36, bytes([0xCC, 0xCC, 0x08, 0, 0, 0, 0, 0])),
     # capacity 5 Ah/bit, SoC warn, full 2 V/bit, warn/trip 10 A/bit, temp, aux, isolation
     (32, bytes([20, 20, 200, 20, 30, 60, 11, 50])),
     # tacho, gauges, min cell 1.50 + 0.01 n, max cell 2.00 + 0.01 n, balance 2.00 + 0.01 n
     (33, bytes([2, 90, 10, 80, 20, 130, 165, 150])),
     # hysteresis 0.01 V, temps n - 40, 400 V = 0x190: low 0x90 + bit 7 of 12 A; 380 V = 0x17C
     (34, bytes([5, 40, 95, 0x90, 0x80 | 12, 0x7C, 0x80 | 6, 5])),
-    (35, bytes([1, 2, 3, 1, 1, 0, 0, 0])),
-    # module 2n in the low nibble of byte n
-    (36, bytes([0xCC, 0xCC, 0x08, 0, 0, 0, 0, 0])),
+    # MPI, MPO1, MPO2, strings, precharge, stationary, reverse current display, brightness 10
+    (35, bytes([1, 2, 3, 1, 1, 0, 0, 10])),
 ]
+IDLE, RUNNING, SETUP = 0, 2, 5
 
 
 def evms3_params(enabled=True, config=EVMS3_CONFIG, skip=()):
-    params = {'devices': ['evms3'], 'commands_allowed': True, 'commands_enabled': enabled}
+    params = {'devices': ['evms3'], 'commands_allowed': True, 'commands_enabled': enabled,
+              'evms3.stale_timeout': 3600.0}  # one status frame keeps its state known
     params.update({f'evms3.config.{k}': v for k, v in config.items() if k not in skip})
     return params
 
 
-def evms3_status(rig, state, error):
+def evms3_status(rig, state, error, b5=0x8C):
     """Put an EVMS3 status frame (ID 30) on the bus, as the EVMS would."""
     rig.capture.bus.send(can.Message(arbitration_id=30, is_extended_id=True, data=bytes(
-        [state | error << 3, 0x03, 0xE8, 0x0F, 0xA0, 0x8C, 100, 65])))
+        [state | error << 3, 0x03, 0xE8, 0x0F, 0xA0, b5, 100, 65])))
 
 
-def test_evms3_write_config_sends_32_to_36_in_order(rig_factory):
+def evms3_in(rig, state, b5=0x8C):
+    """Have the EVMS3 report state (0 IDLE, 5 SETUP, ...) and wait until the bridge knows."""
+    evms3_status(rig, state, 0, b5)
+    device = rig.node.devices['evms3']
+    assert rig.wait(lambda: device.state is not None and int(device.state) == state
+                    and device.status.aux_voltage_v == b5 / 10)
+
+
+def refused_write_sends_nothing(rig, words):
+    """Call write_config, expect a refusal naming words, prove nothing went out."""
+    mark = rig.capture.mark()
+    response = rig.call(Trigger, '/evms3/write_config')
+    assert not response.success, response.message
+    for word in words:
+        assert word in response.message, response.message
+    assert 'nothing was sent' in response.message
+    assert rig.call(Trigger, '/evms3/reset_soc').success  # marker: the next frame out
+    assert rig.wait(lambda: sent(rig, mark))
+    assert sent(rig, mark) == [(38, b'', True)]
+
+
+def test_evms3_write_config_sends_36_then_32_to_35(rig_factory):
     rig = rig_factory(evms3_params())
+    evms3_in(rig, IDLE)
     mark = rig.capture.mark()
     response = rig.call(Trigger, '/evms3/write_config')
     assert response.success, response.message
@@ -147,22 +175,25 @@ def test_evms3_write_config_sends_32_to_36_in_order(rig_factory):
 def test_evms3_dynamic_balancing_needs_no_balance_voltage(rig_factory):
     config = dict(EVMS3_CONFIG, balance_mode='dynamic')
     rig = rig_factory(evms3_params(config=config, skip=('balance_v',)))
+    evms3_in(rig, SETUP)
     mark = rig.capture.mark()
     response = rig.call(Trigger, '/evms3/write_config')
     assert response.success, response.message
     assert rig.wait(lambda: len(sent(rig, mark)) >= 5)
-    assert sent(rig, mark)[1][1][7] == 251
+    assert sent(rig, mark)[2][1][7] == 251
 
 
 def test_evms3_write_config_names_every_missing_value_and_sends_nothing(rig_factory):
-    missing = ('pack_capacity_ah', 'balance_v', 'stationary_mode', 'cells_per_module')
+    missing = ('pack_capacity_ah', 'balance_v', 'stationary_mode', 'cells_per_module',
+               'reverse_current_display', 'night_brightness')
     rig = rig_factory(evms3_params(skip=missing))
+    evms3_in(rig, IDLE)
     mark = rig.capture.mark()
     response = rig.call(Trigger, '/evms3/write_config')
     assert not response.success
     for name in missing:
         assert f'evms3.config.{name}' in response.message, response.message
-    assert '4 configuration value(s) unset' in response.message
+    assert '6 configuration value(s) unset' in response.message
     time.sleep(0.3)
     assert sent(rig, mark) == []
 
@@ -173,16 +204,75 @@ def test_evms3_config_refusals_name_the_allowed_range(rig_factory):
             ('pack_capacity_ah', 7, ('step',)), ('full_voltage_v', 504, ('502',)),
             ('balance_mode', 'fast', ('static', 'dynamic', 'off')),
             ('cells_per_module', [12] * 15, ('16',)),
-            ('cells_per_module', [16] + [0] * 15, ('15',))):
+            ('cells_per_module', [13] + [0] * 15, ('12',)),
+            ('cells_per_module', [2] + [0] * 15, ('4..12',)),
+            ('min_aux_voltage_v', 17, ('16',)), ('night_brightness', 11, ('10',))):
         result = rig.set_param(f'evms3.config.{name}', value)
         assert not result.successful, name
         assert f'evms3.config.{name}' in result.reason, result.reason
         assert all(text in result.reason for text in allowed), result.reason
     assert rig.set_param('evms3.config.full_voltage_v', 402).successful  # 402 = 201 x 2 V
+    assert rig.set_param('evms3.config.min_aux_voltage_v', 16).successful  # Common.h max 16
+    evms3_in(rig, IDLE)
     mark = rig.capture.mark()
     assert rig.call(Trigger, '/evms3/write_config').success
     assert rig.wait(lambda: len(sent(rig, mark)) >= 5)
-    assert sent(rig, mark)[0][1][2] == 201
+    assert sent(rig, mark)[1][1][2] == 201 and sent(rig, mark)[1][1][6] == 16
+
+
+@pytest.mark.parametrize('state,name', [(1, 'PRECHARGING'), (RUNNING, 'RUNNING'),
+                                        (3, 'CHARGING'), (4, 'STOPPED')])
+def test_evms3_write_config_refused_unless_idle_or_setup(rig_factory, state, name):
+    rig = rig_factory(evms3_params())
+    evms3_in(rig, state)
+    refused_write_sends_nothing(rig, (f'reports {name}', 'IDLE or SETUP'))
+
+
+def test_evms3_write_config_refused_before_the_evms_is_heard(rig_factory):
+    rig = rig_factory(evms3_params())
+    refused_write_sends_nothing(rig, ('never heard', 'IDLE or SETUP'))
+
+
+def test_evms3_write_config_refused_to_a_bms16(rig_factory):
+    # EVMS_Monitor3.c: ID 30 byte 5 = 255 means a BMS16 speaking the EVMS3 protocol
+    rig = rig_factory(evms3_params())
+    evms3_in(rig, IDLE, b5=255)
+    refused_write_sends_nothing(rig, ('BMS16', 'byte 5 = 255'))
+
+
+class _FakeNode:
+    """Just enough node for Evms3Commands: records transmits and sleeps in one timeline."""
+
+    commands_enabled = True
+    service_group = None
+
+    def __init__(self):
+        self.events = []
+
+    def create_service(self, *args, **kwargs):
+        return object()
+
+    def wait_for_bus(self):
+        return True, ''
+
+    def transmit(self, frame, wait=False):
+        self.events.append(('tx', frame.arbitration_id))
+        return True, 'sent'
+
+
+def test_evms3_write_config_paces_20_ms_after_each_frame():
+    # EVMS_Monitor3.c TransmitSettings: CanTX(id, data, 8, 20) = 20 ms after each frame
+    from ams_can_bridge.devices.evms3 import Evms3Device
+    from ams_can_bridge.ros.zeva_commands import Evms3Commands
+    node = _FakeNode()
+    device = Evms3Device('evms3', {f'config.{k}': v for k, v in EVMS3_CONFIG.items()})
+    device.handle_frame(30, bytes([IDLE, 0x03, 0xE8, 0x0F, 0xA0, 0x8C, 100, 65]), 1.0)
+    commands = Evms3Commands(node, device, 'evms3')
+    commands._sleep = lambda seconds: node.events.append(('sleep', seconds))
+    response = commands._write_config(None, Trigger.Response())
+    assert response.success, response.message
+    assert node.events == [event for can_id in (36, 32, 33, 34, 35)
+                           for event in (('tx', can_id), ('sleep', 0.02))]
 
 
 @pytest.mark.parametrize('data, payload', [(True, b'\x01'), (False, b'\x00')])

@@ -9,6 +9,12 @@ these expires on its own (NaN / left out after its timeout), like the module cel
 The EVMS3 does not send its state of charge: SoC = remaining Ah / ``config.pack_capacity_ah``
 (a configuration value the commanding part declares), NaN while that is unset. The current
 on the wire is positive while discharging; BatteryState wants the opposite sign.
+
+Rules from ZEVA's open EVMS3 firmware and Monitor (docs/protocols.md section 3): in stationary
+mode warning 4 (low cell) opens the main contactor and warning 6 (high cell) disables
+charging; a configuration is written only while the EVMS reports IDLE or SETUP, cell counts
+(ID 36) first, because the EVMS saves to EEPROM only when ID 35 arrives; an ID 30 with byte
+5 = 255 comes from a BMS16 in its standard form, which must not get an EVMS3 write.
 """
 from __future__ import annotations
 
@@ -18,8 +24,10 @@ from typing import Any, Callable, Iterable, Mapping
 
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, Level, ParamSpec,
-    PowerSupplyHealth, PowerSupplyStatus)
+    PowerSupplyStatus)
 from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
+from ams_can_bridge.devices.evms3_health import (  # noqa: F401 (error_* re-exported)
+    error_health, error_text, STATIONARY_ACTIONS, WRITABLE_STATES)
 from ams_can_bridge.devices.evms3_readback import ConfigReader, ReadResult, Send
 from ams_can_bridge.parameters import config_param_specs
 from ams_can_bridge.protocols import evms3 as evms3_proto
@@ -29,6 +37,7 @@ from ams_can_bridge.protocols.evms3 import (
     AcknowledgeError, BatteryCurrent, BMS12_MAX_MODULES, Bms12Cells, Bms12Request,
     Bms12Temperatures, BmsCellNumbers, ConfigReport, Evms3Codec, Evms3Config, Evms3Error,
     Evms3State, Evms3Status, EVMS3_WARNINGS, READBACK_IDS, RequestConfig, ResetSoc, SetState)
+from ams_can_bridge.protocols.evms3_config import check_config_value
 from ams_can_bridge.protocols.tc_charger import (
     CHARGERS, ChargerCommand, ChargerStatus, STATUS_BIT_TEXT)
 
@@ -40,32 +49,6 @@ BMS12_STALE_TIMEOUT = 3.0
 # TC chargers and the EVMS's commands to them come about once a second: five missed.
 CHARGER_STALE_TIMEOUT = 5.0
 
-_HEALTH = {
-    Evms3Error.BMS_SHUTDOWN: PowerSupplyHealth.DEAD,
-    Evms3Error.HIGH_CELL_WARNING: PowerSupplyHealth.OVERVOLTAGE,
-    Evms3Error.BMS_ENDED_CHARGE: PowerSupplyHealth.OVERVOLTAGE,
-    Evms3Error.BMS_OVER_TEMP: PowerSupplyHealth.OVERHEAT,
-    Evms3Error.OVERTEMPERATURE: PowerSupplyHealth.OVERHEAT,
-    Evms3Error.BMS_UNDER_TEMP: PowerSupplyHealth.COLD,
-}
-
-
-def error_health(error: Evms3Error) -> PowerSupplyHealth:
-    """Map an EVMS3 error code to sensor_msgs power_supply_health."""
-    if error in _HEALTH:
-        return _HEALTH[error]
-    if error == Evms3Error.NONE or error in EVMS3_WARNINGS:
-        return PowerSupplyHealth.GOOD
-    return PowerSupplyHealth.UNSPEC_FAILURE
-
-
-def error_text(error: Evms3Error) -> str:
-    """Say 'no error', 'warning NAME (n)' or 'error NAME (n)'."""
-    if error == Evms3Error.NONE:
-        return 'no error'
-    kind = 'warning' if error in EVMS3_WARNINGS else 'error'
-    return f'{kind} {error.name} ({int(error)})'
-
 
 class _Module:
     """Last readings of one BMS12 module, with when each frame came (Device.clock())."""
@@ -73,7 +56,7 @@ class _Module:
     def __init__(self) -> None:
         self.cells = [NAN] * CELLS_PER_BMS12
         self.cells_seen = [-math.inf] * 3  # per t = 1..3
-        self.temps = (NAN, NAN)
+        self.temps: tuple[float | None, ...] = (NAN, NAN)  # None: no sensor (raw 0)
         self.temps_seen = -math.inf
         self.balance_mv: int | None = None  # what the EVMS asks (None = balancing off)
         self.balance_seen = -math.inf
@@ -97,6 +80,9 @@ class Evms3Device(Device):
         ParamSpec('bms12_modules', int, 0,
                   'how many BMS12 modules (IDs 300 + 10 m) to expect, 0..16; cells per '
                   'module: 12, or config.cells_per_module when set', low=0, high=16, step=1),
+        ParamSpec('voltage_multiplier', int, 1,
+                  "the EVMS3 build's PACK_VOLTAGE_MULTIPLIER: 1 (up to ~400 V) or 2 (800 V "
+                  'builds: full and charge voltages count 2x per step)', low=1, high=2, step=1),
     ]
 
     COMMAND_PARAMS = config_param_specs(evms3_proto.CONFIG_FIELDS) + [
@@ -123,7 +109,9 @@ class Evms3Device(Device):
         self.bms12_modules = modules
         extended = config.extended_id
         self.codec = Evms3Codec(self.base_id, bms12_modules=modules,
-                                extended_id=True if extended is None else bool(extended))
+                                extended_id=True if extended is None else bool(extended),
+                                voltage_multiplier=self._multiplier(config))
+        self._bms16_marker = False  # latched, as the ZEVA Monitor does
         self._reconfigured(config, config)
         # charger 1..3 -> (last reading, clock() it came)
         self._charger_commands: dict[int, tuple[ChargerCommand, float]] = {}
@@ -136,10 +124,19 @@ class Evms3Device(Device):
         self.reader = ConfigReader(self.lock, self.codec.encode(RequestConfig()))
 
     # --- configuration ---------------------------------------------------------------------
+    @staticmethod
+    def _multiplier(config: DeviceConfig) -> int:
+        return int(config.voltage_multiplier or 1)
+
+    def _config_fields(self, config: DeviceConfig) -> ConfigFields:
+        multiplier = self._multiplier(config)
+        return ConfigFields(evms3_proto.CONFIG_FIELDS,
+                            lambda name, value: check_config_value(name, value, multiplier))
+
     def config_problems(self, config: DeviceConfig,
                         keys: Iterable[str] | None = None) -> list[str]:
-        """Name every config.* value the EVMS3 protocol refuses."""
-        return self.CONFIG.problems(self.name, config, keys)
+        """Name every config.* value the EVMS3 protocol refuses (at this voltage multiplier)."""
+        return self._config_fields(config).problems(self.name, config, keys)
 
     def _reconfigured(self, old: DeviceConfig, new: DeviceConfig) -> None:
         self.module_timeout = max(self.stale_timeout, BMS12_STALE_TIMEOUT)
@@ -174,19 +171,47 @@ class Evms3Device(Device):
         """Name the config values a write may leave unset: balance_v unless balancing fixed."""
         return ('balance_v',) if config.config_balance_mode in ('dynamic', 'off') else ()
 
+    def check_writable(self) -> None:
+        """
+        Refuse (RefusedCommand) unless the EVMS3 reports IDLE or SETUP now and is an EVMS3.
+
+        ZEVA's Monitor offers setup only from IDLE, and the EVMS3 writes its EEPROM with
+        interrupts disabled; a BMS16 in its standard form (ID 30 byte 5 = 255) has another
+        meaning for the same bytes.
+        """
+        with self.lock:
+            status, marker = self._status, self._bms16_marker
+        if marker:
+            raise RefusedCommand(
+                'the device on ID 30 marks itself as a ZEVA BMS16 (status byte 5 = 255): the '
+                'EVMS3 configuration layout would write wrong values into it')
+        if status is None:
+            raise RefusedCommand('the EVMS3 was never heard (no status frame, ID 30): it '
+                                 'must report IDLE or SETUP before a configuration write')
+        if self.is_stale():
+            raise RefusedCommand(f'the EVMS3 is stale (last state {status.state.name}, no '
+                                 'status frame within its stale_timeout): it must report '
+                                 'IDLE or SETUP before a configuration write')
+        if status.state not in WRITABLE_STATES:
+            raise RefusedCommand(
+                f'the EVMS3 reports {status.state.name}: its configuration is written only '
+                'while it reports IDLE or SETUP (key off, charger unplugged)')
+
     def config_frames(self) -> list[Frame]:
         """
-        Build IDs 32..36 from the configuration now; RefusedCommand naming unset values.
+        Build IDs 36, 32, 33, 34, 35 (the Monitor's order); RefusedCommand if not writable now.
 
-        One configuration object is read once, so a parameter change during the call cannot
-        mix two sets of values into one write.
+        The EVMS3 saves to EEPROM only when ID 35 arrives, and ID 36 only updates RAM: the
+        cell counts go first, so the save on 35 keeps them. One configuration object is read
+        once, so a parameter change during the call cannot mix two sets of values.
         """
+        self.check_writable()
         config = self.config
-        values = self.CONFIG.complete(self.name, config, self.optional_config(config),
-                                      self.WRITE_HINT.format(self.name))
+        values = self._config_fields(config).complete(
+            self.name, config, self.optional_config(config), self.WRITE_HINT.format(self.name))
         cells = values.pop('cells_per_module')
-        return self.codec.config_frames(Evms3Config.from_mapping(values)) + [
-            self.codec.encode(BmsCellNumbers(tuple(cells)))]
+        return [self.codec.encode(BmsCellNumbers(tuple(cells)))] + self.codec.config_frames(
+            Evms3Config.from_mapping(values))
 
     def ack_frame(self) -> Frame:
         """Build ID 37 for the error shown now; RefusedCommand if stale or no error."""
@@ -228,13 +253,15 @@ class Evms3Device(Device):
         if isinstance(reading, Evms3Status):
             self._status = reading
             self._stamp = stamp
+            if reading.bms16_marker:
+                self._bms16_marker = True
             return True
         if isinstance(reading, BatteryCurrent):
             self._current_a = reading.current_a
             self._current_seen = self.clock()
         elif isinstance(reading, Bms12Temperatures):
             module = self._modules[reading.module]
-            module.temps = tuple(float(t) for t in reading.temperatures_c)
+            module.temps = reading.temperatures_c  # None: no sensor
             module.temps_seen = self.clock()
         elif isinstance(reading, Bms12Request):
             module = self._modules[reading.module]
@@ -277,11 +304,18 @@ class Evms3Device(Device):
         return [module.cells[i] if now - module.cells_seen[i // 4] <= self.module_timeout
                 else NAN for i in range(count)]
 
-    def _module_temps(self, m: int) -> tuple[float, float]:
+    def _module_temps(self, m: int) -> tuple[float | None, ...]:
         module = self._modules[m]
         if self.clock() - module.temps_seen > self.module_timeout:
             return (NAN, NAN)
         return module.temps
+
+    def _stationary(self) -> bool | None:
+        """Stationary mode: the parameter, else the last read-back seen; None = unknown."""
+        value = self.config.config_stationary_mode
+        if value is not None:
+            return bool(value)
+        return self.reader.last_values().get('stationary_mode')
 
     def _silent_modules(self) -> list[int]:
         now = self.clock()
@@ -310,7 +344,7 @@ class Evms3Device(Device):
         report.power_supply_status = (PowerSupplyStatus.CHARGING
                                       if status.state == Evms3State.CHARGING
                                       else current_status(current))
-        report.power_supply_health = error_health(status.error)
+        report.power_supply_health = error_health(status.error, self._stationary())
         report.present = True
         return report
 
@@ -326,13 +360,19 @@ class Evms3Device(Device):
             values.update(self.reader.values(self.clock()))
         else:
             values = {}  # the chargers' values, filled on the way to their faults
+        stationary = self._stationary()
         if status.error == Evms3Error.NONE:
             level = Level.OK
-        elif status.error in EVMS3_WARNINGS:
+        elif status.error in EVMS3_WARNINGS and not (
+                stationary and status.error == Evms3Error.LOW_CELL_WARNING):
             level = Level.WARN
         else:
             level = Level.ERROR
-        message = f'{status.state.name}, {error_text(status.error)}'
+        message = f'{status.state.name}, {error_text(status.error, stationary)}'
+        if self._bms16_marker:
+            level = max(level, Level.WARN)
+            message = ('BMS16 marker heard (ID 30 byte 5 = 255): a ZEVA BMS16, not an EVMS3; '
+                       'write_config refused; ' + message)
         silent = self._silent_modules()
         if silent:
             level = max(level, Level.WARN)
@@ -348,14 +388,16 @@ class Evms3Device(Device):
         current = self._ros_current()
         values.update({
             'state': status.state.name,
-            'error': error_text(status.error),
+            'error': error_text(status.error, self._stationary()),
+            'stationary mode': {True: 'yes', False: 'no', None: 'unknown'}[self._stationary()],
             'error code': str(int(status.error)),
             'amp hours remaining (Ah)': f'{status.amp_hours_ah:.1f}',
             'state of charge (%)': ('unknown: config.pack_capacity_ah unset'
                                     if capacity != capacity
                                     else f'{100 * status.amp_hours_ah / capacity:.1f}'),
             'pack voltage (V)': f'{status.pack_voltage_v:.1f}',
-            'aux voltage (V)': f'{status.aux_voltage_v:.1f}',
+            'aux voltage (V)': ('n/a (255: BMS16 marker)' if status.bms16_marker
+                                else f'{status.aux_voltage_v:.1f}'),
             'headlights': 'on' if status.headlights else 'off',
             'isolation (%)': ('not measured' if status.isolation_pct is None
                               else str(status.isolation_pct)),
@@ -373,7 +415,7 @@ class Evms3Device(Device):
                 values[f'module {m} cell min (V)'] = f'{min(cells):.3f}'
                 values[f'module {m} cell max (V)'] = f'{max(cells):.3f}'
             values[f'module {m} temperatures (degC)'] = ', '.join(
-                'unknown' if t != t else f'{t:g}' for t in temps)
+                'no sensor' if t is None else 'unknown' if t != t else f'{t:g}' for t in temps)
             values[f'module {m} last heard'] = ('never' if seen == -math.inf
                                                 else f'{self.clock() - seen:.1f} s ago')
             values[f'module {m} balance target (mV)'] = self._balance_text(m)

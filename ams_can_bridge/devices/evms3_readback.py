@@ -19,6 +19,7 @@ from typing import Any, Callable
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import (
     CONFIG_FIELDS, ConfigReadback, ConfigReport, READBACK_IDS, READBACK_NAMES)
+from ams_can_bridge.protocols.evms3_config import sentinel_text
 
 ANSWER_WINDOW = 1.0  # s: the EVMS sends the five packets of one answer back to back
 _UNITS = {f.name: f.unit for f in CONFIG_FIELDS}
@@ -39,7 +40,10 @@ class ReadResult:
         return self.readback is not None and self.readback.config is not None
 
 
-def _text(value: Any) -> str:
+def _text(value: Any, name: str = '') -> str:
+    word = sentinel_text(name, value)  # off / never, as the Monitor shows it
+    if word is not None:
+        return f'{word} ({value})'
     if isinstance(value, bool):
         return 'true' if value else 'false'
     if isinstance(value, (tuple, list)):
@@ -102,14 +106,24 @@ class ConfigReader:
         return ReadResult(readback)
 
     # --- executor (device lock held) --------------------------------------------------------
+    def _complete(self) -> bool:
+        times = [seen for _, seen in self._last.values()]
+        return (len(self._last) == len(READBACK_IDS)
+                and max(times) - min(times) <= ANSWER_WINDOW)
+
+    def last_values(self) -> dict[str, Any]:
+        """Return the values of the last complete answer seen on the bus ({} if none)."""
+        if not self._last or not self._complete():
+            return {}
+        return ConfigReadback.join(report for report, _ in self._last.values()) \
+            .parameter_values()
+
     def values(self, now: float) -> dict[str, str]:
         """Diagnostics values: the last complete answer seen on the bus, and its age."""
         if not self._last:
             return {}
         times = [seen for _, seen in self._last.values()]
-        complete = (len(self._last) == len(READBACK_IDS)
-                    and max(times) - min(times) <= ANSWER_WINDOW)
-        if not complete:
+        if not self._complete():
             missing = [i for i in READBACK_IDS if i not in self._last]
             text = ('incomplete: missing ' + ', '.join(
                 f'ID {i} ({READBACK_NAMES[i]})' for i in missing) if missing
@@ -119,5 +133,5 @@ class ConfigReader:
         values = {'config read back': f'{now - max(times):.1f} s ago (IDs 52..56)'}
         for name, value in readback.parameter_values().items():
             unit = _UNITS.get(name, '')
-            values[f'config {name}' + (f' ({unit})' if unit else '')] = _text(value)
+            values[f'config {name}' + (f' ({unit})' if unit else '')] = _text(value, name)
         return values

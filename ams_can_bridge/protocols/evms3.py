@@ -12,6 +12,12 @@ because the DBC cannot carry what is done here: the 9th bit of the charge voltag
 balance special values (251 dynamic, 252 off) and refusing, instead of clamping, any
 configuration value the EVMS would silently limit.
 
+A ZEVA Monitor shares the bus (EVMS_Monitor3.c): it sends ID 31 with DLC 2 while a gauge
+setting is edited, and ID 52 (its motor controller's settings ID, which the EVMS3 also uses
+for its read-back) with DLC 1 or 8. These decode to ``SetState``/``OtherTraffic``, never
+malformed. A ZEVA BMS16 in its standard form speaks this protocol and marks its ID 30 with
+byte 5 = 255 (``Evms3Status.bms16_marker``).
+
 The configuration (typed config, its layout in 32..36, the read-back 51..56) lives in
 ``protocols.evms3_config``; every name of it is importable from here too.
 """
@@ -25,7 +31,8 @@ from typing import Any, Sequence
 from ams_can_bridge.protocols.common import (
     check_dlc, check_range, EncodeRangeError, Frame, MalformedFrameError)
 from ams_can_bridge.protocols.evms3_config import (  # noqa: F401 (re-exported)
-    BALANCE_DYNAMIC, BALANCE_MODES, BALANCE_OFF, BMS12_MAX_MODULES, check_config_value,
+    BALANCE_DYNAMIC, BALANCE_MODES, BALANCE_OFF, BMS12_MAX_MODULES, CELLS_MAX, CELLS_MIN,
+    check_config_value,
     CONFIG_FIELDS, CONFIG_FILLER, config_payloads, ConfigReadback, ConfigReport,
     CORE_REQUEST_CONFIG, CORE_SEND_CELL_NUMS, CORE_SEND_CONFIG1, CORE_SEND_CONFIG2,
     CORE_SEND_CONFIG3, CORE_SEND_CONFIG4, decode_config_packet, Evms3Config, Evms3ConfigPart,
@@ -34,6 +41,13 @@ from ams_can_bridge.protocols.tc_charger import (
     CHARGER_IDS, ChargerCommand, ChargerStatus, TcChargerCodec)
 
 BMS12_BASE_ID = 300
+BMS16_MARKER = 255  # ID 30 byte 5 (aux voltage on an EVMS3): EVMS_Monitor3.c sets isBMS16
+# ID 31 byte 0 (Common.h): CORE_IDLE_STATE 0, CORE_SETUP_STATE 1, CORE_SETUP_EDIT_FUEL_GAUGE 2,
+# CORE_SETUP_EDIT_TEMP_GAUGE 3
+CORE_SETUP_EDIT_TEMP_GAUGE = 3
+# IDs 52/53 are also MC_RECEIVE_SETTINGS_ID / MC_SEND_SETTINGS_ID (Common.h): a Monitor and a
+# ZEVA motor controller use them for the controller's settings.
+SHARED_READBACK_IDS = frozenset({CORE_SEND_CONFIG1, CORE_SEND_CONFIG2})
 CURRENT_OFFSET_MA = 8388608
 STATUS, SET_STATE, CONFIG1, CONFIG2, CONFIG3, CONFIG4 = range(6)
 CELL_NUMBERS, ACK_ERROR, RESET_SOC, POWER_OFF, BATTERY_CURRENT, ZERO_CURRENT = range(6, 12)
@@ -69,7 +83,7 @@ class Evms3Error(enum.IntEnum):
     LOW_12V = 13
     PRECHARGE_FAILED = 14
     CONTACTOR_SWITCH_ERROR = 15
-    CAN_ERROR = 16
+    BMS_COMMS_ERROR = 16  # a BMS12 module stopped answering
 
 
 EVMS3_WARNINGS = frozenset({2, 4, 6, 10})
@@ -91,17 +105,38 @@ class Evms3Status:
     isolation_pct: int | None  # None: could not be measured (raw 101)
     temperature_c: int | None  # None: no sensor (raw 0)
 
+    @property
+    def bms16_marker(self) -> bool:
+        """Tell whether byte 5 is 255: a BMS16 in its standard form, not an EVMS3."""
+        return round(self.aux_voltage_v * 10) == BMS16_MARKER
+
 
 @dataclass(frozen=True, slots=True)
 class SetState:
-    """ID 31: enter Setup (True) or return to Idle (False)."""
+    """
+    ID 31: enter Setup (True) or return to Idle (False).
+
+    A ZEVA Monitor editing a setting sends DLC 2: byte 0 = 1 setup, 2 edit fuel gauge, 3 edit
+    temperature gauge, byte 1 = the value shown on that gauge meanwhile (``request``,
+    ``gauge_value``); the EVMS3 stays in Setup.
+    """
 
     setup: bool
+    request: int | None = None  # DLC 2 only: CORE_SETUP_STATE 1, EDIT_FUEL 2, EDIT_TEMP 3
+    gauge_value: int | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class OtherTraffic:
+    """A frame on an ID the EVMS3 shares (52, 53) that carries no EVMS3 state: ignored."""
+
+    arbitration_id: int
+    what: str
 
 
 @dataclass(frozen=True, slots=True)
 class BmsCellNumbers:
-    """ID 36: cells per BMS12 module, 16 values 0..15."""
+    """ID 36: cells per BMS12 module, 16 values (0 or 4..12 to send; 4 bits on the wire)."""
 
     cells_per_module: tuple[int, ...]
 
@@ -164,10 +199,10 @@ class Bms12Cells:
 
 @dataclass(frozen=True, slots=True)
 class Bms12Temperatures:
-    """BMS12 t=4: the module's two temperatures (degC)."""
+    """BMS12 t=4: the module's two temperatures (degC; None = no sensor, raw 0)."""
 
     module: int
-    temperatures_c: tuple[int, int]
+    temperatures_c: tuple[int | None, int | None]
 
 
 # --- the codec -------------------------------------------------------------------------------
@@ -175,8 +210,12 @@ class Evms3Codec:
     """EVMS3 frames at base_id + 0..11, BMS12 modules 0..bms12_modules-1, TC chargers 1..3."""
 
     def __init__(self, base_id: int = 30, bms12_modules: int = BMS12_MAX_MODULES,
-                 bms12_base: int = BMS12_BASE_ID, extended_id: bool = True) -> None:
+                 bms12_base: int = BMS12_BASE_ID, extended_id: bool = True,
+                 voltage_multiplier: int = 1) -> None:
         """Decode/encode at base_id (+ the fixed read-back IDs 51..56); ValueError on overlap."""
+        if voltage_multiplier not in (1, 2):
+            raise ValueError(f'voltage_multiplier {voltage_multiplier!r}: allowed 1 or 2')
+        self.voltage_multiplier = voltage_multiplier
         # ZEVA's firmware uses 29-bit IDs unless built with USE_29BIT_IDS 0; the TC chargers
         # on the same bus always use 29-bit IDs, so one EVMS3 may need both widths.
         top = 0x1FFFFFFF if extended_id else 0x7FF
@@ -250,28 +289,48 @@ class Evms3Codec:
                            None if iso == 101 else iso, temp - 40 if temp else None)
 
     def _decode_set_state(self, aid: int, data: bytes) -> SetState:
-        check_dlc(aid, data, 1)
+        check_dlc(aid, data, (1, 2))
+        if len(data) == 2:  # the Monitor's TransmitGaugeState
+            if not 1 <= data[0] <= CORE_SETUP_EDIT_TEMP_GAUGE:
+                raise MalformedFrameError(aid, data, f'set state {data[0]} with a gauge value, '
+                                          'expected 1..3')
+            return SetState(True, data[0], data[1])
         if data[0] > 1:
             raise MalformedFrameError(aid, data, f'set state {data[0]}, expected 0 or 1')
         return SetState(bool(data[0]))
 
     def _decode_config(self, aid: int, data: bytes) -> Evms3ConfigPart:
-        packet = aid - self.base_id - CONFIG1
-        # ID 35: the seed calls it "6 bytes" but draws 8 (two reserved): accept both.
-        check_dlc(aid, data, (6, 8) if packet == 3 else 8)
-        return decode_config_packet(packet, aid, data)
+        check_dlc(aid, data, 8)  # ID 35 too: bytes 6-7 are settings 30-31 (Common.h)
+        return decode_config_packet(aid - self.base_id - CONFIG1, aid, data,
+                                    self.voltage_multiplier)
 
-    def _decode_report(self, aid: int, data: bytes) -> ConfigReport:
+    def _decode_report(self, aid: int, data: bytes) -> ConfigReport | OtherTraffic:
         if aid == CORE_SEND_CELL_NUMS:
             cells = self._decode_cell_numbers(aid, data).cells_per_module
             return ConfigReport(aid, {'cells_per_module': cells})
         packet = aid - CORE_SEND_CONFIG1
-        check_dlc(aid, data, (6, 8) if packet == 3 else 8)
-        return ConfigReport(aid, decode_config_packet(packet, aid, data).values)
+        if aid in SHARED_READBACK_IDS:
+            # A Monitor's or motor controller's frame here is normal traffic: only a
+            # frame that reads as the EVMS3's packet counts, the rest is ignored.
+            if len(data) != 8:
+                return OtherTraffic(aid, f'DLC {len(data)}: motor-controller settings traffic')
+            try:
+                part = decode_config_packet(packet, aid, data, self.voltage_multiplier)
+            except MalformedFrameError as exc:
+                return OtherTraffic(aid, f'not an EVMS3 configuration ({exc.reason})')
+            return ConfigReport(aid, part.values)
+        check_dlc(aid, data, 8)
+        return ConfigReport(aid, decode_config_packet(packet, aid, data,
+                                                      self.voltage_multiplier).values)
 
     def _decode_cell_numbers(self, aid: int, data: bytes) -> BmsCellNumbers:
         check_dlc(aid, data, 8)
-        return BmsCellNumbers(tuple((data[m >> 1] >> (4 * (m & 1))) & 0x0F for m in range(16)))
+        cells = tuple((data[m >> 1] >> (4 * (m & 1))) & 0x0F for m in range(16))
+        for m, n in enumerate(cells):
+            if 0 < n < CELLS_MIN or n > CELLS_MAX:  # 13..15 overrun the firmware's arrays
+                raise MalformedFrameError(aid, data, f'module {m}: {n} cells (0 or '
+                                          f'{CELLS_MIN}..{CELLS_MAX})')
+        return BmsCellNumbers(cells)
 
     def _decode_ack(self, aid: int, data: bytes) -> AcknowledgeError:
         check_dlc(aid, data, 1)
@@ -297,7 +356,10 @@ class Evms3Codec:
         if t == 4:
             # The BMS12 PDF says DLC 2; ZEVA's firmware sends 8 with zero padding.
             check_dlc(aid, data, (2, 8))
-            return Bms12Temperatures(module, (data[0] - 40, data[1] - 40))
+            # Raw 0 = no sensor: the BMS12 firmware's LineariseTemp returns 0 for "not
+            # available", and the EVMS3 and the Monitor skip 0.
+            return Bms12Temperatures(module, (data[0] - 40 if data[0] else None,
+                                              data[1] - 40 if data[1] else None))
         if len(data) != 8:
             check_dlc(aid, data, 8)
         return Bms12Cells(module, 4 * (t - 1), (
@@ -310,12 +372,13 @@ class Evms3Codec:
 
     def config_frames(self, cfg: Evms3Config) -> list[Frame]:
         """Build the frames of IDs 32, 33, 34, 35 in that order (EncodeRangeError first)."""
-        return [self._frame(CONFIG1 + i, p) for i, p in enumerate(config_payloads(cfg))]
+        return [self._frame(CONFIG1 + i, p)
+                for i, p in enumerate(config_payloads(cfg, self.voltage_multiplier))]
 
     def report_frames(self, cfg: Evms3Config, cells_per_module: Sequence[int]) -> list[Frame]:
         """Build the EVMS's answer to ID 51: IDs 52..55 (config) and 56 (cell numbers)."""
         frames = [Frame(CORE_SEND_CONFIG1 + i, bytes(p), self.is_extended_id)
-                  for i, p in enumerate(config_payloads(cfg))]
+                  for i, p in enumerate(config_payloads(cfg, self.voltage_multiplier))]
         cells = self.encode(BmsCellNumbers(tuple(cells_per_module)))
         return frames + [Frame(CORE_SEND_CELL_NUMS, cells.data, self.is_extended_id)]
 
@@ -324,6 +387,10 @@ class Evms3Codec:
         if isinstance(msg, Evms3Status):
             return self._encode_status(msg)
         if isinstance(msg, SetState):
+            if msg.request is not None:  # the Monitor's gauge edit (DLC 2)
+                _check_int('request', msg.request, 1, CORE_SETUP_EDIT_TEMP_GAUGE)
+                value = _check_int('gauge_value', msg.gauge_value or 0, 0, 255)
+                return self._frame(SET_STATE, bytes([int(msg.request), value]))
             return self._frame(SET_STATE, bytes([1 if msg.setup else 0]))
         if isinstance(msg, Evms3ConfigPart):
             cfg = Evms3Config.from_mapping({**CONFIG_FILLER, **msg.values})
@@ -378,7 +445,7 @@ class Evms3Codec:
         if isinstance(msg, Bms12Temperatures):
             if len(msg.temperatures_c) != 2:
                 raise EncodeRangeError('temperatures_c', msg.temperatures_c, '2 values')
-            raw = [40 + _check_int(f'temperatures_c[{i}]', t, -40, 215)
+            raw = [0 if t is None else 40 + _check_int(f'temperatures_c[{i}]', t, -39, 215)
                    for i, t in enumerate(msg.temperatures_c)]
             return Frame(base + 4, bytes(raw + [0] * 6), self.is_extended_id)
         if msg.first_cell not in (0, 4, 8):

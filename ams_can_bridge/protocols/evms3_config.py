@@ -2,11 +2,16 @@
 ZEVA EVMS3 configuration: the typed config, its wire layout (IDs 32..36) and the read-back.
 
 The 32 setting bytes of IDs 32..35 and the cell counts of ID 36 (docs/protocols.md section 3), in
-physical units with the ranges the wire allows (``CONFIG_FIELDS``: the encoder refuses,
-instead of clamping, any value the EVMS would silently limit). ZEVA's open EVMS3 firmware
-(MIT, August 2021) also reports them: ID 51 asks, 52..55 answer in the layout of 32..35 and
-56 in the layout of 36 (``ConfigReport``, joined by ``ConfigReadback``). ``protocols.evms3``
-builds and reads the frames and re-exports every name here.
+physical units with the ranges the firmware allows (``CONFIG_FIELDS``: the encoder refuses,
+instead of clamping, any value the EVMS would silently limit). Settings whose vendor range
+ends in an "off"/"never" value (``SENTINELS``) take that end value as a documented number:
+warn/trip current 1210 A = off, EVMS temperature warning 151 = off, BMS minimum temperature
+-40 = off, BMS maximum temperature 101 = off, sleep delay 6 = never sleep. An 800 V build
+(Common.h ``PACK_VOLTAGE_MULTIPLIER`` 2) doubles full and charge voltages (``multiplier``).
+ZEVA's open EVMS3 firmware (MIT, August 2021) also reports them: ID 51 asks, 52..55 answer
+in the layout of 32..35 and 56 in the layout of 36 (``ConfigReport``, joined by
+``ConfigReadback``). ``protocols.evms3`` builds and reads the frames and re-exports every
+name here.
 """
 from __future__ import annotations
 
@@ -27,6 +32,27 @@ CORE_SEND_CELL_NUMS = 56
 READBACK_IDS = range(CORE_SEND_CONFIG1, CORE_SEND_CELL_NUMS + 1)
 READBACK_NAMES = {52: 'config 1', 53: 'config 2', 54: 'config 3', 55: 'config 4',
                   56: 'cell numbers'}
+# Cells per BMS12 module: 0 (absent) or 4..12 (the firmware holds 12 cells a module; the
+# Monitor offers 4..12). The 4-bit nibble of ID 36 could carry 13..15: refused.
+CELLS_MIN, CELLS_MAX = 4, 12
+# Physical value of each setting whose raw range ends in "off"/"never" (EVMS3 firmware:
+# CURRENT_WARNING/CURRENT_TRIP < 121, OVER_TEMP != 151, BMS_MIN_TEMP > 0, BMS_MAX_TEMP < 141,
+# CAN_POWER_DOWN_DELAY != 6), and the word shown for it.
+SENTINELS: dict[str, tuple[int, str]] = {
+    'warn_current_a': (1210, 'off'), 'trip_current_a': (1210, 'off'),
+    'temp_warning_c': (151, 'off'), 'bms_min_temp_c': (-40, 'off'),
+    'bms_max_temp_c': (101, 'off'), 'sleep_delay_min': (6, 'never'),
+}
+VOLTAGE_MULTIPLIERS = (1, 2)  # Common.h PACK_VOLTAGE_MULTIPLIER: 1 (up to ~400 V) or 2 (800 V)
+_SCALED = ('full_voltage_v', 'max_charge_voltage_v', 'alt_charge_voltage_v')
+
+
+def sentinel_text(name: str, value: Any) -> str | None:
+    """Return 'off'/'never' when value is the sentinel of setting name, else None."""
+    sentinel = SENTINELS.get(name)
+    if sentinel is None or isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    return sentinel[1] if value == sentinel[0] else None
 
 
 @dataclass(frozen=True)
@@ -64,6 +90,8 @@ class Evms3Config:
     parallel_strings: int
     enable_precharge: bool
     stationary_mode: bool
+    reverse_current_display: bool  # setting 30, ID 35 byte 6 (shown by the ZEVA Monitor)
+    night_brightness: int  # setting 31, ID 35 byte 7: 0..10 (x 10 % on the Monitor)
 
     @classmethod
     def from_parts(cls, parts: Iterable['Evms3ConfigPart']) -> 'Evms3Config':
@@ -139,10 +167,13 @@ class ConfigReadback:
         balance = (f'static {cfg.balance_v:.2f} V' if cfg.balance_mode == 'static'
                    else cfg.balance_mode)
         modules = [n for n in self.cells_per_module if n]
+        off = [f'{name} {sentinel_text(name, getattr(cfg, name))}' for name in SENTINELS
+               if sentinel_text(name, getattr(cfg, name))]
         return (f'{cfg.pack_capacity_ah} Ah, full {cfg.full_voltage_v} V, cells '
                 f'{cfg.bms_min_cell_v:.2f}..{cfg.bms_max_cell_v:.2f} V, balance {balance}, '
                 f'charge {cfg.max_charge_voltage_v} V {cfg.max_charge_current_a} A, '
-                f'{len(modules)} BMS12 module(s) with {sum(modules)} cells')
+                f'{len(modules)} BMS12 module(s) with {sum(modules)} cells'
+                + (', ' + ', '.join(off) if off else ''))
 
 
 # --- configuration table ----------------------------------------------------------------------
@@ -154,7 +185,7 @@ _LINEAR = (
     ('warn_current_a', int, 0, 3, 10, 0, 1, 121, 'A', 'overcurrent warning threshold'),
     ('trip_current_a', int, 0, 4, 10, 0, 1, 121, 'A', 'overcurrent shutdown threshold'),
     ('temp_warning_c', int, 0, 5, 1, 0, 0, 151, 'degC', 'EVMS temperature warning'),
-    ('min_aux_voltage_v', int, 0, 6, 1, 0, 8, 15, 'V', 'minimum 12 V (aux) voltage'),
+    ('min_aux_voltage_v', int, 0, 6, 1, 0, 8, 16, 'V', 'minimum 12 V (aux) voltage'),
     ('min_isolation_pct', int, 0, 7, 1, 0, 0, 99, '%', 'minimum isolation integrity'),
     ('tacho_ppr', int, 1, 0, 1, 0, 1, 6, '', 'tachometer pulses per revolution'),
     ('fuel_gauge_full_pct', int, 1, 1, 1, 0, 0, 100, '%', 'fuel gauge output when full'),
@@ -171,20 +202,28 @@ _LINEAR = (
     ('mpo1_function', int, 3, 1, 1, 0, 0, 6, '', 'MPO1 function (EVMS3 manual order)'),
     ('mpo2_function', int, 3, 2, 1, 0, 0, 6, '', 'MPO2 function (EVMS3 manual order)'),
     ('parallel_strings', int, 3, 3, 1, 0, 1, 20, '', 'parallel strings'),
+    ('night_brightness', int, 3, 7, 1, 0, 0, 10, '', 'Monitor night brightness, x 10 %'),
 )
 _LINEAR_BY_NAME = {row[0]: row for row in _LINEAR}
 # 9-bit voltage (low byte + bit 7 of the current byte) and 7-bit current, packet 3 bytes 3..6
 _CHARGE = (('max_charge_voltage_v', 'max_charge_current_a', 3),
            ('alt_charge_voltage_v', 'alt_charge_current_a', 5))
-_BOOLS = (('enable_precharge', 4), ('stationary_mode', 5))  # packet 4 (ID 35)
+_BOOLS = (('enable_precharge', 4), ('stationary_mode', 5),
+          ('reverse_current_display', 6))  # packet 4 (ID 35)
 BALANCE_MODES = ('static', 'dynamic', 'off')
 
 
 def _linear_field(row: tuple) -> ConfigField:
     name, typ, _, _, scale, offset, rlo, rhi, unit, what = row
     low, high = _phys(typ, scale, offset, rlo), _phys(typ, scale, offset, rhi)
-    return ConfigField(name, typ, low, high, scale, unit, f'{what} ({low:g}..{high:g} {unit})'
-                       .replace(' )', ')'))
+    text = f'{what} ({low:g}..{high:g} {unit})'.replace(' )', ')')
+    if name in SENTINELS:
+        value, word = SENTINELS[name]
+        text = text[:-1] + f'; {value} = {word})'
+    if name in _SCALED:  # declared wide enough for both builds; the device checks its own
+        high = _phys(typ, scale * 2, offset, rhi)
+        text = text[:-1] + '; x 2 with voltage_multiplier 2)'
+    return ConfigField(name, typ, low, high, scale, unit, text)
 
 
 def _phys(typ: type, scale: float, offset: float, raw: int) -> float:
@@ -203,15 +242,19 @@ def _build_fields() -> tuple[ConfigField, ...]:
         choices=BALANCE_MODES)
     for volt, amp, _ in _CHARGE:
         kind = volt.split('_')[0]
-        by_name[volt] = ConfigField(volt, int, 0, 511, 1, 'V', f'{kind} charge voltage (0..511 V)')
+        by_name[volt] = ConfigField(volt, int, 0, 1022, 1, 'V', f'{kind} charge voltage '
+                                    '(0..511 V; x 2 with voltage_multiplier 2)')
         by_name[amp] = ConfigField(amp, int, 0, 127, 1, 'A', f'{kind} charge current (0..127 A)')
     by_name['enable_precharge'] = ConfigField('enable_precharge', bool,
                                               description='enable the precharge sequence')
-    by_name['stationary_mode'] = ConfigField('stationary_mode', bool,
-                                             description='stationary (non-vehicle) mode')
+    by_name['stationary_mode'] = ConfigField(
+        'stationary_mode', bool, description='stationary (non-vehicle) mode: a low cell opens '
+        'the main contactor, a high cell disables charging')
+    by_name['reverse_current_display'] = ConfigField(
+        'reverse_current_display', bool, description='ZEVA Monitor shows the current reversed')
     ordered = [by_name[f.name] for f in fields(Evms3Config)]
-    ordered.append(ConfigField('cells_per_module', 'int[]', 0, 15, 1, '',
-                               'cells on each of the 16 BMS12 modules (0..15), ID 36',
+    ordered.append(ConfigField('cells_per_module', 'int[]', 0, CELLS_MAX, 1, '',
+                               'cells on each of the 16 BMS12 modules (0 or 4..12), ID 36',
                                length=BMS12_MAX_MODULES))
     return tuple(ordered)
 
@@ -220,12 +263,13 @@ CONFIG_FIELDS: tuple[ConfigField, ...] = _build_fields()
 _FIELD_BY_NAME = {f.name: f for f in CONFIG_FIELDS}
 
 
-def check_config_value(name: str, value: Any) -> Any:
+def check_config_value(name: str, value: Any, multiplier: int = 1) -> Any:
     """
     Validate one configuration value; return it normalized (int/float/bool/str/tuple).
 
     Raises EncodeRangeError naming the field, the value and what is allowed. Numbers may be
-    written as int or float (3 and 3.0 are the same); nothing is clamped.
+    written as int or float (3 and 3.0 are the same); nothing is clamped. ``multiplier``
+    is the EVMS build's PACK_VOLTAGE_MULTIPLIER (1 or 2): full and charge voltages scale.
     """
     spec = _FIELD_BY_NAME.get(name)
     if spec is None:
@@ -239,12 +283,30 @@ def check_config_value(name: str, value: Any) -> Any:
             raise EncodeRangeError(name, value, 'one of ' + ', '.join(spec.choices))
         return value
     if spec.type == 'int[]':
+        allowed = f'{spec.length} integers, each 0 or {CELLS_MIN}..{CELLS_MAX}'
         if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) \
                 or len(value) != spec.length:
-            raise EncodeRangeError(name, value, f'{spec.length} integers 0..15')
-        return tuple(int(_number(f'{name}[{i}]', v, spec)) for i, v in enumerate(value))
+            raise EncodeRangeError(name, value, allowed)
+        cells = tuple(int(_number(f'{name}[{i}]', v, spec)) for i, v in enumerate(value))
+        for i, n in enumerate(cells):
+            if 0 < n < CELLS_MIN:
+                raise EncodeRangeError(f'{name}[{i}]', n, f'0 or {CELLS_MIN}..{CELLS_MAX}')
+        return cells
+    if name in _SCALED:
+        spec = _scaled(spec, multiplier)
     number = _number(name, value, spec)
     return int(round(number)) if spec.type is int else round(float(number), 6)
+
+
+def _scaled(spec: ConfigField, multiplier: int) -> ConfigField:
+    """Return the range of a full/charge voltage on a build with this multiplier."""
+    if multiplier not in VOLTAGE_MULTIPLIERS:
+        raise ValueError(f'voltage multiplier {multiplier!r}: allowed 1 or 2')
+    if spec.name == 'full_voltage_v':
+        low, high, step = 10 * multiplier, 502 * multiplier, 2 * multiplier
+    else:
+        low, high, step = 0, 511 * multiplier, multiplier
+    return ConfigField(spec.name, spec.type, low, high, step, spec.unit)
 
 
 def _number(name: str, value: Any, spec: ConfigField) -> float:
@@ -255,11 +317,13 @@ def _number(name: str, value: Any, spec: ConfigField) -> float:
     return value
 
 
-def config_payloads(cfg: Evms3Config) -> list[bytearray]:
+def config_payloads(cfg: Evms3Config, multiplier: int = 1) -> list[bytearray]:
     """Return the payloads of IDs 32..35 (EncodeRangeError names the first bad value)."""
     out = [bytearray(8) for _ in range(4)]
     for name, _, packet, byte, scale, offset, _, _, _, _ in _LINEAR:
-        value = check_config_value(name, getattr(cfg, name))
+        value = check_config_value(name, getattr(cfg, name), multiplier)
+        if name in _SCALED:
+            scale *= multiplier
         out[packet][byte] = int(round((value - offset) / scale))
     mode = check_config_value('balance_mode', cfg.balance_mode)
     if mode == 'static' or cfg.balance_v is not None:
@@ -267,7 +331,7 @@ def config_payloads(cfg: Evms3Config) -> list[bytearray]:
     out[1][7] = (BALANCE_DYNAMIC if mode == 'dynamic' else BALANCE_OFF if mode == 'off'
                  else int(round((balance - 2.0) / 0.01)))
     for volt, amp, byte in _CHARGE:
-        v = check_config_value(volt, getattr(cfg, volt))
+        v = check_config_value(volt, getattr(cfg, volt), multiplier) // multiplier
         a = check_config_value(amp, getattr(cfg, amp))
         out[2][byte] = v & 0xFF
         out[2][byte + 1] = a | (v >> 8) << 7
@@ -276,7 +340,8 @@ def config_payloads(cfg: Evms3Config) -> list[bytearray]:
     return out
 
 
-def decode_config_packet(packet: int, aid: int, data: bytes) -> Evms3ConfigPart:
+def decode_config_packet(packet: int, aid: int, data: bytes,
+                         multiplier: int = 1) -> Evms3ConfigPart:
     """Decode packet 0..3 (the layout of 32..35); MalformedFrameError for a raw value."""
     values: dict[str, Any] = {}
     for name, typ, pk, byte, scale, offset, rlo, rhi, _, _ in _LINEAR:
@@ -285,7 +350,7 @@ def decode_config_packet(packet: int, aid: int, data: bytes) -> Evms3ConfigPart:
         raw = data[byte]
         if not rlo <= raw <= rhi:
             raise MalformedFrameError(aid, data, f'{name} raw {raw} outside {rlo}..{rhi}')
-        values[name] = _phys(typ, scale, offset, raw)
+        values[name] = _phys(typ, scale * (multiplier if name in _SCALED else 1), offset, raw)
     if packet == 1:
         raw = data[7]
         if raw > BALANCE_OFF:
@@ -295,7 +360,7 @@ def decode_config_packet(packet: int, aid: int, data: bytes) -> Evms3ConfigPart:
         values['balance_v'] = round(2.0 + raw * 0.01, 2) if raw <= 250 else None
     elif packet == 2:
         for volt, amp, byte in _CHARGE:
-            values[volt] = data[byte] | (data[byte + 1] >> 7) << 8
+            values[volt] = (data[byte] | (data[byte + 1] >> 7) << 8) * multiplier
             values[amp] = data[byte + 1] & 0x7F
     elif packet == 3:
         for name, byte in _BOOLS:

@@ -73,7 +73,8 @@ class _ZevaCommands(Commander):
             return response
         return callback
 
-    def _send_frames(self, what: str, build: Callable[[], Iterable[Frame]]) -> tuple[bool, str]:
+    def _send_frames(self, what: str, build: Callable[[], Iterable[Frame]],
+                     gap: float = 0.0) -> tuple[bool, str]:
         if not self.node.commands_enabled:
             return False, f'{self.name}: {gate_message(self.node, what)}'
         try:
@@ -96,23 +97,41 @@ class _ZevaCommands(Commander):
                     return False, (f'{self.name}: {what} failed at {frame_text(frame)}: '
                                    f'{message}; sent before it: {done}')
                 sent.append(frame_text(frame))
+                if gap:
+                    self._sleep(gap)  # after each frame, as the device's own tool paces it
         return True, f'{self.name}: {what}: sent ' + ', '.join(sent)
+
+    @staticmethod
+    def _sleep(seconds: float) -> None:
+        time.sleep(seconds)
 
 
 class Evms3Commands(_ZevaCommands):
-    """EVMS3: read_config (51 -> 52..56), write_config (32..36), set_setup_mode (31), ..."""
+    """
+    EVMS3: read_config (51 -> 52..56), write_config (36, 32..35), set_setup_mode (31), ...
+
+    write_config sends as ZEVA's Monitor does (EVMS_Monitor3.c TransmitSettings): 36 first,
+    then 32, 33, 34, 35, with WRITE_GAP after each frame; the EVMS3 saves to EEPROM when 35
+    arrives. The device refuses it (nothing sent) unless the EVMS reports IDLE or SETUP.
+    """
+
+    WRITE_GAP = 0.02  # s: CanTX(..., 20) after each configuration frame in the Monitor
 
     def __init__(self, node: Any, device: Device, name: str) -> None:
         """Create the codec and the services of one EVMS3 instance."""
         super().__init__(node, device, name)
-        self._service(Trigger, 'write_config', self._trigger('write the configuration',
-                                                             device.config_frames))
+        self._service(Trigger, 'write_config', self._write_config)
         self._service(SetBool, 'set_setup_mode', self._set_setup_mode)
         self._service(Trigger, 'acknowledge_error', self._trigger(
             'acknowledge the error', lambda: [device.ack_frame()]))
         self._service(Trigger, 'reset_soc', self._trigger(
             'reset the SoC', lambda: [device.reset_soc_frame()]))
         self._service(Trigger, 'read_config', self._read_config)
+
+    def _write_config(self, request: Any, response: Any) -> Any:
+        response.success, response.message = self._send_frames(
+            'write the configuration', self.device.config_frames, gap=self.WRITE_GAP)
+        return response
 
     def _read_config(self, request: Any, response: Any) -> Any:
         response.success, response.message = self._read()

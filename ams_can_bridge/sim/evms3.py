@@ -4,11 +4,15 @@ Simulated ZEVA EVMS3 with its CAN current sensor and BMS12 cell modules.
 What the bus of an EVMS3 conversion carries: the status (ID 30, 4 Hz), the current sensor
 (ID 40, 10 Hz), and every 0.5 s the EVMS polls each BMS12 module (t = 0) which answers with
 its cells (t = 1..3) and temperatures (t = 4). Remaining Ah integrates the current profile;
-pack voltage is the sum of the module cells. Reacts like docs/protocols.md section 3 says: 31 set
-state, 32..35 configuration stored only once all four arrived, 36 cell numbers, 37 clears
-the matching error, 38 resets SoC to full, 39 powers off (silent until ``power_on()``), 51
-is answered with the whole configuration on 52..56 (the stored one, else FACTORY_CONFIG;
+pack voltage is the sum of the module cells. Reacts like ZEVA's EVMS3 firmware
+(docs/protocols.md section 3): 31 asks for Setup (entered only from IDLE, left on 0; the
+request is kept, as the firmware keeps it); 32..35 change the settings in RAM at once and 35
+then saves the RAM settings AND the RAM cell counts to EEPROM; 36 changes the cell counts in
+RAM only; ``power_cycle()`` reloads RAM from EEPROM, so cell counts sent after the last 35
+are lost. 37 clears the matching error, 38 resets SoC to full, 39 powers off (silent until
+``power_on()``), 51 is answered from RAM on 52..56 (FACTORY_CONFIG before any write;
 ``faults.extra['config_answer']``: only these IDs of 52..56 are sent, a partial answer).
+A status byte 5 of 255 (``bms16_marker``) makes it look like a BMS16 in its standard form.
 
 Charging phase (``start_charging()``, or ``charge_after_s`` after the first tick): the EVMS
 enters CHARGING and commands its ``chargers`` TC chargers (1..3, 29-bit) once a second:
@@ -23,6 +27,7 @@ lowest cell (dynamic), or to the stored static balance voltage, or not at all ('
 from __future__ import annotations
 
 import random
+from dataclasses import asdict
 from typing import Any, Callable, Sequence
 
 from ams_can_bridge.protocols.common import Frame, ProtocolError
@@ -53,7 +58,8 @@ FACTORY_CONFIG = Evms3Config(
     balance_mode='dynamic', bms_hysteresis_v=0.2, bms_min_temp_c=-40, bms_max_temp_c=101,
     max_charge_voltage_v=100, max_charge_current_a=10, alt_charge_voltage_v=100,
     alt_charge_current_a=20, sleep_delay_min=5, mpi_function=0, mpo1_function=0,
-    mpo2_function=0, parallel_strings=1, enable_precharge=True, stationary_mode=False)
+    mpo2_function=0, parallel_strings=1, enable_precharge=True, stationary_mode=False,
+    reverse_current_display=False, night_brightness=10)
 
 
 def nmc_cell_ocv(soc: float) -> float:
@@ -73,7 +79,8 @@ class Evms3Simulator(SimDevice):
                  cells_per_module: int | Sequence[int] = 12,
                  current_fn: Callable[[float], float] | None = None,
                  capacity_ah: float = 100.0, seed: int = 0, chargers: int = 1,
-                 charge_after_s: float | None = None, extended_id: bool = True) -> None:
+                 charge_after_s: float | None = None, extended_id: bool = True,
+                 state: Evms3State = Evms3State.RUNNING) -> None:
         super().__init__(name)
         if not 0 <= chargers <= 3:
             raise ValueError(f'chargers {chargers}: allowed 0..3 (TC chargers 1..3)')
@@ -99,12 +106,17 @@ class Evms3Simulator(SimDevice):
                                for _ in range(bms12_modules)]
         self.module_temps_c = [(rng.randint(22, 28), rng.randint(22, 28))
                                for _ in range(bms12_modules)]
-        self.state = Evms3State.RUNNING
+        self.state = Evms3State(state)
         self.current_a = 0.0  # wire sign: positive = discharge
         self.powered = True
-        self.config_parts: dict[int, Evms3ConfigPart] = {}
+        self.bms16_marker = False
+        # EEPROM (None: never written, the factory settings) and RAM (None: as EEPROM)
         self.stored_config: Evms3Config | None = None
-        self.cell_numbers: tuple[int, ...] | None = None
+        self.stored_cell_numbers: tuple[int, ...] | None = None
+        self._ram: dict[str, Any] | None = None
+        self.cell_numbers: tuple[int, ...] | None = None  # RAM (ID 36)
+        self.eeprom_writes = 0
+        self._set_state_request = 0
         self.received: list[Any] = []  # every command decoded, in order (tests read it)
         self.malformed_received = 0
         self._status = Periodic(self.STATUS_PERIOD)
@@ -120,6 +132,28 @@ class Evms3Simulator(SimDevice):
         """Power the EVMS back on after ID 39."""
         self.powered = True
 
+    def power_cycle(self) -> None:
+        """Power off and on: RAM settings and cell counts reload from EEPROM, state IDLE."""
+        self.powered = True
+        self._ram = None if self.stored_config is None else asdict(self.stored_config)
+        self.cell_numbers = self.stored_cell_numbers
+        self.state = Evms3State.IDLE
+        self._set_state_request = 0
+
+    def load(self, config: Evms3Config, cells: Sequence[int] | None = None) -> None:
+        """Start as an EVMS3 configured earlier: config (and cell counts) in EEPROM and RAM."""
+        self.stored_config = config
+        self.stored_cell_numbers = None if cells is None else tuple(cells)
+        self._ram = asdict(config)
+        self.cell_numbers = self.stored_cell_numbers
+        self.capacity_ah = float(config.pack_capacity_ah)
+        self.remaining_ah = min(self.remaining_ah, self.capacity_ah)
+
+    @property
+    def ram_config(self) -> Evms3Config | None:
+        """Return the settings in use now (RAM); None = the factory settings, never written."""
+        return None if self._ram is None else Evms3Config(**self._ram)
+
     def start_charging(self) -> None:
         """Plug the chargers in: the EVMS enters CHARGING and starts commanding them."""
         self.state = Evms3State.CHARGING
@@ -127,7 +161,7 @@ class Evms3Simulator(SimDevice):
 
     def charge_command(self, charger: int) -> ChargerCommand:
         """Return what the EVMS asks of one charger now (stop once the pack is full)."""
-        cfg = self.stored_config
+        cfg = self.ram_config
         cells = sum(self.cells_per_module) or NOMINAL_SERIES_CELLS
         target = (float(cfg.max_charge_voltage_v) if cfg is not None
                   else round(cells * FULL_CELL_V, 1))
@@ -183,7 +217,15 @@ class Evms3Simulator(SimDevice):
             return NOMINAL_SERIES_CELLS * cell
         return sum(sum(cells) for cells in self.cell_voltages())
 
+    def _follow_set_state_request(self) -> None:
+        # EVMS3 main loop: IDLE -> SETUP while the request is > 0, SETUP -> IDLE on 0
+        if self.state == Evms3State.IDLE and self._set_state_request > 0:
+            self.state = Evms3State.SETUP
+        elif self.state == Evms3State.SETUP and self._set_state_request == 0:
+            self.state = Evms3State.IDLE
+
     def _advance(self, now: float) -> None:
+        self._follow_set_state_request()
         if self._t0 is None:
             self._t0 = now
         dt = self._elapsed(now)
@@ -207,8 +249,8 @@ class Evms3Simulator(SimDevice):
         """Build the ID 30 reading the EVMS would send now."""
         return Evms3Status(
             self.state, self.error, round(min(6553.5, self.remaining_ah), 1),
-            round(min(6553.5, self.pack_voltage_v()), 1), 13.2, False, 98,
-            round(25 + 0.05 * abs(self.current_a)))
+            round(min(6553.5, self.pack_voltage_v()), 1), 25.5 if self.bms16_marker else 13.2,
+            False, 98, round(25 + 0.05 * abs(self.current_a)))
 
     def tick(self, now: float) -> list[Frame]:
         """Advance the pack and return the frames due at ``now``."""
@@ -254,7 +296,7 @@ class Evms3Simulator(SimDevice):
         """Return the answer to ID 51: IDs 52..56 (only those of a config_answer fault)."""
         cells = self.cell_numbers or tuple(self.cells_per_module) + (0,) * (
             16 - len(self.cells_per_module))
-        frames = self.codec.report_frames(self.stored_config or FACTORY_CONFIG, cells)
+        frames = self.codec.report_frames(self.ram_config or FACTORY_CONFIG, cells)
         only = self.faults.extra.get('config_answer')
         if only is None:
             return frames
@@ -263,7 +305,7 @@ class Evms3Simulator(SimDevice):
 
     def balance_target_mv(self) -> int | None:
         """Return the balance voltage the EVMS asks of every BMS12 module (None = off)."""
-        cfg = self.stored_config
+        cfg = self.ram_config
         if cfg is not None and cfg.balance_mode == 'static':
             return int(round(cfg.balance_v * 1000))
         if self.state != Evms3State.CHARGING or (cfg is not None and cfg.balance_mode == 'off'):
@@ -304,16 +346,20 @@ class Evms3Simulator(SimDevice):
         if not self.powered:
             return
         if isinstance(msg, SetState):
-            self.state = Evms3State.SETUP if msg.setup else Evms3State.IDLE
+            self._set_state_request = msg.request or int(msg.setup)
+            self._follow_set_state_request()
         elif isinstance(msg, Evms3ConfigPart):
-            self.config_parts[msg.part] = msg
-            if len(self.config_parts) == 4:  # the EVMS stores only a complete set
-                self.stored_config = Evms3Config.from_parts(self.config_parts.values())
-                self.config_parts = {}
+            if self._ram is None:
+                self._ram = asdict(FACTORY_CONFIG)
+            self._ram.update(msg.values)  # each packet goes to RAM at once
+            if msg.part == 4:  # CORE_RECEIVE_CONFIG4: save RAM (settings + cells) to EEPROM
+                self.stored_config = Evms3Config(**self._ram)
+                self.stored_cell_numbers = self.cell_numbers
+                self.eeprom_writes += 1
                 self.capacity_ah = float(self.stored_config.pack_capacity_ah)
                 self.remaining_ah = min(self.remaining_ah, self.capacity_ah)
         elif isinstance(msg, BmsCellNumbers):
-            self.cell_numbers = msg.cells_per_module
+            self.cell_numbers = msg.cells_per_module  # RAM only
         elif isinstance(msg, AcknowledgeError):
             if self.faults.error_code is not None and msg.error == self.faults.error_code:
                 self.faults.error_code = None
