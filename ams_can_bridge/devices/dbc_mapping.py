@@ -51,6 +51,18 @@ TOP_LEVEL = ('primary', 'battery_state', 'diagnostics', 'timeouts')
 LEVELS = {'OK': Level.OK, 'WARN': Level.WARN, 'ERROR': Level.ERROR}
 
 
+def unit_text(unit: str) -> str:
+    """
+    Return a DBC unit as written: cantools reads DBC files as cp1252 (the usual encoding
+    of CANdb++ files), so a UTF-8 file's '°C' arrives as 'Â°C'; both mean degC.
+    """
+    text = unit.strip()
+    try:
+        return text.encode('cp1252').decode('utf-8')
+    except UnicodeError:
+        return text
+
+
 class MappingError(ValueError):
     """The DBC or the mapping cannot be used: every problem, one per line."""
 
@@ -205,7 +217,7 @@ class _Builder:
                     scale: Any, offset: Any) -> tuple[float, float]:
         factor, add = 1.0, 0.0
         if wanted is not None:
-            known = CONVERSIONS[wanted].get(unit.strip())
+            known = CONVERSIONS[wanted].get(unit_text(unit))
             if known is not None:
                 factor, add = known
             elif scale is None:
