@@ -18,6 +18,7 @@ from ams_can_bridge.sim.runner import open_bus, SimRunner
 DEFAULT_VIRTUAL_CHANNEL = 'ams_can_bridge'
 # The AMS goes first so the IVT-S can measure its pack.
 _ORDER = ('ams', 'ivt_s', 'evms3', 'bms16', 'sma')
+_SORT = _ORDER + ('dbc',)  # dbc: a team's own BMS (--dbc/--mapping), not in the default set
 
 
 def _device_list(text: str) -> list[str]:
@@ -27,7 +28,7 @@ def _device_list(text: str) -> list[str]:
         raise argparse.ArgumentTypeError(
             f'unknown device type(s) {", ".join(unknown) or "(none)"}: use a comma list of '
             + ', '.join(registry.SIMULATORS))
-    return sorted(set(types), key=_ORDER.index)
+    return sorted(set(types), key=_SORT.index)
 
 
 def _fault(text: str) -> tuple[str, str, Any]:
@@ -56,8 +57,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--bitrate', type=int, default=0, help='bit/s, 0 = leave the adapter as is')
     p.add_argument('--option', action='append', default=[], metavar='KEY=VALUE',
                    help='python-can interface option, repeatable (e.g. sleep_after_open=0)')
-    p.add_argument('--devices', type=_device_list, default=list(_ORDER),
-                   help='comma list of ' + ', '.join(registry.SIMULATORS) + ' (default all)')
+    p.add_argument('--devices', type=_device_list, default=None,
+                   help='comma list of ' + ', '.join(registry.SIMULATORS) + ' (default: '
+                   + ', '.join(_ORDER) + '; none of them with --dbc)')
+    p.add_argument('--dbc', default=None, metavar='FILE',
+                   help="simulate a dbc device's BMS from its DBC (with --mapping; README "
+                        '"Your own BMS"; default for --devices dbc: our AMS example)')
+    p.add_argument('--mapping', default=None, metavar='FILE',
+                   help="the dbc device's mapping file (with --dbc)")
     p.add_argument('--ams-banks', type=int, default=None, metavar='N', help='AMS banks 1..5')
     p.add_argument('--bms12-modules', type=int, default=None, metavar='N',
                    help='BMS12 modules behind the EVMS3, 0..16')
@@ -90,14 +97,17 @@ def build_devices(types: Sequence[str], ams_banks: int | None = None,
                   bms12_modules: int | None = None,
                   ivt_byte_order: str | None = None,
                   sma_dialect: str | None = None, evms3_charge_after: float | None = None,
-                  evms3_chargers: int | None = None) -> list[SimDevice]:
+                  evms3_chargers: int | None = None, dbc_file: str | None = None,
+                  mapping_file: str | None = None) -> list[SimDevice]:
     """Instantiate the simulators named by type (instance name = type name)."""
     devices: list[SimDevice] = []
     ams = None
-    for kind in sorted(types, key=_ORDER.index):
+    for kind in sorted(types, key=_SORT.index):
         cls = registry.load(registry.SIMULATORS[kind])
         kwargs: dict[str, Any] = {'name': kind}
-        if kind == 'ams' and ams_banks is not None:
+        if kind == 'dbc' and dbc_file:
+            kwargs.update(dbc_file=dbc_file, mapping_file=mapping_file)
+        elif kind == 'ams' and ams_banks is not None:
             kwargs['bank_count'] = ams_banks
         elif kind == 'evms3':
             for key, value in (('bms12_modules', bms12_modules), ('chargers', evms3_chargers),
@@ -169,9 +179,15 @@ def main(argv: Sequence[str] | None = None) -> int:
                                else 'can0')
     try:
         options = parse_options(args.option)
-        devices = build_devices(args.devices, args.ams_banks, args.bms12_modules,
+        if bool(args.dbc) != bool(args.mapping):
+            raise ValueError('--dbc and --mapping go together')
+        types = args.devices if args.devices is not None else [] if args.dbc else list(_ORDER)
+        if args.dbc and 'dbc' not in types:
+            types = [*types, 'dbc']
+        devices = build_devices(types, args.ams_banks, args.bms12_modules,
                                 args.ivt_byte_order, args.sma_dialect,
-                                args.evms3_charge_after, args.evms3_chargers)
+                                args.evms3_charge_after, args.evms3_chargers,
+                                args.dbc, args.mapping)
         apply_faults(devices, args.fault)
     except (ValueError, TypeError, ImportError) as exc:
         print(f'simulator: {exc}', file=sys.stderr)
