@@ -84,6 +84,11 @@ class DbcDevice(Device):
             if array.slot_message is not None:
                 self._slots.setdefault(array.slot_message, []).append(
                     (key, array, [NAN] * array.count, [-math.inf] * array.count))
+        # per CAN ID, all the receive thread needs: (message, group key, invalid flags,
+        # positioned arrays, primary?)
+        self._handlers = {
+            m.frame_id: (m, (i, None), self._flags.get(i, []), self._slots.get(i, []),
+                         i == plan.primary) for i, m in enumerate(plan.messages)}
 
     @property
     def frame_ids(self) -> frozenset[tuple[int, bool]]:
@@ -98,10 +103,10 @@ class DbcDevice(Device):
     # --- bus thread ------------------------------------------------------------------------
     def handle_frame(self, arbitration_id: int, data: bytes, stamp: float) -> bool:
         """Decode one frame into its group; True for the primary message."""
-        entry = self._by_id.get(arbitration_id)
+        entry = self._handlers.get(arbitration_id)
         if entry is None:
             return False
-        m, compiled = entry
+        compiled, key, flags, slots, primary = entry
         try:
             values, bad = compiled.decode(data)
         except ProtocolError as exc:
@@ -112,28 +117,31 @@ class DbcDevice(Device):
         now = self.clock()
         with self.lock:
             self.frames_received += 1
-            problems = [compiled.signals[i].name + ' outside its DBC range' for i in bad]
-            for flag, label in self._flags.get(m, ()):
-                if values[flag]:
-                    problems.append(f'{label} invalid flag set')
-            if problems:
-                self.frames_malformed += 1
-                self.last_malformed = f'{compiled.name} 0x{arbitration_id:X}: ' + ', '.join(
-                    problems)
-            self.groups[(m, None)] = (values, now)
+            if bad or flags:
+                self._check(compiled, arbitration_id, values, bad, flags)
+            self.groups[key] = (values, now)
             if compiled.mux_index is not None:
                 mux = values[compiled.mux_index]
                 if mux == mux:
                     info = compiled.signals[compiled.mux_index]
-                    self.groups[(m, round((mux - info.offset) / info.scale))] = (values, now)
-            slots = self._slots.get(m)
+                    self.groups[(key[0], round((mux - info.offset) / info.scale))] = (
+                        values, now)
             if slots:
                 self._put_slots(slots, values, now)
-            if m == self.plan.primary:
+            if primary:
                 self._stamp = stamp
                 self.last_seen = now
-                return True
-            return False
+            return primary
+
+    def _check(self, compiled: Any, arbitration_id: int, values: tuple, bad: Any,
+               flags: list[tuple[int, str]]) -> None:
+        """Count a frame with a value out of range or an invalid flag set (lock held)."""
+        problems = [compiled.signals[i].name + ' outside its DBC range' for i in bad]
+        problems += [f'{label} invalid flag set' for flag, label in flags if values[flag]]
+        if problems:
+            self.frames_malformed += 1
+            self.last_malformed = f'{compiled.name} 0x{arbitration_id:X}: ' + ', '.join(
+                problems)
 
     @staticmethod
     def _put_slots(slots: list, values: tuple, now: float) -> None:
@@ -188,6 +196,8 @@ class DbcDevice(Device):
             timeout = self._timeout(array.slot_message)
             for slot_key, _, data, seen in self._slots[array.slot_message]:
                 if slot_key == key:
+                    if now - min(seen) <= timeout:
+                        return data[:]  # every element fresh: the usual case
                     return [v if now - t <= timeout else NAN
                             for v, t in zip(data, seen)]
         out = []
