@@ -43,7 +43,7 @@ def _stop(proc: subprocess.Popen) -> str:
         return proc.communicate()[0]
 
 
-def test_simulated_dbc_bms_reaches_the_bridge_over_slcan(ros, tmp_path):
+def test_simulated_dbc_bms_reaches_the_bridge_over_slcan(ros, tmp_path):  # noqa: F811
     node, executor = ros
     ns = f'dbc_slcan_{os.getpid()}'
     got: list[BatteryState] = []

@@ -60,7 +60,7 @@ class DbcDevice(Device):
         try:
             self.plan: Plan = load_plan(self.config.dbc_file, self.config.mapping_file)
         except MappingError as exc:
-            raise ValueError(f'{name}: ' + '; '.join(str(exc).splitlines())) from None
+            raise ValueError('; '.join(str(exc).splitlines())) from None
         plan = self.plan
         self.warnings = [f'{name}: {w}' for w in plan.warnings]
         for warning in self.warnings:

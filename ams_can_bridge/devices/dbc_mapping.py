@@ -11,7 +11,6 @@ BatteryState wants (mV -> V, % -> 0..1, K -> degC, ...); a unit we do not know w
 """
 from __future__ import annotations
 
-import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,8 +31,8 @@ ENUMS: dict[str, Any] = {'power_supply_status': PowerSupplyStatus,
                          'power_supply_health': PowerSupplyHealth,
                          'power_supply_technology': PowerSupplyTechnology}
 # DBC unit -> (factor, offset) to the wanted unit: wanted = value * factor + offset.
-_CELSIUS = {u: (1.0, 0.0) for u in ('degC', '°C', 'C', 'deg C', 'degree C', 'Celsius',
-                                      'celsius', 'DegC', '\u2103')}
+_CELSIUS = {u: (1.0, 0.0) for u in (
+    'degC', '°C', 'C', 'deg C', 'degree C', 'Celsius', 'celsius', 'DegC', '\u2103')}
 CONVERSIONS: dict[str, dict[str, tuple[float, float]]] = {
     'V': {'V': (1.0, 0.0), 'mV': (1e-3, 0.0), 'kV': (1e3, 0.0), 'uV': (1e-6, 0.0),
           'µV': (1e-6, 0.0), 'dV': (0.1, 0.0), 'cV': (0.01, 0.0)},
@@ -53,8 +52,10 @@ LEVELS = {'OK': Level.OK, 'WARN': Level.WARN, 'ERROR': Level.ERROR}
 
 def unit_text(unit: str) -> str:
     """
-    Return a DBC unit as written: cantools reads DBC files as cp1252 (the usual encoding
-    of CANdb++ files), so a UTF-8 file's '°C' arrives as 'Â°C'; both mean degC.
+    Return a DBC unit as its author wrote it.
+
+    cantools reads DBC files as cp1252 (the usual encoding of CANdb++ files), so a UTF-8
+    file's '°C' arrives as 'Â°C'; both mean degC.
     """
     text = unit.strip()
     try:
@@ -156,8 +157,10 @@ class Plan:
 
 def resolve_path(path: str) -> Path:
     """
-    Find a DBC or mapping file: as given (absolute, or relative to the working directory),
-    else relative to the installed package's share folder (``msg_defs/ams.dbc``,
+    Find a DBC or mapping file.
+
+    As given (absolute, or relative to the working directory), else relative to the
+    installed package's share folder (``msg_defs/ams.dbc``,
     ``config/ams_dbc_mapping.yaml`` work from anywhere).
     """
     given = Path(os.path.expanduser(path))
@@ -303,7 +306,7 @@ class _Builder:
         return None
 
     def signal_value(self, info: dbc_codec.SignalInfo, key: Any, where: str) -> float | None:
-        """A map key or threshold: a number (physical) or a value name of the signal."""
+        """Read a map key or threshold: a number (physical) or a value name of the signal."""
         if isinstance(key, bool):
             self.problems.append(f'{where}: {key!r} read as a YAML boolean: quote the value '
                                  f'name of {info.name} ("ON", "NO", ...)')

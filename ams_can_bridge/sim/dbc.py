@@ -10,9 +10,9 @@ value is clamped into the signal's [min|max] first, so every frame is in range. 
 mapping only reads for status, health or diagnostic levels carry a value that reads as
 normal (a map entry to DISCHARGING/CHARGING/GOOD, a level's threshold not crossed); others
 sit at 0 or their lowest value name. Each message is sent at its DBC cycle time
-(GenMsgCycleTime; an event message, GenMsgSendType Event or cycle 0, is not sent), else the primary every 0.1 s and the
-rest every 0.5 s; a multiplexed message sends all its
-branches each period, a positioned array (AMS banks) every position.
+(GenMsgCycleTime; an event message, GenMsgSendType Event or cycle 0, is not sent), else the
+primary every 0.1 s and the rest every 0.5 s; a multiplexed message sends all its branches
+each period, a positioned array (AMS banks) every position.
 
 Faults: ``silent``, ``malformed`` (one byte short), ``cell_drift_v`` on ``drift_cell``.
 """
@@ -97,7 +97,7 @@ class DbcSimulator(SimDevice):
 
     def _quiet(self, condition: str, threshold: float,
                info: dbc_codec.SignalInfo) -> float | None:
-        """A value inside the signal's range that does not meet a level's condition."""
+        """Pick a value inside the signal's range that does not meet a level's condition."""
         low = -math.inf if info.minimum is None else info.minimum
         high = math.inf if info.maximum is None else info.maximum
         candidates = {'equal': (threshold + info.scale, threshold - info.scale, low, high),
