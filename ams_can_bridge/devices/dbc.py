@@ -63,8 +63,8 @@ class DbcDevice(Device):
             raise ValueError('; '.join(str(exc).splitlines())) from None
         plan = self.plan
         self.warnings = [f'{name}: {w}' for w in plan.warnings]
-        for warning in self.warnings:
-            _LOG.warning(warning)
+        for warning in self.warnings:  # before the node's own logging exists: stderr
+            _LOG.warning('warning: %s', warning)
         self._by_id = {m.frame_id: (i, m) for i, m in enumerate(plan.messages)}
         self._frame_ids = frozenset((m.frame_id, m.is_extended_id) for m in plan.messages)
         if len(self._by_id) != len(self._frame_ids):
