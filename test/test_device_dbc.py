@@ -351,3 +351,88 @@ def test_ams_as_dbc_publishes_what_the_ams_device_publishes():
     assert report.present and report.power_supply_health == PowerSupplyHealth.GOOD
     assert len(report.cell_voltage) == 140 and report.cell_voltage[7] == 0.0
     assert math.isfinite(report.voltage) and report.temperature == 30.0
+
+
+# --- the other forms of the mapping ------------------------------------------------------------
+EXTENDED_DBC = '''VERSION ""
+
+BS_:
+
+BU_: BMS
+
+BO_ 2566869221 ORION_Pack: 4 BMS
+ SG_ pack_dcl : 0|16@1+ (1,0) [0|0] "A" Vector__XXX
+ SG_ pack_voltage : 16|16@1+ (0.1,0) [0|6553.5] "V" Vector__XXX
+
+BO_ 1712 ORION_Cells: 4 BMS
+ SG_ cell_a : 0|16@1+ (0.0001,0) [0|6.5535] "V" Vector__XXX
+ SG_ cell_b : 16|16@1+ (0.0001,0) [0|6.5535] "V" Vector__XXX
+'''
+
+
+def test_constants_lists_extended_ids_and_a_values_list(tmp_path):
+    mapping = '''primary: ORION_Pack
+battery_state:
+  voltage: ORION_Pack.pack_voltage
+  cell_voltage: [ORION_Cells.cell_b, ORION_Cells.cell_a]
+  capacity: 50
+  power_supply_technology: LIFE
+  power_supply_health: GOOD
+diagnostics:
+  values: [ORION_Pack.pack_voltage, ORION_Cells]
+'''
+    device = make(tmp_path, mapping, EXTENDED_DBC)
+    # 2566869221 = 0x80000000 | 0x18FF50E5: the DBC's mark of a 29-bit ID
+    assert device.frame_ids == {(0x18FF50E5, True), (1712, False)}
+    device.handle_frame(1712, bytes.fromhex('A08C7C92'), 1.0)  # 36000, 37500 x 0.1 mV
+    assert device.handle_frame(0x18FF50E5, bytes.fromhex('0000E80F'), 2.0)  # 4072 x 0.1 V
+    report = device.battery_report()
+    assert report.voltage == pytest.approx(407.2)
+    assert report.cell_voltage == pytest.approx([3.75, 3.6])  # the list's order
+    assert report.capacity == 50.0 and report.power_supply_technology == 4  # LIFE
+    assert report.power_supply_health == PowerSupplyHealth.GOOD
+    values = device.diagnostic_report().values
+    assert set(values) >= {'ORION_Pack.pack_voltage [V]', 'ORION_Cells.cell_a [V]',
+                           'ORION_Cells.cell_b [V]'}
+    assert 'ORION_Pack.pack_dcl [A]' not in values  # not in the list
+
+
+FALLBACK_DBC = '''VERSION ""
+
+BS_:
+
+BU_: BMS
+
+BO_ 300 PACK: 8 BMS
+ SG_ voltage : 0|32@1- (1,0) [0|1000] "V" Vector__XXX
+ SG_ current : 32|32@1- (1,0) [-500|500] "A" Vector__XXX
+
+BO_ 301 CELLS: 4 BMS
+ SG_ outer M : 0|8@1+ (1,0) [0|1] "" Vector__XXX
+ SG_ inner m0M : 8|8@1+ (1,0) [0|1] "" Vector__XXX
+ SG_ cell_0 m0 : 16|16@1+ (1,0) [0|5000] "mV" Vector__XXX
+ SG_ cell_1 m1 : 16|16@1+ (1,0) [0|5000] "mV" Vector__XXX
+
+SIG_VALTYPE_ 300 voltage : 1;
+SIG_VALTYPE_ 300 current : 1;
+SG_MUL_VAL_ 301 inner outer 0-0;
+SG_MUL_VAL_ 301 cell_0 inner 0-0;
+SG_MUL_VAL_ 301 cell_1 inner 1-1;
+'''
+
+
+def test_float_signals_and_nested_multiplexing_decode_through_cantools(tmp_path):
+    import struct
+    mapping = ('primary: PACK\nbattery_state:\n  voltage: PACK.voltage\n'
+               '  current: PACK.current\n'
+               '  cell_voltage: {signal: "CELLS.cell_{i}", count: 2}\n')
+    device = make(tmp_path, mapping, FALLBACK_DBC)
+    assert [m.compiled for m in device.plan.messages] == [False, False]
+    device.handle_frame(301, bytes([0, 0]) + (3700).to_bytes(2, 'little'), 1.0)
+    device.handle_frame(301, bytes([0, 1]) + (3650).to_bytes(2, 'little'), 1.0)
+    assert device.handle_frame(300, struct.pack('<ff', 398.5, -12.25), 1.0)
+    report = device.battery_report()
+    assert (report.voltage, report.current) == (398.5, -12.25)
+    assert report.cell_voltage == pytest.approx([3.7, 3.65])  # both branches kept
+    device.handle_frame(300, struct.pack('<ff', 1200.0, 0.0), 2.0)  # above [0|1000]
+    assert math.isnan(device.battery_report().voltage) and device.frames_malformed == 1

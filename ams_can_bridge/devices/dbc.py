@@ -119,6 +119,10 @@ class DbcDevice(Device):
             self.frames_received += 1
             if bad or flags:
                 self._check(compiled, arbitration_id, values, bad, flags)
+            if not compiled.compiled and key in self.groups:
+                # nested multiplexing: each frame carries one branch; keep the others' last
+                old = self.groups[key][0]
+                values = tuple(o if v is None else v for v, o in zip(values, old))
             self.groups[key] = (values, now)
             if compiled.mux_index is not None:
                 mux = values[compiled.mux_index]

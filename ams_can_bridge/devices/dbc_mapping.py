@@ -63,7 +63,9 @@ class _Builder:
             return None
         info = compiled.signals[i]
         factor, add = self._conversion(info.unit, text, where, wanted, scale, offset)
-        return Ref(m, i, info.mux_ids, text, info.unit, factor, add)
+        # nested multiplexing (decoded by cantools): one merged group per message
+        mux = info.mux_ids if compiled.mux_index is not None else None
+        return Ref(m, i, mux, text, info.unit, factor, add)
 
     def _conversion(self, unit: str, name: str, where: str, wanted: str | None,
                     scale: Any, offset: Any) -> tuple[float, float]:
@@ -322,7 +324,8 @@ class _Builder:
 
     def _all_of(self, m: int) -> list[Ref]:
         compiled = self.messages[m]
-        return [Ref(m, i, s.mux_ids, f'{compiled.name}.{s.name}', s.unit)
+        return [Ref(m, i, s.mux_ids if compiled.mux_index is not None else None,
+                    f'{compiled.name}.{s.name}', s.unit)
                 for i, s in enumerate(compiled.signals)]
 
     def _unknown_keys(self, spec: dict, known: set[str], where: str) -> None:
