@@ -68,7 +68,7 @@ class DbcDevice(Device):
         self._by_id = {m.frame_id: (i, m) for i, m in enumerate(plan.messages)}
         self._frame_ids = frozenset((m.frame_id, m.is_extended_id) for m in plan.messages)
         if len(self._by_id) != len(self._frame_ids):
-            raise ValueError(f'{name}: the mapping uses one CAN ID as a standard and an '
+            raise ValueError('the mapping uses one CAN ID as a standard and an '
                              'extended message: map only one of them')
         self.groups: dict[_GroupKey, tuple[tuple, float]] = {}
         self._stamp = NAN
