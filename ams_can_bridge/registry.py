@@ -9,7 +9,7 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-DEVICE_TYPES = ('ams', 'ivt_s', 'evms3', 'bms16', 'sma')
+DEVICE_TYPES = ('ams', 'ivt_s', 'evms3', 'bms16', 'sma', 'dbc')
 
 DEVICES = {
     'ams': 'ams_can_bridge.devices.ams:AmsDevice',
@@ -17,6 +17,7 @@ DEVICES = {
     'evms3': 'ams_can_bridge.devices.evms3:Evms3Device',
     'bms16': 'ams_can_bridge.devices.bms16:Bms16Device',
     'sma': 'ams_can_bridge.devices.sma:SmaDevice',
+    'dbc': 'ams_can_bridge.devices.dbc:DbcDevice',
 }
 
 SIMULATORS = {
@@ -25,6 +26,7 @@ SIMULATORS = {
     'evms3': 'ams_can_bridge.sim.evms3:Evms3Simulator',
     'bms16': 'ams_can_bridge.sim.bms16:Bms16Simulator',
     'sma': 'ams_can_bridge.sim.sma:SmaSimulator',
+    'dbc': 'ams_can_bridge.sim.dbc:DbcSimulator',
 }
 
 # Device types with more than one wire form: '<name>.variant' picks the device and simulator

@@ -29,6 +29,8 @@ def frame_mix(seconds: float) -> dict[str, list[tuple[int, bytes]]]:
     """Run every simulator for `seconds` of simulated time; group its frames by protocol."""
     mix: dict[str, list[tuple[int, bytes, bool]]] = {name: [] for name in CODECS}
     for device_type, path in registry.SIMULATORS.items():
+        if device_type not in CODECS:  # dbc: bench/bench_dbc.py
+            continue
         sim = registry.load(path)(**SIM_OPTIONS.get(device_type, {}))
         # A BMS16 also sends SMA frames; IDs can repeat across protocols (AMS 0x351 is
         # SMA 0x351), so a frame goes to its own device's codec first.

@@ -300,6 +300,17 @@ def log2bag(seconds: float) -> None:
             result['python_can_read_fps'], 'fr/s', '>= 20,000/s', result['met'])
 
 
+def dbc_device(seconds: float) -> None:
+    """A dbc device (our AMS over its DBC) beside the built-in AMS device, same frames."""
+    import bench_dbc
+    figures = bench_dbc.run(5, seconds, 7)
+    row('dbc device', 'us/frame vs built-in ams (median)', figures['median_us']['dbc'],
+        figures['median_us']['ams'], 'us', f'<= {bench_dbc.TARGET}x', figures['met'],
+        f"{figures['frames']} AMS frames (5 banks); handle_frame + battery_report per "
+        f"primary; decode alone {figures['median_us']['compiled']:.2f} us compiled vs "
+        f"{figures['median_us']['cantools']:.2f} us cantools")
+
+
 SCENARIOS = {
     'cpu_slcan': lambda q: cpu_slcan(5.0 if q else 10.0),
     'cpu_virtual': lambda q: cpu_virtual(5.0 if q else 10.0),
@@ -308,6 +319,7 @@ SCENARIOS = {
     'heartbeat': lambda q: heartbeat(8.0 if q else 20.0),
     'throughput': lambda q: throughput(3.0 if q else 5.0),
     'log2bag': lambda q: log2bag(60.0 if q else 120.0),
+    'dbc': lambda q: dbc_device(30.0 if q else 60.0),
 }
 
 

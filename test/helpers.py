@@ -166,9 +166,11 @@ def every_device_bridge(tag: str) -> Iterator[Any]:
     from rclpy.parameter import Parameter
 
     from ams_can_bridge.ros.bridge_node import BridgeNode  # the node: only where needed
+    from dbc_fixtures import OUR_PARAMS  # a dbc instance needs its files
     with ros_context() as context:
         node = BridgeNode(context=context, parameter_overrides=[
             Parameter('devices', value=list(registry.DEVICE_TYPES)),
+            *(Parameter(f'dbc.{key}', value=value) for key, value in OUR_PARAMS.items()),
             Parameter('can.interface', value='virtual'),
             Parameter('can.channel', value=f'{tag}-{os.getpid()}-{next(_bridges)}')])
         try:

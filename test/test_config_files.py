@@ -13,8 +13,10 @@ from ams_can_bridge.ros.bridge_node import BridgeNode
 from helpers import ros_context
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config'
-# The bridge's parameter files (diagnostics_aggregator.yaml configures another node).
-FILES = sorted(p for p in CONFIG.glob('*.yaml') if p.name != 'diagnostics_aggregator.yaml')
+# The bridge's parameter files (diagnostics_aggregator.yaml configures another node; a
+# *_mapping.yaml is a dbc device's mapping file, README "Your own BMS").
+FILES = sorted(p for p in CONFIG.glob('*.yaml') if p.name != 'diagnostics_aggregator.yaml'
+               and not p.name.endswith('_mapping.yaml'))
 
 
 @pytest.fixture(scope='module')

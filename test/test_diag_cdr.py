@@ -10,11 +10,13 @@ from ams_can_bridge import registry
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.devices.base import BatteryReport, DiagnosticReport, Level
 from ams_can_bridge.ros import convert, diag_cdr
+from dbc_fixtures import OUR_PARAMS
 from helpers import Clock
 
-PARAMS = {'ams.bank_count': 2, 'evms3.bms12_modules': 3}
+PARAMS = {'ams.bank_count': 2, 'evms3.bms12_modules': 3,
+          **{f'dbc.{key}': value for key, value in OUR_PARAMS.items()}}
 SIM_OPTIONS = {'ams': {'bank_count': 2}, 'evms3': {'bms12_modules': 3},
-               'bms16': {'send_sma': True}}
+               'bms16': {'send_sma': True}, 'dbc': OUR_PARAMS}
 
 
 def statuses_over_time():

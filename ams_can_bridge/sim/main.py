@@ -18,6 +18,7 @@ from ams_can_bridge.sim.runner import open_bus, SimRunner
 DEFAULT_VIRTUAL_CHANNEL = 'ams_can_bridge'
 # The AMS goes first so the IVT-S can measure its pack.
 _ORDER = ('ams', 'ivt_s', 'evms3', 'bms16', 'sma')
+_SORT = _ORDER + ('dbc',)  # dbc: a team's own BMS (--dbc/--mapping), not in the default set
 
 
 def _device_list(text: str) -> list[str]:
@@ -27,7 +28,7 @@ def _device_list(text: str) -> list[str]:
         raise argparse.ArgumentTypeError(
             f'unknown device type(s) {", ".join(unknown) or "(none)"}: use a comma list of '
             + ', '.join(registry.SIMULATORS))
-    return sorted(set(types), key=_ORDER.index)
+    return sorted(set(types), key=_SORT.index)
 
 
 def _fault(text: str) -> tuple[str, str, Any]:
@@ -56,8 +57,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--bitrate', type=int, default=0, help='bit/s, 0 = leave the adapter as is')
     p.add_argument('--option', action='append', default=[], metavar='KEY=VALUE',
                    help='python-can interface option, repeatable (e.g. sleep_after_open=0)')
-    p.add_argument('--devices', type=_device_list, default=list(_ORDER),
-                   help='comma list of ' + ', '.join(registry.SIMULATORS) + ' (default all)')
+    p.add_argument('--devices', type=_device_list, default=None,
+                   help='comma list of ' + ', '.join(registry.SIMULATORS) + ' (default: '
+                   + ', '.join(_ORDER) + '; none of them with --dbc)')
+    p.add_argument('--dbc', default=None, metavar='FILE',
+                   help="simulate a dbc device's BMS from its DBC (with --mapping; README "
+                        '"Your own BMS"; default for --devices dbc: our AMS example)')
+    p.add_argument('--mapping', default=None, metavar='FILE',
+                   help="the dbc device's mapping file (with --dbc)")
     p.add_argument('--ams-banks', type=int, default=None, metavar='N', help='AMS banks 1..5')
     p.add_argument('--ams-pad', action='store_true',
                    help='the AMS pads every frame to 8 bytes (DLC 8), as some firmwares do')
@@ -101,14 +108,17 @@ def build_devices(types: Sequence[str], ams_banks: int | None = None,
                   evms3_chargers: int | None = None,
                   bms16_variant: str | None = None,
                   sma_soc_frame: str | None = None,
-                  ams_pad: bool = False) -> list[SimDevice]:
+                  ams_pad: bool = False, dbc_file: str | None = None,
+                  mapping_file: str | None = None) -> list[SimDevice]:
     """Instantiate the simulators named by type (instance name = type name)."""
     devices: list[SimDevice] = []
     ams = None
-    for kind in sorted(types, key=_ORDER.index):
+    for kind in sorted(types, key=_SORT.index):
         cls = registry.simulator_class(kind, bms16_variant if kind == 'bms16' else None)
         kwargs: dict[str, Any] = {'name': kind}
-        if kind == 'ams':
+        if kind == 'dbc' and dbc_file:
+            kwargs.update(dbc_file=dbc_file, mapping_file=mapping_file)
+        elif kind == 'ams':
             if ams_banks is not None:
                 kwargs['bank_count'] = ams_banks
             if ams_pad:
@@ -185,11 +195,17 @@ def main(argv: Sequence[str] | None = None) -> int:
                                else 'can0')
     try:
         options = parse_options(args.option)
-        devices = build_devices(args.devices, args.ams_banks, args.bms12_modules,
+        if bool(args.dbc) != bool(args.mapping):
+            raise ValueError('--dbc and --mapping go together')
+        types = args.devices if args.devices is not None else [] if args.dbc else list(_ORDER)
+        if args.dbc and 'dbc' not in types:
+            types = [*types, 'dbc']
+        devices = build_devices(types, args.ams_banks, args.bms12_modules,
                                 args.ivt_byte_order, args.sma_dialect,
                                 args.evms3_charge_after, args.evms3_chargers,
                                 bms16_variant=args.bms16_variant,
-                                sma_soc_frame=args.sma_soc_frame, ams_pad=args.ams_pad)
+                                sma_soc_frame=args.sma_soc_frame, ams_pad=args.ams_pad,
+                                dbc_file=args.dbc, mapping_file=args.mapping)
         apply_faults(devices, args.fault)
     except (ValueError, TypeError, ImportError) as exc:
         print(f'simulator: {exc}', file=sys.stderr)

@@ -1,0 +1,307 @@
+"""
+Any BMS from its DBC: a team's DBC and a short mapping -> BatteryState and diagnostics.
+
+docs/protocols.md section 8, README "Your own BMS". The mapping (``devices.dbc_mapping``)
+is checked whole at start; the device consumes exactly the messages it references. Each
+frame is decoded by the compiled decoder of its message (``protocols.dbc_codec``) and kept
+whole, with the time it came, as its *group* (a multiplexed message: one group per
+multiplexer value). Every group expires on its own after ``stale_timeout``: its values are
+unknown (NaN) again, never an old number shown as live. A frame of the primary message
+makes one BatteryState; while it is silent the device is STALE as every other device.
+
+A value outside its DBC [min|max], or an element whose invalid flag is set, is NaN and the
+frame counts as malformed (the rest of the frame is used). Telemetry only: sends nothing.
+"""
+from __future__ import annotations
+
+import logging
+import math
+import time
+from typing import Any, Callable, Iterable, Mapping
+
+from ams_can_bridge.devices.base import (
+    BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, ParamSpec,
+    PowerSupplyHealth, PowerSupplyStatus)
+from ams_can_bridge.devices.config import DeviceConfig
+from ams_can_bridge.devices.dbc_mapping import (
+    Array, Enum, load_plan, MappingError, Plan, Ref, Scalar)
+from ams_can_bridge.protocols.common import ProtocolError
+
+_LOG = logging.getLogger(__name__)
+_GroupKey = tuple[int, Any]
+
+
+def _fmt(value: float | None, choices: Mapping[int, str] | None = None) -> str:
+    if value is None or value != value:
+        return 'unknown'
+    if choices and value == int(value) and int(value) in choices:
+        return f'{choices[int(value)]} ({int(value)})'
+    return f'{value:g}'
+
+
+class DbcDevice(Device):
+    """A BMS described by a DBC and a mapping file (telemetry only)."""
+
+    TYPE = 'dbc'
+    BROADCAST_PERIOD = 0.2  # default stale_timeout 1 s; set it to ~5 x your primary's period
+    DEFAULT_BASE_ID = None
+    PARAMS = [
+        ParamSpec('dbc_file', str, None,
+                  'path of the BMS DBC (absolute, or relative to the working directory, '
+                  'then to the package share folder)'),
+        ParamSpec('mapping_file', str, None,
+                  'path of the mapping YAML (DBC signals -> BatteryState, diagnostics); '
+                  'relative paths as dbc_file'),
+    ]
+
+    def __init__(self, name: str, config: DeviceConfig | Mapping[str, Any],
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        super().__init__(name, config, clock)
+        try:
+            self.plan: Plan = load_plan(self.config.dbc_file, self.config.mapping_file)
+        except MappingError as exc:
+            raise ValueError('; '.join(str(exc).splitlines())) from None
+        plan = self.plan
+        self.warnings = [f'{name}: {w}' for w in plan.warnings]
+        for warning in self.warnings:  # before the node's own logging exists: stderr
+            _LOG.warning('warning: %s', warning)
+        self._by_id = {m.frame_id: (i, m) for i, m in enumerate(plan.messages)}
+        self._frame_ids = frozenset((m.frame_id, m.is_extended_id) for m in plan.messages)
+        if len(self._by_id) != len(self._frame_ids):
+            raise ValueError('the mapping uses one CAN ID as a standard and an '
+                             'extended message: map only one of them')
+        self.groups: dict[_GroupKey, tuple[tuple, float]] = {}
+        self._stamp = NAN
+        # invalid flags per message: (flag signal index, element label) for the malformed count
+        self._flags: dict[int, list[tuple[int, str]]] = {}
+        for key, array in plan.arrays.items():
+            for n, flag in enumerate(array.invalid):
+                if flag is not None:
+                    self._flags.setdefault(flag.message, []).append(
+                        (flag.signal, f'{key}[{n}] ({flag.name})'))
+        self._slots: dict[int, list[tuple[str, Array, list[float], list[float]]]] = {}
+        for key, array in plan.arrays.items():
+            if array.slot_message is not None:
+                self._slots.setdefault(array.slot_message, []).append(
+                    (key, array, [NAN] * array.count, [-math.inf] * array.count))
+        # per CAN ID, all the receive thread needs: (message, group key, invalid flags,
+        # positioned arrays, primary?)
+        self._handlers = {
+            m.frame_id: (m, (i, None), self._flags.get(i, []), self._slots.get(i, []),
+                         i == plan.primary) for i, m in enumerate(plan.messages)}
+
+    @property
+    def frame_ids(self) -> frozenset[tuple[int, bool]]:
+        """Return exactly the (CAN ID, 29-bit) of the messages the mapping references."""
+        return self._frame_ids
+
+    @property
+    def arbitration_ids(self) -> frozenset[int]:
+        """Return the CAN IDs of the messages the mapping references."""
+        return frozenset(self._by_id)
+
+    # --- bus thread ------------------------------------------------------------------------
+    def handle_frame(self, arbitration_id: int, data: bytes, stamp: float) -> bool:
+        """Decode one frame into its group; True for the primary message."""
+        entry = self._handlers.get(arbitration_id)
+        if entry is None:
+            return False
+        compiled, key, flags, slots, primary = entry
+        try:
+            values, bad = compiled.decode(data)
+        except ProtocolError as exc:
+            with self.lock:
+                self.frames_malformed += 1
+                self.last_malformed = str(exc)
+            return False
+        now = self.clock()
+        with self.lock:
+            self.frames_received += 1
+            if bad or flags:
+                self._check(compiled, arbitration_id, values, bad, flags)
+            if not compiled.compiled and key in self.groups:
+                # nested multiplexing: each frame carries one branch; keep the others' last
+                old = self.groups[key][0]
+                values = tuple(o if v is None else v for v, o in zip(values, old))
+            self.groups[key] = (values, now)
+            if compiled.mux_index is not None:
+                mux = values[compiled.mux_index]
+                if mux == mux:
+                    info = compiled.signals[compiled.mux_index]
+                    self.groups[(key[0], round((mux - info.offset) / info.scale))] = (
+                        values, now)
+            if slots:
+                self._put_slots(slots, values, now)
+            if primary:
+                self._stamp = stamp
+                self.last_seen = now
+            return primary
+
+    def _check(self, compiled: Any, arbitration_id: int, values: tuple, bad: Any,
+               flags: list[tuple[int, str]]) -> None:
+        """Count a frame with a value out of range or an invalid flag set (lock held)."""
+        problems = [compiled.signals[i].name + ' outside its DBC range' for i in bad]
+        problems += [f'{label} invalid flag set' for flag, label in flags if values[flag]]
+        if problems:
+            self.frames_malformed += 1
+            self.last_malformed = f'{compiled.name} 0x{arbitration_id:X}: ' + ', '.join(
+                problems)
+
+    @staticmethod
+    def _put_slots(slots: list, values: tuple, now: float) -> None:
+        for _, array, data, seen in slots:
+            position = 0.0
+            for i, first, stride in array.selectors:
+                selector = values[i]
+                if selector is None or selector != selector:
+                    break
+                position += (selector - first) * stride
+            else:
+                base = int(position)
+                for j, i in enumerate(array.slot_signals):
+                    if 0 <= base + j < array.count:
+                        value = values[i]
+                        data[base + j] = (NAN if value is None
+                                          else value * array.factor + array.add)
+                        seen[base + j] = now
+
+    # --- executor side (lock held) ------------------------------------------------------------
+    def _timeout(self, message: int) -> float:
+        return self.plan.timeouts.get(message, self.stale_timeout)
+
+    def _fresh(self, key: _GroupKey, now: float) -> tuple | None:
+        group = self.groups.get(key)
+        if group is None or now - group[1] > self._timeout(key[0]):
+            return None
+        return group[0]
+
+    def _raw(self, ref: Ref, now: float) -> float:
+        """Return the physical DBC value of a signal (NaN: unknown, expired, not in range)."""
+        if ref.mux is None:
+            values = self._fresh((ref.message, None), now)
+        else:
+            best = None
+            for mux in ref.mux:
+                group = self.groups.get((ref.message, mux))
+                if group is not None and (best is None or group[1] > best[1]):
+                    best = group
+            values = best[0] if best and now - best[1] <= self._timeout(ref.message) else None
+        if values is None:
+            return NAN
+        value = values[ref.signal]
+        return NAN if value is None else value
+
+    def _value(self, ref: Ref, now: float) -> float:
+        return self._raw(ref, now) * ref.factor + ref.add
+
+    def _array(self, key: str, now: float) -> list[float]:
+        array = self.plan.arrays[key]
+        if array.slot_message is not None:
+            timeout = self._timeout(array.slot_message)
+            for slot_key, _, data, seen in self._slots[array.slot_message]:
+                if slot_key == key:
+                    if now - min(seen) <= timeout:
+                        return data[:]  # every element fresh: the usual case
+                    return [v if now - t <= timeout else NAN
+                            for v, t in zip(data, seen)]
+        out = []
+        for ref, flag in zip(array.refs, array.invalid):
+            value = self._value(ref, now)
+            if flag is not None and self._raw(flag, now):  # set, or unknown (NaN): no data
+                value = NAN
+            out.append(value)
+        return out
+
+    def _scalar(self, scalar: Scalar, arrays: dict[str, list[float]], now: float) -> float:
+        if scalar.constant is not None:
+            return scalar.constant
+        if scalar.ref is not None:
+            return self._value(scalar.ref, now)
+        data = arrays.get(scalar.of, [])
+        known = [v for v in data if v == v]
+        if scalar.reduce == 'sum':
+            result = math.fsum(data) if data else NAN  # any unknown element: unknown sum
+        elif not known:
+            result = NAN
+        elif scalar.reduce == 'max':
+            result = max(known)
+        elif scalar.reduce == 'min':
+            result = min(known)
+        else:
+            result = math.fsum(known) / len(known)
+        if result != result and scalar.fallback is not None:
+            return self._scalar(scalar.fallback, arrays, now)
+        return result
+
+    def _enum(self, spec: Enum, now: float) -> int | None:
+        if spec.constant is not None:
+            return spec.constant
+        for rule in spec.rules:
+            value = self._raw(rule.ref, now)
+            if value != value:
+                continue
+            found = rule.table.get(value, rule.otherwise)
+            if found is not None:
+                return found
+        return None
+
+    def _battery_report(self) -> BatteryReport:
+        now, plan = self.clock(), self.plan
+        arrays = {key: self._array(key, now) for key in plan.arrays}
+        report = BatteryReport(stamp=self._stamp, present=self.last_seen is not None,
+                               cell_voltage=arrays.get('cell_voltage', []),
+                               cell_temperature=arrays.get('cell_temperature', []))
+        for key, scalar in plan.scalars.items():
+            setattr(report, key, self._scalar(scalar, arrays, now))
+        for key, spec in plan.enums.items():
+            value = self._enum(spec, now)
+            if value is not None:
+                setattr(report, key, value)
+        if 'power_supply_status' not in plan.enums or \
+                report.power_supply_status == PowerSupplyStatus.UNKNOWN:
+            report.power_supply_status = current_status(report.current)
+        if 'power_supply_health' not in plan.enums:
+            report.power_supply_health = PowerSupplyHealth.UNKNOWN
+        return report
+
+    def _diagnostic_report(self, with_values: bool = True) -> DiagnosticReport:
+        now, plan = self.clock(), self.plan
+        level, parts = Level.OK, []
+        for rule in plan.levels:
+            value = self._raw(rule.ref, now)
+            if value != value:
+                continue
+            hit = {'equal': value == rule.threshold, 'not_equal': value != rule.threshold,
+                   'below': value < rule.threshold,
+                   'above': value > rule.threshold}[rule.condition]
+            if hit:
+                info = plan.messages[rule.ref.message].signals[rule.ref.signal]
+                level = rule.level
+                parts.append(rule.message.format(value=_fmt(value, info.choices),
+                                                 signal=rule.ref.name))
+                break
+        if self.warnings:
+            level = max(level, Level.WARN)
+            parts.append(f'{len(self.warnings)} mapping warning(s)')
+        expired = sorted({plan.messages[m].name for (m, mux), (_, seen) in self.groups.items()
+                          if mux is None and now - seen > self._timeout(m)})
+        if expired:
+            parts.append('silent: ' + ', '.join(expired))
+        if not parts:
+            parts.append('OK')
+        values: dict[str, str] = {}
+        if with_values:
+            for ref in plan.values:
+                info = plan.messages[ref.message].signals[ref.signal]
+                label = ref.name + (f' [{info.unit}]' if info.unit else '')
+                values[label] = _fmt(self._raw(ref, now), info.choices)
+            for n, warning in enumerate(self.warnings):
+                values[f'mapping warning {n + 1}'] = warning
+            if expired:
+                values['messages expired'] = ', '.join(expired)
+        return DiagnosticReport(level, '; '.join(parts), values)
+
+    def config_problems(self, config: DeviceConfig,
+                        keys: Iterable[str] | None = None) -> list[str]:
+        """Files are checked when the plan loads (every problem at once, see __init__)."""
+        return []

@@ -1,0 +1,230 @@
+"""
+A team's own DBC, compiled: frames -> tuples of physical values, checked against [min|max].
+
+docs/protocols.md section 8. cantools reads the DBC (strictly: overlapping or out-of-frame
+signals fail) and stays the reference; the bus thread does not call it per frame. A
+cantools ``Message.decode`` builds a dict of every signal and costs several microseconds;
+here each message becomes one generated Python function that pulls its signals out of one
+integer (``int.from_bytes``) with shifts and masks and returns a tuple in the order of
+``CompiledMessage.signals``. Messages the generator does not cover (float signals, nested
+multiplexers) fall back to cantools, still returning the same tuple.
+
+A value outside its DBC range comes back NaN and its index is reported, so the device
+counts the frame as malformed and never publishes the value. A multiplexed signal outside
+the branch of the frame's multiplexer value is None (not in this frame).
+"""
+from __future__ import annotations
+
+import difflib
+import math
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
+
+import cantools
+from cantools.database.can import Database, Message
+
+from ams_can_bridge.protocols.common import MalformedFrameError
+
+NAN = math.nan
+
+
+@dataclass(frozen=True)
+class SignalInfo:
+    """What the device needs of one DBC signal besides its bits."""
+
+    name: str
+    unit: str
+    minimum: float | None
+    maximum: float | None
+    scale: float
+    offset: float
+    choices: dict[int, str]  # raw value -> name (VAL_)
+    mux_ids: tuple[int, ...] | None  # multiplexer values carrying it (None: every frame)
+    is_multiplexer: bool
+
+    def physical(self, raw: int) -> float:
+        """Return the physical value of a raw value (raw * scale + offset, as cantools)."""
+        return raw * self.scale + self.offset
+
+
+@dataclass
+class CompiledMessage:
+    """One DBC message, ready to decode: its signals in a fixed order and a decoder."""
+
+    name: str
+    frame_id: int
+    is_extended_id: bool
+    length: int
+    signals: tuple[SignalInfo, ...]
+    index: dict[str, int]  # signal name -> position in the decoded tuple
+    mux_index: int | None  # position of the (single-level) multiplexer signal, if any
+    compiled: bool  # False: decoded through cantools (floats, nested multiplexers)
+    decode_values: Callable[[bytes], tuple[tuple, tuple[int, ...]]] = field(repr=False)
+
+    def decode(self, data: bytes) -> tuple[tuple, tuple[int, ...]]:
+        """Return (values, indices out of range); MalformedFrameError if too short."""
+        if len(data) < self.length:
+            raise MalformedFrameError(self.frame_id, data,
+                                      f'{self.name}: DLC {len(data)}, expected {self.length}')
+        try:
+            return self.decode_values(data)
+        except _UnknownMux as exc:
+            raise MalformedFrameError(self.frame_id, data,
+                                      f'{self.name}: multiplexer value {exc} not in the DBC'
+                                      ) from None
+
+
+class _UnknownMux(Exception):
+    """Internal: the multiplexer value of a frame has no branch in the DBC."""
+
+
+def load(path: str) -> Database:
+    """Load a DBC file strictly (cantools raises on overlapping or out-of-frame signals)."""
+    return cantools.database.load_file(path, strict=True)
+
+
+def closest(name: str, names: Sequence[str], n: int = 3) -> str:
+    """Say which known names come closest to a misspelt one (for error messages)."""
+    near = difflib.get_close_matches(name, list(names), n=n, cutoff=0.5)
+    if not near:
+        near = [k for k in names if k.lower().startswith(name[:3].lower())][:n]
+    return ('; closest: ' + ', '.join(near)) if near else ''
+
+
+def _info(message: Message) -> tuple[SignalInfo, ...]:
+    return tuple(SignalInfo(
+        name=s.name, unit=s.unit or '', minimum=s.minimum, maximum=s.maximum,
+        scale=float(s.scale), offset=float(s.offset),
+        choices={int(k): str(v) for k, v in (s.choices or {}).items()},
+        mux_ids=tuple(s.multiplexer_ids) if s.multiplexer_ids else None,
+        is_multiplexer=bool(s.is_multiplexer)) for s in message.signals)
+
+
+def _shift_of(signal: Any, length: int) -> tuple[str, int]:
+    """Return ('b' little-endian int | 'B' big-endian int, right shift) of a signal's LSB."""
+    if signal.byte_order == 'little_endian':
+        return 'b', signal.start
+    # Motorola: DBC start = MSB in sawtooth numbering; count from the first byte's MSB.
+    msb = (signal.start // 8) * 8 + (7 - signal.start % 8)
+    return 'B', 8 * length - 1 - (msb + signal.length - 1)
+
+
+def _expression(signal: Any, length: int) -> str:
+    """Return a Python expression of the signal's raw value (signed if the DBC says so)."""
+    which, shift = _shift_of(signal, length)
+    mask = (1 << signal.length) - 1
+    raw = f'(({which} >> {shift}) & {mask:#x})'
+    if signal.is_signed:
+        half = 1 << (signal.length - 1)
+        raw = f'(({raw} ^ {half:#x}) - {half:#x})'
+    return raw
+
+
+def _scaled(expr: str, info: SignalInfo) -> str:
+    if info.scale == 1 and info.offset == 0:
+        return expr
+    return f'({expr} * {info.scale!r} + {info.offset!r})'
+
+
+def _range_check(index: int, info: SignalInfo, var: str) -> list[str]:
+    if info.minimum is None and info.maximum is None:
+        return []
+    low = -math.inf if info.minimum is None else float(info.minimum)
+    high = math.inf if info.maximum is None else float(info.maximum)
+    # a hair of tolerance: 0.1 * 51 is 5.1000000000000005 for a DBC maximum of 5.1
+    tol = 1e-9 * max(1.0, abs(low), abs(high))
+    return [f'    if not {low - tol!r} <= {var} <= {high + tol!r}:',
+            f'        {var} = NAN; bad.append({index})']
+
+
+def _generate(message: Message, infos: tuple[SignalInfo, ...]) -> Callable | None:
+    """Build the decoder of a message; None when cantools must do it."""
+    signals = list(message.signals)
+    if any(s.is_float for s in signals):
+        return None
+    muxes = [i for i, s in enumerate(signals) if s.is_multiplexer]
+    if len(muxes) > 1 or any(s.is_multiplexer and s.multiplexer_ids for s in signals):
+        return None  # nested multiplexing
+    length = message.length
+    lines = ['def decode(data):', '    bad = []']
+    if any(s.byte_order == 'little_endian' for s in signals):
+        lines.append(f"    b = int.from_bytes(data[:{length}], 'little')")
+    if any(s.byte_order == 'big_endian' for s in signals):
+        lines.append(f"    B = int.from_bytes(data[:{length}], 'big')")
+    names = [f'v{i}' for i in range(len(signals))]
+    if muxes:
+        m = muxes[0]
+        lines.append(f'    mux = {_expression(signals[m], length)}')
+        lines.append(f'    v{m} = {_scaled("mux", infos[m])}')
+        lines += _range_check(m, infos[m], f'v{m}')
+    branches: dict[int, list[int]] = {}
+    plain = []
+    for i, info in enumerate(infos):
+        if muxes and i == muxes[0]:
+            continue
+        if info.mux_ids:
+            for mux_id in info.mux_ids:
+                branches.setdefault(mux_id, []).append(i)
+        else:
+            plain.append(i)
+    for i in plain:
+        lines.append(f'    v{i} = {_scaled(_expression(signals[i], length), infos[i])}')
+        lines += _range_check(i, infos[i], f'v{i}')
+    if branches:
+        muxed = sorted({i for members in branches.values() for i in members})
+        lines.append('    ' + ' = '.join(f'v{i}' for i in muxed) + ' = None')
+        keyword = 'if'
+        for mux_id, members in sorted(branches.items()):
+            lines.append(f'    {keyword} mux == {mux_id}:')
+            keyword = 'elif'
+            for i in members:
+                lines.append(f'        v{i} = '
+                             f'{_scaled(_expression(signals[i], length), infos[i])}')
+                lines += ['    ' + text for text in _range_check(i, infos[i], f'v{i}')]
+        lines += ['    else:', '        raise _UnknownMux(mux)']
+    lines.append(f'    return ({", ".join(names)}{"," if len(names) == 1 else ""}), bad')
+    scope: dict[str, Any] = {'NAN': NAN, '_UnknownMux': _UnknownMux}
+    exec(compile('\n'.join(lines), f'<dbc {message.name}>', 'exec'), scope)  # noqa: S102
+    return scope['decode']
+
+
+def _cantools_decoder(message: Message, infos: tuple[SignalInfo, ...]) -> Callable:
+    """Decode through cantools (the slow path), into the same tuple and range report."""
+    names = [s.name for s in message.signals]
+
+    def decode(data: bytes) -> tuple[tuple, tuple[int, ...]]:
+        try:
+            decoded = message.decode(bytes(data[:message.length]), decode_choices=False)
+        except Exception as exc:  # cantools' own errors (unknown multiplexer id, ...)
+            raise _UnknownMux(str(exc)) from None
+        values, bad = [], []
+        for i, name in enumerate(names):
+            value = decoded.get(name)
+            if value is not None:
+                value = float(value)
+                info = infos[i]
+                if (info.minimum is not None and value < info.minimum) or (
+                        info.maximum is not None and value > info.maximum):
+                    value = NAN
+                    bad.append(i)
+            values.append(value)
+        return tuple(values), tuple(bad)
+    return decode
+
+
+def compile_message(message: Message) -> CompiledMessage:
+    """Compile one cantools message."""
+    infos = _info(message)
+    decoder = _generate(message, infos)
+    muxes = [i for i, info in enumerate(infos) if info.is_multiplexer]
+    return CompiledMessage(
+        name=message.name, frame_id=message.frame_id,
+        is_extended_id=bool(message.is_extended_frame), length=message.length,
+        signals=infos, index={info.name: i for i, info in enumerate(infos)},
+        mux_index=muxes[0] if len(muxes) == 1 else None, compiled=decoder is not None,
+        decode_values=decoder or _cantools_decoder(message, infos))
+
+
+def encode(message: Message, values: dict[str, float]) -> bytes:
+    """Encode physical values through cantools (the simulator's path), strictly in range."""
+    return message.encode(values, scaling=True, strict=True)

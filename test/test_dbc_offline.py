@@ -1,0 +1,70 @@
+"""
+A dbc device offline like the built-in ones: log2bag and replay publish what the device decodes.
+
+The log comes from ``DbcSimulator`` on our hand-written BMS DBC (test/fixtures/our_bms.*);
+the reference is the real DbcDevice fed the same log without ROS (helpers.device_reference).
+"""
+from __future__ import annotations
+
+import time
+
+import can
+
+from ams_can_bridge.offline.log2bag import convert
+from ams_can_bridge.sim.dbc import DbcSimulator
+from ams_can_bridge.sim.recording import write_log
+from command_rig import battery_topics
+from dbc_fixtures import OUR_PARAMS
+from helpers import device_reference, same, values_of
+from test_log2bag import rosbags_read
+
+SECONDS = 3.0
+PARAMS = {f'dbc.{key}': value for key, value in OUR_PARAMS.items()}
+
+
+def _log(tmp_path) -> str:
+    path = str(tmp_path / 'dbc.log')
+    frames = write_log(path, [DbcSimulator('dbc', **OUR_PARAMS)], SECONDS)
+    assert frames > 50
+    return path
+
+
+def test_log2bag_writes_one_batterystate_per_primary_frame_with_the_devices_values(tmp_path):
+    log = _log(tmp_path)
+    bag = str(tmp_path / 'bag')
+    summary = convert(log, bag, {'devices': ['dbc'], 'diagnostics_period': 0.5, **PARAMS})
+    assert summary.bad_entries == 0
+    want = device_reference(log, ['dbc'], PARAMS)['dbc']
+    topics = rosbags_read(bag)
+    got = topics['/dbc/battery_state']
+    assert len(want) >= 20 and len(got) == len(want)
+    for (_, msg), (_, values) in zip(got, want):
+        assert same(values_of(msg), values)
+    assert len(got[-1][1].cell_voltage) == 4 and got[-1][1].present
+    statuses = [s for _, m in topics['/diagnostics'] for s in m.status
+                if s.name == 'ams_can_bridge: dbc']
+    assert statuses and statuses[-1].level == 0
+    assert any(kv.key == 'BMS_StateEstimation.packSoc [%]' for kv in statuses[-1].values)
+
+
+def test_replay_publishes_the_reference(rig_factory, tmp_path):
+    log = _log(tmp_path)
+    want = [values for _, values in device_reference(log, ['dbc'], PARAMS)['dbc']]
+    with can.LogReader(log) as reader:
+        frames = sum(1 for _ in reader)
+    rig = rig_factory({'devices': ['dbc'], **PARAMS, 'can.interface': 'replay',
+                       'can.channel': log, 'can.replay_rate': 0.0},
+                      topics=battery_topics(['dbc']), depth=10000, wait_connected=False)
+    try:
+        rig.wait(lambda: rig.bus_values().get('state') == 'replay finished', 30.0,
+                 'the replay to finish')
+        deadline = time.monotonic() + 20.0
+        while rig.present_count('dbc/battery_state') < len(want):
+            assert time.monotonic() < deadline, 'not every BatteryState arrived'
+            time.sleep(0.05)
+        bus = rig.bus_values()
+    finally:
+        rig.close()
+    got = [values_of(m) for m in rig.messages('dbc/battery_state') if m.present]
+    assert bus['frames in'] == str(frames)
+    assert len(got) == len(want) and all(same(a, b) for a, b in zip(got, want))
