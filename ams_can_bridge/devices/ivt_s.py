@@ -3,7 +3,16 @@ IVT-S current shunt state: latest result of each kind, sign convention, counters
 
 Other devices read it through ``current_a``, ``voltage_v`` and ``charge_ah`` (the AMS fills
 its pack BatteryState from them), so those take the device lock and never return a number
-that is unknown, stale or flagged invalid by the sensor: NaN instead.
+that is unknown, stale or flagged invalid by the sensor (result-error or system-error bit):
+NaN instead.
+
+Each result expires on its own, after 5 of its cycles (the cycle the sensor reported for it,
+else the interval observed between its frames) and never before ``stale_timeout``: a result
+the sensor sends every second is not "stopped" because the current comes every 10 ms. The
+current itself, the primary frame, expires after ``stale_timeout`` like the device.
+
+The sensor's configuration is read and written over 0x411/0x511 (devices/ivt_s_commands.py),
+only from the command services; the answers, whoever asked, show in the diagnostics.
 
 Sign: on the wire the current is positive in whichever direction the shunt is mounted for;
 ``discharge_positive`` (default true, the common mounting) says which. ROS values follow
@@ -19,14 +28,30 @@ from typing import Any, Callable, Mapping
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, Level, ParamSpec,
     PowerSupplyHealth)
+from ams_can_bridge.devices import ivt_s_commands as seq
 from ams_can_bridge.devices.config import DeviceConfig
+from ams_can_bridge.devices.ivt_s_commands import CommandLink, config_problems, NoAnswer, Send
+from ams_can_bridge.errors import RefusedCommand
+from ams_can_bridge.protocols.common import ProtocolError
 from ams_can_bridge.protocols.ivt_s import (
-    BYTE_ORDERS, DBC_NAME, DEFAULT_BASE_ID, IvtMux, IvtResult, IvtSCodec, RAW_UNIT, SI_UNIT)
+    BYTE_ORDERS, DBC_NAME, DEFAULT_BASE_ID, IvtMux, IvtResult, IvtSCodec, RAW_UNIT,
+    RESPONSE_ID, SI_UNIT)
+from ams_can_bridge.protocols.ivt_s_commands import (
+    CYCLE_MAX_MS, decode_answer, ResultConfig, TriggerMode)
 
 NAN = math.nan
 # A counter anomaly keeps the device at WARN until this many good frames of that result
 # followed it: one lost frame is visible for a moment, a stuck counter stays visible.
 COUNTER_RECOVERY_FRAMES = 16
+RESULT_STALE_CYCLES = 5  # a result is unknown after this many of its cycles without a frame
+INTERVAL_WEIGHT = 0.25  # weight of each new gap in a result's observed interval
+# The config.<result>_cycle_ms parameter of each result (DBC result names, lower case).
+CYCLE_KEYS = {kind: f'config.{DBC_NAME[kind].lower()}_cycle_ms' for kind in IvtMux}
+# ivts' example writes a disabled result with a non-zero time ("must have some non-zero
+# value to avoid message error"): a result switched off keeps this cycle time.
+DISABLED_CYCLE_MS = 60
+SYSTEM_ERROR_TEXT = ('system error bit (byte 1 bit 7, System_Error: sensor functionality is '
+                     'not ensured)')
 
 
 @dataclass
@@ -38,6 +63,7 @@ class _Track:
     stuck: int = 0  # frames that repeated the previous counter
     jumps: int = 0  # frames whose counter skipped (lost frames or a reset sensor)
     good_streak: int = 0  # frames with the expected counter since the last anomaly
+    interval: float = math.nan  # observed seconds between frames (smoothed)
 
     @property
     def counter_trouble(self) -> bool:
@@ -75,6 +101,25 @@ class IvtSDevice(Device):
                   'true if the IVT-S reports a positive current while the pack discharges '
                   '(depends on how the shunt is mounted); ROS current is negative while '
                   'discharging either way'),
+        ParamSpec('mounted_reversed', bool, False,
+                  'true if the IVT-S, with its sign setting normal, reports charging current '
+                  'as positive (shunt mounted the other way round); read_config and '
+                  'write_config derive the sign setting they expect from this and '
+                  'discharge_positive'),
+    ]
+    COMMAND_PARAMS = [
+        ParamSpec(key, int, None,
+                  f'cycle time in ms write_config sets for the {DBC_NAME[kind]} result '
+                  f'(0 = off); no default: write_config refuses while one is unset',
+                  low=0, high=CYCLE_MAX_MS, step=1, read_only=False)
+        for kind, key in CYCLE_KEYS.items()] + [
+        ParamSpec('command_timeout', float, 2.0,
+                  's each command waits for its answer on 0x511 (STORE at least 2 s)',
+                  low=0.1, high=60.0, read_only=False),
+        ParamSpec('check_config_at_start', bool, False,
+                  'read the sensor configuration once it is heard and report a mismatch with '
+                  'byte_order / discharge_positive at once (transmits only while '
+                  'commands_enabled is true)'),
     ]
 
     def __init__(self, name: str, config: DeviceConfig | Mapping[str, Any],
@@ -89,8 +134,35 @@ class IvtSDevice(Device):
         self.codec = IvtSCodec(base_id, self.byte_order)
         # Wire current/charge -> ROS sign (negative while discharging).
         self._sign = -1.0 if self.discharge_positive else 1.0
+        self.mounted_reversed = _as_bool(f'{name}.mounted_reversed',
+                                         bool(self.config.mounted_reversed))
         self._tracks: dict[IvtMux, _Track] = {}
         self._stamp = NAN
+        self.link = CommandLink(self.lock)
+        self._ids = self.codec.arbitration_ids | {RESPONSE_ID}
+
+    # --- receive side ------------------------------------------------------------------------
+    @property
+    def arbitration_ids(self) -> frozenset[int]:
+        """Return the result IDs and the answer ID 0x511."""
+        return self._ids
+
+    def handle_frame(self, arbitration_id: int, data: bytes, stamp: float) -> bool:
+        """Decode a result frame, or a 0x511 answer (never primary, never raises)."""
+        if arbitration_id != RESPONSE_ID:
+            return super().handle_frame(arbitration_id, data, stamp)
+        try:
+            answer = decode_answer(data)
+        except ProtocolError as exc:
+            with self.lock:
+                self.frames_malformed += 1
+                self.last_malformed = str(exc)
+                self.link.malformed += 1
+            return False
+        with self.lock:
+            self.frames_received += 1
+            self.link.offer(answer, self.clock())
+        return False
 
     # --- bus thread ------------------------------------------------------------------------
     def _handle(self, reading: IvtResult, stamp: float) -> bool:
@@ -100,8 +172,12 @@ class IvtSDevice(Device):
             self._tracks[reading.kind] = _Track(reading, now)
         else:
             previous = track.result.counter
-            # After a silence longer than stale_timeout a counter restart is expected.
-            if now - track.seen <= self.stale_timeout:
+            gap = now - track.seen
+            fresh = gap <= self._timeout(reading.kind, track)
+            track.interval = gap if track.interval != track.interval else (
+                track.interval + INTERVAL_WEIGHT * (gap - track.interval))
+            # After a silence longer than the result's timeout a counter restart is expected.
+            if fresh:
                 if reading.counter == previous:
                     track.stuck += 1
                     track.good_streak = 0
@@ -145,16 +221,37 @@ class IvtSDevice(Device):
             return track.result if track else None
 
     # --- helpers (lock held) ---------------------------------------------------------------
+    def _timeout(self, kind: IvtMux, track: _Track) -> float:
+        """
+        Seconds after which this result is unknown: 5 of its cycles, >= stale_timeout.
+
+        The current is the primary result: it follows stale_timeout exactly, as the
+        device's own staleness does (a slower current cycle needs a larger stale_timeout).
+        """
+        if kind is IvtMux.I:
+            return self.stale_timeout
+        config = self.link.configs.get(kind)
+        if config is not None and config.mode is TriggerMode.CYCLIC and config.cycle_ms:
+            period = config.cycle_ms / 1000.0
+        else:
+            period = track.interval if track.interval == track.interval else 0.0
+        return max(self.stale_timeout, RESULT_STALE_CYCLES * period)
+
     def _fresh(self, kind: IvtMux) -> _Track | None:
         track = self._tracks.get(kind)
-        if track is None or self.clock() - track.seen > self.stale_timeout:
+        if track is None or self.clock() - track.seen > self._timeout(kind, track):
             return None
         return track
 
     def _valid(self, kind: IvtMux) -> float:
-        """SI value (sensor sign) of a fresh result without its result-error bit, else NaN."""
+        """
+        SI value (sensor sign) of a fresh result, else NaN.
+
+        A result with its result-error bit or its system-error bit set is no measurement
+        (the vendor DBC: with System_Error "sensor functionality is not ensured").
+        """
         track = self._fresh(kind)
-        if track is None or track.result.result_error:
+        if track is None or track.result.result_error or track.result.system_error:
             return NAN
         return track.result.value
 
@@ -167,8 +264,7 @@ class IvtSDevice(Device):
     # --- executor side ---------------------------------------------------------------------
     def _battery_report(self) -> BatteryReport:
         current = self._current_a()
-        now, timeout = self.clock(), self.stale_timeout
-        results = [t.result for t in self._tracks.values() if now - t.seen <= timeout]
+        results = self._fresh_results()
         if any(r.system_error for r in results):
             health = PowerSupplyHealth.UNSPEC_FAILURE
         elif results:
@@ -179,7 +275,9 @@ class IvtSDevice(Device):
             stamp=self._stamp,
             voltage=self._valid(IvtMux.U1),
             current=current,
-            charge=self._sign * self._valid(IvtMux.AS) / 3600.0,
+            # The As result counts since the sensor's last reset (negative after a drive):
+            # not the charge in the battery, which the IVT-S does not know (issue 17).
+            charge=NAN,
             temperature=self._valid(IvtMux.T),
             power_supply_status=current_status(current),
             power_supply_health=health,
@@ -191,7 +289,8 @@ class IvtSDevice(Device):
         errors, warnings = [], []
         system = [DBC_NAME[r.kind] for r in results if r.system_error]
         if system:
-            errors.append(f'system error ({", ".join(system)})')
+            errors.append(f'{SYSTEM_ERROR_TEXT} on {", ".join(system)}: not used')
+        errors += self._config_problems()
         for flag, label in (('ocs', 'over-current (OCS) tripped'),
                             ('result_error', 'result error/out of range'),
                             ('measurement_error', 'measurement error')):
@@ -214,7 +313,7 @@ class IvtSDevice(Device):
     def _values(self, current: float) -> dict[str, str]:
         values = {
             'current (A, negative = discharging)': f'{current:.3f}',
-            'charge (Ah, negative = discharged)':
+            'As counter since sensor reset (Ah, negative = discharged)':
                 f'{self._sign * self._valid(IvtMux.AS) / 3600.0:.4f}',
             'power (W, as measured)': f'{self._valid(IvtMux.W):g}',
             'energy (Wh, as measured)': f'{self._valid(IvtMux.WH):g}',
@@ -239,4 +338,139 @@ class IvtSDevice(Device):
             values[f'{name} counter stuck'] = str(track.stuck)
             values[f'{name} counter jumps'] = str(track.jumps)
             values[f'{name} age (s)'] = f'{self.clock() - track.seen:.2f}'
+            values[f'{name} expires after (s)'] = f'{self._timeout(kind, track):.2f}'
+        values.update(self._command_values())
         return values
+
+    # --- commands (0x411 / 0x511) ----------------------------------------------------------
+    def _config_problems(self) -> list[str]:
+        """Mismatches between the last read-back and the parameters (lock held)."""
+        read = self.link.read_back
+        if read is None:
+            return []
+        return config_problems(read.configs, self.name, self.byte_order,
+                               self.discharge_positive, self.mounted_reversed)
+
+    def _command_values(self) -> dict[str, str]:
+        link, now = self.link, self.clock()
+        values = {'answers (0x511)': str(link.answers)}
+        if link.mode is not None:
+            values['sensor mode'] = ('RUN' if link.mode.running else 'STOP') + (
+                ', after power-up ' + ('RUN' if link.mode.startup_running else 'STOP'))
+        read = link.read_back
+        if read is None:
+            values['config check'] = 'not read (read_config)'
+        else:
+            problems = self._config_problems()
+            values['config check'] = (f'{"; ".join(problems) or "ok"} (read '
+                                      f'{now - link.read_at:.0f} s ago)')
+        for kind, config in sorted(link.configs.items()):
+            values[f'{DBC_NAME[kind]} config'] = config.text()
+        if link.last_error is not None:
+            values['last error item'] = link.last_error.text()
+        if link.alive is not None:
+            values['alive after restart'] = (
+                f'{link.alive_count} time(s), last {now - link.alive_at:.1f} s ago, serial '
+                f'{link.alive.serial}')
+        if link.wrong is not None:
+            values['wrong command answers'] = (
+                f'{link.wrong_count}, last for command 0x{link.wrong.command:02X}')
+        if link.other is not None:
+            values['unknown answers'] = (f'{link.other_count}, last '
+                                         f'{link.other.data.hex(" ").upper()}')
+        return values
+
+    def heard(self) -> bool:
+        """Tell whether any result frame came (check_config_at_start waits for it)."""
+        with self.lock:
+            return bool(self._tracks)
+
+    def wanted_configs(self) -> list[ResultConfig]:
+        """The configuration write_config sends, from the parameters; RefusedCommand if unset."""
+        config = self.config
+        missing = [f'{self.name}.{key}' for key in CYCLE_KEYS.values()
+                   if config.value(key) is None]
+        if missing:
+            raise RefusedCommand(f'{len(missing)} value(s) unset: ' + ', '.join(missing)
+                                 + ' (cycle time in ms, 0 = off)')
+        inverted = (not self.discharge_positive) != self.mounted_reversed
+        wanted = []
+        for kind, key in CYCLE_KEYS.items():
+            cycle = int(config.value(key))
+            if not 0 <= cycle <= CYCLE_MAX_MS:
+                raise RefusedCommand(f'{self.name}.{key} = {cycle}: allowed 0..{CYCLE_MAX_MS}')
+            wanted.append(ResultConfig(
+                kind, TriggerMode.CYCLIC if cycle else TriggerMode.DISABLED,
+                cycle or DISABLED_CYCLE_MS, self.byte_order == 'little',
+                inverted and kind in seq.DIRECTIONAL))
+        return wanted
+
+    def _timeout_s(self) -> float:
+        return float(self.config.command_timeout or 2.0)
+
+    def _run(self, what: str, body: Callable[[], str]) -> tuple[bool, str]:
+        if not self.link.begin():
+            return False, f'{self.name}: cannot {what}: another IVT-S command is running'
+        try:
+            return True, f'{self.name}: {body()}'
+        except NoAnswer as exc:
+            return False, f'{self.name}: {what} failed: {exc}'
+        finally:
+            self.link.end()
+
+    def read_config(self, send: Send) -> tuple[bool, str]:
+        """Read mode and configuration; (False, why) on no answer or a mismatch."""
+        problems: list[str] = []
+
+        def body() -> str:
+            read = seq.read_config(self.link, send, self._timeout_s(), self.clock())
+            with self.lock:
+                problems.extend(self._config_problems())
+            return 'read_config: ' + read.summary() + (
+                '; MISMATCH: ' + '; '.join(problems) if problems else '; matches the bridge')
+        ok, message = self._run('read the configuration', body)
+        return ok and not problems, message
+
+    def write_config(self, send: Send) -> tuple[bool, str]:
+        """Stop, write, store, run, read back and compare; refuse unset values first."""
+        try:
+            wanted = self.wanted_configs()
+        except RefusedCommand as exc:
+            return False, f'{self.name}: write_config refused: {exc}; nothing was sent'
+
+        def body() -> str:
+            steps = seq.write_config(self.link, send, wanted, self._timeout_s())
+            read = seq.read_config(self.link, send, self._timeout_s(), self.clock())
+            differ = [DBC_NAME[c.kind] for c in wanted if read.configs[c.kind] != c]
+            if differ:
+                raise NoAnswer(f'{", ".join(steps)}, but the read-back differs for '
+                               f'{", ".join(differ)}: {read.summary()}')
+            return f'write_config: {", ".join(steps)}; read back: {read.summary()}'
+        return self._run('write the configuration', body)
+
+    def set_running(self, send: Send, running: bool) -> tuple[bool, str]:
+        """Run or stop the sensor now (0x34); the answer says the mode it reports."""
+        what = 'run' if running else 'stop'
+
+        def body() -> str:
+            mode = seq.set_running(self.link, send, running, self._timeout_s())
+            if mode.running != running:
+                raise NoAnswer(f'the sensor answered but reports '
+                               f'{"RUN" if mode.running else "STOP"}')
+            return f'set_running: the sensor reports {"RUN" if mode.running else "STOP"}'
+        return self._run(what, body)
+
+    def restart(self, send: Send) -> tuple[bool, str]:
+        """Restart the sensor (0x3F) and wait for its alive message (0xBF)."""
+        def body() -> str:
+            alive = seq.restart(self.link, send, self._timeout_s())
+            return f'restart: alive again (serial {alive.serial}); the As and Wh counters ' \
+                   'start from 0'
+        return self._run('restart', body)
+
+    def reset_errors(self, send: Send) -> tuple[bool, str]:
+        """Reset all measurement and system errors (0x30, with the serial number)."""
+        def body() -> str:
+            serial = seq.reset_errors(self.link, send, self._timeout_s())
+            return f'reset_errors: all measurement and system errors reset (serial {serial})'
+        return self._run('reset the errors', body)
