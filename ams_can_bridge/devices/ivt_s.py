@@ -23,7 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 import time
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Iterable, Mapping
 
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, Level, ParamSpec,
@@ -140,6 +140,22 @@ class IvtSDevice(Device):
         self._stamp = NAN
         self.link = CommandLink(self.lock)
         self._ids = self.codec.arbitration_ids | {RESPONSE_ID}
+
+    def config_problems(self, config: DeviceConfig,
+                        keys: Iterable[str] | None = None) -> list[str]:
+        """Name every config.<result>_cycle_ms that is not a whole 0..65535 ms."""
+        wanted = CYCLE_KEYS.values() if keys is None else [
+            k for k in keys if k in CYCLE_KEYS.values()]
+        problems = []
+        for key in wanted:
+            value = config.value(key)
+            if value is None:
+                continue
+            if isinstance(value, bool) or not isinstance(value, int) \
+                    or not 0 <= value <= CYCLE_MAX_MS:
+                problems.append(f'{self.name}.{key} = {value!r} refused: allowed a whole '
+                                f'number of ms 0..{CYCLE_MAX_MS} (0 = off)')
+        return problems
 
     # --- receive side ------------------------------------------------------------------------
     @property
