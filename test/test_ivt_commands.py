@@ -1,6 +1,8 @@
 """
-IVT-S services on a real node against the simulated IVT-S: over slcan (the test plays the
-USB-CAN adapter and carries the simulator's frames) and on a virtual bus.
+IVT-S services on a real node against the simulated IVT-S.
+
+Over slcan (the test plays the USB-CAN adapter and carries the simulator's frames) and on a
+virtual bus.
 
 Refused calls are proven silent with a marker frame: it is sent after the call and waited
 for, and no 0x411 frame may come before it.
@@ -14,7 +16,6 @@ from std_srvs.srv import SetBool, Trigger
 
 from ams_can_bridge.sim.ivt_s import IvtSSimulator
 from ams_can_bridge.sim.runner import SimRunner
-from helpers import wait_for
 from slcan_peer import SlcanPeer
 
 CYCLES = {'ivt_s.config.i_cycle_ms': 10, 'ivt_s.config.u1_cycle_ms': 20,
@@ -144,20 +145,15 @@ def test_services_end_to_end_over_slcan(slcan_rig):
     assert reset.success, reset.message
     rig.status('ivt_s', lambda s: level(s) == 0, 10.0)
     # what crossed the adapter, in the order the bridge sent it (golden bytes by hand)
-    sent = [f.data for f in sim_commands(sim)]
-    assert sent[:9] == [bytes([0x74] + [0] * 7)] + [bytes([0x60 + k] + [0] * 7)
-                                                     for k in range(8)]
+    sent = [data for _, data in sim.received]
+    reads = [bytes([0x74] + [0] * 7)] + [bytes([0x60 + k] + [0] * 7) for k in range(8)]
+    assert sent[:9] == reads
     assert sent[9] == bytes([0x34, 0x00, 0x01, 0, 0, 0, 0, 0])
     assert sent[10] == bytes([0x20, 0x42, 0x00, 0x0A, 0, 0, 0, 0])
     assert sent[-3:] == [bytes([0x7B] + [0] * 7),
                          bytes([0x30, 0x00, 0x00, 0x00, 0x01, 0x23, 0x45, 0]),
                          bytes([0x30, 0x01, 0x00, 0x00, 0x01, 0x23, 0x45, 0])]
     assert rig.failures == []
-
-
-def sim_commands(sim):
-    from ams_can_bridge.protocols.common import Frame
-    return [Frame(0x411, data, False) for _, data in sim.received]
 
 
 def test_check_config_at_start_detects_little_endian_over_slcan(slcan_rig):

@@ -402,7 +402,7 @@ class IvtSDevice(Device):
             return bool(self._tracks)
 
     def wanted_configs(self) -> list[ResultConfig]:
-        """The configuration write_config sends, from the parameters; RefusedCommand if unset."""
+        """Return the configuration write_config sends (RefusedCommand while one is unset)."""
         config = self.config
         missing = [f'{self.name}.{key}' for key in CYCLE_KEYS.values()
                    if config.value(key) is None]

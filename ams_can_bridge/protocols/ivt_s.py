@@ -1,5 +1,5 @@
 """
-Isabellenhuette IVT-S current shunt: result frames <-> typed readings (docs/protocols.md section 2).
+Isabellenhuette IVT-S current shunt: result frames <-> typed readings (docs/protocols.md s. 2).
 
 Eight result messages at ``base_id .. base_id + 7`` (factory 0x521..0x528), DLC 6:
 
