@@ -1,11 +1,12 @@
 """
 IVT-S commands (0x411, host -> sensor) and answers (0x511, sensor -> host).
 
-The layout is in docs/protocols.md section 2. Both are DLC 8 with a mux byte 0 (the vendor
-DBC IVT-S_12082020.dbc: IVT_ID_Cmd / IVT_ID_Response); unused bytes are 0. Multi-byte
-fields are big-endian whatever the result byte order is set to (the DBC's Motorola signals). Only what the public sources confirm is
-encoded here; the other commands of the DBC (CAN IDs, thresholds, triggers, log data) are not
-used by the bridge and answers to them decode as ``OtherAnswer``.
+The layout is in docs/protocols.md section 2. Both are DLC 8 with a mux byte 0 (the
+vendor DBC IVT-S_12082020.dbc: IVT_ID_Cmd / IVT_ID_Response); unused bytes are 0.
+Multi-byte fields are big-endian whatever the result byte order is set to (the DBC's
+Motorola signals). Only what the public sources confirm is encoded here; the other
+commands of the DBC (CAN IDs, thresholds, triggers, log data) are not used by the bridge,
+and answers to them decode as ``OtherAnswer``.
 """
 from __future__ import annotations
 
