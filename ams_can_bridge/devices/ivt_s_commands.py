@@ -172,6 +172,11 @@ class CommandLink:
         with self._cv:
             self._busy = False
 
+    def remember(self, read: ReadBack, now: float) -> None:
+        """Keep a complete read (the diagnostics check the parameters against it)."""
+        with self._cv:
+            self.read_back, self.read_at = read, now
+
     def exchange(self, send: Send, frame: Frame, match: Callable[[IvtAnswer], bool],
                  what: str, timeout: float) -> IvtAnswer:
         """Send one command and return its answer; NoAnswer saying why not."""
@@ -216,8 +221,7 @@ def read_config(link: CommandLink, send: Send, timeout: float, now: float) -> Re
         configs[kind] = link.exchange(send, cmd.get_config(kind), is_config(kind),
                                       f'get the {DBC_NAME[kind]} configuration', timeout)
     read = ReadBack(mode, configs)  # type: ignore[arg-type]
-    with link._cv:
-        link.read_back, link.read_at = read, now
+    link.remember(read, now)
     return read
 
 
