@@ -60,7 +60,7 @@ def rig():
 
     def make(sim=None, **params):
         sim = sim or IvtSSimulator(period=0.02)
-        device = IvtSDevice('ivt_s', {'command_timeout': 0.5, **params})
+        device = IvtSDevice('ivt_s', {'command_timeout': 3.0, **params})  # a loaded machine
         bus = Bus(sim, device)
         made.append(bus)
         wait_for(device.heard, 5.0, 'the first result')
@@ -183,7 +183,7 @@ def test_cycle_values_out_of_range_are_refused_when_set():
 
 
 def test_no_answer_fails_within_command_timeout_naming_the_step(rig):
-    sim, device, bus = rig()
+    sim, device, bus = rig(command_timeout=0.5)
     sim.faults.extra['mute_commands'] = True
     started = time.monotonic()
     ok, message = device.read_config(bus.send)
@@ -193,7 +193,7 @@ def test_no_answer_fails_within_command_timeout_naming_the_step(rig):
 
 
 def test_write_stopped_then_silent_tries_to_run_again(rig):
-    sim, device, bus = rig(**CYCLES)
+    sim, device, bus = rig(command_timeout=0.5, **CYCLES)
     sim.faults.extra['mute_commands'] = True
     ok, message = device.write_config(bus.send)
     assert not ok
@@ -251,7 +251,7 @@ def test_unknown_and_malformed_answers_are_counted_never_fatal():
 
 
 def test_a_second_sequence_waits_for_none(rig):
-    sim, device, bus = rig()
+    sim, device, bus = rig(command_timeout=0.5)
     sim.faults.extra['mute_commands'] = True
     first = threading.Thread(target=device.read_config, args=(bus.send,))
     first.start()

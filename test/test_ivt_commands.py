@@ -27,7 +27,7 @@ MARKER = 0x7AB
 
 def params(enabled=True, **more):
     return {'devices': ['ivt_s'], 'commands_allowed': True, 'commands_enabled': enabled,
-            'diagnostics_period': 0.2, 'ivt_s.command_timeout': 1.0, **more}
+            'diagnostics_period': 0.2, 'ivt_s.command_timeout': 3.0, **more}
 
 
 def level(status):
