@@ -178,6 +178,8 @@ def test_cycle_values_out_of_range_are_refused_when_set():
         'ivt_s.config.i_cycle_ms = 70000 refused: allowed a whole number of ms 0..65535 '
         '(0 = off)')
     assert device.config_reason('config.as_cycle_ms', 0) is None
+    assert device.config_reason('config.as_cycle_ms', 1000.0) is None  # YAML 1000.0 = 1000
+    assert 'allowed a whole number' in device.config_reason('config.as_cycle_ms', 10.5)
     with pytest.raises(ValueError, match='ivt_s.config.t_cycle_ms'):
         IvtSDevice('ivt_s', {'config.t_cycle_ms': -1})
 
