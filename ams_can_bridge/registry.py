@@ -45,6 +45,7 @@ VARIANTS = {
 # ROS command services per device type (issue: commanding); only these types have any.
 COMMANDERS = {
     'ams': 'ams_can_bridge.ros.ams_commands:AmsCommands',
+    'ivt_s': 'ams_can_bridge.ros.ivt_commands:IvtCommands',
     'evms3': 'ams_can_bridge.ros.zeva_commands:Evms3Commands',
     'bms16': 'ams_can_bridge.ros.zeva_commands:Bms16Commands',
     'sma': 'ams_can_bridge.ros.sma_commands:SmaCommands',

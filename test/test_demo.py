@@ -128,3 +128,20 @@ def test_installed_demo_runs_drives_the_ams_and_exits_cleanly():
     assert 'DRIVE' in states, states
     assert 'IDLE' in states[states.index('DRIVE'):], states
     assert 'abort -> OK' in result.stdout, result.stdout[-3000:]
+
+
+def test_demo_rig_detects_the_misconfigured_ivt_s():
+    # demo --misconfigured-ivt: the simulated IVT-S sends little-endian, the bridge expects
+    # big-endian; check_config_at_start reads the sensor and the status names the parameter.
+    from ams_can_bridge.devices.base import Level
+    from ams_can_bridge.ros.demo_rig import DemoRig
+    from helpers import ros_context, wait_for
+    with ros_context() as context:
+        rig = DemoRig(banks=1, misconfigured_ivt=True, context=context)
+        try:
+            device = rig.bridge.devices['ivt_s']
+            report = wait_for(lambda: (lambda r: r if r.level == Level.ERROR else None)(
+                device.diagnostic_report()), 15.0, 'the ivt_s ERROR')
+            assert 'set ivt_s.byte_order to little' in report.message
+        finally:
+            rig.close()

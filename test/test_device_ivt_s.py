@@ -64,7 +64,12 @@ def test_discharge_positive_true_flips_to_ros_sign(clock):
     assert device.charge_ah() == pytest.approx(-2.0)
     report = device.battery_report()
     assert report.present and report.stamp == 1234.5
-    assert (report.current, report.voltage, report.charge) == pytest.approx((-12.5, 398.2, -2))
+    assert (report.current, report.voltage) == pytest.approx((-12.5, 398.2))
+    # The As counter is not the charge in the battery (issue 17): NaN in BatteryState, the
+    # counter under its own name in the diagnostics.
+    assert math.isnan(report.charge)
+    assert device.diagnostic_report().values[
+        'As counter since sensor reset (Ah, negative = discharged)'] == '-2.0000'
     assert report.temperature == pytest.approx(31.4)
     assert report.power_supply_status == PowerSupplyStatus.DISCHARGING
     assert report.power_supply_health == PowerSupplyHealth.GOOD
@@ -93,7 +98,7 @@ def test_discharge_positive_accepts_yaml_strings_and_refuses_others(clock):
 
 def test_little_endian_and_base_id_settings(clock):
     device = make(clock, byte_order='little', base_id=0x600)
-    assert device.arbitration_ids == frozenset(range(0x600, 0x608))
+    assert device.arbitration_ids == frozenset(range(0x600, 0x608)) | {0x511}  # + answers
     assert not device.is_extended_id
     send(device, IvtMux.I, -3.25, order='little', base_id=0x600)
     assert device.current_a() == pytest.approx(3.25)
@@ -129,9 +134,44 @@ def test_system_error_is_error_and_unspec_failure(clock):
     send(device, IvtMux.I, 1.0)
     send(device, IvtMux.T, 25.0, system_error=1)
     diag = device.diagnostic_report()
-    assert diag.level == Level.ERROR and 'system error (T)' in diag.message
+    assert diag.level == Level.ERROR
+    assert 'system error bit (byte 1 bit 7, System_Error' in diag.message
+    assert 'on T: not used' in diag.message
     assert diag.values['T status'] == 'system error'
     assert device.battery_report().power_supply_health == PowerSupplyHealth.UNSPEC_FAILURE
+    assert math.isnan(device.temperature_c())
+
+
+def test_system_error_result_is_no_measurement(clock):
+    # Issue 17 point 3: like the result-error bit, never a number (so never in the AMS pack).
+    device = make(clock)
+    send(device, IvtMux.I, 30.0, system_error=1)
+    send(device, IvtMux.U1, 400.0, system_error=1)
+    assert math.isnan(device.current_a()) and math.isnan(device.voltage_v())
+    report = device.battery_report()
+    assert math.isnan(report.current) and math.isnan(report.voltage)
+    assert device.diagnostic_report().values['I raw (mA)'] == '30000'  # still shown raw
+    send(device, IvtMux.I, 30.0, counter=1)  # the bit clears: a measurement again
+    assert device.current_a() == pytest.approx(-30.0)
+
+
+def test_each_result_expires_on_its_own_cycle(clock):
+    # I every 10 ms, As every second: As is not "stopped" between its frames.
+    device = make(clock)
+    for n in range(301):
+        send(device, IvtMux.I, 5.0, counter=n & 15)
+        if n % 100 == 0:
+            send(device, IvtMux.AS, 3600.0, counter=(n // 100) & 15)
+        clock.now += 0.01
+    clock.now += 0.7  # 0.7 s after the last As: beyond stale_timeout (0.5 s), within 5 s
+    send(device, IvtMux.I, 5.0, counter=3)
+    diag = device.diagnostic_report()
+    assert 'result stopped' not in diag.message and diag.level == Level.OK
+    assert float(diag.values['As expires after (s)']) == pytest.approx(5.0, rel=0.05)
+    assert device.charge_ah() == pytest.approx(-1.0)
+    clock.now += 5.0  # now it did stop
+    send(device, IvtMux.I, 5.0, counter=4)
+    assert 'result stopped (As)' in device.diagnostic_report().message
 
 
 @pytest.mark.parametrize('bit, text', [

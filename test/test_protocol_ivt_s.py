@@ -1,4 +1,4 @@
-"""IVT-S codec: golden frames written by hand from docs/protocols.md section 2, not from the DBC."""
+"""IVT-S codec: golden frames written by hand from docs/protocols.md s. 2, not from the DBC."""
 import math
 
 from hypothesis import given, settings, strategies as st

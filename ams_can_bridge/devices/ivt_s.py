@@ -3,7 +3,16 @@ IVT-S current shunt state: latest result of each kind, sign convention, counters
 
 Other devices read it through ``current_a``, ``voltage_v`` and ``charge_ah`` (the AMS fills
 its pack BatteryState from them), so those take the device lock and never return a number
-that is unknown, stale or flagged invalid by the sensor: NaN instead.
+that is unknown, stale or flagged invalid by the sensor (result-error or system-error bit):
+NaN instead.
+
+Each result expires on its own, after 5 of its cycles (the cycle the sensor reported for it,
+else the interval observed between its frames) and never before ``stale_timeout``: a result
+the sensor sends every second is not "stopped" because the current comes every 10 ms. The
+current itself, the primary frame, expires after ``stale_timeout`` like the device.
+
+The sensor's configuration is read and written over 0x411/0x511 (devices/ivt_s_commands.py),
+only from the command services; the answers, whoever asked, show in the diagnostics.
 
 Sign: on the wire the current is positive in whichever direction the shunt is mounted for;
 ``discharge_positive`` (default true, the common mounting) says which. ROS values follow
@@ -20,13 +29,22 @@ from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, Level, ParamSpec,
     PowerSupplyHealth)
 from ams_can_bridge.devices.config import DeviceConfig
+from ams_can_bridge.devices.ivt_s_commands import CommandLink
+from ams_can_bridge.devices.ivt_s_control import CYCLE_KEYS, IvtSControl
+from ams_can_bridge.protocols.common import ProtocolError
 from ams_can_bridge.protocols.ivt_s import (
-    BYTE_ORDERS, DBC_NAME, DEFAULT_BASE_ID, IvtMux, IvtResult, IvtSCodec, RAW_UNIT, SI_UNIT)
+    BYTE_ORDERS, DBC_NAME, DEFAULT_BASE_ID, IvtMux, IvtResult, IvtSCodec, RAW_UNIT,
+    RESPONSE_ID, SI_UNIT)
+from ams_can_bridge.protocols.ivt_s_commands import CYCLE_MAX_MS, decode_answer, TriggerMode
 
 NAN = math.nan
 # A counter anomaly keeps the device at WARN until this many good frames of that result
 # followed it: one lost frame is visible for a moment, a stuck counter stays visible.
 COUNTER_RECOVERY_FRAMES = 16
+RESULT_STALE_CYCLES = 5  # a result is unknown after this many of its cycles without a frame
+INTERVAL_WEIGHT = 0.25  # weight of each new gap in a result's observed interval
+SYSTEM_ERROR_TEXT = ('system error bit (byte 1 bit 7, System_Error: sensor functionality is '
+                     'not ensured)')
 
 
 @dataclass
@@ -38,6 +56,7 @@ class _Track:
     stuck: int = 0  # frames that repeated the previous counter
     jumps: int = 0  # frames whose counter skipped (lost frames or a reset sensor)
     good_streak: int = 0  # frames with the expected counter since the last anomaly
+    interval: float = math.nan  # observed seconds between frames (smoothed)
 
     @property
     def counter_trouble(self) -> bool:
@@ -53,7 +72,7 @@ def _as_bool(key: str, value: Any) -> bool:
     raise ValueError(f'{key} = {value!r}: allowed true | false')
 
 
-class IvtSDevice(Device):
+class IvtSDevice(IvtSControl, Device):
     """
     Isabellenhuette IVT-S: current, voltages U1..U3, temperature, power, charge, energy.
 
@@ -75,6 +94,25 @@ class IvtSDevice(Device):
                   'true if the IVT-S reports a positive current while the pack discharges '
                   '(depends on how the shunt is mounted); ROS current is negative while '
                   'discharging either way'),
+        ParamSpec('mounted_reversed', bool, False,
+                  'true if the IVT-S, with its sign setting normal, reports charging current '
+                  'as positive (shunt mounted the other way round); read_config and '
+                  'write_config derive the sign setting they expect from this and '
+                  'discharge_positive'),
+    ]
+    COMMAND_PARAMS = [
+        ParamSpec(key, int, None,
+                  f'cycle time in ms write_config sets for the {DBC_NAME[kind]} result '
+                  f'(0 = off); no default: write_config refuses while one is unset',
+                  low=0, high=CYCLE_MAX_MS, step=1, read_only=False)
+        for kind, key in CYCLE_KEYS.items()] + [
+        ParamSpec('command_timeout', float, 2.0,
+                  's each command waits for its answer on 0x511 (STORE at least 2 s)',
+                  low=0.1, high=60.0, read_only=False),
+        ParamSpec('check_config_at_start', bool, False,
+                  'read the sensor configuration once it is heard and report a mismatch with '
+                  'byte_order / discharge_positive at once (transmits only while '
+                  'commands_enabled is true)'),
     ]
 
     def __init__(self, name: str, config: DeviceConfig | Mapping[str, Any],
@@ -89,8 +127,35 @@ class IvtSDevice(Device):
         self.codec = IvtSCodec(base_id, self.byte_order)
         # Wire current/charge -> ROS sign (negative while discharging).
         self._sign = -1.0 if self.discharge_positive else 1.0
+        self.mounted_reversed = _as_bool(f'{name}.mounted_reversed',
+                                         bool(self.config.mounted_reversed))
         self._tracks: dict[IvtMux, _Track] = {}
         self._stamp = NAN
+        self.link = CommandLink(self.lock)
+        self._ids = self.codec.arbitration_ids | {RESPONSE_ID}
+
+    # --- receive side ------------------------------------------------------------------------
+    @property
+    def arbitration_ids(self) -> frozenset[int]:
+        """Return the result IDs and the answer ID 0x511."""
+        return self._ids
+
+    def handle_frame(self, arbitration_id: int, data: bytes, stamp: float) -> bool:
+        """Decode a result frame, or a 0x511 answer (never primary, never raises)."""
+        if arbitration_id != RESPONSE_ID:
+            return super().handle_frame(arbitration_id, data, stamp)
+        try:
+            answer = decode_answer(data)
+        except ProtocolError as exc:
+            with self.lock:
+                self.frames_malformed += 1
+                self.last_malformed = str(exc)
+                self.link.malformed += 1
+            return False
+        with self.lock:
+            self.frames_received += 1
+            self.link.offer(answer, self.clock())
+        return False
 
     # --- bus thread ------------------------------------------------------------------------
     def _handle(self, reading: IvtResult, stamp: float) -> bool:
@@ -100,8 +165,12 @@ class IvtSDevice(Device):
             self._tracks[reading.kind] = _Track(reading, now)
         else:
             previous = track.result.counter
-            # After a silence longer than stale_timeout a counter restart is expected.
-            if now - track.seen <= self.stale_timeout:
+            gap = now - track.seen
+            fresh = gap <= self._timeout(reading.kind, track)
+            track.interval = gap if track.interval != track.interval else (
+                track.interval + INTERVAL_WEIGHT * (gap - track.interval))
+            # After a silence longer than the result's timeout a counter restart is expected.
+            if fresh:
                 if reading.counter == previous:
                     track.stuck += 1
                     track.good_streak = 0
@@ -145,16 +214,37 @@ class IvtSDevice(Device):
             return track.result if track else None
 
     # --- helpers (lock held) ---------------------------------------------------------------
+    def _timeout(self, kind: IvtMux, track: _Track) -> float:
+        """
+        Seconds after which this result is unknown: 5 of its cycles, >= stale_timeout.
+
+        The current is the primary result: it follows stale_timeout exactly, as the
+        device's own staleness does (a slower current cycle needs a larger stale_timeout).
+        """
+        if kind is IvtMux.I:
+            return self.stale_timeout
+        config = self.link.configs.get(kind)
+        if config is not None and config.mode is TriggerMode.CYCLIC and config.cycle_ms:
+            period = config.cycle_ms / 1000.0
+        else:
+            period = track.interval if track.interval == track.interval else 0.0
+        return max(self.stale_timeout, RESULT_STALE_CYCLES * period)
+
     def _fresh(self, kind: IvtMux) -> _Track | None:
         track = self._tracks.get(kind)
-        if track is None or self.clock() - track.seen > self.stale_timeout:
+        if track is None or self.clock() - track.seen > self._timeout(kind, track):
             return None
         return track
 
     def _valid(self, kind: IvtMux) -> float:
-        """SI value (sensor sign) of a fresh result without its result-error bit, else NaN."""
+        """
+        SI value (sensor sign) of a fresh result, else NaN.
+
+        A result with its result-error bit or its system-error bit set is no measurement
+        (the vendor DBC: with System_Error "sensor functionality is not ensured").
+        """
         track = self._fresh(kind)
-        if track is None or track.result.result_error:
+        if track is None or track.result.result_error or track.result.system_error:
             return NAN
         return track.result.value
 
@@ -167,8 +257,7 @@ class IvtSDevice(Device):
     # --- executor side ---------------------------------------------------------------------
     def _battery_report(self) -> BatteryReport:
         current = self._current_a()
-        now, timeout = self.clock(), self.stale_timeout
-        results = [t.result for t in self._tracks.values() if now - t.seen <= timeout]
+        results = self._fresh_results()
         if any(r.system_error for r in results):
             health = PowerSupplyHealth.UNSPEC_FAILURE
         elif results:
@@ -179,7 +268,9 @@ class IvtSDevice(Device):
             stamp=self._stamp,
             voltage=self._valid(IvtMux.U1),
             current=current,
-            charge=self._sign * self._valid(IvtMux.AS) / 3600.0,
+            # The As result counts since the sensor's last reset (negative after a drive):
+            # not the charge in the battery, which the IVT-S does not know (issue 17).
+            charge=NAN,
             temperature=self._valid(IvtMux.T),
             power_supply_status=current_status(current),
             power_supply_health=health,
@@ -191,7 +282,8 @@ class IvtSDevice(Device):
         errors, warnings = [], []
         system = [DBC_NAME[r.kind] for r in results if r.system_error]
         if system:
-            errors.append(f'system error ({", ".join(system)})')
+            errors.append(f'{SYSTEM_ERROR_TEXT} on {", ".join(system)}: not used')
+        errors += self._config_problems()
         for flag, label in (('ocs', 'over-current (OCS) tripped'),
                             ('result_error', 'result error/out of range'),
                             ('measurement_error', 'measurement error')):
@@ -214,7 +306,7 @@ class IvtSDevice(Device):
     def _values(self, current: float) -> dict[str, str]:
         values = {
             'current (A, negative = discharging)': f'{current:.3f}',
-            'charge (Ah, negative = discharged)':
+            'As counter since sensor reset (Ah, negative = discharged)':
                 f'{self._sign * self._valid(IvtMux.AS) / 3600.0:.4f}',
             'power (W, as measured)': f'{self._valid(IvtMux.W):g}',
             'energy (Wh, as measured)': f'{self._valid(IvtMux.WH):g}',
@@ -239,4 +331,6 @@ class IvtSDevice(Device):
             values[f'{name} counter stuck'] = str(track.stuck)
             values[f'{name} counter jumps'] = str(track.jumps)
             values[f'{name} age (s)'] = f'{self.clock() - track.seen:.2f}'
+            values[f'{name} expires after (s)'] = f'{self._timeout(kind, track):.2f}'
+        values.update(self._command_values())
         return values

@@ -1,5 +1,5 @@
 """
-Isabellenhuette IVT-S current shunt: result frames <-> typed readings (docs/protocols.md section 2).
+Isabellenhuette IVT-S current shunt: result frames <-> typed readings (docs/protocols.md s. 2).
 
 Eight result messages at ``base_id .. base_id + 7`` (factory 0x521..0x528), DLC 6:
 
@@ -12,8 +12,8 @@ Eight result messages at ``base_id .. base_id + 7`` (factory 0x521..0x528), DLC 
   big-endian in the factory setting; the sensor can be configured to send it little-endian,
   hence ``byte_order``.
 
-The command (0x411) and response (0x511) messages are in msg_defs/ivt_s.dbc for
-completeness only: the bridge never configures the sensor, it only listens.
+The command (0x411) and answer (0x511) frames are in protocols/ivt_s_commands.py: the bridge
+sends commands only from its services, behind the transmit gate.
 
 Speed: the bus thread decodes every frame (8 results x up to 100 Hz each), so ``decode`` is
 hand-written on precomputed tables instead of going through cantools (the DBC can describe

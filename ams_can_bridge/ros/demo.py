@@ -48,6 +48,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                         help='seconds before the --fault starts (default 20)')
     parser.add_argument('--no-commands', action='store_true',
                         help='do not drive the AMS (bridge stays a listener)')
+    parser.add_argument('--misconfigured-ivt', action='store_true',
+                        help='simulate an IVT-S set up little-endian while the bridge expects '
+                        'big-endian: check_config_at_start detects it (ERROR naming '
+                        'ivt_s.byte_order; needs commands)')
     args = parser.parse_args(argv)
     if args.duration < 0 or (args.interval is not None and args.interval <= 0):
         parser.error('--duration must be >= 0 and --interval > 0')
@@ -183,7 +187,8 @@ def _run(args: argparse.Namespace, stop: threading.Event) -> int:
     interval = args.interval or (0.25 if tty else 1.0)
     unicode = tty and 'utf' in (sys.stdout.encoding or '').lower()
     try:
-        rig = DemoRig(banks=args.banks, commands=not args.no_commands)
+        rig = DemoRig(banks=args.banks, commands=not args.no_commands,
+                      misconfigured_ivt=args.misconfigured_ivt)
     except ConfigError as exc:
         print(f'demo: the bridge cannot start: {exc}', file=sys.stderr)
         return 2
@@ -209,6 +214,9 @@ def _run(args: argparse.Namespace, stop: threading.Event) -> int:
                 rig.silence('bms16')
                 faulted = True
             view = monitor.view(uptime, driver.last() if driver else ('', ''))
+            if args.misconfigured_ivt:
+                view.notes.append('IVT-S set up little-endian, the bridge expects big-endian: '
+                                  'see the ivt_s status')
             if args.fault:
                 view.notes.append(f'fault injection: bms16 silent from {args.fault_after:g} s'
                                   + (' (now)' if faulted else ''))

@@ -39,8 +39,9 @@ def device_parameters(banks: int = 2) -> dict[str, Any]:
     }
 
 
-def _bridge_parameters(channel: str, banks: int, commands: bool) -> list[Parameter]:
-    """Return the bridge's parameters for the demo bus and devices."""
+def _bridge_parameters(channel: str, banks: int, commands: bool,
+                       extra: dict[str, Any] | None = None) -> list[Parameter]:
+    """Return the bridge's parameters for the demo bus and devices (plus ``extra``)."""
     values: dict[str, Any] = {
         'can.interface': 'virtual',
         'can.channel': channel,
@@ -49,6 +50,7 @@ def _bridge_parameters(channel: str, banks: int, commands: bool) -> list[Paramet
         'commands_enabled': commands,
         'diagnostics_period': 0.25,  # the view redraws at 4 Hz: states keep up
         **device_parameters(banks),
+        **(extra or {}),
     }
     return [Parameter(name, value=value) for name, value in values.items()]
 
@@ -82,18 +84,26 @@ class DemoRig:
     """The simulated devices, their runner and bus, and the bridge node, started together."""
 
     def __init__(self, banks: int = 2, commands: bool = True,
-                 channel: str | None = None) -> None:
+                 channel: str | None = None, misconfigured_ivt: bool = False,
+                 context: Any = None) -> None:
         import can
 
         from ams_can_bridge.sim.runner import SimRunner
         self.channel = channel or f'ams_can_bridge_demo_{os.getpid()}_{id(self):x}'
         self.hardware_id = f'virtual:{self.channel}'
         self.simulators = build_simulators(banks)
+        extra: dict[str, Any] = {}
+        if misconfigured_ivt:
+            # Set up little-endian by a vendor tool, while the bridge expects the factory
+            # big-endian: check_config_at_start reads it and reports the mismatch.
+            self.simulators['ivt_s'].misconfigure(little_endian=True)
+            extra['ivt_s.check_config_at_start'] = True
         self.sim_bus = can.Bus(interface='virtual', channel=self.channel)
         self.runner = SimRunner(self.sim_bus, list(self.simulators.values()))
         try:
             self.bridge = BridgeNode(
-                parameter_overrides=_bridge_parameters(self.channel, banks, commands))
+                context=context,
+                parameter_overrides=_bridge_parameters(self.channel, banks, commands, extra))
         except Exception:
             self.sim_bus.shutdown()
             raise

@@ -6,20 +6,34 @@ voltage from ``voltage_fn()`` (default: 400 V open circuit minus 50 mOhm x curre
 charge = integral of current, energy = integral of U x I, temperature warming with I^2.
 On the wire everything with a direction (I, W, As, Wh) carries the mounting sign: the
 sensor measures current one way, and power / charge / energy follow from that current.
+
+Commands on 0x411 are answered on 0x511 as docs/protocols.md section 2 describes: RUN/STOP
+(0x34, 0x74), each result's configuration (0x2n, 0x6n: trigger mode, cycle time, byte order
+and sign, applied to the frames sent; changed only while stopped), STORE (0x32), restart
+(0x3F: the stored configuration and start-up mode, As/Wh from 0, alive message 0xBF),
+restore defaults (0x3D), serial number (0x7B), error items (0x40, 0x41) and reset (0x30).
+Any other command is answered "wrong command" (0xFF).
 """
 from __future__ import annotations
 
+import dataclasses
 from typing import Callable
 
-from ams_can_bridge.protocols.common import Frame
+from ams_can_bridge.protocols import ivt_s_commands as cmd
+from ams_can_bridge.protocols.common import Frame, ProtocolError
 from ams_can_bridge.protocols.ivt_s import (
-    DEFAULT_BASE_ID, DIVISOR, INT32_MAX, INT32_MIN, IvtMux, IvtResult, IvtSCodec)
+    COMMAND_ID, DEFAULT_BASE_ID, DIVISOR, INT32_MAX, INT32_MIN, IvtMux, IvtResult, IvtSCodec)
+from ams_can_bridge.protocols.ivt_s_commands import (
+    AliveAnswer, ErrorAnswer, IvtAnswer, ModeAnswer, ResetAnswer, ResultConfig, SerialAnswer,
+    StoreAnswer, TriggerMode, WrongCommand)
 from ams_can_bridge.sim.base import Periodic, SimDevice
 from ams_can_bridge.sim.pack import Elapsed, thermal_lag
 from ams_can_bridge.sim.profiles import drive_current_a
 
 AMBIENT_C = 25.0
 HEATING_C_PER_A2 = 0.0008  # steady-state rise: 120 A -> about +11.5 degC
+RESTART_S = 0.05  # the simulated sensor is back (alive message) this long after 0x3F
+SERIAL = 0x00012345
 
 
 class IvtSSimulator(SimDevice):
@@ -28,7 +42,12 @@ class IvtSSimulator(SimDevice):
 
     Faults honoured: silent, malformed (wrong DLC), error_code (any value: system error
     bit), extra['ocs'] (OCS bit), extra['result_error'] / extra['measurement_error'] (those
-    bits on every result), extra['stuck_counter'] (counters stop advancing).
+    bits on every result), extra['stuck_counter'] (counters stop advancing),
+    extra['mute_commands'] (commands are taken but never answered).
+
+    ``byte_order`` and ``period`` are this sensor's factory setting: every result cyclic at
+    ``period``, sign normal (``configs`` holds the configuration in use, ``stored`` the one
+    a restart loads).
     """
 
     TYPE = 'ivt_s'
@@ -46,7 +65,19 @@ class IvtSSimulator(SimDevice):
         self.open_circuit_v = 400.0
         self.internal_resistance_ohm = 0.05
         self.period = period
-        self._periodic = Periodic(period)
+        self.factory = {kind: ResultConfig(kind, TriggerMode.CYCLIC, round(period * 1000),
+                                           byte_order == 'little') for kind in IvtMux}
+        self.configs = dict(self.factory)
+        self.stored = dict(self.factory)
+        self.running = True
+        self.startup_running = True
+        self.serial = SERIAL
+        self.received: list[tuple[int, bytes]] = []  # every command (mux, data), in order
+        self.malformed_received = 0
+        self._codecs = {order: IvtSCodec(base_id, order) for order in ('big', 'little')}
+        self._periodic = {kind: Periodic(period) for kind in IvtMux}
+        self._answers: list[tuple[float, Frame]] = []  # (due time, 0x511 frame)
+        self._restart_until: float | None = None
         self._counters = [0] * len(IvtMux)
         self._elapsed = Elapsed()
         # Pack-side state, positive = discharge.
@@ -85,19 +116,29 @@ class IvtSSimulator(SimDevice):
         }
 
     def tick(self, now: float) -> list[Frame]:
-        """Frames due at ``now``: the eight results, every ``period``."""
-        if not self._periodic.due(now):
-            return []
+        """Frames due at ``now``: answers, then each result due on its own cycle."""
+        frames = self._due_answers(now)
+        if self._restart_until is not None:
+            if now < self._restart_until:
+                return frames
+            self._restart_until = None
+        due = [kind for kind in IvtMux if self.running
+               and self.configs[kind].mode is TriggerMode.CYCLIC
+               and self._periodic[kind].due(now)]
+        if not due:
+            return frames
         self._step(now)
         if self.faults.silent:
-            return []
+            return frames
         extra = self.faults.extra
         flags = dict(ocs=bool(extra.get('ocs')),
                      result_error=bool(extra.get('result_error')),
                      measurement_error=bool(extra.get('measurement_error')),
                      system_error=self.faults.error_code is not None)
-        frames = []
-        for kind, value in self.wire_values().items():
+        values = self.wire_values()
+        for kind in due:
+            config = self.configs[kind]
+            value = -values[kind] if config.sign_inverted else values[kind]
             result = IvtResult.from_value(kind, value, counter=self._counters[kind], **flags)
             if not INT32_MIN <= result.raw <= INT32_MAX:  # saturate like a real sensor
                 raw = INT32_MAX if result.raw > 0 else INT32_MIN
@@ -106,6 +147,89 @@ class IvtSSimulator(SimDevice):
                                    raw / DIVISOR[kind])
             if not extra.get('stuck_counter'):
                 self._counters[kind] = (self._counters[kind] + 1) & 0x0F
-            frame = self.codec.encode(result)
+            frame = self._codecs[config.byte_order].encode(result)
             frames.append(self.corrupt(frame) if self.faults.malformed else frame)
         return frames
+
+    # --- commands (0x411) and answers (0x511) ------------------------------------------------
+    def _due_answers(self, now: float) -> list[Frame]:
+        due = [frame for at, frame in self._answers if at <= now]
+        self._answers = [(at, frame) for at, frame in self._answers if at > now]
+        return [] if self.faults.silent else due
+
+    def _answer(self, answer: IvtAnswer, at: float) -> None:
+        if not self.faults.extra.get('mute_commands'):
+            self._answers.append((at, cmd.encode_answer(answer)))
+
+    def on_frame(self, frame: Frame, now: float) -> None:
+        """Take a command on 0x411 (standard ID); ignore every other frame."""
+        if frame.arbitration_id != COMMAND_ID or frame.is_extended_id:
+            return
+        try:
+            mux, data = cmd.decode_command(frame.data)
+        except ProtocolError:
+            self.malformed_received += 1
+            return
+        self.received.append((mux, data))
+        if self._restart_until is not None and now < self._restart_until:
+            return  # restarting: deaf
+        stopped = not self.running
+        if cmd.SET_CONFIG_RESULT <= mux <= cmd.SET_CONFIG_RESULT + 7:
+            try:
+                wanted = cmd.decode_config(COMMAND_ID, data)
+            except ProtocolError:
+                self._answer(WrongCommand(mux), now)
+                return
+            kind = wanted.kind
+            if stopped and wanted.cycle_ms:  # time 0 is ignored; RUN: no change
+                self.configs[kind] = wanted
+                self._periodic[kind] = Periodic(wanted.cycle_ms / 1000.0)
+            self._answer(self.configs[kind], now)
+        elif cmd.GET_CONFIG_RESULT <= mux <= cmd.GET_CONFIG_RESULT + 7:
+            self._answer(self.configs[IvtMux(mux - cmd.GET_CONFIG_RESULT)], now)
+        elif mux == cmd.SET_MODE:
+            self.running, self.startup_running = bool(data[1] & 1), bool(data[2] & 1)
+            self._answer(ModeAnswer(self.running, self.startup_running), now)
+        elif mux == cmd.GET_MODE:
+            self._answer(ModeAnswer(self.running, self.startup_running), now)
+        elif mux == cmd.STORE:
+            if stopped:
+                self.stored = dict(self.configs)
+            self._answer(StoreAnswer(), now)
+        elif mux in (cmd.RESTART, cmd.RESTART_DEFAULT):
+            if mux == cmd.RESTART_DEFAULT:
+                self.stored = dict(self.factory)
+            self._restart(now)
+        elif mux == cmd.GET_SERIAL_NR:
+            self._answer(SerialAnswer(self.serial), now)
+        elif mux in (cmd.GET_MEAS_ERROR, cmd.GET_SYSTEM_ERROR):
+            system = mux == cmd.GET_SYSTEM_ERROR
+            active = (self.faults.error_code is not None if system
+                      else bool(self.faults.extra.get('measurement_error')))
+            self._answer(ErrorAnswer(system, data[1], int(active)), now)
+        elif mux == cmd.RESET_ERR_LOG:
+            item = int.from_bytes(data[1:3], 'big')
+            if int.from_bytes(data[3:7], 'big') == self.serial:
+                if item == cmd.RESET_ALL_SYSTEM_ERRORS:
+                    self.faults.error_code = None
+                elif item == cmd.RESET_ALL_MEASUREMENT_ERRORS:
+                    self.faults.extra.pop('measurement_error', None)
+            self._answer(ResetAnswer(item, self.serial), now)
+        else:
+            self._answer(WrongCommand(mux), now)
+
+    def _restart(self, now: float) -> None:
+        self.configs = dict(self.stored)
+        self.running = self.startup_running
+        self._periodic = {kind: Periodic(self.configs[kind].cycle_ms / 1000.0)
+                          for kind in IvtMux}
+        self._counters = [0] * len(IvtMux)
+        self.charge_as = self.energy_wh = 0.0  # the counters start again after a restart
+        self._answers.clear()
+        self._restart_until = now + RESTART_S
+        self._answer(AliveAnswer(COMMAND_ID, self.serial), self._restart_until)
+
+    def misconfigure(self, **changes: object) -> None:
+        """Change every result's configuration in place (a sensor set up by another tool)."""
+        self.configs = {k: dataclasses.replace(c, **changes) for k, c in self.configs.items()}
+        self.stored = dict(self.configs)
