@@ -1,8 +1,9 @@
 """
 IVT-S current shunt state: latest result of each kind, sign convention, counters, health.
 
-Other devices read it through ``current_a``, ``voltage_v`` and ``charge_ah`` (the AMS fills
-its pack BatteryState from them), so those take the device lock and never return a number
+Other devices read it through ``current_a`` and ``voltage_v`` (the AMS fills its pack
+BatteryState from them; ``charge_ah``, the As counter, is no charge and only for
+diagnostics and tests), so those take the device lock and never return a number
 that is unknown, stale or flagged invalid by the sensor (result-error or system-error bit):
 NaN instead.
 
