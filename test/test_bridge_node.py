@@ -406,3 +406,25 @@ def test_diagnostics_published_at_once_when_a_level_changes(rig_factory):
     h.send(500, bms16_status(3, 80, 523, 125, 25))  # overvoltage
     status = h.status('bms16', lambda s: level(s) == 2, timeout=3.0)
     assert 'CHARGE_DISABLED_OVERVOLTAGE' in status.message
+
+
+def test_bridges_in_namespaces_name_their_diagnostics_apart(rig_factory):
+    """Issue 18.4: /diagnostics is global; the namespace goes into every status name."""
+    from command_rig import unique_channel
+    channel = unique_channel('ns')  # one bus, one hardware_id: only the names differ
+    car1 = rig_factory({'devices': ['bms16']}, channel=channel, namespace='car1')
+    car2 = rig_factory({'devices': ['bms16']}, channel=channel, namespace='car2')
+    plain = rig_factory({'devices': ['bms16']})
+    car1.send(500, bms16_status(0, 80, 523, 125, 25))  # both bridges hear it
+
+    def names(rig):
+        return {s.name for array in rig.messages('/diagnostics') for s in array.status}
+    expected = {f'{car}/ams_can_bridge: {part}' for car in ('car1', 'car2')
+                for part in ('bms16', 'CAN bus')}
+    car1.wait(lambda: names(car1) >= expected, what='the statuses of both cars')
+    assert all(name in expected for name in names(car1)), names(car1)
+    assert car1.status('bms16', lambda s: level(s) == 0).name == 'car1/ams_can_bridge: bms16'
+    assert car2.status('bms16', lambda s: level(s) == 0).name == 'car2/ams_can_bridge: bms16'
+    # without a namespace the names stay as config/diagnostics_aggregator.yaml expects
+    plain.wait(lambda: {'ams_can_bridge: bms16', 'ams_can_bridge: CAN bus'} <= names(plain),
+               what='the statuses of the bridge without a namespace')

@@ -357,7 +357,7 @@ class BridgeNode(Node):
     def publish_diagnostics(self) -> None:
         """Publish one DiagnosticArray: every device plus the CAN bus."""
         stamp = self._now()
-        node = self.get_name()
+        node = self.status_prefix()
         named = self._statuses()
         self._levels = {name: int(report.level) for name, report in named}
         statuses = [(f'{node}: {name}', report) for name, report in named]
@@ -366,6 +366,20 @@ class BridgeNode(Node):
         else:
             msg = diag_cdr.diagnostic_array(stamp, statuses, self.hardware_id)
         self._publish(self.diag_pub, msg)
+
+    def status_prefix(self) -> str:
+        """
+        Return what the diagnostics status names start with: the node's name and namespace.
+
+        /diagnostics is global: two bridges in namespaces car1 and car2 both named
+        ams_can_bridge would both say 'ams_can_bridge: ams'. The fully qualified name without
+        its leading slash tells them apart ('car2/ams_can_bridge: ams'), and is the plain
+        node name for a bridge without a namespace.
+        """
+        prefix = getattr(self, '_status_prefix', None)
+        if prefix is None:
+            prefix = self._status_prefix = self.get_fully_qualified_name().lstrip('/')
+        return prefix
 
     def _now(self) -> float:
         """Return the time to stamp with when no frame gives one: a replay's log time."""
