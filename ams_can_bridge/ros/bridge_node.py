@@ -110,8 +110,8 @@ class BridgeNode(Node):
         # name -> (device revision, stale, level, monotonic time of the rebuild): a report
         # is rebuilt only after a change (see LEVEL_RECHECK_PERIOD).
         self._level_cache: dict[str, tuple[int, bool, int, float]] = {}
-        # name -> (device revision, BatteryState, [(publisher, array msg)], stamp is now)
-        self._stale_msgs: dict[str, tuple[int, Any, list, bool]] = {}
+        # name -> (device revision, BatteryState, [(publisher, array msg)])
+        self._stale_msgs: dict[str, tuple[int, Any, list]] = {}
         self._malformed_logged: dict[str, tuple[int, float]] = {}
         self._stale: dict[str, bool] = {}
         self._heard: set[str] = set()
@@ -270,10 +270,12 @@ class BridgeNode(Node):
                 return
             # Nothing in a silent device's message changes until a frame or a parameter does
             # (its revision): build it once, republish it every second (idle CPU).
-            cached = (revision, *self._messages(name, report), not math.isfinite(report.stamp))
+            cached = (revision, *self._messages(name, report))
             self._stale_msgs[name] = cached
-        elif cached[3]:  # never heard: the stamp is "now", the rest stays
-            cached[1].header.stamp = convert.stamp_msg(self._now())
+        # A present: false message says "nothing heard, as of now": stamped when published
+        # (a replay's log time), never with the last frame's time, which would make a
+        # silent device look as if its last message had just been repeated.
+        cached[1].header.stamp = convert.stamp_msg(self._now())
         self._publish_messages(name, cached[1], cached[2])
 
     def _messages(self, name: str, report: Any,
@@ -290,7 +292,10 @@ class BridgeNode(Node):
         pubs = self.array_pubs[name]
         if not pubs:
             return battery, []
-        arrays = [(pubs[suffix], build.multi_array(rows, cols, data))
+        # The arrays follow their BatteryState: while it says present: false (the device
+        # is silent) they are NaN, not the last values, for every array of every device.
+        arrays = [(pubs[suffix], build.multi_array(
+                      rows, cols, data if report.present else [math.nan] * len(data)))
                   for suffix, (rows, cols, data) in device.extra_arrays().items()
                   if suffix in pubs]
         return battery, arrays
