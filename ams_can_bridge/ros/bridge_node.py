@@ -82,6 +82,15 @@ CLOCK_PERIOD = 0.01  # s between /clock messages of a replay (can.replay_clock)
 
 __all__ = ['BridgeNode', 'ConfigError', 'NODE_NAME']
 
+# The command service a thread is answering (create_service sets it): transmit names it.
+_CALL = threading.local()
+
+
+def candump_text(frame: Frame) -> str:
+    """Return a frame as candump writes it: '305#0102', 29-bit IDs with 8 digits."""
+    width = 8 if frame.is_extended_id else 3
+    return f'{frame.arbitration_id:0{width}X}#{frame.data.hex().upper()}'
+
 
 def arming_refused() -> str:
     """Return the reason a commands_enabled = true is refused without commands_allowed."""
@@ -115,6 +124,7 @@ class BridgeNode(Node):
         self._malformed_logged: dict[str, tuple[int, float]] = {}
         self._stale: dict[str, bool] = {}
         self._heard: set[str] = set()
+        self._heartbeats: dict[str, bool] = {}  # commander name -> heartbeat running (logged)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
         try:
@@ -137,6 +147,7 @@ class BridgeNode(Node):
         self.can_io.start()
         self.periodic.start()
         self._log_summary()
+        self._log_heartbeats()  # commands_enabled at launch: the heartbeat runs already
 
     # --- set-up ---------------------------------------------------------------------------
     def _configure(self) -> None:
@@ -477,7 +488,21 @@ class BridgeNode(Node):
                        f'{waited}')
 
     def transmit(self, frame: Frame, wait: bool = True) -> tuple[bool, str]:
-        """Send one frame if commands are enabled; (ok, message) - never raises."""
+        """
+        Send one frame if commands are enabled; (ok, message) - never raises.
+
+        Every frame sent on a service call is logged at INFO with the service, the frame
+        (candump's ID#data) and the outcome; the heartbeat's frames are not (its start and
+        stop are: ``_log_heartbeats``).
+        """
+        ok, message = self._transmit(frame, wait)
+        service = getattr(_CALL, 'service', None)
+        if service is not None:
+            outcome = 'sent' if ok else f'NOT sent: {message}'
+            self.get_logger().info(f'{service}: {candump_text(frame)} {outcome}')
+        return ok, message
+
+    def _transmit(self, frame: Frame, wait: bool) -> tuple[bool, str]:
         if not self.commands_enabled:
             return False, ('commands are disabled: set the parameter commands_enabled to true '
                            '(ros2 param set /ams_can_bridge commands_enabled true) to transmit')
@@ -493,6 +518,55 @@ class BridgeNode(Node):
         except CanSendError as exc:
             return False, f'CAN send failed on {self.hardware_id}: {exc}'
         return True, f'sent 0x{frame.arbitration_id:X} [{frame.data.hex(" ").upper()}]'
+
+    def create_service(self, srv_type: Any, srv_name: str, callback: Any,
+                       **kwargs: Any) -> Any:
+        """
+        Create a service; a device's command service is logged (its frames and its answer).
+
+        The call's service name is kept for the thread running it, so ``transmit`` can name
+        it; the answer (success and message) is logged once the callback returns: INFO when
+        it succeeded, WARN when not. The node's parameter services pass through unchanged.
+        """
+        device = srv_name.split('/', 1)[0]
+        if device not in getattr(self, 'devices', {}):
+            return super().create_service(srv_type, srv_name, callback, **kwargs)
+
+        def logged(request: Any, response: Any) -> Any:
+            outer = getattr(_CALL, 'service', None)
+            _CALL.service = srv_name
+            try:
+                response = callback(request, response)
+            finally:
+                _CALL.service = outer
+            answer = (f'{srv_name}: answered success={response.success}: '
+                      f'{response.message}')
+            if response.success:
+                self.get_logger().info(answer)
+            else:
+                self.get_logger().warning(answer)
+            return response
+        return super().create_service(srv_type, srv_name, logged, **kwargs)
+
+    def _log_heartbeats(self, why: str = '') -> None:
+        """Log each commander's heartbeat starting or stopping (not each of its frames)."""
+        for name, commander in self.commanders.items():
+            master = getattr(commander, 'master', None)
+            if master is None:
+                continue
+            running = bool(master.running)
+            if running == self._heartbeats.get(name, False):
+                continue
+            self._heartbeats[name] = running
+            if running:
+                base = getattr(commander.device.config, 'base_id', None)
+                frame = f' 0x{base + 5:X}' if isinstance(base, int) else ''
+                self.get_logger().info(
+                    f'{name}: heartbeat started: car status{frame} every '
+                    f'{master.period * 1000:g} ms')
+            else:
+                because = f' ({why})' if why else ''
+                self.get_logger().info(f'{name}: heartbeat stopped{because}')
 
     def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         for param in parameters:
@@ -539,6 +613,7 @@ class BridgeNode(Node):
                                           'disabled, listen only')
             for commander in self.commanders.values():
                 commander.on_commands_enabled(self.commands_enabled)
+            self._log_heartbeats('commands_enabled is false')
 
     # --- shutdown -------------------------------------------------------------------------
     def destroy_node(self) -> None:
@@ -549,6 +624,8 @@ class BridgeNode(Node):
             periodic.stop()
         for commander in self.commanders.values():
             commander.destroy()
+        if self.context.ok():  # after Ctrl-C the logger may be gone with the context
+            self._log_heartbeats('the bridge is shutting down')
         self.commanders.clear()
         if self.can_io is not None:
             self.can_io.stop()
