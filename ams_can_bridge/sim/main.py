@@ -58,9 +58,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help='python-can interface option, repeatable (e.g. sleep_after_open=0)')
     p.add_argument('--devices', type=_device_list, default=list(_ORDER),
                    help='comma list of ' + ', '.join(registry.SIMULATORS) + ' (default all)')
-    p.add_argument('--ams-banks', type=int, default=None, metavar='N', help='AMS banks 1..5')
-    p.add_argument('--bms12-modules', type=int, default=None, metavar='N',
-                   help='BMS12 modules behind the EVMS3, 0..16')
+    # defaults as config/ams_ivt.yaml and config/evms3.yaml: the examples run as they are
+    p.add_argument('--ams-banks', type=int, default=5, metavar='N',
+                   help='AMS banks 1..5 (default 5, as config/ams_ivt.yaml)')
+    p.add_argument('--bms12-modules', type=int, default=4, metavar='N',
+                   help='BMS12 modules behind the EVMS3, 0..16 (default 4, as '
+                        'config/evms3.yaml)')
     p.add_argument('--evms3-charge-after', type=float, default=None, metavar='S',
                    help='the EVMS3 starts charging after S seconds: it commands its TC '
                         'chargers (29-bit) and they answer (default: never, it drives)')
