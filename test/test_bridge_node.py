@@ -441,8 +441,9 @@ def test_silent_ams_arrays_are_nan_and_stale_messages_are_stamped_when_published
     alive = h.last('ams/battery_state', lambda m: m.present)
     temps = h.last('ams/temperatures', lambda m: not math.isnan(m.data[0]))
     assert list(temps.data) == approx_list([20, 21, 22, 23, 24, 25, 26, 27, 28, -5])
-    counts = {t: len(h.messages(t)) for t in ('ams/battery_state', 'ams/temperatures',
-                                             'ams/discharge_temperatures')}
+    topics = ('ams/battery_state', 'ams/temperatures', 'ams/discharge_temperatures')
+    counts = {t: len(h.messages(t)) for t in topics}
+
     # the AMS falls silent: two present: false messages, each with NaN arrays beside it
     def silent() -> list[BatteryState]:
         return [m for m in h.messages('ams/battery_state')[counts['ams/battery_state']:]

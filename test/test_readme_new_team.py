@@ -35,7 +35,7 @@ def block_after(title: str, kind: str) -> str:
 
 
 def commands(block: str) -> list[list[str]]:
-    """Split a bash block into commands (continuations joined, comments and '&' dropped)."""
+    """Return the commands of a bash block (continuations joined, comments, '&' dropped)."""
     text = block.replace('\\\n', ' ')
     out = []
     for line in text.splitlines():
