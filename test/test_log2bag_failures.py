@@ -5,12 +5,16 @@ A log cut short is converted up to where it stops and says where; a .trc full of
 reader cannot parse gives one summary line, not one warning per line.
 """
 import os
+from pathlib import Path
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
 
 import can
 import pytest
+from rosbags.highlevel import AnyReader
+from rosbags.typesys import get_typestore, Stores
+import yaml
 
 from ams_can_bridge.offline.log2bag import main
 from ams_can_bridge.ros.demo_rig import build_simulators, DEVICES
@@ -157,3 +161,20 @@ def test_trc_parse_errors_are_one_summary_line(base_log, params, tmp_path, capfd
     assert f'bad log entries skipped: {bad} (last: TRCReader: Failed to parse' in captured.out
     # the reader's own logger is as it was afterwards
     assert can.io.trc.logger.level == 0 and not can.io.trc.logger.filters
+
+
+def test_a_node_name_with_a_namespace_names_the_statuses_as_the_bridge(base_log, tmp_path):
+    """Issue 18.4 offline: --node-name car2/ams_can_bridge gives 'car2/ams_can_bridge: ...'."""
+    with open(params_file(str(tmp_path / 'all.yaml'))) as stream:
+        values = yaml.safe_load(stream)['/**']
+    (tmp_path / 'cars.yaml').write_text(yaml.safe_dump({'/car2/ams_can_bridge': values}))
+    out = tmp_path / 'bag'
+    assert main([base_log, str(out), '--params-file', str(tmp_path / 'cars.yaml'),
+                 '--node-name', 'car2/ams_can_bridge', '--end', '2']) == 0
+    names = set()
+    with AnyReader([Path(out)], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as bag:
+        for connection, _, raw in bag.messages():
+            if connection.topic == '/diagnostics':
+                names |= {s.name for s in bag.deserialize(raw, connection.msgtype).status}
+    assert names and all(n.startswith('car2/ams_can_bridge: ') for n in names), names
+    assert 'car2/ams_can_bridge: CAN bus' in names

@@ -90,8 +90,15 @@ class Summary:
 class Converter:
     """Decode frames into the devices and write what the bridge would publish."""
 
-    def __init__(self, parameters: dict, bag: Any, hardware_id: str) -> None:
-        """Build the devices from flat parameter values; raise ConfigError naming bad ones."""
+    def __init__(self, parameters: dict, bag: Any, hardware_id: str,
+                 node_name: str = NODE_NAME) -> None:
+        """
+        Build the devices from flat parameter values; raise ConfigError naming bad ones.
+
+        node_name names the statuses as the live bridge does: with its namespace, without
+        the leading slash ('car2/ams_can_bridge: ams').
+        """
+        self.status_prefix = node_name.strip('/') or NODE_NAME
         params = FileParams(parameters)
         params.declare_all('can.', BUS_PARAMS)  # checked like the bridge's, not used
         node = params.declare_all('', NODE_PARAMS)
@@ -137,13 +144,14 @@ class Converter:
     def write_diagnostics(self, stamp: float,
                           state: BusState = BusState.CONNECTED) -> None:
         """Write one /diagnostics: every device and the (replayed) CAN bus, as the bridge."""
-        statuses = [(f'{NODE_NAME}: {name}', device.diagnostic_report())
+        statuses = [(f'{self.status_prefix}: {name}', device.diagnostic_report())
                     for name, device in self.devices.devices.items()]
         malformed = sum(d.frames_malformed for d in self.devices.devices.values())
         status = BusStatus(state=state, reason='', frames_in=self.frames_in, frames_out=0,
                            frames_dropped_tx=0, error_frames=self.error_frames, reconnects=0,
                            hardware_id=self.hardware_id)
-        statuses.append((f'{NODE_NAME}: CAN bus', bus_report(status, malformed, 'replay')))
+        statuses.append((f'{self.status_prefix}: CAN bus',
+                         bus_report(status, malformed, 'replay')))
         self.bag.diagnostics(statuses, self.hardware_id, stamp)
 
 
@@ -241,14 +249,14 @@ def check_frames(log: str, frames: LogFrames, summary: Summary, start: float | N
 
 def convert(log: str, output: str, parameters: dict, storage: str = 'mcap',
             start: float | None = None, end: float | None = None,
-            progress_stream: TextIO | None = None) -> Summary:
+            progress_stream: TextIO | None = None, node_name: str = NODE_NAME) -> Summary:
     """
     Convert one log into one bag; raise ConfigError/LogFileError on unusable input.
 
     Nothing is left behind when it raises (a KeyboardInterrupt keeps what was written).
     """
     check_output(output)
-    converter = Converter(parameters, None, f'replay:{log}')  # bad parameters: no bag
+    converter = Converter(parameters, None, f'replay:{log}', node_name)  # bad: no bag
     frames = LogFrames(log)
     try:
         bag = converter.bag = open_bag(output, storage)
@@ -333,8 +341,10 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument('--end', type=float, default=None,
                         help='s after the first frame: stop here')
     parser.add_argument('--node-name', default=NODE_NAME,
-                        help='node name whose entry of the parameters file applies '
-                        f'(default {NODE_NAME}; /** applies to every name)')
+                        help='node name whose entry of the parameters file applies, and '
+                        'that names the diagnostics, with its namespace as the bridge '
+                        f'would have it (e.g. car2/{NODE_NAME}; default {NODE_NAME}; /** '
+                        'applies to every name)')
     args = parser.parse_args(argv)
     if args.start is not None and args.end is not None and args.end < args.start:
         parser.error(f'--end {args.end:g} is before --start {args.start:g}')
@@ -347,7 +357,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         parameters = load_parameters(args.params_file, args.node_name)
         summary = convert(args.log, args.output, parameters, args.storage, args.start,
-                          args.end)
+                          args.end, node_name=args.node_name)
     except (ConfigError, LogFileError) as exc:
         print(f'log2bag: {exc}', file=sys.stderr)
         return 2
