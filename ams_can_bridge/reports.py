@@ -6,8 +6,9 @@ from the same, so a bag written offline holds exactly what the live bridge publi
 """
 from __future__ import annotations
 
+from array import array
 import math
-from typing import Any
+from typing import Any, Iterable
 
 from ams_can_bridge.can_io.config import BusState
 from ams_can_bridge.devices.base import BatteryReport, DiagnosticReport, Level
@@ -31,16 +32,34 @@ def report_stamp(report: BatteryReport, fallback: float | None = None) -> float:
     return report.stamp
 
 
+_F32_NEGATIVE_ZERO = array('f', [-0.0]).tobytes()
+
+
+def float32_array(values: Iterable[float]) -> array:
+    """
+    Return values as array('f'), every -0.0 made 0.0 (NaN stays NaN).
+
+    A sign flip or a negative scale turns a reading of 0 into -0.0, which a plot or a log
+    shows as "-0.0": the same quantity, but it reads like a tiny discharge. The scan for
+    the float32 bit pattern runs in C; only an array that has one is rebuilt.
+    """
+    out = array('f', values)
+    if _F32_NEGATIVE_ZERO in out.tobytes():  # a hit off the 4-byte grid only costs a rebuild
+        out = array('f', [v + 0.0 for v in out])  # -0.0 + 0.0 == 0.0
+    return out
+
+
 def battery_fields(report: BatteryReport) -> dict[str, Any]:
-    """Return the sensor_msgs/BatteryState fields of a report, header excepted."""
+    """Return the sensor_msgs/BatteryState fields of a report, header excepted (-0.0 -> 0.0)."""
     return {
-        'voltage': float(report.voltage),
-        'temperature': float(report.temperature),
-        'current': float(report.current),
-        'charge': float(report.charge),
-        'capacity': float(report.capacity),
-        'design_capacity': float(report.design_capacity),
-        'percentage': float(report.percentage),
+        # + 0.0: -0.0 becomes 0.0 (IEEE 754), NaN and every other value stay as they are
+        'voltage': float(report.voltage) + 0.0,
+        'temperature': float(report.temperature) + 0.0,
+        'current': float(report.current) + 0.0,
+        'charge': float(report.charge) + 0.0,
+        'capacity': float(report.capacity) + 0.0,
+        'design_capacity': float(report.design_capacity) + 0.0,
+        'percentage': float(report.percentage) + 0.0,
         'power_supply_status': int(report.power_supply_status),
         'power_supply_health': int(report.power_supply_health),
         'power_supply_technology': int(report.power_supply_technology),

@@ -196,7 +196,7 @@ class Rig:
     def status(self, name: str, predicate: Callable[[Any], bool] = lambda s: True,
                timeout: float = 10.0) -> Any:
         """Wait until a DiagnosticStatus named '<node>: name' satisfies predicate."""
-        full = f'{self.node.get_name()}: {name}'
+        full = f'{self.node.status_prefix()}: {name}'
 
         def found() -> Any:
             for array in reversed(self.messages('/diagnostics')):

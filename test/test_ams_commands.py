@@ -287,3 +287,31 @@ def test_telemetry_flows_while_a_command_waits(with_ams):
     assert len(during) >= 7, len(during)
     # diagnostics every 0.2 s: ~7 arrays in 1.5 s; at least 3 prove they did not pause
     assert len(diag_during) >= 3, len(diag_during)
+
+
+def test_every_command_frame_and_answer_is_logged_the_heartbeat_only_starts_and_stops(
+        rig_factory, capfd):
+    """Issue 18.10: INFO per frame sent on a service call; the heartbeat: start and stop."""
+    rig = rig_factory(ams_params(**{'ams.charge_current_a': 12.5,
+                                    'ams.command_timeout': 0.3}))
+    mark = rig.capture.mark()
+    assert rig.call(Trigger, '/ams/set_charge_current').success
+    assert not rig.call(Trigger, '/ams/enable_sc').success  # no AMS: times out
+    rig.wait(lambda: len(rig.capture.since(mark, HEARTBEAT)) >= 10, what='heartbeats')
+    assert rig.set_param('commands_enabled', False).successful
+    refused = rig.call(Trigger, '/ams/start_charging')
+    assert not refused.success
+    err = capfd.readouterr().err  # the set and the calls are answered: all logged already
+    lines = [line for line in err.splitlines() if '[ams_can_bridge]' in line]
+    info = [line for line in lines if line.startswith('[INFO]')]
+    assert any('ams: heartbeat started: car status 0x305 every 20 ms' in line
+               for line in info), lines
+    assert any('ams/set_charge_current: 350#7D sent' in line for line in info), lines
+    assert any('ams/set_charge_current: answered success=True' in line for line in info)
+    assert any(line.startswith('[WARN]') and 'ams/enable_sc: answered success=False' in line
+               and 'ENABLE_SC' in line for line in lines), lines
+    assert any('ams: heartbeat stopped (commands_enabled is false)' in line for line in info)
+    assert any('ams/start_charging: answered success=False' in line
+               and 'nothing was sent' in line for line in lines), lines
+    # dozens of heartbeats went out, none of them logged one by one
+    assert not [line for line in lines if '305#' in line], lines

@@ -347,7 +347,7 @@ def test_location_serial_number_and_frame_id_parameters_reach_battery_state(rig_
     assert msg.header.frame_id == 'battery_link'
 
 
-def test_stamp_is_the_receive_time_and_stale_messages_keep_the_last_one(rig_factory):
+def test_stamp_is_the_receive_time_and_stale_messages_the_publish_time(rig_factory):
     # spin=False: the executor runs only while the test waits, so publishing can be held back
     h = rig_factory({'devices': ['bms16'], 'bms16.stale_timeout': 0.8},
                     topics={'bms16/battery_state': BatteryState}, spin=False)
@@ -379,13 +379,13 @@ def test_stamp_is_the_receive_time_and_stale_messages_keep_the_last_one(rig_fact
     third = h.last('bms16/battery_state',
                    lambda m: m.present and m.percentage == pytest.approx(0.63))
     assert stamp_seconds(third) <= received_by
-    # Once stale, present:false repeats the last frame's receive time, never a newer one.
+    # Once stale, present:false is stamped when it is published (issue 18.7), so it never
+    # repeats the last frame's time: at least stale_timeout after it.
     count = len(h.messages('bms16/battery_state'))
     stale = h.wait(lambda: [m for m in h.messages('bms16/battery_state')[count:]
                             if not m.present], timeout=10.0)
     for msg in stale:
-        assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (
-            third.header.stamp.sec, third.header.stamp.nanosec)
+        assert stamp_seconds(msg) >= stamp_seconds(third) + 0.8
 
 
 def test_a_never_heard_device_repeats_its_stale_message_with_a_new_stamp(rig_factory):
@@ -409,3 +409,68 @@ def test_diagnostics_published_at_once_when_a_level_changes(rig_factory):
     h.send(500, bms16_status(3, 80, 523, 125, 25))  # overvoltage
     status = h.status('bms16', lambda s: level(s) == 2, timeout=3.0)
     assert 'CHARGE_DISABLED_OVERVOLTAGE' in status.message
+
+
+def test_bridges_in_namespaces_name_their_diagnostics_apart(rig_factory):
+    """Issue 18.4: /diagnostics is global; the namespace goes into every status name."""
+    from command_rig import unique_channel
+    channel = unique_channel('ns')  # one bus, one hardware_id: only the names differ
+    car1 = rig_factory({'devices': ['bms16']}, channel=channel, namespace='car1')
+    car2 = rig_factory({'devices': ['bms16']}, channel=channel, namespace='car2')
+    plain = rig_factory({'devices': ['bms16']})
+    car1.send(500, bms16_status(0, 80, 523, 125, 25))  # both bridges hear it
+
+    def names(rig):
+        return {s.name for array in rig.messages('/diagnostics') for s in array.status}
+    expected = {f'{car}/ams_can_bridge: {part}' for car in ('car1', 'car2')
+                for part in ('bms16', 'CAN bus')}
+    car1.wait(lambda: names(car1) >= expected, what='the statuses of both cars')
+    assert all(name in expected for name in names(car1)), names(car1)
+    assert car1.status('bms16', lambda s: level(s) == 0).name == 'car1/ams_can_bridge: bms16'
+    assert car2.status('bms16', lambda s: level(s) == 0).name == 'car2/ams_can_bridge: bms16'
+    # without a namespace the names stay as config/diagnostics_aggregator.yaml expects
+    plain.wait(lambda: {'ams_can_bridge: bms16', 'ams_can_bridge: CAN bus'} <= names(plain),
+               what='the statuses of the bridge without a namespace')
+
+
+def test_silent_ams_arrays_are_nan_and_stale_messages_are_stamped_when_published(rig_factory):
+    """Issue 18.7: arrays follow present: false; its stamp is the publish time."""
+    h = rig_factory({'devices': ['ams'], 'ams.stale_timeout': 0.5},
+                    topics={'ams/battery_state': BatteryState,
+                            'ams/temperatures': Float32MultiArray,
+                            'ams/discharge_temperatures': Float32MultiArray})
+    send_ams_bank(h)
+    h.send(0x300, ams_status(AIR_PLUS | AIR_MINUS | (1 << 5) | DRIVE, 180, 28, 77, 1))
+    alive = h.last('ams/battery_state', lambda m: m.present)
+    temps = h.last('ams/temperatures', lambda m: not math.isnan(m.data[0]))
+    assert list(temps.data) == approx_list([20, 21, 22, 23, 24, 25, 26, 27, 28, -5])
+    topics = ('ams/battery_state', 'ams/temperatures', 'ams/discharge_temperatures')
+    counts = {t: len(h.messages(t)) for t in topics}
+
+    # the AMS falls silent: two present: false messages, each with NaN arrays beside it
+    def silent() -> list[BatteryState]:
+        return [m for m in h.messages('ams/battery_state')[counts['ams/battery_state']:]
+                if not m.present]
+    stale = h.wait(lambda: silent()[:2] if len(silent()) >= 2 else None, timeout=10.0)
+    for topic, rows_cols in (('ams/temperatures', (1, 10)),
+                             ('ams/discharge_temperatures', (1, 14))):
+        msgs = h.wait(lambda t=topic: h.messages(t)[counts[t]:] or None, timeout=10.0)
+        assert [d.size for d in msgs[-1].layout.dim] == list(rows_cols)
+        assert all(math.isnan(v) for v in msgs[-1].data), (topic, list(msgs[-1].data))
+    # stamped when published: at least stale_timeout after the last frame, never its time
+    for msg in stale:
+        assert stamp_seconds(msg) >= stamp_seconds(alive) + 0.5
+        assert stamp_seconds(msg) <= time.time()
+    # each republished message gets its own stamp (the message is built once, restamped)
+    assert stamp_seconds(stale[1]) > stamp_seconds(stale[0])
+    assert all(math.isnan(v) for v in stale[1].cell_voltage)
+
+
+def test_negative_zero_is_published_as_zero(rig_factory):
+    """Issue 18.7: the IVT-S's 0 A with discharge_positive is -0.0 * ... : published 0.0."""
+    h = rig_factory({'devices': ['shunt'], 'shunt.type': 'ivt_s'},
+                    topics={'shunt/battery_state': BatteryState})
+    assert math.copysign(1.0, -1.0 * 0.0) < 0  # what the sign flip computes
+    h.send(0x521, ivt(0, 0, 0))
+    msg = h.last('shunt/battery_state', lambda m: m.present)
+    assert msg.current == 0.0 and math.copysign(1.0, msg.current) > 0

@@ -129,11 +129,13 @@ def test_installed_bridge_on_slcan(ros, tmp_path):
         expected = {'ams': 'IDLE', 'ivt': '12.00 A', 'evms3': 'RUNNING', 'bms16': 'SoC 81 %',
                     'sma': '51.2 V', 'CAN bus': 'connected'}
 
+        prefix = f'{ns}/ams_can_bridge: '  # the namespace is in the names (issue 18.4)
+
         def healthy(array) -> bool:
             statuses = {s.name: s for s in array.status}
-            return set(statuses) == {f'ams_can_bridge: {n}' for n in expected} and all(
-                statuses[f'ams_can_bridge: {n}'].level == b'\x00'
-                and word in statuses[f'ams_can_bridge: {n}'].message
+            return set(statuses) == {f'{prefix}{n}' for n in expected} and all(
+                statuses[f'{prefix}{n}'].level == b'\x00'
+                and word in statuses[f'{prefix}{n}'].message
                 for n, word in expected.items())
         while time.monotonic() < deadline and not any(healthy(a) for a in diags):
             for frame in frames_round(next(rounds)):

@@ -314,3 +314,57 @@ def test_slcan_unplugged_mid_run_reconnects_alone(tmp_path, capfd, caplog):
     assert 'reconnecting' in caplog.text
     assert 'Traceback' not in capfd.readouterr().err
     assert 'Traceback' not in caplog.text
+
+
+def test_second_bus_on_the_same_serial_adapter_is_refused_and_the_first_undisturbed(
+        tmp_path, monkeypatch, capfd, caplog):
+    """Issue 18.3: the port is opened exclusively; the second user is told about slcand."""
+    from ams_can_bridge.can_io import slcan
+    attempts = []
+    real_lock = slcan.lock_serial_port
+
+    def counting_lock(channel):
+        attempts.append(channel)
+        return real_lock(channel)
+
+    monkeypatch.setattr(slcan, 'lock_serial_port', counting_lock)
+    caplog.set_level(logging.INFO)
+    peer = SlcanPeer(symlink=tmp_path / 'ttyCAN0')
+    first_sink, second_sink = Sink(), Sink()
+    config = dict(interface='slcan', channel=peer.channel, bitrate=500000,
+                  options={'sleep_after_open': 0}, reconnect_period=0.05)
+    first = CanIo(BusConfig(**config), first_sink)
+    second = CanIo(BusConfig(**config), second_sink)
+    first.start()
+    try:
+        peer.wait_open()
+        wait_for(lambda: first.status().state == 'connected', what='first connected')
+        first.send(Frame(0x7FF, b''))  # a round trip: the peer has read all the opening
+        peer.wait_received(1)
+        commands = list(peer.commands)
+        second.start()
+        wait_for(lambda: second.status().state == 'error', what='second refused')
+        reason = second.status().reason
+        assert f'serial port {peer.channel} is in use' in reason
+        assert 'slcand' in reason and 'can.interface: socketcan' in reason
+        # it keeps retrying (each try only asks for the lock), and the adapter never hears it
+        seen = len(attempts)
+        wait_for(lambda: len(attempts) >= seen + 3, what='three more attempts')
+        assert second.status().state == 'error'
+        assert peer.commands == commands
+        for i in range(20):
+            peer.send(Frame(0x100 + i, bytes([i])))
+        wait_for(lambda: len(first_sink.frames) == 20, what='frames to the first')
+        assert first_sink.ids() == [(0x100 + i, False) for i in range(20)]
+        assert second_sink.frames == []
+        first.send(Frame(0x321, b'\xBE\xEF'))
+        assert peer.wait_received(2)[1:] == [Frame(0x321, b'\xBE\xEF', False)]
+        assert first.status().frames_unreadable == 0 and first.status().reconnects == 0
+        # the first lets go of the adapter: the second takes it at its next attempt
+        first.stop()
+        wait_for(lambda: second.status().state == 'connected', what='second connected')
+    finally:
+        first.stop()
+        second.stop()
+        peer.close()
+    assert 'Traceback' not in capfd.readouterr().err

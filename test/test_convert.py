@@ -76,3 +76,30 @@ def test_diagnostic_status_serializes_like_the_constructor():
 def test_stamp_msg():
     assert wire(convert.stamp_msg(12.25)) == wire(Time(sec=12, nanosec=250_000_000))
     assert (convert.stamp_msg(NAN).sec, convert.stamp_msg(-1.0).nanosec) == (0, 0)
+
+
+def test_negative_zero_is_published_as_zero_in_every_float():
+    """Issue 18.7: -0.0 (a sign flip of 0) reads as 0.0 in scalars, cells and arrays."""
+    from ams_can_bridge.ros import diag_cdr
+    z = -0.0
+    report = BatteryReport(stamp=1.0, voltage=z, temperature=z, current=z, charge=z,
+                           capacity=z, design_capacity=z, percentage=z, present=True,
+                           cell_voltage=[3.6, z, NAN, z], cell_temperature=[z, 20.0])
+
+    def positive(value):
+        return math.isnan(value) or math.copysign(1.0, value) > 0
+
+    for msg in (convert.battery_state(report, 'f'),
+                deserialize_message(diag_cdr.battery_state(report, 'f'), BatteryState)):
+        msg = deserialize_message(serialize_message(msg), BatteryState)
+        scalars = [msg.voltage, msg.temperature, msg.current, msg.charge, msg.capacity,
+                   msg.design_capacity, msg.percentage]
+        assert all(positive(v) for v in scalars + list(msg.cell_voltage)
+                   + list(msg.cell_temperature)), msg
+        assert list(msg.cell_voltage)[:2] == [pytest.approx(3.6), 0.0]
+    data = [z, 1.5, z, NAN, -2.0]
+    for msg in (convert.multi_array(1, 5, data),
+                deserialize_message(diag_cdr.multi_array(1, 5, data), Float32MultiArray)):
+        msg = deserialize_message(serialize_message(msg), Float32MultiArray)
+        assert all(positive(v) for v in list(msg.data)[:4])
+        assert list(msg.data)[4] == -2.0

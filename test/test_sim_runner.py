@@ -213,11 +213,11 @@ def test_simulator_across_processes_on_slcan_and_sigterm(tmp_path):
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         peer.wait_open(timeout=20)
-        frames = peer.wait_received(40, timeout=20)
-        ids = {f.arbitration_id for f in frames}
-        assert 0x300 in ids        # AMS status (car), base 0x300
-        assert 500 in ids          # BMS16 status, 4 Hz
-        assert 0x521 in ids        # IVT-S current
+        # AMS status (car, base 0x300), BMS16 status (4 Hz), IVT-S current; 5 AMS banks
+        # send their cells first, so the first 40 frames may all be the AMS's
+        peer.wait_received(40, timeout=20)
+        wait_for(lambda: {0x300, 500, 0x521} <= {f.arbitration_id for f in peer.received()},
+                 timeout=20, what='AMS, BMS16 and IVT-S frames')
         assert peer.bitrate_command == 'S6'
         proc.send_signal(signal.SIGTERM)
         _, err = proc.communicate(timeout=10)
@@ -245,3 +245,19 @@ def test_simulator_ctrl_c_exits_0_without_traceback():
     assert proc.returncode == 0, err
     assert 'Traceback' not in err
     assert 'stopped:' in err
+
+
+def test_simulator_defaults_match_the_example_configs():
+    """The simulator with no options speaks to a bridge run on config/*.yaml as they are."""
+    import yaml
+
+    from ams_can_bridge.sim.main import build_devices, build_parser
+    config = Path(__file__).resolve().parents[1] / 'config'
+
+    def params(name):
+        return yaml.safe_load((config / name).read_text())['/**']['ros__parameters']
+    args = build_parser().parse_args([])
+    devices = {d.name: d for d in build_devices(args.devices, args.ams_banks,
+                                                args.bms12_modules)}
+    assert devices['ams'].bank_count == params('ams_ivt.yaml')['ams']['bank_count'] == 5
+    assert args.bms12_modules == params('evms3.yaml')['evms3']['bms12_modules']

@@ -222,8 +222,8 @@ class CanIo:
         cfg = self.config
         if cfg.interface == 'replay':
             bus: can.BusABC | ReplayBus = ReplayBus(cfg.channel, cfg.replay_rate)
-        elif cfg.interface == 'slcan' and cfg.slcan_bulk_read:
-            bus = open_bulk_slcan(cfg.channel, **cfg.bus_kwargs())
+        elif cfg.interface == 'slcan':  # opened exclusively; read in blocks unless told
+            bus = open_bulk_slcan(cfg.channel, cfg.slcan_bulk_read, **cfg.bus_kwargs())
         else:
             bus = can.Bus(interface=cfg.interface, channel=cfg.channel, **cfg.bus_kwargs())
             if self._filters and type(bus)._apply_filters is not can.BusABC._apply_filters:

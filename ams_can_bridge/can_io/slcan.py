@@ -8,15 +8,25 @@ bridge's CPU at full load. ``BulkReadSlcanBus`` takes everything the port has re
 ``read`` and hands the lines out of its buffer; what the adapter sends, how a line is
 parsed, opening, writing, flushing and closing stay python-can's own code.
 
-Used for ``can.interface: slcan`` unless ``can.slcan_bulk_read`` is false.
+Used for ``can.interface: slcan``; with ``can.slcan_bulk_read: false`` it reads with
+python-can's own reader.
+
+It also opens the serial port exclusively. Two programs reading one serial adapter each get
+part of every line (python-can then reports "multiple access on port?" and both lose the bus
+every few seconds). Before python-can touches the port, the bus takes an exclusive ``flock``
+on it, the lock pyserial's ``exclusive=True`` takes: a second bridge (or any program that
+opens the port with pyserial's ``exclusive=True``) fails before it has written or read a
+byte, with a message that says to share the bus through SocketCAN (slcand) instead.
 """
 from __future__ import annotations
 
+import errno
 import logging
+import os
 import time
 
 import can
-from can.exceptions import error_check
+from can.exceptions import CanInitializationError, error_check
 from can.interfaces.slcan import slcanBus
 
 # python-can ends a line with CR (OK) or BEL (error); it returns the line with its end.
@@ -25,6 +35,70 @@ _BEL = 0x07
 # One read takes at most this much: a full pty/USB buffer is a few kB; lines are <= 150.
 _MAX_READ = 4096
 _log = logging.getLogger(__name__)
+
+try:  # POSIX; on Windows a COM port is exclusive to one program anyway
+    import fcntl
+except ImportError:  # pragma: no cover - not POSIX
+    fcntl = None  # type: ignore[assignment]
+
+
+def _lock_holders(path: str) -> list[int]:
+    """Return the PIDs /proc/locks names for an flock on path (best effort, Linux)."""
+    try:
+        st = os.stat(path)
+        with open('/proc/locks', encoding='ascii') as stream:
+            lines = stream.read().splitlines()
+    except OSError:
+        return []
+    dev = f'{os.major(st.st_dev):02x}:{os.minor(st.st_dev):02x}:{st.st_ino}'
+    pids = []
+    for line in lines:
+        parts = line.split()
+        # '1: FLOCK  ADVISORY  WRITE 1234 00:05:17 0 EOF' (blocked waiters have a '->')
+        if len(parts) >= 6 and parts[1] == 'FLOCK' and parts[5] == dev \
+                and parts[4].isdigit():
+            pids.append(int(parts[4]))
+    return pids
+
+
+def port_in_use_message(port: str, holders: list[int] | None = None) -> str:
+    """Say that the serial port is taken, by whom if known, and how to share a bus."""
+    who = (f' by process {", ".join(str(p) for p in holders)}' if holders
+           else ' by another program')
+    return (f'serial port {port} is in use{who} (another bridge?): a serial CAN adapter '
+            'serves one program at a time. To share one bus between several programs, '
+            f'attach the adapter to SocketCAN (sudo slcand -o -s6 {port} can0 && sudo ip '
+            'link set can0 up) and give every program can.interface: socketcan, '
+            'can.channel: can0')
+
+
+def lock_serial_port(channel: str) -> int | None:
+    """
+    Take an exclusive flock on a serial port path: the fd that holds it, or None.
+
+    None when there is nothing to lock (a pyserial URL such as socket://, no fcntl, a port
+    that does not open: python-can then reports that itself). Raises
+    CanInitializationError naming the port, and what to do, when another program holds it.
+    """
+    port = channel.split('@', 1)[0]  # python-can's '<port>@<tty baud rate>'
+    if fcntl is None or not port or '://' in port:
+        return None
+    try:
+        # No tcsetattr, no flush, no DTR change: opening alone does not disturb a user.
+        fd = os.open(port, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+    except OSError:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as exc:
+        os.close(fd)
+        taken = exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES)
+    else:
+        return fd
+    if not taken:
+        return None  # a file system without flock: nothing to enforce
+    # raised outside the except block: the message is the whole reason (no errno appended)
+    raise CanInitializationError(port_in_use_message(port, _lock_holders(port)))
 
 
 class BulkReadSlcanBus(slcanBus):
@@ -38,17 +112,42 @@ class BulkReadSlcanBus(slcanBus):
     """
 
     _bulk = False  # python-can's reader until __init__ has checked (it may read while opening)
+    _lock_fd: int | None = None
 
-    def __init__(self, *args: object, **kwargs: object) -> None:
-        """Open as python-can does; check that its reader keeps what this one relies on."""
-        super().__init__(*args, **kwargs)
+    def __init__(self, channel: str, *args: object, bulk_read: bool = True,
+                 **kwargs: object) -> None:
+        """
+        Lock the port, then open as python-can does; check what the block reader relies on.
+
+        Raises CanInitializationError, before python-can has touched the port, when another
+        program holds it (``lock_serial_port``). ``bulk_read`` False keeps python-can's reader.
+        """
+        self._lock_fd = lock_serial_port(str(channel))
+        try:
+            super().__init__(channel, *args, **kwargs)
+        except BaseException:
+            self._unlock()
+            raise
         # python-can's own line buffer and pyserial port: if a python-can release renames
         # them, fall back to its reader rather than fail (setup.py allows python-can >= 4.4).
-        self._bulk = (isinstance(getattr(self, '_buffer', None), bytearray)
-                      and hasattr(getattr(self, 'serialPortOrig', None), 'in_waiting'))
-        if not self._bulk:
+        self._bulk = bulk_read and (
+            isinstance(getattr(self, '_buffer', None), bytearray)
+            and hasattr(getattr(self, 'serialPortOrig', None), 'in_waiting'))
+        if bulk_read and not self._bulk:
             _log.warning("slcan: python-can's slcanBus internals changed; reading with "
                          "python-can's own byte-per-call reader")
+
+    def shutdown(self) -> None:
+        """Close as python-can does, then release the port's lock."""
+        try:
+            super().shutdown()
+        finally:
+            self._unlock()
+
+    def _unlock(self) -> None:
+        fd, self._lock_fd = self._lock_fd, None
+        if fd is not None:
+            os.close(fd)  # closing the fd releases the flock
 
     def _read(self, timeout: float | None) -> str | None:
         if not self._bulk:
@@ -89,8 +188,9 @@ class BulkReadSlcanBus(slcanBus):
         return raw.decode()
 
 
-def open_bulk_slcan(channel: str, **kwargs: object) -> BulkReadSlcanBus:
+def open_bulk_slcan(channel: str, bulk_read: bool = True,
+                    **kwargs: object) -> BulkReadSlcanBus:
     """Open it as ``can.Bus(interface='slcan', ...)`` would (python-can's config merged)."""
     config = can.util.load_config(config={'interface': 'slcan', 'channel': channel, **kwargs})
     del config['interface']
-    return BulkReadSlcanBus(config.pop('channel'), **config)
+    return BulkReadSlcanBus(config.pop('channel'), bulk_read=bulk_read, **config)

@@ -60,7 +60,7 @@ class BagOut:
         """Write one BatteryState, header stamp and bag time = stamp."""
         fields = reports.battery_fields(report)
         for key in ('cell_voltage', 'cell_temperature'):
-            fields[key] = np.array(fields[key], dtype=np.float32)
+            fields[key] = np.frombuffer(reports.float32_array(fields[key]), np.float32)
         msg = self._battery(header=self._header(self._stamp(stamp), frame_id), **fields)
         self._write(topic, BATTERY_STATE, msg, stamp)
 
@@ -69,7 +69,8 @@ class BagOut:
         """Write one Float32MultiArray (row-major rows x cols) at bag time stamp."""
         dims = [self._dim(label, size, stride)
                 for label, size, stride in reports.array_dims(rows, cols)]
-        msg = self._array(self._layout(dims, 0), np.array(data, dtype=np.float32))
+        msg = self._array(self._layout(dims, 0),
+                          np.frombuffer(reports.float32_array(data), np.float32))
         self._write(topic, MULTI_ARRAY, msg, stamp)
 
     def diagnostics(self, statuses: list[tuple[str, DiagnosticReport]], hardware_id: str,

@@ -10,6 +10,11 @@ The devices' clock is the log time too, so staleness follows the recording.
 Frames before ``--start`` are decoded but not written (the first message in the window
 carries the state the bus had built up); reading stops at ``--end``. Both are seconds from
 the first frame of the log.
+
+Every failure is one line and exit 2, and leaves no bag behind (the output directory is
+removed): an output that exists or cannot be created, a log that is empty or not a CAN log
+(no frame read, or most entries unreadable), a --start past the end of the log, rosbags
+not installed. A log cut short is converted up to where it stops, and the summary says where.
 """
 from __future__ import annotations
 
@@ -17,14 +22,14 @@ import argparse
 from dataclasses import dataclass, field
 import math
 import os
+import shutil
 import sys
 import time
-from typing import Sequence, TextIO
+from typing import Any, Sequence, TextIO
 
 from ams_can_bridge.can_io.config import BusState, BusStatus
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.errors import ConfigError
-from ams_can_bridge.offline.bag import BagOut, STORAGES
 from ams_can_bridge.offline.log_frames import LogFileError, LogFrames
 from ams_can_bridge.offline.params_file import FileParams, load_parameters
 from ams_can_bridge.parameters import BUS_PARAMS, NODE_PARAMS
@@ -33,6 +38,20 @@ from ams_can_bridge.reports import bus_report
 NODE_NAME = 'ams_can_bridge'  # the bridge's default node name: its entry in params files
 PROGRESS_PERIOD = 0.2  # s between progress-bar redraws
 PROGRESS_EVERY = 0x3FF  # look at the clock once per 1024 frames (mask)
+STORAGE_NAMES = ('mcap', 'sqlite3')  # offline/bag.py STORAGES (imported only to write)
+ROSBAGS_MISSING = (
+    'log2bag writes bags with the Python package rosbags, which is not installed here ({}): '
+    'pip install rosbags (in a ROS 2 workspace, rosdep install --from-paths src -y installs '
+    'it: package.xml declares its rosdep key python3-rosbags-pip)')
+
+
+def bag_class() -> Any:
+    """Return BagOut, or raise ConfigError saying how to install rosbags when it is missing."""
+    try:
+        from ams_can_bridge.offline.bag import BagOut
+    except ImportError as exc:
+        raise ConfigError(ROSBAGS_MISSING.format(exc)) from None
+    return BagOut
 
 
 @dataclass
@@ -41,6 +60,7 @@ class Summary:
 
     frames_read: int = 0
     bad_entries: int = 0
+    last_bad: str = ''
     stopped: str = ''
     first_stamp: float = math.nan
     last_stamp: float = math.nan
@@ -50,13 +70,15 @@ class Summary:
 
     def text(self) -> str:
         """Return the summary as the command prints it."""
-        span = self.last_stamp - self.first_stamp if self.frames_read else 0.0
+        known = math.isfinite(self.first_stamp) and math.isfinite(self.last_stamp)
+        span = self.last_stamp - self.first_stamp if known else 0.0
         rate = self.frames_read / self.seconds if self.seconds > 0 else 0.0
         lines = [f'frames read: {self.frames_read} in {self.seconds:.2f} s ({rate:,.0f}/s)',
                  f'log time span: {span:.3f} s'
                  + (f' (from {time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime(self.first_stamp))}'
-                    ' UTC)' if self.frames_read else ''),
+                    ' UTC)' if known else ''),
                  f'bad log entries skipped: {self.bad_entries}'
+                 + (f' (last: {self.last_bad})' if self.last_bad else '')
                  + (f'; {self.stopped}' if self.stopped else '')]
         for name, count in self.malformed.items():
             lines.append(f'{name}: {count} malformed frame(s) dropped')
@@ -68,8 +90,15 @@ class Summary:
 class Converter:
     """Decode frames into the devices and write what the bridge would publish."""
 
-    def __init__(self, parameters: dict, bag: BagOut | None, hardware_id: str) -> None:
-        """Build the devices from flat parameter values; raise ConfigError naming bad ones."""
+    def __init__(self, parameters: dict, bag: Any, hardware_id: str,
+                 node_name: str = NODE_NAME) -> None:
+        """
+        Build the devices from flat parameter values; raise ConfigError naming bad ones.
+
+        node_name names the statuses as the live bridge does: with its namespace, without
+        the leading slash ('car2/ams_can_bridge: ams').
+        """
+        self.status_prefix = node_name.strip('/') or NODE_NAME
         params = FileParams(parameters)
         params.declare_all('can.', BUS_PARAMS)  # checked like the bridge's, not used
         node = params.declare_all('', NODE_PARAMS)
@@ -115,13 +144,14 @@ class Converter:
     def write_diagnostics(self, stamp: float,
                           state: BusState = BusState.CONNECTED) -> None:
         """Write one /diagnostics: every device and the (replayed) CAN bus, as the bridge."""
-        statuses = [(f'{NODE_NAME}: {name}', device.diagnostic_report())
+        statuses = [(f'{self.status_prefix}: {name}', device.diagnostic_report())
                     for name, device in self.devices.devices.items()]
         malformed = sum(d.frames_malformed for d in self.devices.devices.values())
         status = BusStatus(state=state, reason='', frames_in=self.frames_in, frames_out=0,
                            frames_dropped_tx=0, error_frames=self.error_frames, reconnects=0,
                            hardware_id=self.hardware_id)
-        statuses.append((f'{NODE_NAME}: CAN bus', bus_report(status, malformed, 'replay')))
+        statuses.append((f'{self.status_prefix}: CAN bus',
+                         bus_report(status, malformed, 'replay')))
         self.bag.diagnostics(statuses, self.hardware_id, stamp)
 
 
@@ -164,16 +194,88 @@ class Progress:
             self.stream.write('\n')
 
 
-def convert(log: str, output: str, parameters: dict, storage: str = 'mcap',
-            start: float | None = None, end: float | None = None,
-            progress_stream: TextIO | None = None) -> Summary:
-    """Convert one log into one bag; raise ConfigError/LogFileError on unusable input."""
-    if os.path.exists(output):
+def check_output(output: str) -> None:
+    """Raise ConfigError (one line) when the bag directory cannot be created there."""
+    if os.path.lexists(output):
         raise ConfigError(f'output {output!r} exists: rosbag2 writes a new directory '
                           '(remove it or choose another name)')
-    converter = Converter(parameters, None, f'replay:{log}')  # bad parameters: no bag
+    parent = os.path.dirname(os.path.abspath(output))
+    if not os.path.isdir(parent):
+        what = 'is not a directory' if os.path.exists(parent) else 'does not exist'
+        raise ConfigError(f'cannot create the bag {output!r}: {parent!r} {what} (create '
+                          'it first, or choose another output)')
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise ConfigError(f'cannot create the bag {output!r}: no permission to write in '
+                          f'{parent!r} (choose another output)')
+
+
+def open_bag(output: str, storage: str) -> Any:
+    """Create the bag; raise ConfigError (one line, nothing left behind) when it fails."""
+    cls = bag_class()
+    try:
+        return cls(output, storage)
+    except Exception as exc:  # OSError, rosbags' WriterError: the reason is in the text
+        remove_bag(output)
+        raise ConfigError(f'cannot create the bag {output!r}: {exc}') from None
+
+
+def remove_bag(output: str) -> None:
+    """Remove what a failed conversion wrote (the directory log2bag created)."""
+    shutil.rmtree(output, ignore_errors=True)
+
+
+def check_frames(log: str, frames: LogFrames, summary: Summary, start: float | None,
+                 first: float, last: float) -> None:
+    """Raise LogFileError/ConfigError when the log gave nothing worth a bag."""
+    read, bad = summary.frames_read, frames.bad
+    last_bad = f' (last: {frames.last_bad})' if frames.last_bad else ''
+    if read == 0 and bad == 0 and not frames.stopped:
+        raise LogFileError(f'log file {log!r} holds no CAN frame (empty)')
+    if read == 0:
+        raise LogFileError(f'log file {log!r}: no CAN frame read, {bad} unreadable '
+                           f'entr{"y" if bad == 1 else "ies"}{last_bad}: is it a CAN log '
+                           'in the format its suffix names?')
+    if bad > read:
+        raise LogFileError(f'log file {log!r}: most entries are unreadable ({bad} of '
+                           f'{bad + read}){last_bad}: is it a CAN log in the format its '
+                           'suffix names?')
+    if not math.isfinite(summary.first_stamp) and start is None:
+        raise LogFileError(f'log file {log!r} holds no data frame (only error or remote '
+                           'frames): nothing to write')
+    if not math.isfinite(summary.first_stamp):
+        raise ConfigError(f'--start {start:g} s is past the end of the log: its frames span '
+                          f'{last - first:.3f} s from the first; nothing to write')
+
+
+def convert(log: str, output: str, parameters: dict, storage: str = 'mcap',
+            start: float | None = None, end: float | None = None,
+            progress_stream: TextIO | None = None, node_name: str = NODE_NAME) -> Summary:
+    """
+    Convert one log into one bag; raise ConfigError/LogFileError on unusable input.
+
+    Nothing is left behind when it raises (a KeyboardInterrupt keeps what was written).
+    """
+    check_output(output)
+    converter = Converter(parameters, None, f'replay:{log}', node_name)  # bad: no bag
     frames = LogFrames(log)
-    bag = converter.bag = BagOut(output, storage)
+    try:
+        bag = converter.bag = open_bag(output, storage)
+    except BaseException:
+        frames.close()
+        raise
+    try:
+        summary = _convert(log, frames, converter, bag, start, end, progress_stream)
+    except KeyboardInterrupt:
+        raise
+    except BaseException:
+        remove_bag(output)
+        raise
+    return summary
+
+
+def _convert(log: str, frames: LogFrames, converter: Converter, bag: Any,
+             start: float | None, end: float | None,
+             progress_stream: TextIO | None) -> Summary:
     summary = Summary()
     progress = Progress(frames.total, progress_stream or sys.stderr)
     started = time.monotonic()
@@ -201,15 +303,20 @@ def convert(log: str, output: str, parameters: dict, storage: str = 'mcap',
             converter.frame(msg.arbitration_id, bytes(msg.data), msg.is_extended_id, stamp,
                             write)
             last = stamp
-        if math.isfinite(summary.first_stamp):
-            converter.write_diagnostics(last, state=BusState.REPLAY_FINISHED)
+        check_frames(log, frames, summary, start, first, last)
+        converter.write_diagnostics(last, state=BusState.REPLAY_FINISHED)
         summary.last_stamp = last
     finally:
         frames.close()
         bag.close()
     progress.finish(summary.frames_read)
     summary.bad_entries = frames.bad
+    summary.last_bad = frames.last_bad
     summary.stopped = frames.stopped
+    if frames.truncated:
+        at = time.strftime('%Y-%m-%d %H:%M:%S', time.gmtime(last))
+        summary.stopped = (f'{frames.truncated}; stopped after frame {summary.frames_read}, '
+                           f'log time +{last - first:.3f} s ({at} UTC)')
     summary.malformed = {name: d.frames_malformed
                          for name, d in converter.devices.devices.items() if d.frames_malformed}
     summary.messages = dict(bag.counts)
@@ -226,7 +333,7 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument('output', help='bag directory to create (must not exist)')
     parser.add_argument('--params-file', required=True,
                         help="the bridge's parameters file (devices and their parameters)")
-    parser.add_argument('--storage', choices=sorted(STORAGES), default='mcap',
+    parser.add_argument('--storage', choices=STORAGE_NAMES, default='mcap',
                         help='rosbag2 storage (default mcap)')
     parser.add_argument('--start', type=float, default=None,
                         help='s after the first frame: write from here (earlier frames are '
@@ -234,8 +341,10 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument('--end', type=float, default=None,
                         help='s after the first frame: stop here')
     parser.add_argument('--node-name', default=NODE_NAME,
-                        help='node name whose entry of the parameters file applies '
-                        f'(default {NODE_NAME}; /** applies to every name)')
+                        help='node name whose entry of the parameters file applies, and '
+                        'that names the diagnostics, with its namespace as the bridge '
+                        f'would have it (e.g. car2/{NODE_NAME}; default {NODE_NAME}; /** '
+                        'applies to every name)')
     args = parser.parse_args(argv)
     if args.start is not None and args.end is not None and args.end < args.start:
         parser.error(f'--end {args.end:g} is before --start {args.start:g}')
@@ -248,7 +357,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         parameters = load_parameters(args.params_file, args.node_name)
         summary = convert(args.log, args.output, parameters, args.storage, args.start,
-                          args.end)
+                          args.end, node_name=args.node_name)
     except (ConfigError, LogFileError) as exc:
         print(f'log2bag: {exc}', file=sys.stderr)
         return 2
@@ -257,6 +366,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     print(f'wrote {args.output} ({args.storage})')
     print(summary.text())
+    if summary.stopped:
+        print(f'log2bag: warning: {summary.stopped}', file=sys.stderr)
     return 0
 
 

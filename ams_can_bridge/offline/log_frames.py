@@ -5,10 +5,17 @@ python-can's readers are generators: one unparsable line ends the iteration. For
 formats whose reader can start again in the middle of a file (candump .log, .trc, .csv,
 .asc), a bad line is counted and reading goes on after it; in a binary log (.blf) nothing
 after a corrupt object can be trusted, so reading stops there and the summary says so.
+
+A log cut short (a copy that stopped, a logger that lost power) says so in ``truncated``:
+a text log whose last line has no end (that line is not read: a cut line can still parse,
+as a frame with part of its data), an .asc without its closing "End TriggerBlock", a .blf
+shorter than its header says. python-can's .trc reader logs one warning per line it cannot
+parse instead of raising: those are counted here as bad entries, not printed one by one.
 """
 from __future__ import annotations
 
 import itertools
+import logging
 import os
 from typing import Any, Iterator
 
@@ -21,6 +28,51 @@ from ams_can_bridge.errors import LogFileError
 _NEEDS_HEADER_LINE = (can.CSVReader, can.ASCReader)
 _RESUMABLE = (can.CanutilsLogReader, can.TRCReader) + _NEEDS_HEADER_LINE
 _LINE_COUNT_CHUNK = 1 << 20
+_ASC_END = b'end triggerblock'
+# python-can's TRCReader logs these (one per line) and goes on: each is a bad entry
+_TRC_LOGGER = 'can.io.trc'
+_TRC_BAD = ('TRCReader: Failed to parse', 'TRCReader: Unsupported type')
+
+
+class _CompleteLines:
+    """A text file's lines up to the last one that ends with a newline (a cut line is left)."""
+
+    def __init__(self, file: Any, owner: 'LogFrames') -> None:
+        self._file = file
+        self._owner = owner
+        self._lines = self._complete()
+
+    def _complete(self) -> Iterator[str]:
+        for line in self._file:
+            if not line.endswith('\n'):
+                self._owner.cut_line = line
+                return
+            yield line
+
+    def __iter__(self) -> Iterator[str]:
+        return self._lines
+
+    def __next__(self) -> str:
+        return next(self._lines)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._file, name)
+
+
+class _CountTrcErrors(logging.Filter):
+    """Count (and silence) the TRC reader's per-line parse messages as bad entries."""
+
+    def __init__(self, owner: 'LogFrames') -> None:
+        super().__init__()
+        self.owner = owner
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        text = str(record.msg)
+        if text.startswith(_TRC_BAD):
+            self.owner.bad += 1
+            self.owner.last_bad = record.getMessage()
+            return False
+        return True
 
 
 class _Lines:
@@ -67,6 +119,18 @@ class LogFrames:
         self.bad = 0
         self.last_bad = ''
         self.stopped = ''
+        self.truncated = ''  # why the log looks cut short ('' = it ends as it should)
+        self.cut_line: str | None = None
+        if isinstance(self.reader, _RESUMABLE) and hasattr(self.reader, 'file'):
+            self.reader.file = _CompleteLines(self.reader.file, self)
+        self._trc_filter: _CountTrcErrors | None = None
+        if isinstance(self.reader, can.TRCReader):
+            self._trc_filter = _CountTrcErrors(self)
+            trc_logger = logging.getLogger(_TRC_LOGGER)
+            # 'Unsupported type' is INFO: the logger must let it through to be counted
+            self._trc_level = trc_logger.level
+            trc_logger.setLevel(logging.INFO)
+            trc_logger.addFilter(self._trc_filter)
 
     def _estimate_total(self) -> int | None:
         count = getattr(self.reader, 'object_count', None)  # BLF header
@@ -87,6 +151,7 @@ class LogFrames:
             try:
                 msg = next(messages)
             except StopIteration:
+                self._check_end()
                 return
             except Exception as exc:
                 self.bad += 1
@@ -100,6 +165,31 @@ class LogFrames:
                 continue
             yield msg
 
+    def _check_end(self) -> None:
+        """Set ``truncated`` when the log was read to an end that is not its proper end."""
+        if self.cut_line is not None:
+            self.truncated = (f'the log is cut short: its last line has no end and was not '
+                              f'read ({self.cut_line.strip()[:60]!r})')
+            return
+        size = os.path.getsize(self.path)
+        header_size = getattr(self.reader, 'file_size', None)  # BLF header
+        if isinstance(self.reader, can.BLFReader) and isinstance(header_size, int) \
+                and size < header_size:
+            self.truncated = (f'the log is cut short: {size} of the {header_size} bytes its '
+                              'header announces')
+        elif isinstance(self.reader, can.ASCReader):
+            with open(self.path, 'rb') as stream:
+                stream.seek(max(0, size - 256))
+                tail = stream.read().strip().lower()
+            if not tail.endswith(_ASC_END):
+                self.truncated = ('the log is cut short: it ends without the closing '
+                                  '"End TriggerBlock" line')
+
     def close(self) -> None:
-        """Close the file."""
+        """Close the file (and stop counting the TRC reader's messages)."""
+        if self._trc_filter is not None:
+            trc_logger = logging.getLogger(_TRC_LOGGER)
+            trc_logger.removeFilter(self._trc_filter)
+            trc_logger.setLevel(self._trc_level)
+            self._trc_filter = None
         self.reader.stop()

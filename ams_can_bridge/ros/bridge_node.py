@@ -82,6 +82,15 @@ CLOCK_PERIOD = 0.01  # s between /clock messages of a replay (can.replay_clock)
 
 __all__ = ['BridgeNode', 'ConfigError', 'NODE_NAME']
 
+# The command service a thread is answering (create_service sets it): transmit names it.
+_CALL = threading.local()
+
+
+def candump_text(frame: Frame) -> str:
+    """Return a frame as candump writes it: '305#0102', 29-bit IDs with 8 digits."""
+    width = 8 if frame.is_extended_id else 3
+    return f'{frame.arbitration_id:0{width}X}#{frame.data.hex().upper()}'
+
 
 def arming_refused() -> str:
     """Return the reason a commands_enabled = true is refused without commands_allowed."""
@@ -110,11 +119,12 @@ class BridgeNode(Node):
         # name -> (device revision, stale, level, monotonic time of the rebuild): a report
         # is rebuilt only after a change (see LEVEL_RECHECK_PERIOD).
         self._level_cache: dict[str, tuple[int, bool, int, float]] = {}
-        # name -> (device revision, BatteryState, [(publisher, array msg)], stamp is now)
-        self._stale_msgs: dict[str, tuple[int, Any, list, bool]] = {}
+        # name -> (device revision, BatteryState, [(publisher, array msg)])
+        self._stale_msgs: dict[str, tuple[int, Any, list]] = {}
         self._malformed_logged: dict[str, tuple[int, float]] = {}
         self._stale: dict[str, bool] = {}
         self._heard: set[str] = set()
+        self._heartbeats: dict[str, bool] = {}  # commander name -> heartbeat running (logged)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
         try:
@@ -137,6 +147,7 @@ class BridgeNode(Node):
         self.can_io.start()
         self.periodic.start()
         self._log_summary()
+        self._log_heartbeats()  # commands_enabled at launch: the heartbeat runs already
 
     # --- set-up ---------------------------------------------------------------------------
     def _configure(self) -> None:
@@ -270,10 +281,12 @@ class BridgeNode(Node):
                 return
             # Nothing in a silent device's message changes until a frame or a parameter does
             # (its revision): build it once, republish it every second (idle CPU).
-            cached = (revision, *self._messages(name, report), not math.isfinite(report.stamp))
+            cached = (revision, *self._messages(name, report))
             self._stale_msgs[name] = cached
-        elif cached[3]:  # never heard: the stamp is "now", the rest stays
-            cached[1].header.stamp = convert.stamp_msg(self._now())
+        # A present: false message says "nothing heard, as of now": stamped when published
+        # (a replay's log time), never with the last frame's time, which would make a
+        # silent device look as if its last message had just been repeated.
+        cached[1].header.stamp = convert.stamp_msg(self._now())
         self._publish_messages(name, cached[1], cached[2])
 
     def _messages(self, name: str, report: Any,
@@ -290,7 +303,10 @@ class BridgeNode(Node):
         pubs = self.array_pubs[name]
         if not pubs:
             return battery, []
-        arrays = [(pubs[suffix], build.multi_array(rows, cols, data))
+        # The arrays follow their BatteryState: while it says present: false (the device
+        # is silent) they are NaN, not the last values, for every array of every device.
+        arrays = [(pubs[suffix], build.multi_array(
+                      rows, cols, data if report.present else [math.nan] * len(data)))
                   for suffix, (rows, cols, data) in device.extra_arrays().items()
                   if suffix in pubs]
         return battery, arrays
@@ -357,7 +373,7 @@ class BridgeNode(Node):
     def publish_diagnostics(self) -> None:
         """Publish one DiagnosticArray: every device plus the CAN bus."""
         stamp = self._now()
-        node = self.get_name()
+        node = self.status_prefix()
         named = self._statuses()
         self._levels = {name: int(report.level) for name, report in named}
         statuses = [(f'{node}: {name}', report) for name, report in named]
@@ -366,6 +382,20 @@ class BridgeNode(Node):
         else:
             msg = diag_cdr.diagnostic_array(stamp, statuses, self.hardware_id)
         self._publish(self.diag_pub, msg)
+
+    def status_prefix(self) -> str:
+        """
+        Return what the diagnostics status names start with: the node's name and namespace.
+
+        /diagnostics is global: two bridges in namespaces car1 and car2 both named
+        ams_can_bridge would both say 'ams_can_bridge: ams'. The fully qualified name without
+        its leading slash tells them apart ('car2/ams_can_bridge: ams'), and is the plain
+        node name for a bridge without a namespace.
+        """
+        prefix = getattr(self, '_status_prefix', None)
+        if prefix is None:
+            prefix = self._status_prefix = self.get_fully_qualified_name().lstrip('/')
+        return prefix
 
     def _now(self) -> float:
         """Return the time to stamp with when no frame gives one: a replay's log time."""
@@ -458,7 +488,21 @@ class BridgeNode(Node):
                        f'{waited}')
 
     def transmit(self, frame: Frame, wait: bool = True) -> tuple[bool, str]:
-        """Send one frame if commands are enabled; (ok, message) - never raises."""
+        """
+        Send one frame if commands are enabled; (ok, message) - never raises.
+
+        Every frame sent on a service call is logged at INFO with the service, the frame
+        (candump's ID#data) and the outcome; the heartbeat's frames are not (its start and
+        stop are: ``_log_heartbeats``).
+        """
+        ok, message = self._transmit(frame, wait)
+        service = getattr(_CALL, 'service', None)
+        if service is not None:
+            outcome = 'sent' if ok else f'NOT sent: {message}'
+            self.get_logger().info(f'{service}: {candump_text(frame)} {outcome}')
+        return ok, message
+
+    def _transmit(self, frame: Frame, wait: bool) -> tuple[bool, str]:
         if not self.commands_enabled:
             return False, ('commands are disabled: set the parameter commands_enabled to true '
                            '(ros2 param set /ams_can_bridge commands_enabled true) to transmit')
@@ -474,6 +518,55 @@ class BridgeNode(Node):
         except CanSendError as exc:
             return False, f'CAN send failed on {self.hardware_id}: {exc}'
         return True, f'sent 0x{frame.arbitration_id:X} [{frame.data.hex(" ").upper()}]'
+
+    def create_service(self, srv_type: Any, srv_name: str, callback: Any,
+                       **kwargs: Any) -> Any:
+        """
+        Create a service; a device's command service is logged (its frames and its answer).
+
+        The call's service name is kept for the thread running it, so ``transmit`` can name
+        it; the answer (success and message) is logged once the callback returns: INFO when
+        it succeeded, WARN when not. The node's parameter services pass through unchanged.
+        """
+        device = srv_name.split('/', 1)[0]
+        if device not in getattr(self, 'devices', {}):
+            return super().create_service(srv_type, srv_name, callback, **kwargs)
+
+        def logged(request: Any, response: Any) -> Any:
+            outer = getattr(_CALL, 'service', None)
+            _CALL.service = srv_name
+            try:
+                response = callback(request, response)
+            finally:
+                _CALL.service = outer
+            answer = (f'{srv_name}: answered success={response.success}: '
+                      f'{response.message}')
+            if response.success:
+                self.get_logger().info(answer)
+            else:
+                self.get_logger().warning(answer)
+            return response
+        return super().create_service(srv_type, srv_name, logged, **kwargs)
+
+    def _log_heartbeats(self, why: str = '') -> None:
+        """Log each commander's heartbeat starting or stopping (not each of its frames)."""
+        for name, commander in self.commanders.items():
+            master = getattr(commander, 'master', None)
+            if master is None:
+                continue
+            running = bool(master.running)
+            if running == self._heartbeats.get(name, False):
+                continue
+            self._heartbeats[name] = running
+            if running:
+                base = getattr(commander.device.config, 'base_id', None)
+                frame = f' 0x{base + 5:X}' if isinstance(base, int) else ''
+                self.get_logger().info(
+                    f'{name}: heartbeat started: car status{frame} every '
+                    f'{master.period * 1000:g} ms')
+            else:
+                because = f' ({why})' if why else ''
+                self.get_logger().info(f'{name}: heartbeat stopped{because}')
 
     def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         for param in parameters:
@@ -520,6 +613,7 @@ class BridgeNode(Node):
                                           'disabled, listen only')
             for commander in self.commanders.values():
                 commander.on_commands_enabled(self.commands_enabled)
+            self._log_heartbeats('commands_enabled is false')
 
     # --- shutdown -------------------------------------------------------------------------
     def destroy_node(self) -> None:
@@ -530,6 +624,8 @@ class BridgeNode(Node):
             periodic.stop()
         for commander in self.commanders.values():
             commander.destroy()
+        if self.context.ok():  # after Ctrl-C the logger may be gone with the context
+            self._log_heartbeats('the bridge is shutting down')
         self.commanders.clear()
         if self.can_io is not None:
             self.can_io.stop()

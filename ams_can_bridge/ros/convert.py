@@ -7,7 +7,6 @@ these message objects serve the 1 Hz stale messages (built once per device revis
 """
 from __future__ import annotations
 
-from array import array
 import functools
 import logging
 from typing import Any
@@ -38,8 +37,8 @@ def battery_state(report: BatteryReport, frame_id: str,
     """
     fields = reports.battery_fields(report)
     # array('f') skips rclpy's per-element range check of float32[] lists (half the cost)
-    fields['cell_voltage'] = array('f', fields['cell_voltage'])
-    fields['cell_temperature'] = array('f', fields['cell_temperature'])
+    fields['cell_voltage'] = reports.float32_array(fields['cell_voltage'])
+    fields['cell_temperature'] = reports.float32_array(fields['cell_temperature'])
     msg = BatteryState(**fields)
     msg.header.stamp = stamp_msg(reports.report_stamp(report, fallback_stamp))
     msg.header.frame_id = frame_id
@@ -60,7 +59,7 @@ def multi_array(rows: int, cols: int, data: list[float],
     """std_msgs/Float32MultiArray, row-major rows x cols, with its layout dims."""
     msg = Float32MultiArray()
     msg.layout = _layout(rows, cols, labels)
-    msg.data = array('f', data)
+    msg.data = reports.float32_array(data)
     return msg
 
 

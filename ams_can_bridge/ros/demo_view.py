@@ -104,23 +104,33 @@ def _paint(text: str, code: str | None, colour: bool) -> str:
     return f'{code}{text}{RESET}'
 
 
-# (title, width, right-aligned) of each column; widths fit the largest realistic values.
+# (title, width, right-aligned) of each column; widths fit the largest realistic values
+# ('PRECHARGING', '-109.1 A', '100.0 %', '3.900..3.920 V', '-25.0 °C') and the whole row
+# fits a terminal of 80 columns (WIDTH). The device type is not shown: the demo's device
+# names are their types.
 COLUMNS = (
-    ('DEVICE', 8, False), ('TYPE', 6, False), ('STATE', 12, False),
-    ('VOLTAGE', 9, True), ('CURRENT', 9, True), ('SOC', 7, True),
-    ('CELL MIN', 8, True), ('CELL MAX', 8, True), ('TEMP', 8, True), ('DIAG', 5, False),
+    ('DEVICE', 6, False), ('STATE', 11, False),
+    ('VOLTAGE', 7, True), ('CURRENT', 8, True), ('SOC', 7, True),
+    ('CELLS', 14, True), ('TEMP', 8, True), ('DIAG', 5, False),
 )
+WIDTH = 80  # columns of a default terminal: every line of the view fits
+
+
+def fmt_cells(low: float, high: float, missing: str) -> str:
+    """Format the cell voltage range as '3.900..3.920 V', or the missing marker."""
+    if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in (low, high)):
+        return missing
+    return f'{low:.3f}..{high:.3f} V'
 
 
 def _cells(row: DeviceRow, missing: str, degree: str) -> list[str]:
     pct = row.percentage * 100.0 if isinstance(row.percentage, (int, float)) else NAN
     return [
-        row.name, row.type, row.state or missing,
+        row.name, row.state or missing,
         fmt_value(row.voltage, 'V', 1, missing),
         fmt_value(row.current, 'A', 1, missing),
         fmt_value(pct, '%', 1, missing),
-        fmt_value(row.cell_min, 'V', 3, missing),
-        fmt_value(row.cell_max, 'V', 3, missing),
+        fmt_cells(row.cell_min, row.cell_max, missing),
         fmt_value(row.temperature, degree, 1, missing),
         row.level or missing,
     ]
@@ -138,30 +148,35 @@ def _line(texts: list[str], colours: list[str | None], colour: bool) -> str:
 
 
 def render(view: View, colour: bool = False, unicode: bool = True,
-           width: int = 100) -> str:
+           width: int = WIDTH) -> str:
     """
-    Return the view as text lines (no trailing newline).
+    Return the view as text lines (no trailing newline), each at most width columns.
 
     colour adds ANSI colours (levels, states, header); unicode chooses the em dash and the
-    degree sign over their ASCII stand-ins 'n/a' and 'C'. Messages are cut to width.
+    degree sign over their ASCII stand-ins 'n/a' and 'C'. Long texts (the bus name, the
+    messages) are cut to width.
     """
     missing = '\u2014' if unicode else 'n/a'
     degree = '\u00b0C' if unicode else 'C'
     frames = (f'in {view.frames_in if view.frames_in is not None else missing}'
               f' / out {view.frames_out if view.frames_out is not None else missing}')
     bus_level = view.bus_level or missing
+    title = 'ams_can_bridge demo'
+    # cut before painting: colour codes take no column but count as characters
+    status = _cut(f' ({view.bus_state or "no status yet"})   frames {frames}',
+                  width - len('CAN bus: ') - len(bus_level))
     lines = [
-        _paint('ams_can_bridge demo', BOLD, colour)
-        + f'   bus {view.bus or missing}   uptime {fmt_uptime(view.uptime_s)}',
-        f'CAN bus: {_paint(bus_level, COLOURS.get(bus_level), colour)}'
-        f' ({view.bus_state or "no status yet"})   frames {frames}',
+        _paint(title, BOLD, colour) + _cut(
+            f'   uptime {fmt_uptime(view.uptime_s)}   bus {view.bus or missing}',
+            width - len(title)),
+        f'CAN bus: {_paint(bus_level, COLOURS.get(bus_level), colour)}{status}',
         '',
         _paint(_line([c[0] for c in COLUMNS], [None] * len(COLUMNS), False), BOLD, colour),
     ]
     for row in view.rows:
         texts = _cells(row, missing, degree)
         colours: list[str | None] = [None] * len(COLUMNS)
-        colours[2] = STATE_COLOURS.get(row.state)
+        colours[1] = STATE_COLOURS.get(row.state)
         colours[-1] = COLOURS.get(row.level)
         lines.append(_line(texts, colours, colour))
     lines.append('')

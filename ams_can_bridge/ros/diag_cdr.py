@@ -141,8 +141,8 @@ def battery_state(report: BatteryReport, frame_id: str,
     f = reports.battery_fields(report)
     sec, nanosec = reports.stamp_parts(reports.report_stamp(report, fallback_stamp))
     frame = cdr_string(frame_id)
-    cells = array('f', f['cell_voltage'])
-    temps = array('f', f['cell_temperature'])
+    cells = reports.float32_array(f['cell_voltage'])
+    temps = reports.float32_array(f['cell_temperature'])
     location = cdr_string(f['location'])
     return b''.join((
         _BATTERY_HEADER, _stamp(sec, nanosec), frame, _PADS[-len(frame) & 3],
@@ -167,7 +167,7 @@ def _array_layout(rows: int, cols: int, labels: tuple[str, str]) -> bytes:
 def multi_array(rows: int, cols: int, data: Iterable[float],
                 labels: tuple[str, str] = ('bank', 'sensor')) -> bytes:
     """Serialize the Float32MultiArray convert builds from the same data, as rclpy would."""
-    values = array('f', data)
+    values = reports.float32_array(data)
     return _array_layout(rows, cols, labels) + _U32(len(values)) + values.tobytes()
 
 

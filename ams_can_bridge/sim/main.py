@@ -65,11 +65,14 @@ def build_parser() -> argparse.ArgumentParser:
                         '"Your own BMS"; default for --devices dbc: our AMS example)')
     p.add_argument('--mapping', default=None, metavar='FILE',
                    help="the dbc device's mapping file (with --dbc)")
-    p.add_argument('--ams-banks', type=int, default=None, metavar='N', help='AMS banks 1..5')
+    # defaults as config/ams_ivt.yaml and config/evms3.yaml: the examples run as they are
+    p.add_argument('--ams-banks', type=int, default=5, metavar='N',
+                   help='AMS banks 1..5 (default 5, as config/ams_ivt.yaml)')
     p.add_argument('--ams-pad', action='store_true',
                    help='the AMS pads every frame to 8 bytes (DLC 8), as some firmwares do')
-    p.add_argument('--bms12-modules', type=int, default=None, metavar='N',
-                   help='BMS12 modules behind the EVMS3, 0..16')
+    p.add_argument('--bms12-modules', type=int, default=4, metavar='N',
+                   help='BMS12 modules behind the EVMS3, 0..16 (default 4, as '
+                        'config/evms3.yaml)')
     p.add_argument('--evms3-charge-after', type=float, default=None, metavar='S',
                    help='the EVMS3 starts charging after S seconds: it commands its TC '
                         'chargers (29-bit) and they answer (default: never, it drives)')
