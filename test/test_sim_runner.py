@@ -251,13 +251,13 @@ def test_simulator_defaults_match_the_example_configs():
     """The simulator with no options speaks to a bridge run on config/*.yaml as they are."""
     import yaml
 
-    from ams_can_bridge.sim.main import build_devices, build_parser
+    from ams_can_bridge.sim.main import build_devices, build_parser, selected_types
     config = Path(__file__).resolve().parents[1] / 'config'
 
     def params(name):
         return yaml.safe_load((config / name).read_text())['/**']['ros__parameters']
     args = build_parser().parse_args([])
-    devices = {d.name: d for d in build_devices(args.devices, args.ams_banks,
+    devices = {d.name: d for d in build_devices(selected_types(args), args.ams_banks,
                                                 args.bms12_modules)}
     assert devices['ams'].bank_count == params('ams_ivt.yaml')['ams']['bank_count'] == 5
     assert args.bms12_modules == params('evms3.yaml')['evms3']['bms12_modules']

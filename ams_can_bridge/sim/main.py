@@ -188,6 +188,14 @@ def _ids(runner: SimRunner) -> str:
     return ' '.join(parts)
 
 
+def selected_types(args: argparse.Namespace) -> list[str]:
+    """Return the device types to simulate: --devices, else the built-ins (none with --dbc)."""
+    types = args.devices if args.devices is not None else [] if args.dbc else list(_ORDER)
+    if args.dbc and 'dbc' not in types:
+        types = [*types, 'dbc']
+    return types
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the simulator until Ctrl-C, SIGTERM or --duration; 2 if the bus cannot open."""
     parser = build_parser()
@@ -200,10 +208,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         options = parse_options(args.option)
         if bool(args.dbc) != bool(args.mapping):
             raise ValueError('--dbc and --mapping go together')
-        types = args.devices if args.devices is not None else [] if args.dbc else list(_ORDER)
-        if args.dbc and 'dbc' not in types:
-            types = [*types, 'dbc']
-        devices = build_devices(types, args.ams_banks, args.bms12_modules,
+        devices = build_devices(selected_types(args), args.ams_banks, args.bms12_modules,
                                 args.ivt_byte_order, args.sma_dialect,
                                 args.evms3_charge_after, args.evms3_chargers,
                                 bms16_variant=args.bms16_variant,
