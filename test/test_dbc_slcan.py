@@ -51,7 +51,8 @@ def test_simulated_dbc_bms_reaches_the_bridge_over_slcan(ros, tmp_path):  # noqa
     node.create_subscription(BatteryState, f'/{ns}/pack/battery_state', got.append, 50)
     node.create_subscription(
         DiagnosticArray, '/diagnostics',
-        lambda m: diags.extend(s for s in m.status if s.name == 'ams_can_bridge: pack'), 50)
+        lambda m: diags.extend(s for s in m.status if s.name == f'{ns}/ams_can_bridge: pack'),
+        50)
     sim_peer = SlcanPeer(symlink=tmp_path / 'ttySIM')
     bridge_peer = SlcanPeer(symlink=tmp_path / 'ttyBRIDGE')
     params = tmp_path / 'bridge.yaml'
