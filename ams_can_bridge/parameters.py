@@ -7,6 +7,7 @@ same parameters file without ROS (``params_file.py``). Both check every value he
 """
 from __future__ import annotations
 
+import array
 import math
 from typing import Any, Iterable
 
@@ -85,7 +86,9 @@ def coerce(name: str, spec: ParamSpec, value: Any) -> Any:
                              + ', '.join(spec.choices))
         return value
     if spec.type in ('int[]', 'str[]', 'float[]'):
-        if not isinstance(value, (list, tuple)):
+        # rclpy hands integer and float arrays over as array.array (a set through the
+        # parameter services, ros2 param set), a params file's values as lists
+        if not isinstance(value, (list, tuple, array.array)):
             raise ParamError(f'{name} = {value!r} must be a list')
         element = {'int[]': int, 'str[]': str, 'float[]': float}[spec.type]
         element_spec = ParamSpec(spec.key, element, None, '', spec.low, spec.high, spec.step,
