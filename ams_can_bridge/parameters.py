@@ -150,3 +150,20 @@ NODE_PARAMS = [
               'transmit gate: false = pure listener, nothing is ever sent; true only with '
               'commands_allowed', read_only=False),
 ]
+
+
+def launch_parameters(params_file: str, commands_allowed: str = '') -> list[Any]:
+    """
+    Return the ``parameters`` of the bridge's launch Node (launch/bridge.launch.py).
+
+    The launch argument commands_allowed replaces the params file's value only when it is
+    given ('true' / 'false'); left empty (its default), the params file decides.
+    """
+    parameters: list[Any] = [params_file]
+    text = commands_allowed.strip().lower()
+    if text not in ('', 'true', 'false'):
+        raise ValueError(f'commands_allowed:={commands_allowed!r}: use true or false, or leave '
+                         'it out to keep the params file value')
+    if text:
+        parameters.append({'commands_allowed': text == 'true'})
+    return parameters

@@ -53,7 +53,7 @@ from ams_can_bridge import registry, reports
 from ams_can_bridge.can_io import BusConfig, CanIo, CanSendError, parse_options
 from ams_can_bridge.can_io.config import RETRY_STATES
 from ams_can_bridge.can_io.core import STATE_CHANGE_FORMAT
-from ams_can_bridge.device_set import DeviceSet
+from ams_can_bridge.device_set import DeviceSet, unknown_parameter_errors
 from ams_can_bridge.devices.base import Device
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.periodic import Periodic
@@ -118,7 +118,12 @@ class BridgeNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
         try:
-            self._configure()
+            configured = False
+            try:
+                self._configure()
+                configured = True
+            finally:  # a typo in a key is reported with the other problems, all at once
+                self.params.errors += self._unknown_parameters(configured)
             self.params.raise_errors()
         except (ParamError, ConfigError) as exc:
             if self.params.errors:  # the values the user wrote come first, all of them
@@ -139,6 +144,11 @@ class BridgeNode(Node):
         self._log_summary()
 
     # --- set-up ---------------------------------------------------------------------------
+    def _unknown_parameters(self, complete: bool) -> list[str]:
+        """Every key given for this node (file sections, -p) that nothing declared."""
+        given = {name: param.value for name, param in self._parameter_overrides.items()}
+        return unknown_parameter_errors(given, self._parameters.keys(), complete)
+
     def _configure(self) -> None:
         bus = self.params.declare_all('can.', BUS_PARAMS)
         node = self.params.declare_all('', NODE_PARAMS)
@@ -158,8 +168,12 @@ class BridgeNode(Node):
                 fd=bus['fd'], options=options, reconnect_period=bus['reconnect_period'],
                 replay_rate=bus['replay_rate'], record=bus['record'],
                 use_bus_time=bus['use_bus_time'], slcan_bulk_read=bus['slcan_bulk_read'])
+            # what can never work stops the bridge here rather than being retried forever
+            bus_warnings = self.bus_config.check()
         except ValueError as exc:
             raise ConfigError(str(exc)) from None
+        for warning in bus_warnings:
+            self.get_logger().warning(warning)
         self.hardware_id = f"{bus['interface']}:{bus['channel']}"
         self.connect_wait = bus['connect_wait']
         self._bus_log = BusStateLog(self.get_logger(), self.hardware_id, bus['channel'],
@@ -244,6 +258,11 @@ class BridgeNode(Node):
         if not self.devices:
             lines.append('  no devices configured (set the devices parameter)')
         self.get_logger().info('\n'.join(lines))
+        if not self.devices:
+            self.get_logger().warning(
+                'devices is empty: the bridge decodes nothing and publishes only the CAN bus '
+                'status. Set devices to your instances in the params file (e.g. devices: '
+                '[ams, ivt_s], see config/*.yaml) or --ros-args -p "devices:=[bms16]"')
 
     # --- receive thread -------------------------------------------------------------------
     def _on_frame(self, arbitration_id: int, data: bytes, is_extended_id: bool,
