@@ -13,15 +13,10 @@ import signal
 import sys
 import threading
 import traceback
+from typing import Any
 
-import rclpy
-from rclpy._rclpy_pybind11 import RCLError
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
-import rclpy.logging
-from rclpy.signals import SignalHandlerOptions
-
-from ams_can_bridge.ros.bridge_node import BridgeNode, ConfigError, NODE_NAME
-from ams_can_bridge.ros.params import unmatched_params_files
+# rclpy and the node are imported in main(), after the arguments: --help must not load rcl
+# (loading it already checks the RMW implementation).
 
 # Waiting command services need threads of their own (telemetry does not use the executor).
 EXECUTOR_THREADS = 4
@@ -103,6 +98,13 @@ def main(args: list[str] | None = None) -> int:
               '(bridge --ros-args --params-file PARAMS.yaml)\n\n' + USAGE, end='',
               file=sys.stderr)
         return 2
+    import rclpy
+    from rclpy._rclpy_pybind11 import RCLError
+    import rclpy.logging
+    from rclpy.signals import SignalHandlerOptions
+
+    from ams_can_bridge.ros.bridge_node import BridgeNode, ConfigError, NODE_NAME
+    from ams_can_bridge.ros.params import unmatched_params_files
     sys.setswitchinterval(GIL_SWITCH_INTERVAL)
     signals = StopSignals()
     try:
@@ -131,8 +133,9 @@ def main(args: list[str] | None = None) -> int:
     return 0
 
 
-def _spin_until(node: BridgeNode, signals: StopSignals) -> str | None:
+def _spin_until(node: Any, signals: StopSignals) -> str | None:
     """Serve the node's services on an executor thread until a stop; the failure if any."""
+    from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
     executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
     executor.add_node(node)
     failure: list[str] = []
@@ -149,7 +152,7 @@ def _spin_until(node: BridgeNode, signals: StopSignals) -> str | None:
         finally:
             signals.stop.set()
 
-    spinner = threading.Thread(target=spin, name=f'{NODE_NAME}-executor', daemon=True)
+    spinner = threading.Thread(target=spin, name=f'{node.get_name()}-executor', daemon=True)
     spinner.start()
     try:
         signals.wait()

@@ -87,7 +87,8 @@ def arming_refused() -> str:
     """Return the reason a commands_enabled = true is refused without commands_allowed."""
     return ('commands_enabled = true refused: commands_allowed is false. commands_allowed is '
             'read-only, set only at launch: start the bridge with commands_allowed: true '
-            '(params file or --ros-args -p commands_allowed:=true) to let commands be enabled')
+            '(params file or --ros-args -p commands_allowed:=true) to let commands be enabled; '
+            'bridge.launch.py commands_allowed:=..., when given, replaces the params file value')
 
 
 class BridgeNode(Node):
