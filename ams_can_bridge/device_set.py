@@ -133,27 +133,28 @@ class DeviceSet:
             device.configure({'current_sensor': wanted})
 
 
-def unknown_parameter_errors(given: Mapping[str, Any], declared: Collection[str],
-                             complete: bool = True) -> list[str]:
+def unknown_parameter_errors(given: Mapping[str, Any], declared: Collection[str]) -> list[str]:
     """
     Return one message per given parameter that nothing declared, naming what to change.
 
     ``given``: every value given for this node (params file sections that apply to it,
     ``-p`` overrides), flat dotted names; ``declared``: what the configuration declared.
     A key of a device type's parameter under a name that is no configured instance says
-    so; otherwise the nearest declared name is suggested (a typo). ``complete`` False (the
-    configuration stopped half-way): keys under a listed instance are not judged, as that
-    instance may not have been declared yet.
+    so; otherwise the nearest declared name is suggested (a typo). Keys of a listed
+    instance whose parameters were not declared (its type unknown, or the configuration
+    stopped before it) are not judged: what it takes is not known.
     """
     listed = given.get('devices')
     names = [n for n in listed if isinstance(n, str)] if isinstance(listed, (list, tuple)) \
         else []
     instances = {n: given.get(f'{n}.type', n) for n in names}
     known = sorted(n for n in declared if not n.startswith(FOREIGN_PREFIXES))
+    built = {n.partition('.')[0] for n in known if '.' in n and not n.endswith('.type')}
     errors = []
     for key in sorted(set(given) - set(declared) - ROS_NODE_PARAMS):
         prefix, dot, rest = key.partition('.')
-        if key.startswith(FOREIGN_PREFIXES) or (not complete and dot and prefix in instances):
+        unjudged = bool(dot) and prefix in instances and prefix not in built
+        if key.startswith(FOREIGN_PREFIXES) or unjudged:
             continue
         errors.append(_unknown_message(key, prefix, rest, instances, known))
     return errors

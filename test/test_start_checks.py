@@ -117,6 +117,20 @@ def test_a_device_key_says_whose_it_is(context, overrides, expected):
     assert expected in node_error(context, overrides)
 
 
+def test_every_problem_of_the_start_values_is_listed_at_once(context):
+    text = node_error(context, {
+        'can.interface': 'slcn', 'devices': ['ams', 'ams2'], 'ams2.type': 'ams',
+        'ams.bank_count': 9, 'ams.bank_cont': 5, 'diagnostics_perod': 1.0})
+    assert text.startswith('5 parameters need a change:')
+    for message in ("can.interface = 'slcn' is not a python-can interface",
+                    'ams.bank_count = 9 is out of range: allowed 1..5',
+                    'ams.bank_cont: unknown parameter of device ams (type ams); did you mean '
+                    '`ams.bank_count`?',
+                    'diagnostics_perod: unknown parameter',
+                    'devices overlap: ams (ams) and ams2 (ams) both use IDs 0x300-0x301'):
+        assert message in text, (message, text)
+
+
 def test_known_keys_of_rclpy_itself_are_not_refused(context):
     node = BridgeNode(context=context, namespace=f'checks_{next(_ids)}', parameter_overrides=[
         Parameter('can.interface', value='virtual'), Parameter('can.channel', value='rclpy'),

@@ -119,12 +119,10 @@ class BridgeNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
         try:
-            configured = False
             try:
                 self._configure()
-                configured = True
             finally:  # a typo in a key is reported with the other problems, all at once
-                self.params.errors += self._unknown_parameters(configured)
+                self.params.errors += self._unknown_parameters()
             self.params.raise_errors()
         except (ParamError, ConfigError) as exc:
             if self.params.errors:  # the values the user wrote come first, all of them
@@ -145,10 +143,10 @@ class BridgeNode(Node):
         self._log_summary()
 
     # --- set-up ---------------------------------------------------------------------------
-    def _unknown_parameters(self, complete: bool) -> list[str]:
+    def _unknown_parameters(self) -> list[str]:
         """Every key given for this node (file sections, -p) that nothing declared."""
         given = {name: param.value for name, param in self._parameter_overrides.items()}
-        return unknown_parameter_errors(given, self._parameters.keys(), complete)
+        return unknown_parameter_errors(given, self._parameters.keys())
 
     def _configure(self) -> None:
         bus = self.params.declare_all('can.', BUS_PARAMS)
@@ -159,22 +157,24 @@ class BridgeNode(Node):
         if self.commands_enabled and not self.commands_allowed:
             self.params.errors.append(arming_refused())
             self.commands_enabled = False
+        # A bus setting that cannot work is collected, not raised: the devices are still
+        # declared, so that every problem of the params file is reported at once.
         try:
             options = parse_options(bus['options'])
         except ValueError as exc:
-            raise ConfigError(f'can.options: {exc} (write each option as key=value)') from None
-        try:
-            self.bus_config = BusConfig(
-                interface=bus['interface'], channel=bus['channel'], bitrate=bus['bitrate'],
-                fd=bus['fd'], options=options, reconnect_period=bus['reconnect_period'],
-                replay_rate=bus['replay_rate'], record=bus['record'],
-                use_bus_time=bus['use_bus_time'], slcan_bulk_read=bus['slcan_bulk_read'])
-            # what can never work stops the bridge here rather than being retried forever
-            bus_warnings = self.bus_config.check()
-        except ValueError as exc:
-            raise ConfigError(str(exc)) from None
-        for warning in bus_warnings:
-            self.get_logger().warning(warning)
+            self.params.errors.append(f'can.options: {exc} (write each option as key=value)')
+        else:
+            try:
+                self.bus_config = BusConfig(
+                    interface=bus['interface'], channel=bus['channel'], bitrate=bus['bitrate'],
+                    fd=bus['fd'], options=options, reconnect_period=bus['reconnect_period'],
+                    replay_rate=bus['replay_rate'], record=bus['record'],
+                    use_bus_time=bus['use_bus_time'], slcan_bulk_read=bus['slcan_bulk_read'])
+                # what can never work stops the bridge here rather than being retried forever
+                for warning in self.bus_config.check():
+                    self.get_logger().warning(warning)
+            except ValueError as exc:
+                self.params.errors.append(str(exc))
         self.hardware_id = f"{bus['interface']}:{bus['channel']}"
         self.connect_wait = bus['connect_wait']
         self._bus_log = BusStateLog(self.get_logger(), self.hardware_id, bus['channel'],
@@ -188,6 +188,8 @@ class BridgeNode(Node):
         self.device_set = DeviceSet(node['devices'], self.params.declare)
         self.devices = self.device_set.devices
         self._stale = {name: True for name in self.devices}
+        if self.params.errors:
+            return  # the node will not start (raise_errors): no bus, no publishers
         filters = self.device_set.filters
         self._make_publishers()
         for name, device in self.devices.items():
