@@ -8,14 +8,26 @@ tables come out, so an offline conversion decodes exactly what the live bridge d
 """
 from __future__ import annotations
 
+import difflib
 import time
-from typing import Any, Callable, Iterable
+from typing import Any, Callable, Collection, Iterable, Mapping
 
 from ams_can_bridge import registry
 from ams_can_bridge.devices.base import Device, device_params, ParamSpec
 from ams_can_bridge.errors import ConfigError, ParamError
+from ams_can_bridge.protocols.sma import SMA_IDS
 
 Declare = Callable[[str, ParamSpec], Any]
+# IDs that two devices of different types may both read: they come from one sender. The SMA
+# IDs are fixed by the protocol (one SMA sender per bus), and a BMS16 sends them besides its
+# own frames: an sma instance then shows the same pack through the SMA protocol (the demo
+# does). Neither device sends on them. Every other shared ID stops the bridge at start.
+SHARED_IDS: dict[str, frozenset[int]] = {'sma': SMA_IDS, 'bms16': SMA_IDS}
+# Parameters a node may be given that are not the bridge's: rclpy's QoS overrides
+# (qos_overrides./topic.publisher.depth ...).
+FOREIGN_PREFIXES = ('qos_overrides.',)
+# Parameters every rclpy node declares itself (log2bag, without rclpy, knows them by name).
+ROS_NODE_PARAMS = frozenset({'use_sim_time', 'start_type_description_service'})
 
 
 class DeviceSet:
@@ -31,6 +43,7 @@ class DeviceSet:
         for name in names:
             self._add(name, declare, clock)
         self._attach_current_sensors()
+        self._check_overlaps()
         self.std: dict[int, tuple[Device, ...]] = {}
         self.ext: dict[int, tuple[Device, ...]] = {}
         for device in self.devices.values():
@@ -88,6 +101,26 @@ class DeviceSet:
             raise ConfigError(f'device {name!r} ({device_type}): {exc}') from None
         self.devices[name] = device
 
+    def _check_overlaps(self) -> None:
+        """Raise ConfigError naming every pair of instances that use the same CAN IDs."""
+        problems = []
+        items = list(self.devices.items())
+        for i, (name_a, a) in enumerate(items):
+            for name_b, b in items[i + 1:]:
+                common = a.frame_ids & b.frame_ids
+                if a.TYPE != b.TYPE:
+                    shared = SHARED_IDS.get(a.TYPE, frozenset()) & SHARED_IDS.get(
+                        b.TYPE, frozenset())
+                    common = {(i, e) for i, e in common if e or i not in shared}
+                if common:
+                    problems.append(f'{name_a} ({a.TYPE}) and {name_b} ({b.TYPE}) both use '
+                                    f'{format_ids(common)}')
+        if problems:
+            raise ConfigError(
+                'devices overlap: ' + '; '.join(problems) + '. Two instances on one ID would '
+                'both decode its frames (and both send, with commands armed). Move one of '
+                'them (<name>.base_id) or remove it from devices')
+
     def _attach_current_sensors(self) -> None:
         ivts = [n for n, d in self.devices.items() if d.TYPE == 'ivt_s']
         for name, device in self.devices.items():
@@ -105,3 +138,78 @@ class DeviceSet:
                     + ' or add it to devices with type ivt_s')
             device.attach_current_sensor(self.devices[wanted])
             device.configure({'current_sensor': wanted})
+
+
+def unknown_parameter_errors(given: Mapping[str, Any], declared: Collection[str]) -> list[str]:
+    """
+    Return one message per given parameter that nothing declared, naming what to change.
+
+    ``given``: every value given for this node (params file sections that apply to it,
+    ``-p`` overrides), flat dotted names; ``declared``: what the configuration declared.
+    A key of a device type's parameter under a name that is no configured instance says
+    so; otherwise the nearest declared name is suggested (a typo). Keys of a listed
+    instance whose parameters were not declared (its type unknown, or the configuration
+    stopped before it) are not judged: what it takes is not known.
+    """
+    listed = given.get('devices')
+    names = [n for n in listed if isinstance(n, str)] if isinstance(listed, (list, tuple)) \
+        else []
+    instances = {n: given.get(f'{n}.type', n) for n in names}
+    known = sorted(n for n in declared if not n.startswith(FOREIGN_PREFIXES))
+    built = {n.partition('.')[0] for n in known if '.' in n and not n.endswith('.type')}
+    errors = []
+    for key in sorted(set(given) - set(declared) - ROS_NODE_PARAMS):
+        prefix, dot, rest = key.partition('.')
+        unjudged = bool(dot) and prefix in instances and prefix not in built
+        if key.startswith(FOREIGN_PREFIXES) or unjudged:
+            continue
+        errors.append(_unknown_message(key, prefix, rest, instances, known))
+    return errors
+
+
+def _nearest(key: str, candidates: Iterable[str]) -> str:
+    match = difflib.get_close_matches(key, list(candidates), n=1, cutoff=0.6)
+    return f'; did you mean `{match[0]}`?' if match else ''
+
+
+def _type_keys(device_type: str) -> set[str]:
+    try:
+        return {spec.key for spec in device_params(registry.device_class(device_type))}
+    except Exception:  # a type that cannot load: no suggestion from it, no crash here
+        return set()
+
+
+def _unknown_message(key: str, prefix: str, rest: str, instances: Mapping[str, Any],
+                     known: list[str]) -> str:
+    if rest and prefix in instances:
+        device_type = instances[prefix]
+        owners = [t for t in registry.DEVICE_TYPES if t != device_type and rest in _type_keys(t)]
+        other = f' ({rest} is a parameter of type {" / ".join(owners)})' if owners else ''
+        return (f'{key}: unknown parameter of device {prefix} (type {device_type}){other}'
+                + _nearest(key, [n for n in known if n.startswith(prefix + '.')
+                                 or n.endswith('.' + rest)]))
+    if rest:
+        owners = [t for t in registry.DEVICE_TYPES if rest in _type_keys(t)]
+        if owners:
+            listed = ', '.join(instances) or 'nothing'
+            return (f'{key}: belongs to no configured device: {prefix!r} is not in devices '
+                    f'(devices lists {listed}); add {prefix} to devices (with {prefix}.type: '
+                    f'{" or ".join(owners)}) or remove the key'
+                    + _nearest(key, [n for n in known if n.endswith('.' + rest)]))
+    return f'{key}: unknown parameter (the bridge does not declare it)' + _nearest(key, known)
+
+
+def format_ids(ids: Iterable[tuple[int, bool]]) -> str:
+    """'0x300-0x301, 0x305' per width, runs of consecutive IDs collapsed; 29-bit marked."""
+    parts = []
+    for extended in (False, True):
+        runs: list[list[int]] = []
+        for i in sorted(i for i, e in ids if e == extended):
+            if runs and i == runs[-1][1] + 1:
+                runs[-1][1] = i
+            else:
+                runs.append([i, i])
+        if runs:
+            parts.append(', '.join(f'0x{a:X}' if a == b else f'0x{a:X}-0x{b:X}' for a, b in runs)
+                         + (' (29-bit)' if extended else ''))
+    return 'ID ' + '; '.join(parts) if len(ids) == 1 else 'IDs ' + '; '.join(parts)

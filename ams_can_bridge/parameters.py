@@ -7,6 +7,7 @@ same parameters file without ROS (``params_file.py``). Both check every value he
 """
 from __future__ import annotations
 
+import array
 import math
 from typing import Any, Iterable
 
@@ -85,7 +86,9 @@ def coerce(name: str, spec: ParamSpec, value: Any) -> Any:
                              + ', '.join(spec.choices))
         return value
     if spec.type in ('int[]', 'str[]', 'float[]'):
-        if not isinstance(value, (list, tuple)):
+        # rclpy hands integer and float arrays over as array.array (a set through the
+        # parameter services, ros2 param set), a params file's values as lists
+        if not isinstance(value, (list, tuple, array.array)):
             raise ParamError(f'{name} = {value!r} must be a list')
         element = {'int[]': int, 'str[]': str, 'float[]': float}[spec.type]
         element_spec = ParamSpec(spec.key, element, None, '', spec.low, spec.high, spec.step,
@@ -147,3 +150,20 @@ NODE_PARAMS = [
               'transmit gate: false = pure listener, nothing is ever sent; true only with '
               'commands_allowed', read_only=False),
 ]
+
+
+def launch_parameters(params_file: str, commands_allowed: str = '') -> list[Any]:
+    """
+    Return the ``parameters`` of the bridge's launch Node (launch/bridge.launch.py).
+
+    The launch argument commands_allowed replaces the params file's value only when it is
+    given ('true' / 'false'); left empty (its default), the params file decides.
+    """
+    parameters: list[Any] = [params_file]
+    text = commands_allowed.strip().lower()
+    if text not in ('', 'true', 'false'):
+        raise ValueError(f'commands_allowed:={commands_allowed!r}: use true or false, or leave '
+                         'it out to keep the params file value')
+    if text:
+        parameters.append({'commands_allowed': text == 'true'})
+    return parameters

@@ -147,8 +147,12 @@ def write_params(path: str, interface: str, channel: str, options: Sequence[str]
     params = {
         'can': {'interface': interface, 'channel': channel, 'options': list(options)},
         'devices': list(devices), 'commands_enabled': commands,
-        'ams': {'bank_count': banks}, 'evms3': {'bms12_modules': modules},
     }
+    # only the sections of listed devices: a key of another would stop the bridge (exit 2)
+    if 'ams' in devices:
+        params['ams'] = {'bank_count': banks}
+    if 'evms3' in devices:
+        params['evms3'] = {'bms12_modules': modules}
     if commands:
         params['commands_allowed'] = True
     with open(path, 'w', encoding='utf-8') as stream:

@@ -6,18 +6,35 @@ Launch the ams_can_bridge bridge node with a parameter file.
 
 params_file defaults to the installed config/bms16.yaml; namespace (default empty) puts
 the node and its relative topics (<device>/battery_state, ...) under a namespace.
-commands_allowed (default false) is the launch-only first key of the transmit gate: only
-with it true can commands_enabled (the second key, in the params file or set at run time
-by the supervisor) become true. Given here, it overrides the params file.
+commands_allowed is the launch-only first key of the transmit gate: only with it true can
+commands_enabled (the second key, in the params file or set at run time by the supervisor)
+become true. Given here (true or false), it replaces the params file's value; left out, the
+params file's value holds (false when the file does not set it).
 """
 import os
 
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument
+from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
-from launch_ros.parameter_descriptions import ParameterValue
+
+from ams_can_bridge.parameters import launch_parameters
+
+
+def _bridge(context):
+    """Start the node; commands_allowed joins its parameters only when it was given."""
+    return [Node(
+        package='ams_can_bridge',
+        executable='bridge',
+        name='ams_can_bridge',
+        namespace=LaunchConfiguration('namespace'),
+        parameters=launch_parameters(
+            LaunchConfiguration('params_file').perform(context),
+            LaunchConfiguration('commands_allowed').perform(context)),
+        output='screen',
+        emulate_tty=True,
+    )]
 
 
 def generate_launch_description():
@@ -32,20 +49,8 @@ def generate_launch_description():
             'namespace', default_value='',
             description='namespace of the node and its topics'),
         DeclareLaunchArgument(
-            'commands_allowed', default_value='false', choices=['true', 'false'],
+            'commands_allowed', default_value='', choices=['true', 'false', ''],
             description='first key of the transmit gate (launch only): true lets '
-                        'commands_enabled become true'),
-        Node(
-            package='ams_can_bridge',
-            executable='bridge',
-            name='ams_can_bridge',
-            namespace=LaunchConfiguration('namespace'),
-            parameters=[
-                LaunchConfiguration('params_file'),
-                {'commands_allowed': ParameterValue(
-                    LaunchConfiguration('commands_allowed'), value_type=bool)},
-            ],
-            output='screen',
-            emulate_tty=True,
-        ),
+                        'commands_enabled become true; left out, the params file decides'),
+        OpaqueFunction(function=_bridge),
     ])

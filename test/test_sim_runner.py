@@ -28,6 +28,7 @@ class Counter(SimDevice):
     """A tiny simulated device: a counter frame every 10 ms, remembers what it hears."""
 
     TYPE = 'counter'
+    EXTRA_FAULTS = ('stuck_relay',)  # its model-specific fault (apply_faults checks kinds)
 
     def __init__(self, name=None, arbitration_id=0x100, fail=False):
         super().__init__(name)
@@ -131,6 +132,9 @@ def test_faults_are_applied_by_device_name():
     assert devices[1].faults.extra == {'stuck_relay': True}
     with pytest.raises(ValueError, match="'sma'"):
         apply_faults(devices, [('sma', 'silent', True)])
+    with pytest.raises(ValueError, match='no such fault of evms3; use one of .*silent.*'
+                                         'stuck_relay'):
+        apply_faults(devices, [('evms3', 'stuck_rely', True)])
 
 
 def test_registry_paths_all_import():

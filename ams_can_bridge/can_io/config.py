@@ -2,7 +2,10 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import difflib
 import enum
+import inspect
+import os
 import re
 
 from ams_can_bridge.errors import CanSendError  # noqa: F401 (imported from here too)
@@ -44,6 +47,16 @@ UP_STATES = frozenset({BusState.CONNECTED, BusState.ERROR_PASSIVE})
 INTERFACE_DEFAULTS: dict[str, dict[str, object]] = {
     'slcan': {'timeout': 0.5},
 }
+
+# Interfaces the bridge opens itself rather than through python-can.
+OWN_INTERFACES = ('replay',)
+# Keyword arguments python-can's Bus takes for every interface (can.util turns the timing
+# ones into a BitTiming; BusABC takes can_filters), whatever the interface class names.
+GENERIC_OPTIONS = frozenset({
+    'bitrate', 'data_bitrate', 'fd', 'timing', 'state', 'port', 'can_filters', 'context',
+    'config_context', 'f_clock', 'brp', 'tseg1', 'tseg2', 'sjw', 'nof_samples', 'strict',
+    'nom_brp', 'nom_tseg1', 'nom_tseg2', 'nom_sjw', 'data_brp', 'data_tseg1', 'data_tseg2',
+    'data_sjw', 'tdc', 'tdco', 'tdcf'})
 
 _INT = re.compile(r'[+-]?(0x[0-9a-fA-F]+|0o[0-7]+|0b[01]+|\d+)$')
 _FLOAT = re.compile(r'[+-]?(\d+\.\d*|\.\d+|\d+)([eE][+-]?\d+)?$')
@@ -130,6 +143,73 @@ class BusConfig:
         if not self.replay_rate >= 0:
             raise ValueError(f'can.replay_rate = {self.replay_rate}: must be >= 0 '
                              '(1.0 = real time, 0 = as fast as possible)')
+
+    def check(self) -> list[str]:
+        """
+        Check what can never work, before any attempt to open the bus; return warnings.
+
+        Raises ValueError naming the setting for an interface python-can does not know, an
+        slcan bitrate the adapter protocol has no command for, an option the interface's
+        class cannot take (it has no ``**kwargs``: python-can would raise on every attempt),
+        and a replay file that does not exist. Those would otherwise be retried forever,
+        like an adapter that is not plugged in yet. An option the class does not name but
+        may take through ``**kwargs`` is a warning: python-can may ignore it silently.
+        """
+        import can.interfaces  # python-can's list of interfaces, plugins included
+        if self.interface in OWN_INTERFACES:
+            if not os.path.isfile(self.channel):
+                raise ValueError(f'can.channel = {self.channel!r}: no such log file to replay '
+                                 '(can.interface is replay: can.channel names the log)')
+            ignored = sorted(self.options) + (['can.bitrate'] if self.bitrate else [])
+            return [f'replay ignores {", ".join(ignored)}'] if ignored else []
+        valid = sorted(set(can.interfaces.VALID_INTERFACES) | set(OWN_INTERFACES))
+        if self.interface not in valid:
+            near = difflib.get_close_matches(self.interface, valid, n=1)
+            hint = f'; did you mean {near[0]!r}?' if near else ''
+            raise ValueError(f'can.interface = {self.interface!r} is not a python-can '
+                             f'interface{hint} (known: {", ".join(valid)})')
+        if self.interface == 'slcan' and self.bitrate:
+            from can.interfaces.slcan import slcanBus
+            rates = sorted(getattr(slcanBus, '_BITRATES', {}) or ())
+            if rates and self.bitrate not in rates:
+                raise ValueError(
+                    f'can.bitrate = {self.bitrate}: an slcan adapter has no command for it; '
+                    f'use one of {", ".join(str(r) for r in rates)} (or 0 = leave it as is)')
+        return self._check_options()
+
+    def _check_options(self) -> list[str]:
+        import can.interface
+        try:
+            bus_class = can.interface._get_class_for_interface(self.interface)
+        except Exception:  # driver not installed: that is the adapter's failure, retried
+            return []
+        named: set[str] = set()
+        open_ended = True  # the class's own __init__ takes **kwargs
+        for depth, cls in enumerate(c for c in bus_class.__mro__ if '__init__' in c.__dict__):
+            try:
+                parameters = list(inspect.signature(cls.__dict__['__init__']).parameters
+                                  .values())
+            except (TypeError, ValueError):
+                return []  # a C class without a signature: nothing to tell
+            named |= {p.name for p in parameters
+                      if p.kind not in (p.VAR_KEYWORD, p.VAR_POSITIONAL)}
+            takes_more = any(p.kind == p.VAR_KEYWORD for p in parameters)
+            if depth == 0:
+                open_ended = takes_more
+            if not takes_more:
+                break  # this __init__ takes nothing further: its bases see no more
+        unknown = sorted(set(self.options) - named - GENERIC_OPTIONS - {'self'})
+        if not unknown:
+            return []
+        takes = ', '.join(sorted(named - {'self', 'channel', 'args', 'kwargs'}))
+        hints = [f'{u} -> {near[0]}' for u in unknown for near in
+                 [difflib.get_close_matches(u, sorted(named | GENERIC_OPTIONS), n=1)] if near]
+        hint = f'; did you mean {", ".join(hints)}?' if hints else ''
+        text = (f'can.options {", ".join(unknown)}: not an argument of python-can\'s '
+                f'{bus_class.__name__} (interface {self.interface}; it names {takes}){hint}')
+        if not open_ended:
+            raise ValueError(text)
+        return [text + '; python-can may ignore it without a word']
 
     def bus_kwargs(self) -> dict[str, object]:
         """Return the python-can keyword arguments: the interface's defaults, then options."""

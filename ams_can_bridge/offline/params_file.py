@@ -5,7 +5,8 @@ The file is the one the bridge takes with ``--ros-args --params-file``: node nam
 wildcards ``/**`` and ``**``) holding ``ros__parameters``, nested mappings joined with dots.
 ``FileParams.declare`` gives each parameter the file's value or the spec's default, checked by
 the same rule as the node (``parameters.coerce``); every unusable value is collected, so the
-user sees them all at once (``raise_errors``), as the node reports them.
+user sees them all at once (``raise_errors``), as the node reports them, with every key of
+the node's sections that nothing declared (a typo), in the node's words.
 """
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from typing import Any
 
 import yaml
 
+from ams_can_bridge.device_set import unknown_parameter_errors
 from ams_can_bridge.devices.base import ParamSpec
 from ams_can_bridge.errors import ConfigError, ParamError
 from ams_can_bridge.parameters import coerce, raise_param_errors
@@ -89,5 +91,5 @@ class FileParams:
         return {spec.key: self.declare(prefix + spec.key, spec) for spec in specs}
 
     def raise_errors(self) -> None:
-        """Raise one ParamError listing every unusable value, if there was any."""
-        raise_param_errors(self.errors)
+        """Raise one ParamError listing every unusable value and unknown key, if any."""
+        raise_param_errors(self.errors + unknown_parameter_errors(self.values, self.declared))

@@ -2,8 +2,9 @@
 Entry point of the ``bridge`` executable: the bridge node on a multi-threaded executor.
 
 ``ros2 run ams_can_bridge bridge --ros-args --params-file config/bms16.yaml``. Exit codes:
-0 after Ctrl-C / SIGTERM (clean shutdown: the CAN thread is joined, the bus closed),
-2 when the parameters cannot work (the error names the parameter and what to change).
+0 after Ctrl-C / SIGTERM (clean shutdown: the CAN thread is joined, the bus closed) and after
+``-h``/``--help`` (usage, ROS is not started), 2 when the parameters cannot work (the error
+names the parameter and what to change) or an argument outside ``--ros-args`` is not known.
 """
 from __future__ import annotations
 
@@ -12,14 +13,10 @@ import signal
 import sys
 import threading
 import traceback
+from typing import Any
 
-import rclpy
-from rclpy._rclpy_pybind11 import RCLError
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
-import rclpy.logging
-from rclpy.signals import SignalHandlerOptions
-
-from ams_can_bridge.ros.bridge_node import BridgeNode, ConfigError, NODE_NAME
+# rclpy and the node are imported in main(), after the arguments: --help must not load rcl
+# (loading it already checks the RMW implementation).
 
 # Waiting command services need threads of their own (telemetry does not use the executor).
 EXECUTOR_THREADS = 4
@@ -28,6 +25,32 @@ EXECUTOR_THREADS = 4
 # jitter small at a negligible cost (measured in bench/run.py, heartbeat scenario).
 GIL_SWITCH_INTERVAL = 0.001
 STOP_TIMEOUT = 2.0  # s: the longest the executor's callbacks get to finish on a stop
+
+USAGE = """usage: bridge [-h] --ros-args --params-file PARAMS.yaml [-p NAME:=VALUE ...]
+       ros2 run ams_can_bridge bridge --ros-args --params-file PARAMS.yaml
+       ros2 launch ams_can_bridge bridge.launch.py params_file:=PARAMS.yaml
+
+Bridges battery-management CAN devices (AMS + IVT-S, ZEVA EVMS3 / BMS16, SMA-protocol BMSs)
+to sensor_msgs/BatteryState and /diagnostics. Parameters come after --ros-args: a params
+file (--params-file, sections '/**:' or '<node name>:', then 'ros__parameters:') and single
+values (-p can.interface:=slcan). The example params files are installed in
+$(ros2 pkg prefix ams_can_bridge)/share/ams_can_bridge/config/*.yaml.
+
+main parameters:
+  can.interface      python-can interface: socketcan (default), slcan, pcan, virtual, replay
+  can.channel        can0 (default), /dev/ttyACM0, ... (replay: the log file)
+  can.bitrate        bit/s, 0 = leave the adapter as it is
+  devices            device instances, e.g. [ams, ivt_s]; each has <name>.type and its IDs
+  commands_allowed   launch-only first key of the transmit gate (default false)
+  commands_enabled   second key: nothing is ever sent while false (default false)
+
+A key the bridge does not know, a bad value or overlapping device IDs stop it (exit 2)
+naming what to change. Every parameter, service and failure mode is in README.md of the
+package (sections "Running the bridge on a real bus", "Parameters", "Failure modes").
+
+options:
+  -h, --help         show this help and exit (ROS is not started)
+"""
 
 
 class StopSignals:
@@ -65,6 +88,23 @@ class StopSignals:
 
 def main(args: list[str] | None = None) -> int:
     """Run the bridge until Ctrl-C or SIGTERM; return the process exit code."""
+    argv = list(sys.argv if args is None else args)
+    own = user_arguments(argv)
+    if '-h' in own or '--help' in own:
+        print(USAGE, end='')
+        return 0
+    if own:
+        print(f'bridge: unknown argument(s) {" ".join(own)}: parameters go after --ros-args '
+              '(bridge --ros-args --params-file PARAMS.yaml)\n\n' + USAGE, end='',
+              file=sys.stderr)
+        return 2
+    import rclpy
+    from rclpy._rclpy_pybind11 import RCLError
+    import rclpy.logging
+    from rclpy.signals import SignalHandlerOptions
+
+    from ams_can_bridge.ros.bridge_node import BridgeNode, ConfigError, NODE_NAME
+    from ams_can_bridge.ros.params import unmatched_params_files
     sys.setswitchinterval(GIL_SWITCH_INTERVAL)
     signals = StopSignals()
     try:
@@ -79,6 +119,8 @@ def main(args: list[str] | None = None) -> int:
         except ConfigError as exc:
             rclpy.logging.get_logger(NODE_NAME).error(f'cannot start: {exc}')
             return 2
+        for warning in unmatched_params_files(argv, node.get_fully_qualified_name()):
+            node.get_logger().warning(warning)
         if not signals.stop.is_set():
             failed = _spin_until(node, signals)
             if failed:
@@ -91,8 +133,9 @@ def main(args: list[str] | None = None) -> int:
     return 0
 
 
-def _spin_until(node: BridgeNode, signals: StopSignals) -> str | None:
+def _spin_until(node: Any, signals: StopSignals) -> str | None:
     """Serve the node's services on an executor thread until a stop; the failure if any."""
+    from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
     executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
     executor.add_node(node)
     failure: list[str] = []
@@ -109,7 +152,7 @@ def _spin_until(node: BridgeNode, signals: StopSignals) -> str | None:
         finally:
             signals.stop.set()
 
-    spinner = threading.Thread(target=spin, name=f'{NODE_NAME}-executor', daemon=True)
+    spinner = threading.Thread(target=spin, name=f'{node.get_name()}-executor', daemon=True)
     spinner.start()
     try:
         signals.wait()
@@ -117,6 +160,19 @@ def _spin_until(node: BridgeNode, signals: StopSignals) -> str | None:
         executor.shutdown(timeout_sec=STOP_TIMEOUT)
         spinner.join(timeout=STOP_TIMEOUT)
     return failure[0] if failure else None
+
+
+def user_arguments(argv: list[str]) -> list[str]:
+    """Return the arguments after the program name that are outside every --ros-args part."""
+    own, ros = [], False
+    for arg in argv[1:]:
+        if arg == '--ros-args':
+            ros = True
+        elif arg == '--':
+            ros = False
+        elif not ros:
+            own.append(arg)
+    return own
 
 
 def _rcl_reason(exc: Exception) -> str:

@@ -53,7 +53,7 @@ from ams_can_bridge import registry, reports
 from ams_can_bridge.can_io import BusConfig, CanIo, CanSendError, parse_options
 from ams_can_bridge.can_io.config import RETRY_STATES
 from ams_can_bridge.can_io.core import STATE_CHANGE_FORMAT
-from ams_can_bridge.device_set import DeviceSet
+from ams_can_bridge.device_set import DeviceSet, unknown_parameter_errors
 from ams_can_bridge.devices.base import Device
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.periodic import Periodic
@@ -96,7 +96,8 @@ def arming_refused() -> str:
     """Return the reason a commands_enabled = true is refused without commands_allowed."""
     return ('commands_enabled = true refused: commands_allowed is false. commands_allowed is '
             'read-only, set only at launch: start the bridge with commands_allowed: true '
-            '(params file or --ros-args -p commands_allowed:=true) to let commands be enabled')
+            '(params file or --ros-args -p commands_allowed:=true) to let commands be enabled; '
+            'bridge.launch.py commands_allowed:=..., when given, replaces the params file value')
 
 
 class BridgeNode(Node):
@@ -128,7 +129,10 @@ class BridgeNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
         try:
-            self._configure()
+            try:
+                self._configure()
+            finally:  # a typo in a key is reported with the other problems, all at once
+                self.params.errors += self._unknown_parameters()
             self.params.raise_errors()
         except (ParamError, ConfigError) as exc:
             if self.params.errors:  # the values the user wrote come first, all of them
@@ -150,6 +154,11 @@ class BridgeNode(Node):
         self._log_heartbeats()  # commands_enabled at launch: the heartbeat runs already
 
     # --- set-up ---------------------------------------------------------------------------
+    def _unknown_parameters(self) -> list[str]:
+        """Every key given for this node (file sections, -p) that nothing declared."""
+        given = {name: param.value for name, param in self._parameter_overrides.items()}
+        return unknown_parameter_errors(given, self._parameters.keys())
+
     def _configure(self) -> None:
         bus = self.params.declare_all('can.', BUS_PARAMS)
         node = self.params.declare_all('', NODE_PARAMS)
@@ -159,18 +168,24 @@ class BridgeNode(Node):
         if self.commands_enabled and not self.commands_allowed:
             self.params.errors.append(arming_refused())
             self.commands_enabled = False
+        # A bus setting that cannot work is collected, not raised: the devices are still
+        # declared, so that every problem of the params file is reported at once.
         try:
             options = parse_options(bus['options'])
         except ValueError as exc:
-            raise ConfigError(f'can.options: {exc} (write each option as key=value)') from None
-        try:
-            self.bus_config = BusConfig(
-                interface=bus['interface'], channel=bus['channel'], bitrate=bus['bitrate'],
-                fd=bus['fd'], options=options, reconnect_period=bus['reconnect_period'],
-                replay_rate=bus['replay_rate'], record=bus['record'],
-                use_bus_time=bus['use_bus_time'], slcan_bulk_read=bus['slcan_bulk_read'])
-        except ValueError as exc:
-            raise ConfigError(str(exc)) from None
+            self.params.errors.append(f'can.options: {exc} (write each option as key=value)')
+        else:
+            try:
+                self.bus_config = BusConfig(
+                    interface=bus['interface'], channel=bus['channel'], bitrate=bus['bitrate'],
+                    fd=bus['fd'], options=options, reconnect_period=bus['reconnect_period'],
+                    replay_rate=bus['replay_rate'], record=bus['record'],
+                    use_bus_time=bus['use_bus_time'], slcan_bulk_read=bus['slcan_bulk_read'])
+                # what can never work stops the bridge here rather than being retried forever
+                for warning in self.bus_config.check():
+                    self.get_logger().warning(warning)
+            except ValueError as exc:
+                self.params.errors.append(str(exc))
         self.hardware_id = f"{bus['interface']}:{bus['channel']}"
         self.connect_wait = bus['connect_wait']
         self._bus_log = BusStateLog(self.get_logger(), self.hardware_id, bus['channel'],
@@ -184,6 +199,8 @@ class BridgeNode(Node):
         self.device_set = DeviceSet(node['devices'], self.params.declare)
         self.devices = self.device_set.devices
         self._stale = {name: True for name in self.devices}
+        if self.params.errors:
+            return  # the node will not start (raise_errors): no bus, no publishers
         filters = self.device_set.filters
         self._make_publishers()
         for name, device in self.devices.items():
@@ -255,6 +272,11 @@ class BridgeNode(Node):
         if not self.devices:
             lines.append('  no devices configured (set the devices parameter)')
         self.get_logger().info('\n'.join(lines))
+        if not self.devices:
+            self.get_logger().warning(
+                'devices is empty: the bridge decodes nothing and publishes only the CAN bus '
+                'status. Set devices to your instances in the params file (e.g. devices: '
+                '[ams, ivt_s], see config/*.yaml) or --ros-args -p "devices:=[bms16]"')
 
     # --- receive thread -------------------------------------------------------------------
     def _on_frame(self, arbitration_id: int, data: bytes, is_extended_id: bool,

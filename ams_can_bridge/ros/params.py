@@ -8,11 +8,13 @@ every later set, with a reason that names the parameter, the value and what is a
 """
 from __future__ import annotations
 
+import re
 from typing import Any, Iterable
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+import yaml
 
 from ams_can_bridge.devices.base import ParamSpec
 from ams_can_bridge.errors import ParamError  # noqa: F401 (re-exported)
@@ -121,3 +123,57 @@ class ParamRegistry:
         """Return the coerced value of a parameter that passed validate()."""
         spec = self.specs.get(param.name)
         return param.value if spec is None else coerce(param.name, spec, param.value)
+
+
+def params_files(argv: Iterable[str]) -> list[str]:
+    """Return the ``--params-file`` paths of the ``--ros-args`` parts of a command line."""
+    paths, ros, args = [], False, list(argv)
+    for i, arg in enumerate(args):
+        if arg == '--ros-args':
+            ros = True
+        elif arg == '--':
+            ros = False
+        elif ros and arg == '--params-file' and i + 1 < len(args):
+            paths.append(args[i + 1])
+    return paths
+
+
+def section_applies(section: str, fully_qualified_name: str) -> bool:
+    """Tell whether a params file's top-level key applies to the node, as rcl matches it."""
+    name = section if section.startswith('/') else '/' + section
+    pattern = ''
+    for part in re.split(r'(/\*\*|\*)', name):
+        if part == '/**':
+            pattern += '(/[^/]+)*'
+        elif part == '*':
+            pattern += '[^/]+'
+        else:
+            pattern += re.escape(part)
+    return re.fullmatch(pattern, fully_qualified_name) is not None
+
+
+def unmatched_params_files(argv: Iterable[str], fully_qualified_name: str) -> list[str]:
+    """
+    Return a warning per params file of the command line that has no section for the node.
+
+    rcl silently ignores the sections of other nodes: a file keyed ``ams_can_bridge:`` given
+    to a bridge started in a namespace (``-r __ns:=/car2``) configures nothing.
+    """
+    warnings = []
+    for path in params_files(argv):
+        try:
+            with open(path, encoding='utf-8') as stream:
+                document = yaml.safe_load(stream)
+        except (OSError, yaml.YAMLError):
+            continue  # rcl has refused it already, with its own message
+        if not isinstance(document, dict):
+            continue
+        sections = [str(key) for key in document]
+        if any(section_applies(key, fully_qualified_name) for key in sections):
+            continue
+        warnings.append(
+            f'params file {path}: no section applies to this node {fully_qualified_name} '
+            f'(its sections: {", ".join(sections) or "none"}), so none of its values is '
+            f'used. Key it {fully_qualified_name}: or /**: (any node name and namespace), '
+            'or start the node with the name and namespace the file names')
+    return warnings

@@ -163,19 +163,31 @@ _FAULT_FIELDS = {'silent': 'silent', 'malformed': 'malformed', 'error': 'error_c
                  'error_code': 'error_code', 'drift': 'cell_drift_v',
                  'cell_drift_v': 'cell_drift_v', 'drift_cell': 'drift_cell'}
 
+# The model-specific faults each simulator reads from faults.extra (see its docstring); a
+# simulator class may name its own in EXTRA_FAULTS.
+_EXTRA_FAULTS = {'ams': ('stuck_counter', 'imd_error'),
+                 'ivt_s': ('ocs', 'result_error', 'measurement_error', 'stuck_counter'),
+                 'evms3': ('config_answer', 'charger_status'), 'bms16': (),
+                 'sma': ('alarm', 'warning')}
+
 
 def apply_faults(devices: Sequence[SimDevice], faults: Sequence[tuple[str, str, Any]]) -> None:
-    """Set fault switches; raise ValueError naming an unknown device."""
+    """Set fault switches; raise ValueError naming an unknown device or fault."""
     by_name = {d.name: d for d in devices}
     for name, kind, value in faults:
         if name not in by_name:
             raise ValueError(f'--fault {name}:{kind}: no simulated device {name!r} '
                              f'(running: {", ".join(by_name)})')
         target = _FAULT_FIELDS.get(kind)
+        device = by_name[name]
+        extra = getattr(device, 'EXTRA_FAULTS', _EXTRA_FAULTS.get(device.TYPE, ()))
+        if target is None and kind not in extra:
+            raise ValueError(f'--fault {name}:{kind}: no such fault of {name}; use one of '
+                             + ', '.join(sorted(set(_FAULT_FIELDS) | set(extra))))
         if target is None:
-            by_name[name].faults.extra[kind] = value
+            device.faults.extra[kind] = value
         else:
-            setattr(by_name[name].faults, target, value)
+            setattr(device.faults, target, value)
 
 
 def _ids(runner: SimRunner) -> str:
