@@ -13,6 +13,8 @@ from rclpy.parameter import Parameter
 
 from ams_can_bridge import registry
 
+from dbc_fixtures import OUR_PARAMS  # a dbc instance needs its DBC and mapping files
+
 SERVICE = '/ams_can_bridge/set_parameters'
 # A valid value of every writable array parameter (keyed by the parameter's key in its
 # device); a new array parameter fails test_every_writable_array_parameter_is_covered until
@@ -28,20 +30,26 @@ def writable_arrays(node) -> dict[str, str]:
             if isinstance(spec.type, str) and spec.type.endswith('[]') and not spec.read_only}
 
 
+def every_device() -> dict:
+    """Return the params of a bridge with one instance of every device type."""
+    return {'devices': list(registry.DEVICE_TYPES),
+            **{f'dbc.{key}': value for key, value in OUR_PARAMS.items()}}
+
+
 def set_through_service(rig, name, value):
     request = [Parameter(name, value=value).to_parameter_msg()]
     return rig.call(SetParameters, SERVICE, parameters=request).results[0]
 
 
 def test_every_writable_array_parameter_is_covered(rig_factory):
-    rig = rig_factory({'devices': list(registry.DEVICE_TYPES)})
+    rig = rig_factory(every_device())
     keys = set(writable_arrays(rig.node).values())
     assert keys, 'no writable array parameter found: the test would prove nothing'
     assert keys <= set(VALID), f'add a valid value to VALID for {sorted(keys - set(VALID))}'
 
 
 def test_array_parameters_set_through_the_parameter_service(rig_factory):
-    rig = rig_factory({'devices': list(registry.DEVICE_TYPES)})
+    rig = rig_factory(every_device())
     arrays = writable_arrays(rig.node)
     assert arrays
     for name, key in arrays.items():
@@ -53,7 +61,7 @@ def test_array_parameters_set_through_the_parameter_service(rig_factory):
 
 
 def test_invalid_array_value_is_refused_naming_the_element(rig_factory):
-    rig = rig_factory({'devices': list(registry.DEVICE_TYPES)})
+    rig = rig_factory(every_device())
     for name, key in writable_arrays(rig.node).items():
         value, reason = INVALID[key]
         result = set_through_service(rig, name, value)
