@@ -20,6 +20,7 @@ from ams_can_bridge.devices.base import (
     PowerSupplyHealth)
 from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
 from ams_can_bridge.devices.sma import sma_values
+from ams_can_bridge.errors import ParamError
 from ams_can_bridge.parameters import config_param_specs
 from ams_can_bridge.protocols import bms16 as bms16_proto
 from ams_can_bridge.protocols.bms16 import (
@@ -49,7 +50,7 @@ class Bms16FrameCodec:
         self.sma = SmaCodec()
         own = frozenset(range(base_id + 0, base_id + CELLS_3 + 1))
         if own & SMA_IDS:
-            raise ValueError(f'{instance}.base_id = {base_id} overlaps the SMA IDs 0x351..0x35F '
+            raise ParamError(f'{instance}.base_id = {base_id} overlaps the SMA IDs 0x351..0x35F '
                              '(the BMS16 sends base_id .. base_id + 3 and the SMA frames)')
         self._own = own
         self.arbitration_ids = own | SMA_IDS

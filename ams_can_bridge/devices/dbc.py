@@ -25,6 +25,7 @@ from ams_can_bridge.devices.base import (
 from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.dbc_mapping import (
     Array, Enum, load_plan, MappingError, Plan, Ref, Scalar)
+from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols.common import ProtocolError
 
 _LOG = logging.getLogger(__name__)
@@ -60,7 +61,7 @@ class DbcDevice(Device):
         try:
             self.plan: Plan = load_plan(self.config.dbc_file, self.config.mapping_file)
         except MappingError as exc:
-            raise ValueError('; '.join(str(exc).splitlines())) from None
+            raise ConfigError('; '.join(str(exc).splitlines())) from None
         plan = self.plan
         self.warnings = [f'{name}: {w}' for w in plan.warnings]
         for warning in self.warnings:  # before the node's own logging exists: stderr
@@ -68,8 +69,8 @@ class DbcDevice(Device):
         self._by_id = {m.frame_id: (i, m) for i, m in enumerate(plan.messages)}
         self._frame_ids = frozenset((m.frame_id, m.is_extended_id) for m in plan.messages)
         if len(self._by_id) != len(self._frame_ids):
-            raise ValueError('the mapping uses one CAN ID as a standard and an '
-                             'extended message: map only one of them')
+            raise ConfigError('the mapping uses one CAN ID as a standard and an '
+                              'extended message: map only one of them')
         self.groups: dict[_GroupKey, tuple[tuple, float]] = {}
         self._stamp = NAN
         # invalid flags per message: (flag signal index, element label) for the malformed count

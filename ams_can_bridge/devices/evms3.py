@@ -31,7 +31,7 @@ from ams_can_bridge.devices.evms3_health import (  # noqa: F401 (error_* re-expo
 from ams_can_bridge.devices.evms3_readback import ConfigReader, ReadResult, Send
 from ams_can_bridge.parameters import config_param_specs
 from ams_can_bridge.protocols import evms3 as evms3_proto
-from ams_can_bridge.errors import RefusedCommand
+from ams_can_bridge.errors import ParamError, RefusedCommand
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import (
     AcknowledgeError, BatteryCurrent, BMS12_MAX_MODULES, Bms12Cells, Bms12Request,
@@ -105,7 +105,7 @@ class Evms3Device(Device):
         self.base_id = self.DEFAULT_BASE_ID if config.base_id is None else int(config.base_id)
         modules = int(config.bms12_modules or 0)
         if not 0 <= modules <= BMS12_MAX_MODULES:
-            raise ValueError(f'{name}.bms12_modules = {modules}: allowed 0..16')
+            raise ParamError(f'{name}.bms12_modules = {modules}: allowed 0..16')
         self.bms12_modules = modules
         extended = config.extended_id
         self.codec = Evms3Codec(self.base_id, bms12_modules=modules,

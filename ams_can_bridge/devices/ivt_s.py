@@ -32,6 +32,7 @@ from ams_can_bridge.devices.base import (
 from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.ivt_s_commands import CommandLink
 from ams_can_bridge.devices.ivt_s_control import CYCLE_KEYS, IvtSControl
+from ams_can_bridge.errors import ParamError
 from ams_can_bridge.protocols.common import ProtocolError
 from ams_can_bridge.protocols.ivt_s import (
     BYTE_ORDERS, DBC_NAME, DEFAULT_BASE_ID, IvtMux, IvtResult, IvtSCodec, RAW_UNIT,
@@ -70,7 +71,7 @@ def _as_bool(key: str, value: Any) -> bool:
         return value
     if isinstance(value, str) and value.lower() in ('true', 'false'):
         return value.lower() == 'true'
-    raise ValueError(f'{key} = {value!r}: allowed true | false')
+    raise ParamError(f'{key} = {value!r}: allowed true | false')
 
 
 class IvtSDevice(IvtSControl, Device):
