@@ -21,7 +21,7 @@ sensor_msgs: current and charge are negative while discharging.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import math
 import time
 from typing import Any, Callable, Mapping
@@ -32,6 +32,7 @@ from ams_can_bridge.devices.base import (
 from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.ivt_s_commands import CommandLink
 from ams_can_bridge.devices.ivt_s_control import CYCLE_KEYS, IvtSControl
+from ams_can_bridge.devices.timed import CounterHealth
 from ams_can_bridge.errors import ParamError
 from ams_can_bridge.protocols.common import ProtocolError
 from ams_can_bridge.protocols.ivt_s import (
@@ -51,19 +52,13 @@ SYSTEM_ERROR_TEXT = ('system error bit (byte 1 bit 7, System_Error: sensor funct
 
 @dataclass
 class _Track:
-    """Per-result bookkeeping: last frame, when it came, counter health."""
+    """Per-result bookkeeping: last frame, when it came, its 4-bit counter's health."""
 
     result: IvtResult
     seen: float  # Device.clock() at reception
-    stuck: int = 0  # frames that repeated the previous counter
-    jumps: int = 0  # frames whose counter skipped (lost frames or a reset sensor)
-    good_streak: int = 0  # frames with the expected counter since the last anomaly
+    counter: CounterHealth = field(
+        default_factory=lambda: CounterHealth(0x10, COUNTER_RECOVERY_FRAMES))
     interval: float = math.nan  # observed seconds between frames (smoothed)
-
-    @property
-    def counter_trouble(self) -> bool:
-        """Tell whether a recent counter anomaly still lacks enough good frames after it."""
-        return (self.stuck or self.jumps) > 0 and self.good_streak < COUNTER_RECOVERY_FRAMES
 
 
 def _as_bool(key: str, value: Any) -> bool:
@@ -164,23 +159,14 @@ class IvtSDevice(IvtSControl, Device):
         now = self.clock()
         track = self._tracks.get(reading.kind)
         if track is None:
-            self._tracks[reading.kind] = _Track(reading, now)
+            track = self._tracks[reading.kind] = _Track(reading, now)
+            track.counter.observe(reading.counter, False)
         else:
-            previous = track.result.counter
             gap = now - track.seen
-            fresh = gap <= self._timeout(reading.kind, track)
+            # After a silence longer than the result's timeout a counter restart is expected.
+            track.counter.observe(reading.counter, gap <= self._timeout(reading.kind, track))
             track.interval = gap if track.interval != track.interval else (
                 track.interval + INTERVAL_WEIGHT * (gap - track.interval))
-            # After a silence longer than the result's timeout a counter restart is expected.
-            if fresh:
-                if reading.counter == previous:
-                    track.stuck += 1
-                    track.good_streak = 0
-                elif reading.counter != (previous + 1) & 0x0F:
-                    track.jumps += 1
-                    track.good_streak = 0
-                else:
-                    track.good_streak += 1
             track.result = reading
             track.seen = now
         if reading.kind is IvtMux.I:
@@ -292,7 +278,8 @@ class IvtSDevice(IvtSControl, Device):
             names = [DBC_NAME[r.kind] for r in results if getattr(r, flag)]
             if names:
                 warnings.append(f'{label} ({", ".join(names)})')
-        trouble = [DBC_NAME[k] for k, t in sorted(self._tracks.items()) if t.counter_trouble]
+        trouble = [DBC_NAME[k] for k, t in sorted(self._tracks.items())
+                   if t.counter.in_trouble]
         if trouble:
             warnings.append(f'counter stuck or skipping ({", ".join(trouble)})')
         silent = [DBC_NAME[k] for k in sorted(self._tracks) if k is not IvtMux.I
@@ -330,8 +317,8 @@ class IvtSDevice(IvtSControl, Device):
                 (r.measurement_error, 'measurement error'), (r.system_error, 'system error'))
                 if flag]
             values[f'{name} status'] = ', '.join(flags) or 'ok'
-            values[f'{name} counter stuck'] = str(track.stuck)
-            values[f'{name} counter jumps'] = str(track.jumps)
+            values[f'{name} counter stuck'] = str(track.counter.repeats)
+            values[f'{name} counter jumps'] = str(track.counter.jumps)
             values[f'{name} age (s)'] = f'{self.clock() - track.seen:.2f}'
             values[f'{name} expires after (s)'] = f'{self._timeout(kind, track):.2f}'
         values.update(self._command_values())
