@@ -25,6 +25,7 @@ from ams_can_bridge.devices.base import (
 from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.dbc_mapping import (
     Array, Enum, load_plan, MappingError, Plan, Ref, Scalar)
+from ams_can_bridge.devices.timed import TimedStore
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols.common import ProtocolError
 
@@ -71,7 +72,7 @@ class DbcDevice(Device):
         if len(self._by_id) != len(self._frame_ids):
             raise ConfigError('the mapping uses one CAN ID as a standard and an '
                               'extended message: map only one of them')
-        self.groups: dict[_GroupKey, tuple[tuple, float]] = {}
+        self.groups: TimedStore[_GroupKey, tuple] = TimedStore()
         self._stamp = NAN
         # invalid flags per message: (flag signal index, element label) for the malformed count
         self._flags: dict[int, list[tuple[int, str]]] = {}
@@ -122,15 +123,15 @@ class DbcDevice(Device):
                 self._check(compiled, arbitration_id, values, bad, flags)
             if not compiled.compiled and key in self.groups:
                 # nested multiplexing: each frame carries one branch; keep the others' last
-                old = self.groups[key][0]
+                old = self.groups.latest(key)
                 values = tuple(o if v is None else v for v, o in zip(values, old))
-            self.groups[key] = (values, now)
+            self.groups.put(key, values, now)
             if compiled.mux_index is not None:
                 mux = values[compiled.mux_index]
                 if mux == mux:
                     info = compiled.signals[compiled.mux_index]
-                    self.groups[(key[0], round((mux - info.offset) / info.scale))] = (
-                        values, now)
+                    self.groups.put((key[0], round((mux - info.offset) / info.scale)),
+                                    values, now)
             if slots:
                 self._put_slots(slots, values, now)
             if primary:
@@ -171,22 +172,17 @@ class DbcDevice(Device):
         return self.plan.timeouts.get(message, self.stale_timeout)
 
     def _fresh(self, key: _GroupKey, now: float) -> tuple | None:
-        group = self.groups.get(key)
-        if group is None or now - group[1] > self._timeout(key[0]):
-            return None
-        return group[0]
+        return self.groups.get(key, now, self._timeout(key[0]))
 
     def _raw(self, ref: Ref, now: float) -> float:
         """Return the physical DBC value of a signal (NaN: unknown, expired, not in range)."""
         if ref.mux is None:
             values = self._fresh((ref.message, None), now)
         else:
-            best = None
-            for mux in ref.mux:
-                group = self.groups.get((ref.message, mux))
-                if group is not None and (best is None or group[1] > best[1]):
-                    best = group
-            values = best[0] if best and now - best[1] <= self._timeout(ref.message) else None
+            # the most recent of the branches the reference names, if fresh
+            newest = max(((ref.message, mux) for mux in ref.mux), key=self.groups.seen,
+                         default=None)
+            values = self.groups.get(newest, now, self._timeout(ref.message))
         if values is None:
             return NAN
         value = values[ref.signal]
@@ -284,8 +280,8 @@ class DbcDevice(Device):
         if self.warnings:
             level = max(level, Level.WARN)
             parts.append(f'{len(self.warnings)} mapping warning(s)')
-        expired = sorted({plan.messages[m].name for (m, mux), (_, seen) in self.groups.items()
-                          if mux is None and now - seen > self._timeout(m)})
+        _, silent = self.groups.split(now, lambda key: self._timeout(key[0]))
+        expired = sorted({plan.messages[m].name for m, mux in silent if mux is None})
         if expired:
             parts.append('silent: ' + ', '.join(expired))
         if not parts:
