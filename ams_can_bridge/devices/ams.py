@@ -101,7 +101,8 @@ class AmsDevice(Device):
     PARAMS = [
         ParamSpec('current_sensor', str, '',
                   "name of the ivt_s instance whose current and voltage fill this pack's "
-                  "BatteryState ('' = the first ivt_s configured, if any)"),
+                  "BatteryState ('' = the first ivt_s configured, if any; the parameter "
+                  "stays '', the diagnostics name the one used)"),
         ParamSpec('pack_voltage_channel', str, 'U1',
                   'IVT-S voltage result measuring the pack (U1, U2 or U3: how the sensor is '
                   'wired)', choices=PACK_VOLTAGE_CHANNELS),
