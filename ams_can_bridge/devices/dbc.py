@@ -25,7 +25,7 @@ from ams_can_bridge.devices.base import (
 from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.dbc_mapping import (
     Array, Enum, load_plan, MappingError, Plan, Ref, Scalar)
-from ams_can_bridge.devices.timed import TimedStore
+from ams_can_bridge.devices.timed import TimedSpans, TimedStore
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols.common import ProtocolError
 
@@ -81,11 +81,12 @@ class DbcDevice(Device):
                 if flag is not None:
                     self._flags.setdefault(flag.message, []).append(
                         (flag.signal, f'{key}[{n}] ({flag.name})'))
-        self._slots: dict[int, list[tuple[str, Array, list[float], list[float]]]] = {}
+        # positioned arrays: each element timed on its own (a span of one)
+        self._slots: dict[int, list[tuple[str, Array, TimedSpans]]] = {}
         for key, array in plan.arrays.items():
             if array.slot_message is not None:
                 self._slots.setdefault(array.slot_message, []).append(
-                    (key, array, [NAN] * array.count, [-math.inf] * array.count))
+                    (key, array, TimedSpans.uniform(1, array.count)))
         # per CAN ID, all the receive thread needs: (message, group key, invalid flags,
         # positioned arrays, primary?)
         self._handlers = {
@@ -151,7 +152,7 @@ class DbcDevice(Device):
 
     @staticmethod
     def _put_slots(slots: list, values: tuple, now: float) -> None:
-        for _, array, data, seen in slots:
+        for _, array, elements in slots:
             position = 0.0
             for i, first, stride in array.selectors:
                 selector = values[i]
@@ -163,9 +164,8 @@ class DbcDevice(Device):
                 for j, i in enumerate(array.slot_signals):
                     if 0 <= base + j < array.count:
                         value = values[i]
-                        data[base + j] = (NAN if value is None
-                                          else value * array.factor + array.add)
-                        seen[base + j] = now
+                        elements.put(base + j, (NAN if value is None
+                                                else value * array.factor + array.add,), now)
 
     # --- executor side (lock held) ------------------------------------------------------------
     def _timeout(self, message: int) -> float:
@@ -195,12 +195,9 @@ class DbcDevice(Device):
         array = self.plan.arrays[key]
         if array.slot_message is not None:
             timeout = self._timeout(array.slot_message)
-            for slot_key, _, data, seen in self._slots[array.slot_message]:
+            for slot_key, _, elements in self._slots[array.slot_message]:
                 if slot_key == key:
-                    if now - min(seen) <= timeout:
-                        return data[:]  # every element fresh: the usual case
-                    return [v if now - t <= timeout else NAN
-                            for v, t in zip(data, seen)]
+                    return elements.read(now, timeout)
         out = []
         for ref, flag in zip(array.refs, array.invalid):
             value = self._value(ref, now)
