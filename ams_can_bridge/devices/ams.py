@@ -320,9 +320,10 @@ class AmsDevice(Device):
         afterwards (lock order: never AMS -> IVT-S, so an IVT-S that some day calls into the
         AMS cannot deadlock against this).
         """
-        pack = self._read_sensor()
-        with self.lock:
-            self._sensor_pack = pack
+        if self.current_sensor is not None:
+            pack = self._read_sensor()
+            with self.lock:
+                self._sensor_pack = pack
         return super().battery_report()
 
     def _read_sensor(self) -> tuple[float, float]:

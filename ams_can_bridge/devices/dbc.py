@@ -161,11 +161,13 @@ class DbcDevice(Device):
                 position += (selector - first) * stride
             else:
                 base = int(position)
-                for j, i in enumerate(array.slot_signals):
-                    if 0 <= base + j < array.count:
-                        value = values[i]
-                        elements.put(base + j, (NAN if value is None
-                                                else value * array.factor + array.add,), now)
+                signals = array.slot_signals
+                low, high = max(0, -base), min(len(signals), array.count - base)
+                if low < high:
+                    factor, add = array.factor, array.add
+                    elements.put_elements(base + low, [
+                        NAN if values[i] is None else values[i] * factor + add
+                        for i in signals[low:high]], now)
 
     # --- executor side (lock held) ------------------------------------------------------------
     def _timeout(self, message: int) -> float:

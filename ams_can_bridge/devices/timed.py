@@ -39,8 +39,8 @@ class TimedStore(Generic[K, V]):
 
     def get(self, key: K, now: float, max_age: float) -> V | None:
         """Return the latest value of key if it came within max_age, else None."""
-        value, seen = self._latest.get(key, (None, NEVER))
-        return value if now - seen <= max_age else None
+        entry = self._latest.get(key)
+        return entry[0] if entry is not None and now - entry[1] <= max_age else None
 
     def latest(self, key: K) -> V | None:
         """Return the latest value of key whatever its age (None before any)."""
@@ -105,13 +105,22 @@ class TimedSpans:
         self.values[start:start + self.lengths[span]] = values
         self.seen[span] = now
 
+    def put_elements(self, first: int, values: list[float], now: float) -> None:
+        """Keep consecutive spans of ONE value each (spans first..), received at now."""
+        end = first + len(values)
+        self.values[first:end] = values
+        self.seen[first:end] = [now] * len(values)
+
     def read(self, now: float, max_age: float, spans: int | None = None) -> list[float]:
         """Return the values of the first spans (all: None), NaN where a span is too old."""
-        count = len(self.lengths) if spans is None else spans
+        if spans is None or spans == len(self.lengths):
+            count, seen, end = len(self.lengths), self.seen, len(self.values)
+        else:
+            count, seen = spans, self.seen[:spans]
+            end = self.starts[count - 1] + self.lengths[count - 1] if count else 0
         if not count:
             return []
-        end = self.starts[count - 1] + self.lengths[count - 1]
-        if now - min(self.seen[:count]) <= max_age:
+        if now - min(seen) <= max_age:
             return self.values[:end]  # every span fresh: the usual case, one slice
         out = self.values[:end]
         for span in range(count):
