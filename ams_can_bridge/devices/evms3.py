@@ -29,7 +29,7 @@ from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
 from ams_can_bridge.devices.evms3_health import (  # noqa: F401 (error_* re-exported)
     error_health, error_text, STATIONARY_ACTIONS, WRITABLE_STATES)
 from ams_can_bridge.devices.evms3_readback import ConfigReader, ReadResult, Send
-from ams_can_bridge.devices.timed import TimedSpans, TimedStore
+from ams_can_bridge.devices.timed import NEVER, TimedSpans, TimedStore
 from ams_can_bridge.parameters import config_param_specs
 from ams_can_bridge.protocols import evms3 as evms3_proto
 from ams_can_bridge.errors import ParamError, RefusedCommand
@@ -403,7 +403,7 @@ class Evms3Device(Device):
                 values[f'module {m} cell max (V)'] = f'{max(cells):.3f}'
             values[f'module {m} temperatures (degC)'] = ', '.join(
                 'no sensor' if t is None else 'unknown' if t != t else f'{t:g}' for t in temps)
-            values[f'module {m} last heard'] = ('never' if seen == -math.inf
+            values[f'module {m} last heard'] = ('never' if seen == NEVER
                                                 else f'{self.clock() - seen:.1f} s ago')
             values[f'module {m} balance target (mV)'] = self._balance_text(m)
 
