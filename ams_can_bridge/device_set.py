@@ -3,8 +3,12 @@ The devices of one bus, built from parameters without ROS: the bridge node and l
 
 ``declare(full_name, spec) -> value`` supplies each parameter: the node declares it as a ROS
 parameter, log2bag reads it from the parameters file. Either way every value passes the same
-checks (``parameters.coerce``), and the same instances, current-sensor links and dispatch
-tables come out, so an offline conversion decodes exactly what the live bridge decodes.
+checks (``parameters.coerce``), and the same instances, links and dispatch tables come out,
+so an offline conversion decodes exactly what the live bridge decodes.
+
+Links between devices (the AMS and its IVT-S) are declared by the device types
+(``Device.LINKS``) and resolved here by type, never written back into a configuration: the
+parameter keeps the value the user gave ('' stays ''), and ``links`` says what was chosen.
 """
 from __future__ import annotations
 
@@ -42,7 +46,9 @@ class DeviceSet:
         self.devices: dict[str, Device] = {}
         for name in names:
             self._add(name, declare, clock)
-        self._attach_current_sensors()
+        # '<instance>.<key>' -> what the link resolved to, for the start-up log
+        self.links: dict[str, str] = {}
+        self._resolve_links()
         self._check_overlaps()
         self.std: dict[int, tuple[Device, ...]] = {}
         self.ext: dict[int, tuple[Device, ...]] = {}
@@ -97,7 +103,7 @@ class DeviceSet:
         values = {spec.key: declare(f'{name}.{spec.key}', spec) for spec in device_params(cls)}
         try:
             device = cls(name, values, clock)
-        except (ValueError, TypeError) as exc:
+        except ValueError as exc:  # ConfigError, or a protocol codec refusing its IDs
             raise ConfigError(f'device {name!r} ({device_type}): {exc}') from None
         self.devices[name] = device
 
@@ -121,23 +127,27 @@ class DeviceSet:
                 'both decode its frames (and both send, with commands armed). Move one of '
                 'them (<name>.base_id) or remove it from devices')
 
-    def _attach_current_sensors(self) -> None:
-        ivts = [n for n, d in self.devices.items() if d.TYPE == 'ivt_s']
+    def _resolve_links(self) -> None:
+        """Give each device the instances its LINKS name ('' = the first of that type)."""
         for name, device in self.devices.items():
-            if device.TYPE != 'ams':
-                continue
-            wanted = device.config.current_sensor or ''
-            if not wanted:
-                if not ivts:
-                    continue
-                wanted = ivts[0]
-            elif wanted not in ivts:
-                raise ConfigError(
-                    f'{name}.current_sensor = {wanted!r} is not an ivt_s instance: set it to '
-                    + (' or '.join(repr(i) for i in ivts) if ivts else "'' (none configured)")
-                    + ' or add it to devices with type ivt_s')
-            device.attach_current_sensor(self.devices[wanted])
-            device.configure({'current_sensor': wanted})
+            for key, link_type in device.LINKS.items():
+                found = [n for n, d in self.devices.items() if d.TYPE == link_type]
+                wanted = device.config.value(key) or ''
+                if not wanted:
+                    if not found:
+                        continue
+                    wanted = found[0]
+                    origin = f'the first {link_type} ({name}.{key} unset)'
+                elif wanted in found:
+                    origin = f'{name}.{key}'
+                else:
+                    raise ConfigError(
+                        f'{name}.{key} = {wanted!r} is not an {link_type} instance: set it to '
+                        + (' or '.join(repr(i) for i in found) if found
+                           else "'' (none configured)")
+                        + f' or add it to devices with type {link_type}')
+                device.attach_link(key, self.devices[wanted], origin)
+                self.links[f'{name}.{key}'] = f'{wanted} ({origin})'
 
 
 def unknown_parameter_errors(given: Mapping[str, Any], declared: Collection[str]) -> list[str]:

@@ -230,7 +230,10 @@ def test_ams_with_ivt_s_current_sensor(rig_factory):
                      'ams.design_capacity_ah': 20.0},
                     topics={'ams/battery_state': BatteryState,
                             'shunt/battery_state': BatteryState})
-    assert h.node.devices['ams'].config.current_sensor == 'shunt'
+    # the link is resolved, never written behind the parameter server (issue 21.5)
+    assert h.node.devices['ams'].current_sensor is h.node.devices['shunt']
+    assert h.node.devices['ams'].config.current_sensor == ''
+    assert h.node.get_parameter('ams.current_sensor').value == ''
     h.send(0x522, ivt(1, 0, 12_000))  # U1 12 V: not the pack here
     h.send(0x523, ivt(2, 0, 398_000))  # U2 398 V: ams.pack_voltage_channel
     h.send(0x527, ivt(6, 0, 7200))  # As counter: never the charge

@@ -5,9 +5,13 @@ The primary frame is the AMS status (base + 0x000). Cells (28 per bank), cell te
 (10 per bank) and discharge temperatures (14 per bank) arrive per bank and group every
 second; each group goes back to NaN when it has not been heard for ``CELL_STALE_FACTOR``
 x ``stale_timeout`` (never a stale number shown as live). Pack voltage (its channel chosen by
-``pack_voltage_channel``, U1 by default) and current come from the attached IVT-S when there
-is one (the node attaches ``current_sensor``); without one the voltage is the sum of the
-cells once all are received and the current is unknown.
+``pack_voltage_channel``, U1 by default) and current come from the linked IVT-S when there
+is one (``LINKS``: ``current_sensor``, resolved by ``DeviceSet``); without one the voltage is
+the sum of the cells once all are received and the current is unknown.
+
+Lock order: the AMS never calls into its IVT-S while holding its own lock. ``battery_report``
+reads the IVT-S values first (the IVT-S lock only) and then builds the report under the AMS
+lock, so the two locks are never nested and no later IVT -> AMS call can deadlock.
 
 ``charge`` is the charge in the battery (sensor_msgs: Ah), never the IVT-S As counter: that
 counts from the sensor's last reset and goes negative after a drive. The AMS reports only a
@@ -31,8 +35,9 @@ from ams_can_bridge.devices.base import (
     PowerSupplyHealth, PowerSupplyStatus)
 from ams_can_bridge.devices.ams_values import diagnostic_values
 from ams_can_bridge.devices.config import DeviceConfig
+from ams_can_bridge.devices.timed import CounterHealth, TimedSpans, TimedStore
 from ams_can_bridge.protocols import ams as proto
-from ams_can_bridge.errors import RefusedCommand
+from ams_can_bridge.errors import ParamError, RefusedCommand
 from ams_can_bridge.protocols.ams import AmsCodec, AmsError, AmsState
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.ivt_s import IvtMux
@@ -66,39 +71,24 @@ def _bank_count(value: Any, param: str) -> int:
     except (TypeError, ValueError):
         ok = False
     if not ok:
-        raise ValueError(f'{param} = {value!r}: allowed 1..{proto.MAX_BANKS} '
+        raise ParamError(f'{param} = {value!r}: allowed 1..{proto.MAX_BANKS} '
                          '(banks of 28 cells)')
     return count
 
 
-class _Array:
-    """Values of one kind for all 5 possible banks, by group, with the time each group came."""
+class _BankArray(TimedSpans):
+    """Values of one kind for all 5 possible banks, one timed span per (bank, group)."""
 
     def __init__(self, per_group: int, groups: int) -> None:
-        self.per_group = per_group
+        super().__init__([per_group] * (groups * proto.MAX_BANKS))
         self.groups = groups
-        self.values = [NAN] * (per_group * groups * proto.MAX_BANKS)
-        self.seen = [-math.inf] * (groups * proto.MAX_BANKS)
 
-    def put(self, bank: int, group: int, values: tuple, now: float) -> None:
-        slot = (bank - 1) * self.groups + group
-        start = slot * self.per_group
-        self.values[start:start + self.per_group] = values
-        self.seen[slot] = now
+    def put_group(self, bank: int, group: int, values: tuple, now: float) -> None:
+        self.put((bank - 1) * self.groups + group, values, now)
 
-    def fresh(self, banks: int, now: float, max_age: float) -> list[float]:
+    def banks(self, banks: int, now: float, max_age: float) -> list[float]:
         """Values of banks 1..banks, NaN where the group was never heard or is too old."""
-        slots = banks * self.groups
-        if slots and now - min(self.seen[:slots]) <= max_age:
-            return self.values[:slots * self.per_group]  # every group fresh: the usual case
-        out = []
-        for slot in range(slots):
-            start = slot * self.per_group
-            if now - self.seen[slot] <= max_age:
-                out.extend(self.values[start:start + self.per_group])
-            else:
-                out.extend([NAN] * self.per_group)
-        return out
+        return self.read(now, max_age, banks * self.groups)
 
 
 class AmsDevice(Device):
@@ -106,11 +96,13 @@ class AmsDevice(Device):
 
     TYPE = 'ams'
     BROADCAST_PERIOD = 0.1
+    LINKS = {'current_sensor': 'ivt_s'}  # parameter naming the IVT-S -> its device type
     DEFAULT_BASE_ID = proto.DEFAULT_BASE_ID
     PARAMS = [
         ParamSpec('current_sensor', str, '',
                   "name of the ivt_s instance whose current and voltage fill this pack's "
-                  "BatteryState ('' = the first ivt_s configured, if any)"),
+                  "BatteryState ('' = the first ivt_s configured, if any; the parameter "
+                  "stays '', the diagnostics name the one used)"),
         ParamSpec('pack_voltage_channel', str, 'U1',
                   'IVT-S voltage result measuring the pack (U1, U2 or U3: how the sensor is '
                   'wired)', choices=PACK_VOLTAGE_CHANNELS),
@@ -144,7 +136,8 @@ class AmsDevice(Device):
         self.bank_count = _bank_count(_or_one(self.config.bank_count), f'{name}.bank_count')
         self.master: AmsMaster | None = None  # the car's side, made by attach_master()
         self.charger: ChargerRepeater | None = None  # the periodic START, attach_charger()
-        self.current_sensor: Any = None  # an IvtSDevice, attached by the node
+        self.current_sensor: Any = None  # an IvtSDevice, linked by DeviceSet (LINKS)
+        self.current_sensor_origin = ''  # how it was chosen (diagnostics, start-up log)
         self.state = AmsState.NOT_REPORTED
         self.status_seq = 0
         self.error_seq = 0
@@ -153,19 +146,17 @@ class AmsDevice(Device):
         self._active_errors: list[AmsError] = []
         self._status: proto.AmsStatus | None = None
         self._stamp = NAN
-        self._status_seen = -math.inf
         # the other periodic frames (charger status, car status, charger command), each
-        # with the clock() it came at: each expires on its own after stale_timeout
-        self._latest: dict[type, tuple[Any, float]] = {}
-        self._stuck_run = 0  # consecutive status frames repeating the counter
-        self._stuck_total = 0
-        self._lost_frames = 0
-        self._since_anomaly = COUNTER_RECOVERY_FRAMES
+        # expiring on its own after stale_timeout
+        self._latest: TimedStore[type, Any] = TimedStore()
+        self.counter = CounterHealth(0x100, COUNTER_RECOVERY_FRAMES)  # the status counter
+        # the pack values of the IVT-S, read before the AMS lock (lock order, see above)
+        self._sensor_pack: tuple[float, float] = (NAN, NAN)
         self._beyond_banks = 0
         self._highest_bank = 0
-        self._cells = _Array(proto.CELLS_PER_GROUP, proto.CELL_GROUPS)
-        self._temps = _Array(proto.TEMPS_PER_GROUP, proto.TEMP_GROUPS)
-        self._discharge = _Array(proto.DISCHARGE_TEMPS_PER_GROUP, proto.TEMP_GROUPS)
+        self._cells = _BankArray(proto.CELLS_PER_GROUP, proto.CELL_GROUPS)
+        self._temps = _BankArray(proto.TEMPS_PER_GROUP, proto.TEMP_GROUPS)
+        self._discharge = _BankArray(proto.DISCHARGE_TEMPS_PER_GROUP, proto.TEMP_GROUPS)
 
     # --- the frames the command services send (built here, on the device's own codec) --------
     def attach_master(self, send: Callable[[Frame], tuple[bool, str]]) -> AmsMaster:
@@ -220,17 +211,22 @@ class AmsDevice(Device):
             self.codec.id_of(proto.OVERRIDE_BANK_COUNT)}
 
     # --- configuration ---------------------------------------------------------------------
-    def attach_current_sensor(self, ivt: Any) -> None:
+    def attach_current_sensor(self, ivt: Any, origin: str = '') -> None:
         """Use this IVT-S device (current_a / voltage_v) for the pack values."""
         with self.lock:
             self.current_sensor = ivt
+            self.current_sensor_origin = origin
+
+    def attach_link(self, key: str, device: Device, origin: str) -> None:
+        """Take the device DeviceSet resolved for a LINKS key (only current_sensor)."""
+        self.attach_current_sensor(device, origin)
 
     def config_problems(self, config: DeviceConfig,
                         keys: Iterable[str] | None = None) -> list[str]:
         """Refuse a bank count the protocol cannot carry (1..5)."""
         try:
             _bank_count(_or_one(config.bank_count), f'{self.name}.bank_count')
-        except ValueError as exc:
+        except ParamError as exc:
             return [str(exc)]
         return []
 
@@ -266,45 +262,32 @@ class AmsDevice(Device):
                 self._active_errors.remove(reading.error)
             self._active_errors.append(reading.error)  # most recent last
         elif kind in (proto.AmsChargerStatus, proto.CarStatus, proto.ChargerCommand):
-            self._latest[kind] = (reading, now)
+            self._latest.put(kind, reading, now)
         return False
 
     def _on_status(self, status: proto.AmsStatus, stamp: float, now: float) -> None:
-        previous = self._status
-        # After a silence longer than stale_timeout a restarted counter is no anomaly.
-        if previous is not None and now - self._status_seen <= self.stale_timeout:
-            expected = (previous.counter + 1) & 0xFF
-            if status.counter == previous.counter:
-                self._stuck_run += 1
-                self._stuck_total += 1
-                self._since_anomaly = 0
-            else:
-                self._stuck_run = 0
-                if status.counter != expected:
-                    self._lost_frames += (status.counter - expected) & 0xFF
-                    self._since_anomaly = 0
-                else:
-                    self._since_anomaly += 1
-        else:
-            self._stuck_run = 0
+        # last_seen is still the previous status frame's (the base sets it after _handle):
+        # after a silence longer than stale_timeout a restarted counter is no anomaly.
+        previous = self.last_seen
+        self.counter.observe(status.counter, previous is not None
+                             and now - previous <= self.stale_timeout)
         new_state = status.status.state
         if self.state in ERROR_STATES and new_state not in ERROR_STATES:
             self._active_errors.clear()  # the AMS left its error state: errors are history
         self.state = new_state
         self._status = status
         self._stamp = stamp
-        self._status_seen = now
         self.status_seq += 1
 
-    def _bank_data(self, array: _Array, reading: Any, now: float) -> None:
+    def _bank_data(self, array: _BankArray, reading: Any, now: float) -> None:
         self._highest_bank = max(self._highest_bank, reading.bank)
         if reading.bank > self.bank_count:
             self._beyond_banks += 1
         if array is self._cells:
-            array.put(reading.bank, reading.group, reading.voltages_v, now)
+            array.put_group(reading.bank, reading.group, reading.voltages_v, now)
         else:  # floats once per frame here, not per published array
-            array.put(reading.bank, reading.group, tuple(map(float, reading.temperatures_c)),
-                      now)
+            array.put_group(reading.bank, reading.group,
+                            tuple(map(float, reading.temperatures_c)), now)
 
     # --- what the commanding part waits on ------------------------------------------------
     def active_errors(self) -> list[AmsError]:
@@ -324,17 +307,37 @@ class AmsDevice(Device):
         return CELL_STALE_FACTOR * self.stale_timeout
 
     def _cell_list(self) -> list[float]:
-        return self._cells.fresh(self.bank_count, self.clock(), self._max_cell_age())
+        return self._cells.banks(self.bank_count, self.clock(), self._max_cell_age())
 
     def _temp_list(self) -> list[float]:
-        return self._temps.fresh(self.bank_count, self.clock(), self._max_cell_age())
+        return self._temps.banks(self.bank_count, self.clock(), self._max_cell_age())
+
+    def battery_report(self) -> BatteryReport:
+        """
+        Build the BatteryState to publish now (see Device.battery_report).
+
+        The IVT-S values are read first, holding only the IVT-S lock; the AMS lock is taken
+        afterwards (lock order: never AMS -> IVT-S, so an IVT-S that some day calls into the
+        AMS cannot deadlock against this).
+        """
+        if self.current_sensor is not None:
+            pack = self._read_sensor()
+            with self.lock:
+                self._sensor_pack = pack
+        return super().battery_report()
+
+    def _read_sensor(self) -> tuple[float, float]:
+        """Voltage and current (ROS sign) of the IVT-S; call WITHOUT the AMS lock held."""
+        ivt = self.current_sensor
+        if ivt is None:
+            return NAN, NAN
+        channel = IvtMux[str(self.config.pack_voltage_channel or 'U1')]
+        return ivt.voltage_v(channel), ivt.current_a()
 
     def _pack(self) -> tuple[float, float]:
         """Voltage and current (ROS sign): from the IVT-S, else the cell sum and NaN."""
-        ivt = self.current_sensor
-        if ivt is not None:
-            channel = IvtMux[str(self.config.pack_voltage_channel or 'U1')]
-            return ivt.voltage_v(channel), ivt.current_a()
+        if self.current_sensor is not None:
+            return self._sensor_pack  # read by battery_report() before the lock
         cells = self._cell_list()
         return (math.fsum(cells) if cells else NAN), NAN  # any NaN cell -> NaN sum
 
@@ -401,11 +404,12 @@ class AmsDevice(Device):
             warnings.append('cell voltage close to its limits')
         if word.warn_temp:
             warnings.append('cell temperature close to its limits')
-        if self._stuck_run:
+        counter = self.counter
+        if counter.repeat_run:
             warnings.append(f'status counter stuck at {status.counter} '
-                            f'({self._stuck_run} repeated frames)')
-        elif self._since_anomaly < COUNTER_RECOVERY_FRAMES and self._lost_frames:
-            warnings.append(f'status counter jumped: {self._lost_frames} frames lost so far')
+                            f'({counter.repeat_run} repeated frames)')
+        elif counter.recovering and counter.lost:
+            warnings.append(f'status counter jumped: {counter.lost} frames lost so far')
         if self._beyond_banks:
             warnings.append(f'{self._beyond_banks} frames from bank(s) up to '
                             f'{self._highest_bank} beyond {self.name}.bank_count = '
@@ -422,8 +426,7 @@ class AmsDevice(Device):
 
     def _fresh(self, kind: type) -> Any:
         """Return the last reading of kind (lock held), None if never or not within stale."""
-        reading, seen = self._latest.get(kind, (None, -math.inf))
-        return reading if self.clock() - seen <= self.stale_timeout else None
+        return self._latest.get(kind, self.clock(), self.stale_timeout)
 
     def extra_arrays(self) -> dict[str, tuple[int, int, list[float]]]:
         """Temperatures and discharge temperatures, bank x sensor, NaN until received."""
@@ -431,7 +434,7 @@ class AmsDevice(Device):
             banks, now, age = self.bank_count, self.clock(), self._max_cell_age()
             return {
                 'temperatures': (banks, proto.TEMPS_PER_BANK,
-                                 self._temps.fresh(banks, now, age)),
+                                 self._temps.banks(banks, now, age)),
                 'discharge_temperatures': (banks, proto.DISCHARGE_TEMPS_PER_BANK,
-                                           self._discharge.fresh(banks, now, age)),
+                                           self._discharge.banks(banks, now, age)),
             }

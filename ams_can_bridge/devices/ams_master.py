@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 from ams_can_bridge.devices.ams_preconditions import precondition_refusal
+from ams_can_bridge.errors import ParamError
 from ams_can_bridge.protocols.ams import AmsState, CarCommand
 from ams_can_bridge.protocols.common import Frame
 
@@ -117,7 +118,7 @@ class HeartbeatSchedule:
 
     def __init__(self, period: float, start: float) -> None:
         if not period > 0:
-            raise ValueError(f'heartbeat period {period!r} must be > 0')
+            raise ParamError(f'heartbeat period {period!r} must be > 0')
         self.period = period
         self.start = start
         self.k = 0
@@ -136,7 +137,7 @@ class HeartbeatSchedule:
     def rebase(self, period: float, now: float) -> None:
         """Change the period from now on (first slot of the new period: one period ahead)."""
         if not period > 0:
-            raise ValueError(f'heartbeat period {period!r} must be > 0')
+            raise ParamError(f'heartbeat period {period!r} must be > 0')
         last = self.start + (self.k - 1) * self.period if self.k else now
         self.period = period
         self.start = max(last + period, now)

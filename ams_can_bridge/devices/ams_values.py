@@ -26,11 +26,13 @@ def diagnostic_values(self: Any) -> dict[str, str]:
         'last error': (f'{self.last_error.name} at tick {self._last_error_tick}'
                        if self.last_error else 'none'),
         'error events': str(self.error_seq),
-        'counter repeats': str(self._stuck_total),
-        'frames lost (counter jumps)': str(self._lost_frames),
+        'counter repeats': str(self.counter.repeats),
+        'frames lost (counter jumps)': str(self.counter.lost),
         'frames beyond bank count': str(self._beyond_banks),
         'current sensor': getattr(self.current_sensor, 'name', '') or 'none',
     }
+    if self.current_sensor_origin:
+        values['current sensor chosen by'] = self.current_sensor_origin
     if self.current_sensor is not None:
         values['pack voltage channel'] = str(self.config.pack_voltage_channel or 'U1')
     repeater = self.charger

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, ClassVar, Iterable, Mapping
 
 from ams_can_bridge.devices.config import DeviceConfig, make_config_class
-from ams_can_bridge.protocols.common import ProtocolError
+from ams_can_bridge.errors import ParamError, ProtocolError
 
 NAN = math.nan
 
@@ -165,6 +165,11 @@ class Device:
     # What the device's command services use (declared with the device, passed in params
     # like PARAMS: the device itself reads some, e.g. a pack capacity or cell counts).
     COMMAND_PARAMS: ClassVar[list[ParamSpec]] = []
+    # Other devices this type uses: {parameter key naming the instance: device TYPE}, e.g.
+    # the AMS's {'current_sensor': 'ivt_s'}. DeviceSet resolves each (the parameter, or '' =
+    # the first instance of that type) and calls attach_link(); the parameter keeps the
+    # value the user gave (the resolved instance shows in the diagnostics instead).
+    LINKS: ClassVar[Mapping[str, str]] = {}
 
     # The typed, frozen configuration class of the device type (devices/config.py), built
     # from device_params() when the subclass is defined.
@@ -176,7 +181,7 @@ class Device:
 
     def __init__(self, name: str, config: DeviceConfig | Mapping[str, Any],
                  clock: Callable[[], float] = time.monotonic) -> None:
-        """Check the configuration (ValueError naming every bad value) and set up the state."""
+        """Check the configuration (ParamError naming every bad value) and set up the state."""
         self.name = name
         self.clock = clock
         self.lock = threading.Lock()
@@ -189,7 +194,7 @@ class Device:
             config = self.Config.from_values(config)
         problems = self.config_problems(config)
         if problems:
-            raise ValueError('; '.join(problems))
+            raise ParamError('; '.join(problems))
         self.config = config
         self._config_changes = 0
         self.stale_timeout = self._stale_timeout(config)
@@ -209,7 +214,7 @@ class Device:
         """Say why '<name>.<key>' cannot take this value (None = acceptable)."""
         try:
             new = self.config.replace({key: value})
-        except (TypeError, ValueError) as exc:
+        except ParamError as exc:
             return f'{self.name}.{key} = {value!r} refused: {exc}'
         return '; '.join(self.config_problems(new, [key])) or None
 
@@ -217,13 +222,13 @@ class Device:
         """
         Apply parameter changes ({key: value}) as one new configuration, swapped in whole.
 
-        Raises ValueError (naming the parameter) and keeps the old configuration when a
-        value is not usable.
+        Raises ParamError (a ValueError, naming the parameter) and keeps the old
+        configuration when a value is not usable.
         """
         new = self.config.replace(changes)
         problems = self.config_problems(new, changes)
         if problems:
-            raise ValueError('; '.join(problems))
+            raise ParamError('; '.join(problems))
         with self.lock:
             old, self.config = self.config, new
             self._config_changes += 1
@@ -233,6 +238,14 @@ class Device:
 
     def _reconfigured(self, old: DeviceConfig, new: DeviceConfig) -> None:
         """Follow a configuration change (lock held); the device types that need it."""
+
+    def attach_link(self, key: str, device: 'Device', origin: str) -> None:
+        """
+        Take the instance DeviceSet resolved for one of LINKS (origin: how it was chosen).
+
+        Lock order: a device reads a linked device only while NOT holding its own lock.
+        """
+        raise NotImplementedError(f'{type(self).__name__} declares no link {key!r}')
 
     def _stale_timeout(self, config: DeviceConfig) -> float:
         return float(config.stale_timeout or 5.0 * self.BROADCAST_PERIOD)

@@ -20,6 +20,8 @@ from ams_can_bridge.devices.base import (
     PowerSupplyHealth)
 from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
 from ams_can_bridge.devices.sma import sma_values
+from ams_can_bridge.devices.timed import TimedSpans, TimedStore
+from ams_can_bridge.errors import ParamError
 from ams_can_bridge.parameters import config_param_specs
 from ams_can_bridge.protocols import bms16 as bms16_proto
 from ams_can_bridge.protocols.bms16 import (
@@ -49,7 +51,7 @@ class Bms16FrameCodec:
         self.sma = SmaCodec()
         own = frozenset(range(base_id + 0, base_id + CELLS_3 + 1))
         if own & SMA_IDS:
-            raise ValueError(f'{instance}.base_id = {base_id} overlaps the SMA IDs 0x351..0x35F '
+            raise ParamError(f'{instance}.base_id = {base_id} overlaps the SMA IDs 0x351..0x35F '
                              '(the BMS16 sends base_id .. base_id + 3 and the SMA frames)')
         self._own = own
         self.arbitration_ids = own | SMA_IDS
@@ -82,10 +84,8 @@ class Bms16Device(Device):
         self.codec = Bms16FrameCodec(DEFAULT_BASE_ID if base_id is None else int(base_id), name)
         self.status: Bms16Status | None = None
         self.status_stamp = NAN
-        self.cells = [NAN] * MAX_CELLS
-        self.sma: dict[type, SmaReading] = {}
-        self._cells_seen = [-math.inf] * len(CELL_FRAME_FIRST)  # clock() per cell frame
-        self._sma_seen: dict[type, float] = {}
+        self._cells = TimedSpans(CELL_FRAME_COUNT)  # one span per cell frame
+        self._sma: TimedStore[type, SmaReading] = TimedStore()
 
     @property
     def error(self) -> Bms16Error:
@@ -129,30 +129,21 @@ class Bms16Device(Device):
             self.status_stamp = stamp
             return True
         if isinstance(reading, Bms16Cells):
-            first = reading.first_cell
-            self.cells[first:first + len(reading.voltages_v)] = reading.voltages_v
-            self._cells_seen[CELL_FRAME_FIRST.index(first)] = self.clock()
+            self._cells.put(CELL_FRAME_FIRST.index(reading.first_cell), reading.voltages_v,
+                            self.clock())
             return False
         if isinstance(reading, (SmaLimits, SmaSoc, SmaBattery, SmaAlarms, SmaManufacturer,
                                 SmaBatteryInfo)):
-            self.sma[type(reading)] = reading
-            self._sma_seen[type(reading)] = self.clock()
+            self._sma.put(type(reading), reading, self.clock())
         return False
 
     def _fresh_cells(self) -> list[float]:
         """Return the cell voltages (lock held), NaN where their frame is older than stale."""
-        now = self.clock()
-        cells = list(self.cells)
-        for index, first in enumerate(CELL_FRAME_FIRST):
-            if now - self._cells_seen[index] > self.stale_timeout:
-                cells[first:first + CELL_FRAME_COUNT[index]] = [NAN] * CELL_FRAME_COUNT[index]
-        return cells
+        return self._cells.read(self.clock(), self.stale_timeout)
 
     def _fresh_sma(self) -> dict[type, SmaReading]:
         """Return the SMA readings (lock held) whose frame came within stale_timeout."""
-        now = self.clock()
-        return {kind: reading for kind, reading in self.sma.items()
-                if now - self._sma_seen[kind] <= self.stale_timeout}
+        return self._sma.fresh(self.clock(), self.stale_timeout)
 
     def _battery_report(self) -> BatteryReport:
         report = BatteryReport(cell_voltage=self._fresh_cells()[:self.cell_count()])

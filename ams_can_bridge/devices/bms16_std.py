@@ -11,7 +11,6 @@ voltage in 1 V steps, cells in slot 6, shunt size in slot 7) never reaches an EV
 """
 from __future__ import annotations
 
-import math
 import time
 from typing import Any, Callable, Iterable, Mapping
 
@@ -20,11 +19,12 @@ from ams_can_bridge.devices.base import (
     PowerSupplyStatus)
 from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
 from ams_can_bridge.devices.evms3 import error_health, error_text
+from ams_can_bridge.devices.timed import TimedSpans, TimedStore
 from ams_can_bridge.errors import RefusedCommand
 from ams_can_bridge.parameters import config_param_specs
 from ams_can_bridge.protocols import bms16_std as proto
 from ams_can_bridge.protocols.bms16_std import (
-    Bms16StdCodec, Bms16StdStatus, CELL_FRAMES, CELLS_PER_MODULE, CONFIG_GAP_S,
+    Bms16StdCodec, Bms16StdStatus, CELLS_PER_MODULE, CONFIG_GAP_S,
     DEFAULT_BASE_ID, MAX_CELLS)
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import (
@@ -56,10 +56,8 @@ class Bms16StdDevice(Device):
         self.codec = Bms16StdCodec(DEFAULT_BASE_ID if base_id is None else int(base_id))
         self.status: Bms16StdStatus | None = None
         self.status_stamp = NAN
-        self.cells = [NAN] * MAX_CELLS
-        self._cells_seen = {first: -math.inf for first in CELL_FRAMES.values()}
-        self._current_a = NAN  # wire sign: positive = discharge
-        self._current_seen = -math.inf
+        self._cells = TimedSpans.uniform(4, MAX_CELLS // 4)  # one span per BMS12 frame
+        self._current: TimedStore[type, float] = TimedStore()  # wire sign: + = discharge
 
     def config_problems(self, config: DeviceConfig,
                         keys: Iterable[str] | None = None) -> list[str]:
@@ -109,16 +107,14 @@ class Bms16StdDevice(Device):
     def _handle(self, reading: Any, stamp: float) -> bool:
         if isinstance(reading, Bms12Cells):
             first = CELLS_PER_MODULE * reading.module + reading.first_cell
-            self.cells[first:first + 4] = reading.voltages_v
-            self._cells_seen[first] = self.clock()
+            self._cells.put(first // 4, reading.voltages_v, self.clock())
             return False
         if isinstance(reading, Bms16StdStatus):
             self.status = reading
             self.status_stamp = stamp
             return True
         if isinstance(reading, BatteryCurrent):
-            self._current_a = reading.current_a
-            self._current_seen = self.clock()
+            self._current.put(BatteryCurrent, reading.current_a, self.clock())
         return False
 
     # --- helpers (lock held) ---------------------------------------------------------------
@@ -128,21 +124,17 @@ class Bms16StdDevice(Device):
         return MAX_CELLS if cells is None else max(1, min(MAX_CELLS, int(cells)))
 
     def _fresh_cells(self) -> list[float]:
-        now = self.clock()
-        cells = list(self.cells)
-        for first, seen in self._cells_seen.items():
-            if now - seen > self.stale_timeout:
-                cells[first:first + 4] = [NAN] * 4
-        return cells[:self.cell_count()]
+        return self._cells.read(self.clock(), self.stale_timeout)[:self.cell_count()]
 
     def _capacity_ah(self) -> float:
         capacity = self.config.config_pack_capacity_ah
         return NAN if capacity is None else float(capacity)
 
     def _ros_current(self) -> float:
-        if self.clock() - self._current_seen > self.stale_timeout:
+        current_a = self._current.get(BatteryCurrent, self.clock(), self.stale_timeout)
+        if current_a is None:
             return NAN
-        return -self._current_a if self._current_a else 0.0
+        return -current_a if current_a else 0.0
 
     # --- executor side -----------------------------------------------------------------------
     def _battery_report(self) -> BatteryReport:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Callable, ClassVar, Iterable, Mapping
 
-from ams_can_bridge.errors import RefusedCommand
+from ams_can_bridge.errors import ParamError, RefusedCommand
 from ams_can_bridge.protocols.common import EncodeRangeError
 
 _PYTHON_TYPES = {'int[]': tuple, 'str[]': tuple, 'float[]': tuple}
@@ -39,7 +39,7 @@ class DeviceConfig:
         """Build from {parameter key: value}; keys left out take their declared default."""
         unknown = set(values) - set(cls.KEYS)
         if unknown:
-            raise ValueError('unknown parameter(s): ' + ', '.join(sorted(unknown)))
+            raise ParamError('unknown parameter(s): ' + ', '.join(sorted(unknown)))
         kwargs = {field_name(k): cls._normal(k, v) for k, v in values.items()}
         return cls(**kwargs)
 
@@ -58,7 +58,7 @@ class DeviceConfig:
         """Return a new configuration with these {parameter key: value} changes."""
         unknown = set(changes) - set(self.KEYS)
         if unknown:
-            raise ValueError('unknown parameter(s): ' + ', '.join(sorted(unknown)))
+            raise ParamError('unknown parameter(s): ' + ', '.join(sorted(unknown)))
         return dataclasses.replace(
             self, **{field_name(k): self._normal(k, v) for k, v in changes.items()})
 

@@ -25,6 +25,8 @@ from ams_can_bridge.devices.base import (
 from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.dbc_mapping import (
     Array, Enum, load_plan, MappingError, Plan, Ref, Scalar)
+from ams_can_bridge.devices.timed import TimedSpans, TimedStore
+from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols.common import ProtocolError
 
 _LOG = logging.getLogger(__name__)
@@ -60,7 +62,7 @@ class DbcDevice(Device):
         try:
             self.plan: Plan = load_plan(self.config.dbc_file, self.config.mapping_file)
         except MappingError as exc:
-            raise ValueError('; '.join(str(exc).splitlines())) from None
+            raise ConfigError('; '.join(str(exc).splitlines())) from None
         plan = self.plan
         self.warnings = [f'{name}: {w}' for w in plan.warnings]
         for warning in self.warnings:  # before the node's own logging exists: stderr
@@ -68,9 +70,9 @@ class DbcDevice(Device):
         self._by_id = {m.frame_id: (i, m) for i, m in enumerate(plan.messages)}
         self._frame_ids = frozenset((m.frame_id, m.is_extended_id) for m in plan.messages)
         if len(self._by_id) != len(self._frame_ids):
-            raise ValueError('the mapping uses one CAN ID as a standard and an '
-                             'extended message: map only one of them')
-        self.groups: dict[_GroupKey, tuple[tuple, float]] = {}
+            raise ConfigError('the mapping uses one CAN ID as a standard and an '
+                              'extended message: map only one of them')
+        self.groups: TimedStore[_GroupKey, tuple] = TimedStore()
         self._stamp = NAN
         # invalid flags per message: (flag signal index, element label) for the malformed count
         self._flags: dict[int, list[tuple[int, str]]] = {}
@@ -79,11 +81,12 @@ class DbcDevice(Device):
                 if flag is not None:
                     self._flags.setdefault(flag.message, []).append(
                         (flag.signal, f'{key}[{n}] ({flag.name})'))
-        self._slots: dict[int, list[tuple[str, Array, list[float], list[float]]]] = {}
+        # positioned arrays: each element timed on its own (a span of one)
+        self._slots: dict[int, list[tuple[str, Array, TimedSpans]]] = {}
         for key, array in plan.arrays.items():
             if array.slot_message is not None:
                 self._slots.setdefault(array.slot_message, []).append(
-                    (key, array, [NAN] * array.count, [-math.inf] * array.count))
+                    (key, array, TimedSpans.uniform(1, array.count)))
         # per CAN ID, all the receive thread needs: (message, group key, invalid flags,
         # positioned arrays, primary?)
         self._handlers = {
@@ -121,15 +124,15 @@ class DbcDevice(Device):
                 self._check(compiled, arbitration_id, values, bad, flags)
             if not compiled.compiled and key in self.groups:
                 # nested multiplexing: each frame carries one branch; keep the others' last
-                old = self.groups[key][0]
+                old = self.groups.latest(key)
                 values = tuple(o if v is None else v for v, o in zip(values, old))
-            self.groups[key] = (values, now)
+            self.groups.put(key, values, now)
             if compiled.mux_index is not None:
                 mux = values[compiled.mux_index]
                 if mux == mux:
                     info = compiled.signals[compiled.mux_index]
-                    self.groups[(key[0], round((mux - info.offset) / info.scale))] = (
-                        values, now)
+                    self.groups.put((key[0], round((mux - info.offset) / info.scale)),
+                                    values, now)
             if slots:
                 self._put_slots(slots, values, now)
             if primary:
@@ -149,7 +152,7 @@ class DbcDevice(Device):
 
     @staticmethod
     def _put_slots(slots: list, values: tuple, now: float) -> None:
-        for _, array, data, seen in slots:
+        for _, array, elements in slots:
             position = 0.0
             for i, first, stride in array.selectors:
                 selector = values[i]
@@ -158,34 +161,30 @@ class DbcDevice(Device):
                 position += (selector - first) * stride
             else:
                 base = int(position)
-                for j, i in enumerate(array.slot_signals):
-                    if 0 <= base + j < array.count:
-                        value = values[i]
-                        data[base + j] = (NAN if value is None
-                                          else value * array.factor + array.add)
-                        seen[base + j] = now
+                signals = array.slot_signals
+                low, high = max(0, -base), min(len(signals), array.count - base)
+                if low < high:
+                    factor, add = array.factor, array.add
+                    elements.put_elements(base + low, [
+                        NAN if values[i] is None else values[i] * factor + add
+                        for i in signals[low:high]], now)
 
     # --- executor side (lock held) ------------------------------------------------------------
     def _timeout(self, message: int) -> float:
         return self.plan.timeouts.get(message, self.stale_timeout)
 
     def _fresh(self, key: _GroupKey, now: float) -> tuple | None:
-        group = self.groups.get(key)
-        if group is None or now - group[1] > self._timeout(key[0]):
-            return None
-        return group[0]
+        return self.groups.get(key, now, self._timeout(key[0]))
 
     def _raw(self, ref: Ref, now: float) -> float:
         """Return the physical DBC value of a signal (NaN: unknown, expired, not in range)."""
         if ref.mux is None:
             values = self._fresh((ref.message, None), now)
         else:
-            best = None
-            for mux in ref.mux:
-                group = self.groups.get((ref.message, mux))
-                if group is not None and (best is None or group[1] > best[1]):
-                    best = group
-            values = best[0] if best and now - best[1] <= self._timeout(ref.message) else None
+            # the most recent of the branches the reference names, if fresh
+            newest = max(((ref.message, mux) for mux in ref.mux), key=self.groups.seen,
+                         default=None)
+            values = self.groups.get(newest, now, self._timeout(ref.message))
         if values is None:
             return NAN
         value = values[ref.signal]
@@ -198,12 +197,9 @@ class DbcDevice(Device):
         array = self.plan.arrays[key]
         if array.slot_message is not None:
             timeout = self._timeout(array.slot_message)
-            for slot_key, _, data, seen in self._slots[array.slot_message]:
+            for slot_key, _, elements in self._slots[array.slot_message]:
                 if slot_key == key:
-                    if now - min(seen) <= timeout:
-                        return data[:]  # every element fresh: the usual case
-                    return [v if now - t <= timeout else NAN
-                            for v, t in zip(data, seen)]
+                    return elements.read(now, timeout)
         out = []
         for ref, flag in zip(array.refs, array.invalid):
             value = self._value(ref, now)
@@ -283,8 +279,8 @@ class DbcDevice(Device):
         if self.warnings:
             level = max(level, Level.WARN)
             parts.append(f'{len(self.warnings)} mapping warning(s)')
-        expired = sorted({plan.messages[m].name for (m, mux), (_, seen) in self.groups.items()
-                          if mux is None and now - seen > self._timeout(m)})
+        _, silent = self.groups.split(now, lambda key: self._timeout(key[0]))
+        expired = sorted({plan.messages[m].name for m, mux in silent if mux is None})
         if expired:
             parts.append('silent: ' + ', '.join(expired))
         if not parts:

@@ -13,6 +13,7 @@ from typing import Any
 
 from ams_can_bridge.devices.base import (
     Level, PowerSupplyHealth, PowerSupplyStatus, PowerSupplyTechnology)
+from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols import dbc_codec
 from ams_can_bridge.protocols.common import msg_defs_dir
 
@@ -57,7 +58,7 @@ def unit_text(unit: str) -> str:
         return text
 
 
-class MappingError(ValueError):
+class MappingError(ConfigError):
     """The DBC or the mapping cannot be used: every problem, one per line."""
 
 

@@ -29,9 +29,10 @@ from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
 from ams_can_bridge.devices.evms3_health import (  # noqa: F401 (error_* re-exported)
     error_health, error_text, STATIONARY_ACTIONS, WRITABLE_STATES)
 from ams_can_bridge.devices.evms3_readback import ConfigReader, ReadResult, Send
+from ams_can_bridge.devices.timed import NEVER, TimedSpans, TimedStore
 from ams_can_bridge.parameters import config_param_specs
 from ams_can_bridge.protocols import evms3 as evms3_proto
-from ams_can_bridge.errors import RefusedCommand
+from ams_can_bridge.errors import ParamError, RefusedCommand
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import (
     AcknowledgeError, BatteryCurrent, BMS12_MAX_MODULES, Bms12Cells, Bms12Request,
@@ -51,18 +52,16 @@ CHARGER_STALE_TIMEOUT = 5.0
 
 
 class _Module:
-    """Last readings of one BMS12 module, with when each frame came (Device.clock())."""
+    """Last readings of one BMS12 module, each timed (Device.clock() of its frame)."""
 
     def __init__(self) -> None:
-        self.cells = [NAN] * CELLS_PER_BMS12
-        self.cells_seen = [-math.inf] * 3  # per t = 1..3
-        self.temps: tuple[float | None, ...] = (NAN, NAN)  # None: no sensor (raw 0)
-        self.temps_seen = -math.inf
-        self.balance_mv: int | None = None  # what the EVMS asks (None = balancing off)
-        self.balance_seen = -math.inf
+        self.cells = TimedSpans.uniform(4, 3)  # the frames t = 1..3, 4 cells each
+        # Bms12Temperatures -> (t1, t2) (None: no sensor, raw 0); Bms12Request -> the balance
+        # target the EVMS asks (None = balancing off)
+        self.latest: TimedStore[type, Any] = TimedStore()
 
     def last_seen(self) -> float:
-        return max(max(self.cells_seen), self.temps_seen)
+        return max(self.cells.newest(), self.latest.seen(Bms12Temperatures))
 
 
 class Evms3Device(Device):
@@ -105,7 +104,7 @@ class Evms3Device(Device):
         self.base_id = self.DEFAULT_BASE_ID if config.base_id is None else int(config.base_id)
         modules = int(config.bms12_modules or 0)
         if not 0 <= modules <= BMS12_MAX_MODULES:
-            raise ValueError(f'{name}.bms12_modules = {modules}: allowed 0..16')
+            raise ParamError(f'{name}.bms12_modules = {modules}: allowed 0..16')
         self.bms12_modules = modules
         extended = config.extended_id
         self.codec = Evms3Codec(self.base_id, bms12_modules=modules,
@@ -113,13 +112,12 @@ class Evms3Device(Device):
                                 voltage_multiplier=self._multiplier(config))
         self._bms16_marker = False  # latched, as the ZEVA Monitor does
         self._reconfigured(config, config)
-        # charger 1..3 -> (last reading, clock() it came)
-        self._charger_commands: dict[int, tuple[ChargerCommand, float]] = {}
-        self._charger_status: dict[int, tuple[ChargerStatus, float]] = {}
+        # charger 1..3 -> its last command from the EVMS, its last status
+        self._charger_commands: TimedStore[int, ChargerCommand] = TimedStore()
+        self._charger_status: TimedStore[int, ChargerStatus] = TimedStore()
         self._status: Evms3Status | None = None
         self._stamp = NAN
-        self._current_a = NAN  # wire sign: positive = discharge
-        self._current_seen = -math.inf
+        self._current: TimedStore[type, float] = TimedStore()  # wire sign: + = discharge
         self._modules = [_Module() for _ in range(modules)]
         self.reader = ConfigReader(self.lock, self.codec.encode(RequestConfig()))
 
@@ -246,9 +244,8 @@ class Evms3Device(Device):
     def _handle(self, reading: Any, stamp: float) -> bool:
         # most frequent first: 3 cell frames a module and second, 4 status frames a second
         if isinstance(reading, Bms12Cells):
-            module = self._modules[reading.module]
-            module.cells[reading.first_cell:reading.first_cell + 4] = reading.voltages_v
-            module.cells_seen[reading.first_cell // 4] = self.clock()
+            self._modules[reading.module].cells.put(reading.first_cell // 4, reading.voltages_v,
+                                                    self.clock())
             return False
         if isinstance(reading, Evms3Status):
             self._status = reading
@@ -257,20 +254,17 @@ class Evms3Device(Device):
                 self._bms16_marker = True
             return True
         if isinstance(reading, BatteryCurrent):
-            self._current_a = reading.current_a
-            self._current_seen = self.clock()
+            self._current.put(BatteryCurrent, reading.current_a, self.clock())
         elif isinstance(reading, Bms12Temperatures):
-            module = self._modules[reading.module]
-            module.temps = reading.temperatures_c  # None: no sensor
-            module.temps_seen = self.clock()
+            self._modules[reading.module].latest.put(
+                Bms12Temperatures, reading.temperatures_c, self.clock())  # None: no sensor
         elif isinstance(reading, Bms12Request):
-            module = self._modules[reading.module]
-            module.balance_mv = reading.balance_mv
-            module.balance_seen = self.clock()
+            self._modules[reading.module].latest.put(Bms12Request, reading.balance_mv,
+                                                     self.clock())
         elif isinstance(reading, ChargerCommand):
-            self._charger_commands[reading.charger] = (reading, self.clock())
+            self._charger_commands.put(reading.charger, reading, self.clock())
         elif isinstance(reading, ChargerStatus):
-            self._charger_status[reading.charger] = (reading, self.clock())
+            self._charger_status.put(reading.charger, reading, self.clock())
         elif isinstance(reading, ConfigReport):
             self.reader.offer(reading, self.clock())
         # Our own commands seen on the bus carry no state.
@@ -291,24 +285,17 @@ class Evms3Device(Device):
         return capacity if capacity > 0 else NAN
 
     def _ros_current(self) -> float:
-        if self.clock() - self._current_seen > self.stale_timeout:
-            return NAN
-        return -self._current_a
+        current_a = self._current.get(BatteryCurrent, self.clock(), self.stale_timeout)
+        return NAN if current_a is None else -current_a
 
     def _module_cells(self, m: int, count: int) -> list[float]:
-        module = self._modules[m]
-        now = self.clock()
-        frames = module.cells_seen[:(count + 3) // 4]
-        if frames and now - min(frames) <= self.module_timeout:
-            return module.cells[:count]  # every frame of these cells fresh: the usual case
-        return [module.cells[i] if now - module.cells_seen[i // 4] <= self.module_timeout
-                else NAN for i in range(count)]
+        return self._modules[m].cells.read(self.clock(), self.module_timeout,
+                                           (count + 3) // 4)[:count]
 
     def _module_temps(self, m: int) -> tuple[float | None, ...]:
-        module = self._modules[m]
-        if self.clock() - module.temps_seen > self.module_timeout:
-            return (NAN, NAN)
-        return module.temps
+        temps = self._modules[m].latest.get(Bms12Temperatures, self.clock(),
+                                            self.module_timeout)
+        return (NAN, NAN) if temps is None else temps
 
     def _stationary(self) -> bool | None:
         """Stationary mode: the parameter, else the last read-back seen; None = unknown."""
@@ -416,23 +403,25 @@ class Evms3Device(Device):
                 values[f'module {m} cell max (V)'] = f'{max(cells):.3f}'
             values[f'module {m} temperatures (degC)'] = ', '.join(
                 'no sensor' if t is None else 'unknown' if t != t else f'{t:g}' for t in temps)
-            values[f'module {m} last heard'] = ('never' if seen == -math.inf
+            values[f'module {m} last heard'] = ('never' if seen == NEVER
                                                 else f'{self.clock() - seen:.1f} s ago')
             values[f'module {m} balance target (mV)'] = self._balance_text(m)
 
     def _balance_text(self, m: int) -> str:
-        module = self._modules[m]
-        if self.clock() - module.balance_seen > self.module_timeout:
+        latest = self._modules[m].latest
+        if self.clock() - latest.seen(Bms12Request) > self.module_timeout:
             return 'unknown (no request from the EVMS)'
-        return 'off' if module.balance_mv is None else str(module.balance_mv)
+        balance_mv = latest.latest(Bms12Request)
+        return 'off' if balance_mv is None else str(balance_mv)
 
     def _charger_values(self, values: dict[str, str]) -> list[str]:
         """Add each charger's values (ZEVA Monitor names); return its faults, if any."""
         now = self.clock()
         faults = []
         for n in range(1, CHARGERS + 1):
-            command, command_seen = self._charger_commands.get(n, (None, -math.inf))
-            status, status_seen = self._charger_status.get(n, (None, -math.inf))
+            command, command_seen = (self._charger_commands.latest(n),
+                                     self._charger_commands.seen(n))
+            status, status_seen = self._charger_status.latest(n), self._charger_status.seen(n)
             if command is None and status is None:
                 continue
             key = f'charger {n} '

@@ -21,7 +21,7 @@ sensor_msgs: current and charge are negative while discharging.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import math
 import time
 from typing import Any, Callable, Mapping
@@ -32,6 +32,8 @@ from ams_can_bridge.devices.base import (
 from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.ivt_s_commands import CommandLink
 from ams_can_bridge.devices.ivt_s_control import CYCLE_KEYS, IvtSControl
+from ams_can_bridge.devices.timed import CounterHealth, TimedStore
+from ams_can_bridge.errors import ParamError
 from ams_can_bridge.protocols.common import ProtocolError
 from ams_can_bridge.protocols.ivt_s import (
     BYTE_ORDERS, DBC_NAME, DEFAULT_BASE_ID, IvtMux, IvtResult, IvtSCodec, RAW_UNIT,
@@ -50,19 +52,11 @@ SYSTEM_ERROR_TEXT = ('system error bit (byte 1 bit 7, System_Error: sensor funct
 
 @dataclass
 class _Track:
-    """Per-result bookkeeping: last frame, when it came, counter health."""
+    """Per-result bookkeeping besides the result itself: counter health, frame interval."""
 
-    result: IvtResult
-    seen: float  # Device.clock() at reception
-    stuck: int = 0  # frames that repeated the previous counter
-    jumps: int = 0  # frames whose counter skipped (lost frames or a reset sensor)
-    good_streak: int = 0  # frames with the expected counter since the last anomaly
+    counter: CounterHealth = field(
+        default_factory=lambda: CounterHealth(0x10, COUNTER_RECOVERY_FRAMES))
     interval: float = math.nan  # observed seconds between frames (smoothed)
-
-    @property
-    def counter_trouble(self) -> bool:
-        """Tell whether a recent counter anomaly still lacks enough good frames after it."""
-        return (self.stuck or self.jumps) > 0 and self.good_streak < COUNTER_RECOVERY_FRAMES
 
 
 def _as_bool(key: str, value: Any) -> bool:
@@ -70,7 +64,7 @@ def _as_bool(key: str, value: Any) -> bool:
         return value
     if isinstance(value, str) and value.lower() in ('true', 'false'):
         return value.lower() == 'true'
-    raise ValueError(f'{key} = {value!r}: allowed true | false')
+    raise ParamError(f'{key} = {value!r}: allowed true | false')
 
 
 class IvtSDevice(IvtSControl, Device):
@@ -130,6 +124,7 @@ class IvtSDevice(IvtSControl, Device):
         self._sign = -1.0 if self.discharge_positive else 1.0
         self.mounted_reversed = _as_bool(f'{name}.mounted_reversed',
                                          bool(self.config.mounted_reversed))
+        self._results: TimedStore[IvtMux, IvtResult] = TimedStore()  # the last of each kind
         self._tracks: dict[IvtMux, _Track] = {}
         self._stamp = NAN
         self.link = CommandLink(self.lock)
@@ -163,25 +158,15 @@ class IvtSDevice(IvtSControl, Device):
         now = self.clock()
         track = self._tracks.get(reading.kind)
         if track is None:
-            self._tracks[reading.kind] = _Track(reading, now)
+            track = self._tracks[reading.kind] = _Track()
+            track.counter.observe(reading.counter, False)
         else:
-            previous = track.result.counter
-            gap = now - track.seen
-            fresh = gap <= self._timeout(reading.kind, track)
+            gap = now - self._results.seen(reading.kind)
+            # After a silence longer than the result's timeout a counter restart is expected.
+            track.counter.observe(reading.counter, gap <= self._timeout(reading.kind, track))
             track.interval = gap if track.interval != track.interval else (
                 track.interval + INTERVAL_WEIGHT * (gap - track.interval))
-            # After a silence longer than the result's timeout a counter restart is expected.
-            if fresh:
-                if reading.counter == previous:
-                    track.stuck += 1
-                    track.good_streak = 0
-                elif reading.counter != (previous + 1) & 0x0F:
-                    track.jumps += 1
-                    track.good_streak = 0
-                else:
-                    track.good_streak += 1
-            track.result = reading
-            track.seen = now
+        self._results.put(reading.kind, reading, now)
         if reading.kind is IvtMux.I:
             self._stamp = stamp
             return True
@@ -211,8 +196,7 @@ class IvtSDevice(IvtSControl, Device):
     def latest(self, kind: IvtMux) -> IvtResult | None:
         """Return the last decoded result of one kind (None before any), whatever its age."""
         with self.lock:
-            track = self._tracks.get(IvtMux(kind))
-            return track.result if track else None
+            return self._results.latest(IvtMux(kind))
 
     # --- helpers (lock held) ---------------------------------------------------------------
     def _timeout(self, kind: IvtMux, track: _Track) -> float:
@@ -231,11 +215,11 @@ class IvtSDevice(IvtSControl, Device):
             period = track.interval if track.interval == track.interval else 0.0
         return max(self.stale_timeout, RESULT_STALE_CYCLES * period)
 
-    def _fresh(self, kind: IvtMux) -> _Track | None:
+    def _fresh(self, kind: IvtMux) -> IvtResult | None:
         track = self._tracks.get(kind)
-        if track is None or self.clock() - track.seen > self._timeout(kind, track):
+        if track is None:
             return None
-        return track
+        return self._results.get(kind, self.clock(), self._timeout(kind, track))
 
     def _valid(self, kind: IvtMux) -> float:
         """
@@ -244,16 +228,16 @@ class IvtSDevice(IvtSControl, Device):
         A result with its result-error bit or its system-error bit set is no measurement
         (the vendor DBC: with System_Error "sensor functionality is not ensured").
         """
-        track = self._fresh(kind)
-        if track is None or track.result.result_error or track.result.system_error:
+        result = self._fresh(kind)
+        if result is None or result.result_error or result.system_error:
             return NAN
-        return track.result.value
+        return result.value
 
     def _current_a(self) -> float:
         return self._sign * self._valid(IvtMux.I)
 
     def _fresh_results(self) -> list[IvtResult]:
-        return [t.result for k, t in sorted(self._tracks.items()) if self._fresh(k)]
+        return [r for r in map(self._fresh, sorted(self._tracks)) if r is not None]
 
     # --- executor side ---------------------------------------------------------------------
     def _battery_report(self) -> BatteryReport:
@@ -291,7 +275,8 @@ class IvtSDevice(IvtSControl, Device):
             names = [DBC_NAME[r.kind] for r in results if getattr(r, flag)]
             if names:
                 warnings.append(f'{label} ({", ".join(names)})')
-        trouble = [DBC_NAME[k] for k, t in sorted(self._tracks.items()) if t.counter_trouble]
+        trouble = [DBC_NAME[k] for k, t in sorted(self._tracks.items())
+                   if t.counter.in_trouble]
         if trouble:
             warnings.append(f'counter stuck or skipping ({", ".join(trouble)})')
         silent = [DBC_NAME[k] for k in sorted(self._tracks) if k is not IvtMux.I
@@ -320,7 +305,7 @@ class IvtSDevice(IvtSControl, Device):
             if track is None:
                 values[f'{name} ({SI_UNIT[kind]})'] = 'not received'
                 continue
-            r = track.result
+            r = self._results.latest(kind)
             values[f'{name} ({SI_UNIT[kind]})'] = f'{r.value:g}'
             values[f'{name} raw ({RAW_UNIT[kind]})'] = str(r.raw)
             values[f'{name} counter'] = str(r.counter)
@@ -329,9 +314,9 @@ class IvtSDevice(IvtSControl, Device):
                 (r.measurement_error, 'measurement error'), (r.system_error, 'system error'))
                 if flag]
             values[f'{name} status'] = ', '.join(flags) or 'ok'
-            values[f'{name} counter stuck'] = str(track.stuck)
-            values[f'{name} counter jumps'] = str(track.jumps)
-            values[f'{name} age (s)'] = f'{self.clock() - track.seen:.2f}'
+            values[f'{name} counter stuck'] = str(track.counter.repeats)
+            values[f'{name} counter jumps'] = str(track.counter.jumps)
+            values[f'{name} age (s)'] = f'{self.clock() - self._results.seen(kind):.2f}'
             values[f'{name} expires after (s)'] = f'{self._timeout(kind, track):.2f}'
         values.update(self._command_values())
         return values

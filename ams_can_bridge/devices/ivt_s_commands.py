@@ -14,6 +14,7 @@ import threading
 import time
 from typing import Callable, Iterable
 
+from ams_can_bridge.errors import AmsCanBridgeError
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.ivt_s import DBC_NAME, IvtMux
 from ams_can_bridge.protocols import ivt_s_commands as cmd
@@ -29,7 +30,7 @@ DIRECTIONAL = (IvtMux.I, IvtMux.W, IvtMux.AS, IvtMux.WH)
 STORE_TIMEOUT = 2.0
 
 
-class NoAnswer(Exception):
+class NoAnswer(AmsCanBridgeError):
     """A command was not sent, or its answer did not come in time (the reason is the text)."""
 
 

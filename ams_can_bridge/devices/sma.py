@@ -34,6 +34,7 @@ from ams_can_bridge.devices.base import (
     PowerSupplyHealth)
 from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.sma_keepalive import InverterKeepalive, KEEPALIVE_PERIOD
+from ams_can_bridge.devices.timed import TimedStore
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.sma import (
     ALARMS_ID, BATTERY_ID, INFO_ID, LIMITS_ID, MANUFACTURER_ID, SmaAlarms, SmaBattery,
@@ -204,8 +205,7 @@ class SmaDevice(Device):
                  clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__(name, config, clock)
         self.codec = SmaCodec()
-        self.readings: dict[Hashable, SmaReading] = {}
-        self.seen: dict[Hashable, float] = {}  # group key -> clock() of its last frame
+        self.readings: TimedStore[Hashable, SmaReading] = TimedStore()  # by group key
         self.battery_stamp = NAN
         self.keepalive: InverterKeepalive | None = None  # made by attach_keepalive()
 
@@ -236,8 +236,7 @@ class SmaDevice(Device):
 
     def _handle(self, reading: Any, stamp: float) -> bool:
         key = group_key(reading)
-        self.readings[key] = reading
-        self.seen[key] = self.clock()
+        self.readings.put(key, reading, self.clock())
         if isinstance(reading, SmaBattery):
             self.battery_stamp = stamp
             return True
@@ -251,15 +250,7 @@ class SmaDevice(Device):
 
     def _fresh(self) -> tuple[dict[Hashable, Any], dict[Hashable, float]]:
         """Split the readings (lock held): (fresh ones, {expired key: seconds silent})."""
-        now = self.clock()
-        fresh, expired = {}, {}
-        for key, reading in self.readings.items():
-            silent = now - self.seen[key]
-            if silent > self.group_timeout(key):
-                expired[key] = silent
-            else:
-                fresh[key] = reading
-        return fresh, expired
+        return self.readings.split(self.clock(), self.group_timeout)
 
     def _battery_report(self) -> BatteryReport:
         readings, _ = self._fresh()
