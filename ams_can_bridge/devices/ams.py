@@ -425,13 +425,12 @@ class AmsDevice(Device):
         reading, seen = self._latest.get(kind, (None, -math.inf))
         return reading if self.clock() - seen <= self.stale_timeout else None
 
-    def extra_arrays(self) -> dict[str, tuple[int, int, list[float]]]:
+    def _extra_arrays(self) -> dict[str, tuple[int, int, list[float]]]:
         """Temperatures and discharge temperatures, bank x sensor, NaN until received."""
-        with self.lock:
-            banks, now, age = self.bank_count, self.clock(), self._max_cell_age()
-            return {
-                'temperatures': (banks, proto.TEMPS_PER_BANK,
-                                 self._temps.fresh(banks, now, age)),
-                'discharge_temperatures': (banks, proto.DISCHARGE_TEMPS_PER_BANK,
-                                           self._discharge.fresh(banks, now, age)),
-            }
+        banks, now, age = self.bank_count, self.clock(), self._max_cell_age()
+        return {
+            'temperatures': (banks, proto.TEMPS_PER_BANK,
+                             self._temps.fresh(banks, now, age)),
+            'discharge_temperatures': (banks, proto.DISCHARGE_TEMPS_PER_BANK,
+                                       self._discharge.fresh(banks, now, age)),
+        }
