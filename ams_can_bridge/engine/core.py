@@ -232,29 +232,28 @@ class Engine:
 class Schedule:
     """The engine's periodic work driven by a clock the caller moves (a log's time)."""
 
-    def __init__(self, tasks: list[tuple[float, Callable[[], None]]]) -> None:
-        """Take (period, call) pairs; nothing runs before ``start``."""
+    def __init__(self, tasks: list[tuple[float, Callable[[], None]]],
+                 set_now: Callable[[float], None]) -> None:
+        """Take (period, call) pairs; ``set_now`` moves the engine's clock before each call."""
         self.tasks = [[math.nan, period, call] for period, call in tasks]
-        self.now = math.nan
+        self.set_now = set_now
+        self.started = False
 
     def start(self, now: float) -> None:
         """Start the grid at ``now``: each task first runs one period later."""
-        self.now = now
+        self.started = True
         for task in self.tasks:
             task[0] = now + task[1]
 
     def run_until(self, stamp: float) -> None:
-        """Run every task due up to ``stamp``, each at its own moment (``now``), in order."""
-        if math.isnan(self.now):
-            return
-        while True:
+        """Run every task due up to ``stamp``, each at its own moment, in order."""
+        while self.started:
             task = min(self.tasks, key=lambda t: t[0])  # the first of equals: list order
             if task[0] > stamp:
                 break
-            self.now = task[0]
+            self.set_now(task[0])
             task[0] += task[1]
             task[2]()
-        self.now = stamp
 
 
 def _nan_arrays(arrays: Arrays) -> Arrays:

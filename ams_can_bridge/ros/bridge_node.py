@@ -200,11 +200,13 @@ class BridgeNode(Node):
         self._closed_status = BusStatus(
             state=BusState.STOPPED, reason='', frames_in=0, frames_out=0, frames_dropped_tx=0,
             error_frames=0, reconnects=0, hardware_id=self.hardware_id)
+        engine_logger = self._stdlib_logger('engine')
+        engine_logger.setLevel(logging.DEBUG)  # the rclpy logger decides what is shown
         self.engine = Engine(
             self.device_set, self.sink, status_prefix=self.status_prefix(),
             interface=self.bus_config.interface, bus_status=self._bus_status, now=self._now,
             bus_values=self._bus_values, on_bus_status=self._bus_log.update,
-            logger=self._stdlib_logger('engine'))
+            logger=engine_logger)
         # One thread for all periodic work (see periodic.py: why not executor timers).
         self.periodic = Periodic(f'{NODE_NAME}-periodic', self._stdlib_logger('periodic'))
         for period, call in self.engine.schedule(self.diagnostics_period):
