@@ -139,7 +139,11 @@ BUS_PARAMS = [
               's a command waits for a bus that is still opening or reconnecting '
               '(0 = fail at once)', low=0.0, high=3600.0),
 ]
+AUTOSTART = ParamSpec(
+    'autostart', bool, True, 'lifecycle: configure and activate at start by itself (false: '
+    'wait unconfigured for a lifecycle manager, /<node>/change_state)')
 NODE_PARAMS = [
+    AUTOSTART,
     ParamSpec('devices', 'str[]', [], 'device instance names (each has <name>.type)'),
     ParamSpec('diagnostics_period', float, 1.0, 's between /diagnostics publications',
               low=0.01, high=3600.0),

@@ -44,7 +44,7 @@ from typing import Any
 
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.node import Node
+from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from rclpy.parameter import Parameter
 
 from ams_can_bridge import registry
@@ -55,6 +55,7 @@ from ams_can_bridge.device_set import DeviceSet, unknown_parameter_errors
 from ams_can_bridge.devices.base import Device
 from ams_can_bridge.engine.core import Engine
 from ams_can_bridge.errors import ConfigError
+from ams_can_bridge.parameters import AUTOSTART
 from ams_can_bridge.periodic import Periodic
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.ros.bus_log import BusStateLog
@@ -90,7 +91,7 @@ def arming_refused() -> str:
             'bridge.launch.py commands_allowed:=..., when given, replaces the params file value')
 
 
-class BridgeNode(Node):
+class BridgeNode(LifecycleNode):
     """Bridge battery-management CAN devices to ROS topics and diagnostics."""
 
     def __init__(self, node_name: str = NODE_NAME, **kwargs: Any) -> None:
@@ -107,8 +108,67 @@ class BridgeNode(Node):
         self._ready = False
         self._replaying = False
         self._heartbeats: dict[str, bool] = {}  # commander name -> heartbeat running (logged)
+        self._active = False
+        self._armed_at_launch = False  # commands_enabled: true given at launch, not autostart
+        self._start_error: ConfigError | None = None
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
+        self.autostart = self.params.declare('autostart', AUTOSTART)
+        if self.autostart is not False:  # unusable (None): configured, and its error named
+            if self.trigger_configure() != TransitionCallbackReturn.SUCCESS:
+                error = self._start_error or ConfigError('the bridge could not be configured')
+                self.destroy_node()
+                raise error
+            self.trigger_activate()
+
+    # --- lifecycle --------------------------------------------------------------------------
+    def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Check every parameter, build the devices and the engine, open the bus."""
+        try:
+            self._setup()
+        except ConfigError as exc:
+            self._start_error = exc
+            self._release()
+            if not self.autostart:  # autostart: the constructor raises it (exit 2)
+                self.get_logger().error(f'cannot configure: {exc}')
+            return TransitionCallbackReturn.FAILURE
+        self._start_error = None
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Publish (telemetry, stale messages, diagnostics); commands follow the gate."""
+        self.sink.enabled = True
+        self._active = True
+        self.periodic.start()
+        if self._armed_at_launch:  # commands_enabled: true at launch applies when active
+            self._armed_at_launch = False
+            self.set_parameters([Parameter('commands_enabled', value=True)])
+        self._log_heartbeats()  # commands_enabled at launch: the heartbeat runs already
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Become a pure listener: commands off (nothing is sent), nothing published."""
+        self._active = False
+        if self.commands_enabled:
+            self.set_parameters([Parameter('commands_enabled', value=False)])
+        self.periodic.stop()
+        self.sink.enabled = False
+        self.get_logger().info('inactive: decoding, publishing nothing, sending nothing')
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Release everything configure built: bus closed, threads joined, services gone."""
+        self._release()
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Release everything, from whichever state."""
+        self._active = False
+        self._release()
+        return TransitionCallbackReturn.SUCCESS
+
+    def _setup(self) -> None:
+        """Configure (raise ConfigError naming every bad value), then open the bus."""
         try:
             try:
                 self._configure()
@@ -126,13 +186,33 @@ class BridgeNode(Node):
                     self.params.raise_errors()
                 except ParamError as every:
                     exc = every
-            self.destroy_node()
+            self.params.errors = []  # a later configure judges the values afresh
             raise ConfigError(str(exc)) from None
         self._ready = True
         self.can_io.start()
-        self.periodic.start()
         self._log_summary()
-        self._log_heartbeats()  # commands_enabled at launch: the heartbeat runs already
+
+    def _release(self) -> None:
+        """Stop the periodic work, the commanders and the bus thread; drop the publishers."""
+        self._ready = False
+        self._active = False
+        periodic = getattr(self, 'periodic', None)
+        if periodic is not None:
+            periodic.stop()
+        for commander in self.commanders.values():
+            commander.destroy()
+        if self.context.ok():  # after Ctrl-C the logger may be gone with the context
+            self._log_heartbeats('the bridge is shutting down')
+        self.commanders.clear()
+        if self.can_io is not None:
+            self.can_io.stop()
+            self.can_io = None
+        sink = getattr(self, 'sink', None)
+        if sink is not None:
+            sink.enabled = False
+            for publisher in sink.publishers():
+                self.destroy_publisher(publisher)
+            self.sink = None
 
     # --- set-up ---------------------------------------------------------------------------
     def _unknown_parameters(self) -> list[str]:
@@ -146,6 +226,11 @@ class BridgeNode(Node):
         self.diagnostics_period = node['diagnostics_period']
         self.commands_allowed = node['commands_allowed']
         self.commands_enabled = node['commands_enabled']
+        if self.commands_enabled and not self.autostart:
+            # configured, not active: nothing may be sent; activate arms it as given
+            self.commands_enabled = False
+            self._armed_at_launch = self.commands_allowed
+            self.set_parameters([Parameter('commands_enabled', value=False)])
         if self.commands_enabled and not self.commands_allowed:
             self.params.errors.append(arming_refused())
             self.commands_enabled = False
@@ -437,6 +522,10 @@ class BridgeNode(Node):
                     and param.value is True and not self.commands_allowed):
                 reason = arming_refused()
                 self.get_logger().warning(f'refused: {reason}')
+            if (reason is None and self._ready and not self._active and param.value is True
+                    and param.name == 'commands_enabled'):
+                reason = ('commands_enabled = true refused: the bridge is inactive (lifecycle): '
+                          'activate it first (ros2 lifecycle set /ams_can_bridge activate)')
             prefix, _, key = param.name.partition('.')
             if reason is None and self._ready and prefix in self.devices and key:
                 reason = self.devices[prefix].config_reason(key, self.params.value(param))
@@ -479,17 +568,6 @@ class BridgeNode(Node):
 
     # --- shutdown -------------------------------------------------------------------------
     def destroy_node(self) -> None:
-        """Stop the periodic work, the commanders and the bus thread (closes the bus)."""
-        self._ready = False
-        periodic = getattr(self, 'periodic', None)
-        if periodic is not None:
-            periodic.stop()
-        for commander in self.commanders.values():
-            commander.destroy()
-        if self.context.ok():  # after Ctrl-C the logger may be gone with the context
-            self._log_heartbeats('the bridge is shutting down')
-        self.commanders.clear()
-        if self.can_io is not None:
-            self.can_io.stop()
-            self.can_io = None
+        """Release everything (as on_shutdown) and destroy the node."""
+        self._release()
         super().destroy_node()

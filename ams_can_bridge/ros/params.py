@@ -71,6 +71,8 @@ class ParamRegistry:
         Raises ParamError naming the parameter when the value given (override) is unusable.
         """
         self.specs[name] = spec
+        if self.node.has_parameter(name):  # configured again (lifecycle): as it stands
+            return coerce(name, spec, self.node.get_parameter(name).value)
         desc = descriptor(spec)
         # Check the value from the params file / overrides with our own rules first, so the
         # user gets our message, and every bad value at once (rclpy stops at the first).

@@ -48,12 +48,15 @@ class RosSink:
         self._raw_telemetry = diag_cdr.check_telemetry()
         self.hardware_id = hardware_id
         self._alive = alive
+        self.enabled = False  # lifecycle: publishing only while active
         # name -> (the stale report it was built from, BatteryState, [(publisher, msg)])
         self._stale: dict[str, tuple[BatteryReport, Any, list[tuple[Any, Any]]]] = {}
 
     def battery(self, name: str, frame_id: str, report: BatteryReport, arrays: Arrays,
                 stamp: float) -> None:
         """Publish a BatteryState and its arrays (raw CDR, or kept objects when stale)."""
+        if not self.enabled:
+            return
         if report.present:
             build = diag_cdr if self._raw_telemetry else convert
             self._publish_all(name, *self._messages(name, frame_id, report, arrays, build,
@@ -80,6 +83,8 @@ class RosSink:
 
     def diagnostics(self, statuses: Statuses, stamp: float) -> None:
         """Publish one DiagnosticArray (serialized here, published raw when possible)."""
+        if not self.enabled:
+            return
         if self._diag_encoder is not None:
             msg = self._diag_encoder.encode(stamp, statuses, self.hardware_id)
         else:
@@ -88,8 +93,14 @@ class RosSink:
 
     def clock(self, stamp: float) -> None:
         """Publish the replayed log time on /clock."""
-        if self.clock_pub is not None:
+        if self.clock_pub is not None and self.enabled:
             self.publish(self.clock_pub, Clock(clock=convert.stamp_msg(stamp)))
+
+    def publishers(self) -> list[Any]:
+        """Return every publisher (the node destroys them on cleanup)."""
+        pubs = [*self.battery_pubs.values(), self.diag_pub]
+        pubs += [p for arrays in self.array_pubs.values() for p in arrays.values()]
+        return pubs + ([self.clock_pub] if self.clock_pub is not None else [])
 
     def publish(self, publisher: Any, msg: Any) -> None:
         """Publish from the bus or periodic thread; after a shutdown, drop the message."""
