@@ -40,6 +40,7 @@ import logging
 import math
 import threading
 import time
+import traceback
 from typing import Any
 
 from rcl_interfaces.msg import SetParametersResult
@@ -132,6 +133,10 @@ class BridgeNode(LifecycleNode):
             if not self.autostart:  # autostart: the constructor raises it (exit 2)
                 self.get_logger().error(f'cannot configure: {exc}')
             return TransitionCallbackReturn.FAILURE
+        except Exception:  # a bug, not a setting: named with its traceback
+            self.get_logger().error(f'configure failed:\n{traceback.format_exc()}')
+            self._release()
+            raise
         self._start_error = None
         return TransitionCallbackReturn.SUCCESS
 

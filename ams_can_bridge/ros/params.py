@@ -12,6 +12,7 @@ import re
 from typing import Any, Iterable
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.exceptions import ParameterUninitializedException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 import yaml
@@ -72,7 +73,12 @@ class ParamRegistry:
         """
         self.specs[name] = spec
         if self.node.has_parameter(name):  # configured again (lifecycle): as it stands
-            return coerce(name, spec, self.node.get_parameter(name).value)
+            try:
+                value = self.node.get_parameter(name).value
+            except ParameterUninitializedException:  # declared unset: no value given
+                value = None
+            value = coerce(name, spec, value)
+            return [] if value is None and spec.default == [] else value
         desc = descriptor(spec)
         # Check the value from the params file / overrides with our own rules first, so the
         # user gets our message, and every bad value at once (rclpy stops at the first).
