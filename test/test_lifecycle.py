@@ -104,3 +104,17 @@ def test_a_bad_value_fails_configure_and_leaves_it_unconfigured(rig_factory):
     assert not change(rig, Transition.TRANSITION_CONFIGURE)
     assert state(rig) == 'unconfigured'
     assert rig.node.can_io is None
+
+
+def test_a_destroyed_bridge_frees_its_participant():
+    """rclpy's lifecycle state machine kept every destroyed node's DDS participant open."""
+    import os
+    from command_rig import Rig
+
+    def fds() -> int:
+        return len(os.listdir('/proc/self/fd'))
+    Rig({'devices': ['bms16']}).close()  # the first one loads what stays loaded
+    before = fds()
+    for _ in range(3):
+        Rig({'devices': ['bms16']}).close()
+    assert fds() <= before + 2, f'{fds() - before} file descriptors left by 3 bridges'

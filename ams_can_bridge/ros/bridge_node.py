@@ -576,3 +576,6 @@ class BridgeNode(LifecycleNode):
         """Release everything (as on_shutdown) and destroy the node."""
         self._release()
         super().destroy_node()
+        # rclpy (Jazzy) leaves the lifecycle state machine alive, and with it the node's
+        # handle and its DDS participant (11 file descriptors per node, never freed)
+        self._state_machine.destroy_when_not_in_use()
