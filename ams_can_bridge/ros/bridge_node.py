@@ -280,7 +280,7 @@ class BridgeNode(LifecycleNode):
         # (once per change, with what happens next), so only CanIo's other problems pass.
         can_logger.setLevel(logging.WARNING)
         can_logger.addFilter(lambda record: record.msg != STATE_CHANGE_FORMAT)
-        self.can_io = CanIo(self.bus_config, self._on_frame, filters, can_logger)
+        self.can_io = CanIo(self.bus_config, self.engine.on_frame, filters, can_logger)
 
     def _make_publishers(self) -> None:
         self.sink = RosSink(self, {name: list(device.extra_arrays())
