@@ -3,8 +3,8 @@ The bridge's own cost per frame: everything but python-can's recv, at the realis
 
 The simulators' frames (AMS 5 banks, EVMS3 16 BMS12, BMS16 + SMA, IVT-S; ~346 frames/s) are
 captured for ``--seconds`` of simulated time, then given to ``Engine.on_frame``, what the
-bus thread calls (decode -> device state -> BatteryState/arrays -> rclpy publish) of a bridge on python-can
-``virtual`` that receives nothing else:
+bus thread calls (decode -> device state -> BatteryState/arrays -> rclpy publish), of a
+bridge on python-can ``virtual`` that receives nothing else:
 
 - **tight loop**: every captured frame back to back, ``--passes`` times; CPU per frame
   (``time.thread_time``), the best and the median pass. Warm caches: a lower bound.
