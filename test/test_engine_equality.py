@@ -95,7 +95,7 @@ def level(status) -> int:
 
 
 def diagnostic_levels(arrays: list) -> list:
-    """The level sequence of every status, changes only, trimmed as the docstring says."""
+    """Return the level sequence of every status: changes only, trimmed as above."""
     out: list = []
     for msg in arrays:
         levels = tuple(sorted((s.name, level(s)) for s in msg.status))

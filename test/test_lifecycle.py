@@ -21,7 +21,7 @@ BMS16_STATUS = 500  # primary: b0 error, b1 SoC %, b2..3 0.1 V LE, b4..5 0.1 A +
 
 
 def status(soc: int) -> bytes:
-    """A BMS16 status frame (written by hand): SoC soc %, 51.0 V, 0.0 A, 22 degC."""
+    """Return a BMS16 status frame (written by hand): SoC soc %, 51.0 V, 0.0 A, 22 degC."""
     return bytes([0x00, soc, 0xFE, 0x01, 0x00, 0x80, 0x16])
 
 
@@ -107,7 +107,7 @@ def test_a_bad_value_fails_configure_and_leaves_it_unconfigured(rig_factory):
 
 
 def test_a_destroyed_bridge_frees_its_participant():
-    """rclpy's lifecycle state machine kept every destroyed node's DDS participant open."""
+    """Free the DDS participant: rclpy's state machine kept every destroyed one open."""
     import os
     from command_rig import Rig
 

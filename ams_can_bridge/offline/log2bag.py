@@ -150,7 +150,7 @@ class Converter:
 
     @property
     def bag(self) -> Any:
-        """The bag written to (None: nothing is written)."""
+        """Return the bag written to (None: nothing is written)."""
         return self.sink.bag
 
     @bag.setter

@@ -1,6 +1,5 @@
 """
-The ``bridge`` node: the ROS adapter of the engine (``engine/core.py``), its parameters
-and services.
+The ``bridge`` node: the ROS adapter of the engine, its parameters and its services.
 
 Data: the CanIo receive thread hands every frame to the ``Engine``, which decodes it into
 the devices and, on a primary status frame, emits that device's BatteryState and arrays into
