@@ -108,3 +108,7 @@ class LogFileError(AmsCanBridgeError):
 
     Raised by ``offline/log_frames.py``; ``log2bag`` prints it and exits 2.
     """
+
+
+class CanIoError(AmsCanBridgeError):
+    """The bus layer cannot do what was asked (a receive thread that would not end)."""

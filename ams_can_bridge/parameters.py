@@ -139,7 +139,11 @@ BUS_PARAMS = [
               's a command waits for a bus that is still opening or reconnecting '
               '(0 = fail at once)', low=0.0, high=3600.0),
 ]
+AUTOSTART = ParamSpec(
+    'autostart', bool, True, 'lifecycle: configure and activate at start by itself (false: '
+    'wait unconfigured for a lifecycle manager, /<node>/change_state)')
 NODE_PARAMS = [
+    AUTOSTART,
     ParamSpec('devices', 'str[]', [], 'device instance names (each has <name>.type)'),
     ParamSpec('diagnostics_period', float, 1.0, 's between /diagnostics publications',
               low=0.01, high=3600.0),
@@ -152,18 +156,23 @@ NODE_PARAMS = [
 ]
 
 
-def launch_parameters(params_file: str, commands_allowed: str = '') -> list[Any]:
+def launch_parameters(params_file: str, commands_allowed: str = '',
+                      autostart: str = '') -> list[Any]:
     """
     Return the ``parameters`` of the bridge's launch Node (launch/bridge.launch.py).
 
-    The launch argument commands_allowed replaces the params file's value only when it is
-    given ('true' / 'false'); left empty (its default), the params file decides.
+    The launch arguments commands_allowed and autostart replace the params file's value
+    only when given ('true' / 'false'); left empty (their default), the params file decides.
     """
     parameters: list[Any] = [params_file]
-    text = commands_allowed.strip().lower()
-    if text not in ('', 'true', 'false'):
-        raise ValueError(f'commands_allowed:={commands_allowed!r}: use true or false, or leave '
-                         'it out to keep the params file value')
-    if text:
-        parameters.append({'commands_allowed': text == 'true'})
+    given = {}
+    for name, value in (('commands_allowed', commands_allowed), ('autostart', autostart)):
+        text = value.strip().lower()
+        if text not in ('', 'true', 'false'):
+            raise ValueError(f'{name}:={value!r}: use true or false, or leave it out to keep '
+                             'the params file value')
+        if text:
+            given[name] = text == 'true'
+    if given:
+        parameters.append(given)
     return parameters

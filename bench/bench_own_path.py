@@ -2,9 +2,9 @@
 The bridge's own cost per frame: everything but python-can's recv, at the realistic mix.
 
 The simulators' frames (AMS 5 banks, EVMS3 16 BMS12, BMS16 + SMA, IVT-S; ~346 frames/s) are
-captured for ``--seconds`` of simulated time, then given to ``BridgeNode._on_frame`` (decode
--> device state -> BatteryState/arrays -> rclpy publish) of a bridge on python-can
-``virtual`` that receives nothing else:
+captured for ``--seconds`` of simulated time, then given to ``Engine.on_frame``, what the
+bus thread calls (decode -> device state -> BatteryState/arrays -> rclpy publish), of a
+bridge on python-can ``virtual`` that receives nothing else:
 
 - **tight loop**: every captured frame back to back, ``--passes`` times; CPU per frame
   (``time.thread_time``), the best and the median pass. Warm caches: a lower bound.
@@ -68,7 +68,7 @@ def make_node() -> BridgeNode:
 
 def tight(node: BridgeNode, frames: list, passes: int) -> list[float]:
     """Return the CPU us per frame of each back-to-back pass."""
-    on_frame = node._on_frame
+    on_frame = node.engine.on_frame  # what the bus thread calls
     out = []
     for _ in range(passes):
         c0 = time.thread_time()
@@ -99,7 +99,7 @@ def paced(node: BridgeNode, ticks: list, seconds: float) -> dict:
     result = {}
 
     def feed():
-        on_frame = node._on_frame
+        on_frame = node.engine.on_frame  # what the bus thread calls
         n = 0
         spent = 0.0  # CPU of the feeding itself, the sleeps between ticks left out
         start = time.monotonic()
@@ -159,7 +159,7 @@ def main() -> None:
                       'us/call)')
         if args.profile:
             profile = cProfile.Profile()
-            on_frame = node._on_frame
+            on_frame = node.engine.on_frame  # what the bus thread calls
             profile.enable()
             for a, d, e in frames:
                 on_frame(a, d, e, time.time())

@@ -10,6 +10,10 @@ commands_allowed is the launch-only first key of the transmit gate: only with it
 commands_enabled (the second key, in the params file or set at run time by the supervisor)
 become true. Given here (true or false), it replaces the params file's value; left out, the
 params file's value holds (false when the file does not set it).
+
+The bridge is a lifecycle node that configures and activates itself (autostart, the default).
+autostart:=false starts it as a launch_ros LifecycleNode that waits, unconfigured, for a
+lifecycle manager (or ``ros2 lifecycle set /ams_can_bridge configure`` / ``activate``).
 """
 import os
 
@@ -17,21 +21,23 @@ from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
-from launch_ros.actions import Node
+from launch_ros.actions import LifecycleNode, Node
 
 from ams_can_bridge.parameters import launch_parameters
 
 
 def _bridge(context):
-    """Start the node; commands_allowed joins its parameters only when it was given."""
-    return [Node(
+    """Start the node; commands_allowed / autostart join its parameters only when given."""
+    autostart = LaunchConfiguration('autostart').perform(context)
+    action = LifecycleNode if autostart.strip().lower() == 'false' else Node
+    return [action(
         package='ams_can_bridge',
         executable='bridge',
         name='ams_can_bridge',
         namespace=LaunchConfiguration('namespace'),
         parameters=launch_parameters(
             LaunchConfiguration('params_file').perform(context),
-            LaunchConfiguration('commands_allowed').perform(context)),
+            LaunchConfiguration('commands_allowed').perform(context), autostart),
         output='screen',
         emulate_tty=True,
     )]
@@ -52,5 +58,9 @@ def generate_launch_description():
             'commands_allowed', default_value='', choices=['true', 'false', ''],
             description='first key of the transmit gate (launch only): true lets '
                         'commands_enabled become true; left out, the params file decides'),
+        DeclareLaunchArgument(
+            'autostart', default_value='', choices=['true', 'false', ''],
+            description='lifecycle: false starts it unconfigured for a lifecycle manager; '
+                        'left out, the params file decides (default true: active by itself)'),
         OpaqueFunction(function=_bridge),
     ])

@@ -121,7 +121,7 @@ class Rig:
         self.node = BridgeNode(
             context=self.context, namespace=namespace,
             parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
-        self.hardware_id = self.node.hardware_id
+        self.hardware_id = getattr(self.node, 'hardware_id', '')  # '' until configured
         self._spinning = spin
         self.executor = (MultiThreadedExecutor(num_threads=4, context=self.context) if spin
                          else SingleThreadedExecutor(context=self.context))
@@ -158,7 +158,8 @@ class Rig:
 
     def _diag(self, msg: DiagnosticArray) -> None:
         # other bridges (other tests) may publish on /diagnostics too: keep ours only
-        if any(s.hardware_id == self.hardware_id for s in msg.status):
+        hardware_id = getattr(self.node, 'hardware_id', self.hardware_id)  # once configured
+        if any(s.hardware_id == hardware_id for s in msg.status):
             self._keep('/diagnostics', msg)
 
     # --- the bus ----------------------------------------------------------------------------

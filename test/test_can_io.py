@@ -368,3 +368,40 @@ def test_second_bus_on_the_same_serial_adapter_is_refused_and_the_first_undistur
         second.stop()
         peer.close()
     assert 'Traceback' not in capfd.readouterr().err
+
+
+def test_a_stop_that_gives_up_its_join_never_leaves_two_receive_threads(channel, monkeypatch):
+    """stop() waits for the thread a bounded time; a later start() never runs a second."""
+    import ams_can_bridge.can_io.core as core
+    from ams_can_bridge.errors import CanIoError
+    monkeypatch.setattr(core, '_JOIN_TIMEOUT', 0.2)
+    io = CanIo(BusConfig(interface='virtual', channel=channel, reconnect_period=0.05),
+               Sink())
+    entered, release = threading.Event(), threading.Event()
+    original = io._open
+    calls = []
+
+    def hanging_open():  # the first open hangs in its driver until released
+        calls.append(threading.current_thread())
+        if len(calls) == 1:
+            entered.set()
+            release.wait(timeout=10.0)
+        return original()
+    io._open = hanging_open
+    io.start()
+    assert entered.wait(timeout=5.0)
+    first = io._thread
+    io.stop()  # gives up after 0.2 s: the open hangs
+    assert first.is_alive()
+    with pytest.raises(CanIoError, match='previous receive thread'):
+        io.start()
+    release.set()
+    first.join(timeout=5.0)
+    assert not first.is_alive(), 'the old thread must end once its open returns'
+    io.start()
+    try:
+        assert wait_for(lambda: io.status().connected, 5.0)
+        readers = [t for t in threading.enumerate() if t.name == 'can_io-rx' and t.is_alive()]
+        assert readers == [io._thread]
+    finally:
+        io.stop()

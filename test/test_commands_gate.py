@@ -152,6 +152,6 @@ def test_every_change_of_commands_enabled_is_logged_and_counted(rig_factory, cap
     assert err.count('commands_enabled false -> true') == 1, err
     assert err.count('commands_enabled true -> false') == 1, err
     assert 'the caller is not known to the node' in err
-    values = rig.node._bus_report().values
+    values = rig.node.engine.bus_report().values
     assert values['commands_enabled changes'] == '2'
     assert values['commands_allowed'] == 'true' and values['commands_enabled'] == 'false'

@@ -87,7 +87,10 @@ class _WatchedLock:
         self.release()
 
 
-def test_the_ams_reads_its_ivt_s_before_taking_its_own_lock():
+@pytest.mark.parametrize('read', [lambda ams: ams.battery_report(),
+                                  lambda ams: ams.snapshot()[0]],
+                         ids=['battery_report', 'engine snapshot'])
+def test_the_ams_reads_its_ivt_s_before_taking_its_own_lock(read):
     """
     IVT-S lock held (as by an IVT-S calling into the AMS) while the AMS builds its report.
 
@@ -103,7 +106,7 @@ def test_the_ams_reads_its_ivt_s_before_taking_its_own_lock():
     ivt.lock = watched = _WatchedLock()
     reports = []
     with watched:
-        worker = threading.Thread(target=lambda: reports.append(ams.battery_report()),
+        worker = threading.Thread(target=lambda: reports.append(read(ams)),
                                   daemon=True)
         worker.start()
         assert watched.waiting.wait(WAIT), 'battery_report never asked for the IVT-S'

@@ -32,6 +32,11 @@ def test_commands_allowed_joins_the_parameters_only_when_given():
     assert launch_parameters('pack.yaml', 'false') == ['pack.yaml', {'commands_allowed': False}]
     with pytest.raises(ValueError, match='use true or false, or leave it out'):
         launch_parameters('pack.yaml', 'maybe')
+    assert launch_parameters('pack.yaml', '', 'false') == ['pack.yaml', {'autostart': False}]
+    assert launch_parameters('pack.yaml', 'true', 'true') == [
+        'pack.yaml', {'commands_allowed': True, 'autostart': True}]
+    with pytest.raises(ValueError, match='autostart'):
+        launch_parameters('pack.yaml', '', 'later')
 
 
 def test_the_launch_file_uses_the_helper_and_defaults_to_not_given():
@@ -44,8 +49,16 @@ def test_the_launch_file_uses_the_helper_and_defaults_to_not_given():
     keywords = {k.arg: k.value for k in argument.keywords}
     assert keywords['default_value'].value == ''
     assert [e.value for e in keywords['choices'].elts] == ['true', 'false', '']
-    nodes = [c for c in calls if getattr(c.func, 'id', '') == 'Node']
+    nodes = [c for c in calls if getattr(c.func, 'id', '') == 'action']
     assert len(nodes) == 1
+    # autostart:=false: a launch_ros LifecycleNode for a lifecycle manager, else a Node
+    [choice] = [n.value for n in ast.walk(tree) if isinstance(n, ast.Assign)
+                and getattr(n.targets[0], 'id', '') == 'action']
+    assert {choice.body.id, choice.orelse.id} == {'LifecycleNode', 'Node'}
+    assert ast.unparse(choice.test).endswith("== 'false'") and choice.body.id == 'LifecycleNode'
+    [argument] = [c for c in calls if getattr(c.func, 'id', '') == 'DeclareLaunchArgument'
+                  and c.args and c.args[0].value == 'autostart']
+    assert {k.arg: k.value for k in argument.keywords}['default_value'].value == ''
     [parameters] = [k.value for k in nodes[0].keywords if k.arg == 'parameters']
     assert getattr(parameters.func, 'id', '') == 'launch_parameters'
 

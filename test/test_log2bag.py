@@ -6,7 +6,8 @@ stamp taken from the host clock could not pass). What must hold, per format: eve
 has exactly one battery_state per primary frame of the log, with the reference's values
 (the real device classes fed the log without ROS, as for replay-equals-live), header stamp
 and bag time equal to the frame's log timestamp to the microsecond; arrays come with each
-battery_state; /diagnostics comes every diagnostics_period of log time.
+battery_state; /diagnostics comes every diagnostics_period of log time (and early on a level
+change, as live).
 """
 import io
 import os
@@ -123,11 +124,20 @@ def test_bag_holds_what_the_bridge_publishes_on_log_time(base_log, tmp_path, fmt
 
     diagnostics = topics['/diagnostics']
     span = summary.last_stamp - summary.first_stamp
-    # one per period of log time, plus the final one at the end of the log
-    assert len(diagnostics) == int(span / DIAGNOSTICS_PERIOD) + 1
     first = summary.first_stamp
-    for k, (t_ns, msg) in enumerate(diagnostics[:-1]):
-        assert round(t_ns / 1000) == us(first + (k + 1) * DIAGNOSTICS_PERIOD)
+    # one per period of log time, plus the final one at the end of the log; besides them,
+    # as live, one early at a watch (every 0.2 s of log time) whose levels changed
+    grid = {us(first + (k + 1) * DIAGNOSTICS_PERIOD)
+            for k in range(int(span / DIAGNOSTICS_PERIOD))}
+    periodic = [round(t / 1000) for t, _ in diagnostics[:-1] if round(t / 1000) in grid]
+    assert periodic == sorted(grid)
+    early = [(t, m) for t, m in diagnostics[:-1] if round(t / 1000) not in grid]
+    assert early, 'no early diagnostics: the first watch always sees new levels'
+    levels = [tuple(s.level for s in m.status) for _, m in diagnostics[:-1]]
+    for t, msg in early:
+        k = next(i for i, (u, _) in enumerate(diagnostics) if u == t)
+        assert k == 0 or levels[k] != levels[k - 1], 'an early diagnostics without a change'
+        assert round((t / 1e9 - first) / 0.2, 3) % 1 == 0, 'early, off the watch grid'
     names = {s.name for s in diagnostics[-1][1].status}
     assert names == {f'ams_can_bridge: {n}' for n in (*DEVICES, 'CAN bus')}
     bus = {kv.key: kv.value for s in diagnostics[-1][1].status if s.name.endswith('CAN bus')

@@ -143,7 +143,9 @@ def test_only_the_supervisor_may_command_the_bridge_or_set_its_parameters(bridge
     assert len(commands) >= 18 and len(setters) == 2, services
     for service in services:
         assert own.allows('services', 'reply', service), f'the bridge may not serve {service}'
-    for service in commands + setters:
+    lifecycle = [s for s in services if s.endswith('/change_state')]  # deactivate = disarm
+    assert len(lifecycle) == 1, services
+    for service in commands + setters + lifecycle:
         assert supervisor.allows('services', 'request', service), service
         for path, profile in rules.items():
             if path != '/supervisor':

@@ -10,7 +10,7 @@ import can
 
 from ams_can_bridge.can_io.config import (
     BusConfig, BusState, BusStatus, DOWN_STATES, RETRY_STATES, UP_STATES)
-from ams_can_bridge.errors import CanSendError
+from ams_can_bridge.errors import CanIoError, CanSendError
 from ams_can_bridge.can_io.replay import ReplayBus
 from ams_can_bridge.can_io.slcan import open_bulk_slcan
 from ams_can_bridge.protocols.common import Frame
@@ -21,6 +21,7 @@ _RECV_TIMEOUT = 0.1     # s: how quickly the receive thread notices stop()
 _STATE_POLL = 0.5       # s: how often bus.state is asked (it may be a driver call)
 _SEND_TIMEOUT = 0.05    # s: a full TX queue is a dropped frame, not a stalled caller
 _CALLBACK_LOG_EVERY = 5.0  # s: throttle for errors raised by on_frame
+_JOIN_TIMEOUT = 10.0    # s: how long stop() and start() wait for the receive thread to end
 _UNREADABLE_LIMIT = 100  # unreadable driver messages in a row: the link itself is broken
 
 # SocketCAN error-frame encoding (linux/can/error.h); the virtual bus carries it unchanged.
@@ -91,8 +92,19 @@ class CanIo:
     # ----------------------------------------------------------------------------- public
     def start(self) -> None:
         """Open the recording (raises OSError/ValueError if impossible) and start receiving."""
-        if self._thread is not None:
-            return
+        old = self._thread
+        if old is not None:
+            if not self._stop.is_set():
+                return  # running
+            # A stop that gave up its join: the old thread ends when its driver call
+            # returns (it sees the stop). Clearing the stop now would revive it next to
+            # the new one: two threads reading, opening and closing one bus.
+            old.join(timeout=_JOIN_TIMEOUT)
+            if old.is_alive():
+                raise CanIoError(f'CAN bus {self.config.hardware_id}: the previous receive '
+                                 f'thread has not ended after {2 * _JOIN_TIMEOUT:g} s (a '
+                                 'driver call that does not return): not started again')
+            self._thread = None
         if self.config.record:
             try:
                 self._recorder = can.Logger(self.config.record)
@@ -107,9 +119,15 @@ class CanIo:
     def stop(self) -> None:
         """Stop the thread, shut the bus down and close the recording (idempotent)."""
         self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=10.0)
-            self._thread = None
+        thread = self._thread
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(timeout=_JOIN_TIMEOUT)
+            if thread.is_alive():  # kept: start() must not run a second one beside it
+                self._log.warning('CAN bus %s: the receive thread did not end within %g s '
+                                  '(a driver call hangs); it ends when the call returns',
+                                  self.config.hardware_id, _JOIN_TIMEOUT)
+            else:
+                self._thread = None
         self._close_bus()
         with self._rec_lock:
             recorder, self._recorder = self._recorder, None

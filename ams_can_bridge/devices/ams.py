@@ -320,11 +320,20 @@ class AmsDevice(Device):
         afterwards (lock order: never AMS -> IVT-S, so an IVT-S that some day calls into the
         AMS cannot deadlock against this).
         """
+        self._refresh_sensor()
+        return super().battery_report()
+
+    def snapshot(self) -> tuple[BatteryReport, dict[str, tuple[int, int, list[float]]]]:
+        """Return report and arrays of one moment (Device.snapshot), the IVT-S read first."""
+        self._refresh_sensor()
+        return super().snapshot()
+
+    def _refresh_sensor(self) -> None:
+        # the IVT-S lock alone first, then the AMS lock: never AMS -> IVT-S
         if self.current_sensor is not None:
             pack = self._read_sensor()
             with self.lock:
                 self._sensor_pack = pack
-        return super().battery_report()
 
     def _read_sensor(self) -> tuple[float, float]:
         """Voltage and current (ROS sign) of the IVT-S; call WITHOUT the AMS lock held."""
@@ -428,13 +437,12 @@ class AmsDevice(Device):
         """Return the last reading of kind (lock held), None if never or not within stale."""
         return self._latest.get(kind, self.clock(), self.stale_timeout)
 
-    def extra_arrays(self) -> dict[str, tuple[int, int, list[float]]]:
+    def _extra_arrays(self) -> dict[str, tuple[int, int, list[float]]]:
         """Temperatures and discharge temperatures, bank x sensor, NaN until received."""
-        with self.lock:
-            banks, now, age = self.bank_count, self.clock(), self._max_cell_age()
-            return {
-                'temperatures': (banks, proto.TEMPS_PER_BANK,
-                                 self._temps.banks(banks, now, age)),
-                'discharge_temperatures': (banks, proto.DISCHARGE_TEMPS_PER_BANK,
-                                           self._discharge.banks(banks, now, age)),
-            }
+        banks, now, age = self.bank_count, self.clock(), self._max_cell_age()
+        return {
+            'temperatures': (banks, proto.TEMPS_PER_BANK,
+                             self._temps.banks(banks, now, age)),
+            'discharge_temperatures': (banks, proto.DISCHARGE_TEMPS_PER_BANK,
+                                       self._discharge.banks(banks, now, age)),
+        }

@@ -322,6 +322,24 @@ class Device:
         report.serial_number = config.serial_number or ''
         return report
 
+    def snapshot(self) -> tuple[BatteryReport, dict[str, tuple[int, int, list[float]]]]:
+        """
+        Return the BatteryState report and the arrays of one moment (one lock acquisition).
+
+        The engine's view of a primary frame: a frame taken between the report and the
+        arrays could otherwise give a message whose arrays belong to the next frame.
+        """
+        with self.lock:
+            report = self._battery_report()
+            arrays = self._extra_arrays()
+            stale = self.is_stale()
+        if stale:
+            report = stale_report(report)
+        config = self.config
+        report.location = config.location or ''
+        report.serial_number = config.serial_number or ''
+        return report, arrays
+
     def diagnostic_report(self) -> DiagnosticReport:
         """Build level, one-line summary and every decoded field; STALE wins while silent."""
         with self.lock:
@@ -357,6 +375,11 @@ class Device:
 
     def extra_arrays(self) -> dict[str, tuple[int, int, list[float]]]:
         """List extra Float32MultiArray topics: '<suffix>' -> (rows, cols, row-major data)."""
+        with self.lock:
+            return self._extra_arrays()
+
+    def _extra_arrays(self) -> dict[str, tuple[int, int, list[float]]]:
+        """Build the extra arrays (lock held); the device types that have some."""
         return {}
 
 

@@ -1,11 +1,13 @@
 """
 ``log2bag``: a CAN log -> a rosbag2 of what the bridge would have published, offline.
 
-The log is decoded by the same devices with the same parameters file as the bridge
-(``DeviceSet``). Each primary frame becomes one ``<device>/battery_state`` (and the device's
-arrays), ``/diagnostics`` is written every ``diagnostics_period`` of log time, and every
-header stamp and bag time is the log's timestamp of the frame: the moment it was on the bus.
-The devices' clock is the log time too, so staleness follows the recording.
+The log goes through the bridge's own engine (``engine/core.py``) with the same parameters
+file, and a bag sink writes what it emits: each primary frame becomes one
+``<device>/battery_state`` (and the device's arrays), a silent device gets its
+``present: false`` message every second, ``/diagnostics`` is written every
+``diagnostics_period`` and early on a level change. The engine's clock is the log time: every
+header stamp and bag time is the log's timestamp of the frame (the moment it was on the bus)
+or the log moment the periodic work was due, and staleness follows the recording.
 
 Frames before ``--start`` are decoded but not written (the first message in the window
 carries the state the bus had built up); reading stops at ``--end``. Both are seconds from
@@ -29,11 +31,12 @@ from typing import Any, Sequence, TextIO
 
 from ams_can_bridge.can_io.config import BusState, BusStatus
 from ams_can_bridge.device_set import DeviceSet
+from ams_can_bridge.devices.base import BatteryReport
+from ams_can_bridge.engine.core import Arrays, Engine, Schedule, Statuses
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.offline.log_frames import LogFileError, LogFrames
 from ams_can_bridge.offline.params_file import FileParams, load_parameters
 from ams_can_bridge.parameters import BUS_PARAMS, NODE_PARAMS
-from ams_can_bridge.reports import bus_report
 
 NODE_NAME = 'ams_can_bridge'  # the bridge's default node name: its entry in params files
 PROGRESS_PERIOD = 0.2  # s between progress-bar redraws
@@ -87,8 +90,34 @@ class Summary:
         return '\n'.join(lines)
 
 
+class BagSink:
+    """The engine's bag sink: every message written at its stamp (muted before --start)."""
+
+    def __init__(self, hardware_id: str) -> None:
+        """Write nothing until ``bag`` is set and ``enabled`` is true."""
+        self.bag: Any = None
+        self.hardware_id = hardware_id
+        self.enabled = False
+
+    def battery(self, name: str, frame_id: str, report: BatteryReport, arrays: Arrays,
+                stamp: float) -> None:
+        """Write a BatteryState and its arrays, header stamp and bag time = stamp."""
+        if self.enabled:
+            self.bag.battery_state(f'/{name}/battery_state', report, frame_id, stamp)
+            for suffix, (rows, cols, data) in arrays.items():
+                self.bag.multi_array(f'/{name}/{suffix}', rows, cols, data, stamp)
+
+    def diagnostics(self, statuses: Statuses, stamp: float) -> None:
+        """Write one /diagnostics at stamp."""
+        if self.enabled:
+            self.bag.diagnostics(statuses, self.hardware_id, stamp)
+
+    def clock(self, stamp: float) -> None:
+        """Write nothing: a bag's time is its messages' own."""
+
+
 class Converter:
-    """Decode frames into the devices and write what the bridge would publish."""
+    """Feed frames to the engine on the log's time; the bag sink writes what it emits."""
 
     def __init__(self, parameters: dict, bag: Any, hardware_id: str,
                  node_name: str = NODE_NAME) -> None:
@@ -98,7 +127,7 @@ class Converter:
         node_name names the statuses as the live bridge does: with its namespace, without
         the leading slash ('car2/ams_can_bridge: ams').
         """
-        self.status_prefix = node_name.strip('/') or NODE_NAME
+        status_prefix = node_name.strip('/') or NODE_NAME
         params = FileParams(parameters)
         params.declare_all('can.', BUS_PARAMS)  # checked like the bridge's, not used
         node = params.declare_all('', NODE_PARAMS)
@@ -106,53 +135,55 @@ class Converter:
         self.devices = DeviceSet(node['devices'], params.declare, clock=lambda: self.now)
         params.raise_errors()
         self.diagnostics_period = node['diagnostics_period']
-        self.bag = bag
         self.hardware_id = hardware_id
+        self.sink = BagSink(hardware_id)
+        self.bag = bag
         self.frames_in = 0
         self.error_frames = 0
-        self._next_diagnostics = math.nan
+        self.state = BusState.CONNECTED
+        # the engine's clocks are the log's time: its periodic work runs at log moments
+        self.engine = Engine(self.devices, self.sink, status_prefix=status_prefix,
+                             interface='replay', bus_status=self._bus_status,
+                             now=lambda: self.now, monotonic=lambda: self.now)
+        self.schedule = Schedule(self.engine.schedule(self.diagnostics_period),
+                                 self._set_now)
+
+    @property
+    def bag(self) -> Any:
+        """Return the bag written to (None: nothing is written)."""
+        return self.sink.bag
+
+    @bag.setter
+    def bag(self, bag: Any) -> None:
+        self.sink.bag = bag
+
+    def _set_now(self, now: float) -> None:
+        self.now = now
+
+    def _bus_status(self) -> BusStatus:
+        return BusStatus(state=self.state, reason='', frames_in=self.frames_in, frames_out=0,
+                         frames_dropped_tx=0, error_frames=self.error_frames, reconnects=0,
+                         hardware_id=self.hardware_id)
 
     def frame(self, arbitration_id: int, data: bytes, is_extended_id: bool, stamp: float,
               write: bool) -> None:
         """Apply one frame at log time stamp; write its messages when write is true."""
-        if write and not stamp < self._next_diagnostics:  # NaN: the first written frame
-            self._diagnostics_until(stamp)
+        if write:  # the periodic work due before this frame, each at its own moment
+            if self.schedule.started:
+                self.schedule.run_until(stamp)
+            else:  # the first written frame starts the grid
+                self.schedule.start(stamp)
         self.now = stamp
         self.frames_in += 1
-        for device in self.devices.handle_frame(arbitration_id, data, is_extended_id, stamp):
-            if write:
-                self._write_device(device.name, stamp)
+        self.sink.enabled = write
+        self.engine.on_frame(arbitration_id, data, is_extended_id, stamp)
 
-    def _write_device(self, name: str, stamp: float) -> None:
-        device = self.devices.devices[name]
-        frame_id = self.devices.devices[name].config.frame_id or ''
-        self.bag.battery_state(f'/{name}/battery_state', device.battery_report(), frame_id,
-                               stamp)
-        for suffix, (rows, cols, data) in device.extra_arrays().items():
-            self.bag.multi_array(f'/{name}/{suffix}', rows, cols, data, stamp)
-
-    def _diagnostics_until(self, stamp: float) -> None:
-        """Write the diagnostics due up to stamp, each at its own moment of log time."""
-        if math.isnan(self._next_diagnostics):
-            self._next_diagnostics = stamp + self.diagnostics_period
-            return
-        while stamp >= self._next_diagnostics:
-            self.now = self._next_diagnostics
-            self.write_diagnostics(self.now)
-            self._next_diagnostics += self.diagnostics_period
-
-    def write_diagnostics(self, stamp: float,
-                          state: BusState = BusState.CONNECTED) -> None:
-        """Write one /diagnostics: every device and the (replayed) CAN bus, as the bridge."""
-        statuses = [(f'{self.status_prefix}: {name}', device.diagnostic_report())
-                    for name, device in self.devices.devices.items()]
-        malformed = sum(d.frames_malformed for d in self.devices.devices.values())
-        status = BusStatus(state=state, reason='', frames_in=self.frames_in, frames_out=0,
-                           frames_dropped_tx=0, error_frames=self.error_frames, reconnects=0,
-                           hardware_id=self.hardware_id)
-        statuses.append((f'{self.status_prefix}: CAN bus',
-                         bus_report(status, malformed, 'replay')))
-        self.bag.diagnostics(statuses, self.hardware_id, stamp)
+    def finish(self, stamp: float) -> None:
+        """Write the last /diagnostics at the end of the log: the replay finished."""
+        self.now = stamp
+        self.state = BusState.REPLAY_FINISHED
+        self.sink.enabled = True
+        self.engine.publish_diagnostics()
 
 
 class Progress:
@@ -304,7 +335,7 @@ def _convert(log: str, frames: LogFrames, converter: Converter, bag: Any,
                             write)
             last = stamp
         check_frames(log, frames, summary, start, first, last)
-        converter.write_diagnostics(last, state=BusState.REPLAY_FINISHED)
+        converter.finish(last)
         summary.last_stamp = last
     finally:
         frames.close()

@@ -5,6 +5,11 @@ Entry point of the ``bridge`` executable: the bridge node on a multi-threaded ex
 0 after Ctrl-C / SIGTERM (clean shutdown: the CAN thread is joined, the bus closed) and after
 ``-h``/``--help`` (usage, ROS is not started), 2 when the parameters cannot work (the error
 names the parameter and what to change) or an argument outside ``--ros-args`` is not known.
+
+The node is a lifecycle node: with ``autostart`` (default true) it configures and activates
+itself in its constructor, so a bad parameter still ends the process with exit 2 here; with
+``autostart: false`` it waits unconfigured and a lifecycle manager drives it through
+``/<node>/change_state`` (a failed configure is answered there, the process keeps running).
 """
 from __future__ import annotations
 
@@ -43,6 +48,7 @@ main parameters:
   devices            device instances, e.g. [ams, ivt_s]; each has <name>.type and its IDs
   commands_allowed   launch-only first key of the transmit gate (default false)
   commands_enabled   second key: nothing is ever sent while false (default false)
+  autostart          lifecycle: false waits unconfigured for a manager (default true)
 
 A key the bridge does not know, a bad value or overlapping device IDs stop it (exit 2)
 naming what to change. Every parameter, service and failure mode is in README.md of the

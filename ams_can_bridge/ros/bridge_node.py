@@ -1,16 +1,17 @@
 """
-The ``bridge`` node: CAN frames -> device state -> BatteryState, arrays and /diagnostics.
+The ``bridge`` node: the ROS adapter of the engine, its parameters and its services.
 
-Threads: the CanIo receive thread decodes every frame into its devices (``handle_frame``)
-and, on a primary status frame, publishes that device's BatteryState and arrays itself
-(rclpy publishers are thread-safe). So every primary frame becomes exactly one message
-with the values of that moment, a replay at rate 0 is paced by publishing (nothing queued,
-nothing lost), and the executor is not woken per frame: profiles showed the executor's
-wake-up (rebuilding its wait set) costing more than the decoding itself. The executor runs
-only the services: the periodic work (diagnostics, stale messages, the watch that notices
-state and level changes) runs on a thread of its own (``Periodic``), so an idle bridge
-wakes no executor at all. Services that wait go in ``service_group`` (reentrant), and
-telemetry keeps flowing while a command waits for the device.
+Data: the CanIo receive thread hands every frame to the ``Engine``, which decodes it into
+the devices and, on a primary status frame, emits that device's BatteryState and arrays into
+the node's ``RosSink`` (``ros/sink.py``) on the same thread (rclpy publishers are
+thread-safe). So every primary frame becomes exactly one message with the values of that
+moment, a replay at rate 0 is paced by publishing (nothing queued, nothing lost), and the
+executor is not woken per frame: profiles showed the executor's wake-up (rebuilding its wait
+set) costing more than the decoding itself. The executor runs only the services: the
+engine's periodic work (diagnostics, stale messages, the watch that notices state and level
+changes) runs on a thread of its own (``Periodic``), so an idle bridge wakes no executor at
+all. Services that wait go in ``service_group`` (reentrant), and telemetry keeps flowing
+while a command waits for the device.
 
 COMMANDERS seam (the command services live in other modules). For each device instance
 whose type is in ``ams_can_bridge.registry.COMMANDERS`` the node builds ``cls(node, device,
@@ -38,42 +39,32 @@ import logging
 import math
 import threading
 import time
+import traceback
 from typing import Any
 
-from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import SetParametersResult
-from rosgraph_msgs.msg import Clock
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.node import Node
+from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from rclpy.parameter import Parameter
-from sensor_msgs.msg import BatteryState
-from std_msgs.msg import Float32MultiArray
 
-from ams_can_bridge import registry, reports
+from ams_can_bridge import registry
 from ams_can_bridge.can_io import BusConfig, CanIo, CanSendError, parse_options
-from ams_can_bridge.can_io.config import RETRY_STATES
+from ams_can_bridge.can_io.config import BusState, BusStatus, RETRY_STATES
 from ams_can_bridge.can_io.core import STATE_CHANGE_FORMAT
 from ams_can_bridge.device_set import DeviceSet, unknown_parameter_errors
 from ams_can_bridge.devices.base import Device
+from ams_can_bridge.engine.core import Engine
 from ams_can_bridge.errors import ConfigError
+from ams_can_bridge.parameters import AUTOSTART
 from ams_can_bridge.periodic import Periodic
 from ams_can_bridge.protocols.common import Frame
-from ams_can_bridge.ros import convert, diag_cdr
 from ams_can_bridge.ros.bus_log import BusStateLog
 from ams_can_bridge.ros.commander import Commander
 from ams_can_bridge.ros.convert import format_ids, RosLogHandler
 from ams_can_bridge.ros.params import BUS_PARAMS, NODE_PARAMS, ParamError, ParamRegistry
+from ams_can_bridge.ros.sink import RosSink
 
 NODE_NAME = 'ams_can_bridge'
-MALFORMED_LOG_PERIOD = 5.0  # s between malformed-frame log lines per device
-STALE_PUBLISH_PERIOD = 1.0  # s, battery_state present:false while stale
-WATCH_PERIOD = 0.2  # s, how fast bus state / staleness transitions are noticed
-# s: a device that keeps taking frames has its level rebuilt at most this often by the watch
-# (a report costs 40-150 us; at full load every device changes every watch, and rebuilding
-# all five reports 5 times a second was a third of the bridge's own CPU). A staleness change
-# and the first frame after a quiet spell are still noticed at the next watch.
-LEVEL_RECHECK_PERIOD = 0.5
-TELEMETRY_DEPTH = 100  # history of battery_state / array publishers
 # Commands that may wait for a down bus at once. A waiting call holds an executor thread
 # (the bridge runs 4): at most 2 wait, so telemetry, /diagnostics and the parameter
 # services (disarming) always keep a thread; a further command fails at once instead.
@@ -100,7 +91,7 @@ def arming_refused() -> str:
             'bridge.launch.py commands_allowed:=..., when given, replaces the params file value')
 
 
-class BridgeNode(Node):
+class BridgeNode(LifecycleNode):
     """Bridge battery-management CAN devices to ROS topics and diagnostics."""
 
     def __init__(self, node_name: str = NODE_NAME, **kwargs: Any) -> None:
@@ -116,18 +107,72 @@ class BridgeNode(Node):
         self.can_io: CanIo | None = None
         self._ready = False
         self._replaying = False
-        self._levels: dict[str, int] = {}
-        # name -> (device revision, stale, level, monotonic time of the rebuild): a report
-        # is rebuilt only after a change (see LEVEL_RECHECK_PERIOD).
-        self._level_cache: dict[str, tuple[int, bool, int, float]] = {}
-        # name -> (device revision, BatteryState, [(publisher, array msg)])
-        self._stale_msgs: dict[str, tuple[int, Any, list]] = {}
-        self._malformed_logged: dict[str, tuple[int, float]] = {}
-        self._stale: dict[str, bool] = {}
-        self._heard: set[str] = set()
         self._heartbeats: dict[str, bool] = {}  # commander name -> heartbeat running (logged)
+        self._active = False
+        self._armed_at_launch = False  # commands_enabled: true given at launch, not autostart
+        self._start_error: ConfigError | None = None
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
+        self.autostart = self.params.declare('autostart', AUTOSTART)
+        if self.autostart is not False:  # unusable (None): configured, and its error named
+            if self.trigger_configure() != TransitionCallbackReturn.SUCCESS:
+                error = self._start_error or ConfigError('the bridge could not be configured')
+                self.destroy_node()
+                raise error
+            self.trigger_activate()
+
+    # --- lifecycle --------------------------------------------------------------------------
+    def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Check every parameter, build the devices and the engine, open the bus."""
+        try:
+            self._setup()
+        except ConfigError as exc:
+            self._start_error = exc
+            self._release()
+            if not self.autostart:  # autostart: the constructor raises it (exit 2)
+                self.get_logger().error(f'cannot configure: {exc}')
+            return TransitionCallbackReturn.FAILURE
+        except Exception:  # a bug, not a setting: named with its traceback
+            self.get_logger().error(f'configure failed:\n{traceback.format_exc()}')
+            self._release()
+            raise
+        self._start_error = None
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Publish (telemetry, stale messages, diagnostics); commands follow the gate."""
+        self.sink.enabled = True
+        self._active = True
+        self.periodic.start()
+        if self._armed_at_launch:  # commands_enabled: true at launch applies when active
+            self._armed_at_launch = False
+            self.set_parameters([Parameter('commands_enabled', value=True)])
+        self._log_heartbeats()  # commands_enabled at launch: the heartbeat runs already
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Become a pure listener: commands off (nothing is sent), nothing published."""
+        self._active = False
+        if self.commands_enabled:
+            self.set_parameters([Parameter('commands_enabled', value=False)])
+        self.periodic.stop()
+        self.sink.enabled = False
+        self.get_logger().info('inactive: decoding, publishing nothing, sending nothing')
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Release everything configure built: bus closed, threads joined, services gone."""
+        self._release()
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Release everything, from whichever state."""
+        self._active = False
+        self._release()
+        return TransitionCallbackReturn.SUCCESS
+
+    def _setup(self) -> None:
+        """Configure (raise ConfigError naming every bad value), then open the bus."""
         try:
             try:
                 self._configure()
@@ -145,13 +190,33 @@ class BridgeNode(Node):
                     self.params.raise_errors()
                 except ParamError as every:
                     exc = every
-            self.destroy_node()
+            self.params.errors = []  # a later configure judges the values afresh
             raise ConfigError(str(exc)) from None
         self._ready = True
         self.can_io.start()
-        self.periodic.start()
         self._log_summary()
-        self._log_heartbeats()  # commands_enabled at launch: the heartbeat runs already
+
+    def _release(self) -> None:
+        """Stop the periodic work, the commanders and the bus thread; drop the publishers."""
+        self._ready = False
+        self._active = False
+        periodic = getattr(self, 'periodic', None)
+        if periodic is not None:
+            periodic.stop()
+        for commander in self.commanders.values():
+            commander.destroy()
+        if self.context.ok():  # after Ctrl-C the logger may be gone with the context
+            self._log_heartbeats('the bridge is shutting down')
+        self.commanders.clear()
+        if self.can_io is not None:
+            self.can_io.stop()
+            self.can_io = None
+        sink = getattr(self, 'sink', None)
+        if sink is not None:
+            sink.enabled = False
+            for publisher in sink.publishers():
+                self.destroy_publisher(publisher)
+            self.sink = None
 
     # --- set-up ---------------------------------------------------------------------------
     def _unknown_parameters(self) -> list[str]:
@@ -165,6 +230,11 @@ class BridgeNode(Node):
         self.diagnostics_period = node['diagnostics_period']
         self.commands_allowed = node['commands_allowed']
         self.commands_enabled = node['commands_enabled']
+        if self.commands_enabled and not self.autostart:
+            # configured, not active: nothing may be sent; activate arms it as given
+            self.commands_enabled = False
+            self._armed_at_launch = self.commands_allowed
+            self.set_parameters([Parameter('commands_enabled', value=False)])
         if self.commands_enabled and not self.commands_allowed:
             self.params.errors.append(arming_refused())
             self.commands_enabled = False
@@ -198,7 +268,6 @@ class BridgeNode(Node):
                               "(set can.interface to 'replay', or replay_clock to false)")
         self.device_set = DeviceSet(node['devices'], self.params.declare)
         self.devices = self.device_set.devices
-        self._stale = {name: True for name in self.devices}
         if self.params.errors:
             return  # the node will not start (raise_errors): no bus, no publishers
         filters = self.device_set.filters
@@ -210,30 +279,28 @@ class BridgeNode(Node):
         # (once per change, with what happens next), so only CanIo's other problems pass.
         can_logger.setLevel(logging.WARNING)
         can_logger.addFilter(lambda record: record.msg != STATE_CHANGE_FORMAT)
-        self.can_io = CanIo(self.bus_config, self._on_frame, filters, can_logger)
+        self.can_io = CanIo(self.bus_config, self.engine.on_frame, filters, can_logger)
 
     def _make_publishers(self) -> None:
-        self.battery_pubs = {}
-        self.array_pubs: dict[str, dict[str, Any]] = {}
-        for name, device in self.devices.items():
-            self.battery_pubs[name] = self.create_publisher(
-                BatteryState, f'{name}/battery_state', TELEMETRY_DEPTH)
-            self.array_pubs[name] = {
-                suffix: self.create_publisher(
-                    Float32MultiArray, f'{name}/{suffix}', TELEMETRY_DEPTH)
-                for suffix in device.extra_arrays()}
-        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        encoder = diag_cdr.DiagnosticsEncoder()
-        self._diag_encoder = encoder if encoder.check() else None
-        self._raw_telemetry = diag_cdr.check_telemetry()
+        self.sink = RosSink(self, {name: list(device.extra_arrays())
+                                   for name, device in self.devices.items()},
+                            self.hardware_id, self._replay_clock,
+                            alive=lambda: self._ready and self.context.ok())
+        self._closed_status = BusStatus(
+            state=BusState.STOPPED, reason='', frames_in=0, frames_out=0, frames_dropped_tx=0,
+            error_frames=0, reconnects=0, hardware_id=self.hardware_id)
+        engine_logger = self._stdlib_logger('engine')
+        engine_logger.setLevel(logging.DEBUG)  # the rclpy logger decides what is shown
+        self.engine = Engine(
+            self.device_set, self.sink, status_prefix=self.status_prefix(),
+            interface=self.bus_config.interface, bus_status=self._bus_status, now=self._now,
+            bus_values=self._bus_values, on_bus_status=self._bus_log.update,
+            logger=engine_logger)
         # One thread for all periodic work (see periodic.py: why not executor timers).
         self.periodic = Periodic(f'{NODE_NAME}-periodic', self._stdlib_logger('periodic'))
-        self.periodic.every(self.diagnostics_period, self.publish_diagnostics)
-        self.periodic.every(STALE_PUBLISH_PERIOD, self._publish_stale)
-        self.periodic.every(WATCH_PERIOD, self._watch)
+        for period, call in self.engine.schedule(self.diagnostics_period):
+            self.periodic.every(period, call)
         if self._replay_clock:
-            self.clock_pub = self.create_publisher(Clock, '/clock', 10)
-            self._clock_sent = math.nan
             self.periodic.every(CLOCK_PERIOD, self._publish_clock)
 
     def _stdlib_logger(self, part: str) -> logging.Logger:
@@ -278,132 +345,15 @@ class BridgeNode(Node):
                 'status. Set devices to your instances in the params file (e.g. devices: '
                 '[ams, ivt_s], see config/*.yaml) or --ros-args -p "devices:=[bms16]"')
 
-    # --- receive thread -------------------------------------------------------------------
+    # --- the engine's clocks and hooks -----------------------------------------------------
     def _on_frame(self, arbitration_id: int, data: bytes, is_extended_id: bool,
                   stamp: float) -> None:
-        for device in self.device_set.handle_frame(arbitration_id, data, is_extended_id,
-                                                   stamp):
-            self._publish_battery(device)
-
-    # --- publishing -----------------------------------------------------------------------
-    def _publish_battery(self, device: Device) -> None:
-        # serialized by diag_cdr.py and published raw unless its start check failed
-        self._publish_messages(device.name, *self._messages(
-            device.name, device.battery_report(), raw=self._raw_telemetry))
-
-    def _publish_stale_battery(self, name: str) -> None:
-        device = self.devices[name]
-        revision = device.revision
-        cached = self._stale_msgs.get(name)
-        if cached is None or cached[0] != revision:
-            report = device.battery_report()
-            # A frame may have arrived since is_stale() said so: that frame publishes
-            # itself; publishing here too would give one primary frame two present messages.
-            if report.present:
-                return
-            # Nothing in a silent device's message changes until a frame or a parameter does
-            # (its revision): build it once, republish it every second (idle CPU).
-            cached = (revision, *self._messages(name, report))
-            self._stale_msgs[name] = cached
-        # A present: false message says "nothing heard, as of now": stamped when published
-        # (a replay's log time), never with the last frame's time, which would make a
-        # silent device look as if its last message had just been repeated.
-        cached[1].header.stamp = convert.stamp_msg(self._now())
-        self._publish_messages(name, cached[1], cached[2])
-
-    def _messages(self, name: str, report: Any,
-                  raw: bool = False) -> tuple[Any, list[tuple[Any, Any]]]:
-        """
-        Build a device's BatteryState and its arrays' messages (with their publishers).
-
-        raw: as CDR bytes (diag_cdr.py; rclpy's conversion of the objects was most of a
-        publish), else as message objects (the stale messages, whose stamp may move).
-        """
-        device = self.devices[name]
-        build = diag_cdr if raw else convert
-        battery = build.battery_state(report, device.config.frame_id or '', self._now())
-        pubs = self.array_pubs[name]
-        if not pubs:
-            return battery, []
-        # The arrays follow their BatteryState: while it says present: false (the device
-        # is silent) they are NaN, not the last values, for every array of every device.
-        arrays = [(pubs[suffix], build.multi_array(
-                      rows, cols, data if report.present else [math.nan] * len(data)))
-                  for suffix, (rows, cols, data) in device.extra_arrays().items()
-                  if suffix in pubs]
-        return battery, arrays
-
-    def _publish_messages(self, name: str, battery: Any, arrays: list[tuple[Any, Any]]) -> None:
-        self._publish(self.battery_pubs[name], battery)
-        for publisher, msg in arrays:
-            self._publish(publisher, msg)
-
-    def _publish(self, publisher: Any, msg: Any) -> None:
-        """Publish from the receive or periodic thread; after a shutdown, drop the message."""
-        try:
-            publisher.publish(msg)
-        except Exception:
-            # Ctrl-C / SIGTERM shuts the context down under these threads before the node
-            # stops them: 'context is invalid' then means "going away", not a failure.
-            if self._ready and self.context.ok():
-                raise
-
-    def _publish_stale(self) -> None:
-        for name, device in self.devices.items():
-            if device.is_stale():
-                self._publish_stale_battery(name)
-
-    def _statuses(self) -> list[tuple[str, Any]]:
-        statuses = []
-        for name, device in self.devices.items():
-            revision, stale = device.revision, device.is_stale()
-            report = device.diagnostic_report()
-            self._level_cache[name] = (revision, stale, int(report.level), time.monotonic())
-            statuses.append((name, report))
-        statuses.append(('CAN bus', self._bus_report()))
-        return statuses
-
-    def _device_level(self, name: str, stale: bool | None = None) -> int:
-        """Return a device's diagnostic level, rebuilding its report only after a change."""
-        device = self.devices[name]
-        revision = device.revision
-        if stale is None:
-            stale = device.is_stale()
-        cached = self._level_cache.get(name)
-        now = time.monotonic()
-        if (cached is None or cached[1] != stale
-                or (cached[0] != revision and now - cached[3] >= LEVEL_RECHECK_PERIOD)):
-            cached = (revision, stale, int(device.diagnostic_level()), now)
-            self._level_cache[name] = cached
-        return cached[2]
-
-    def _bus_report(self) -> Any:
-        status = self.can_io.status()
-        malformed = sum(d.frames_malformed for d in self.devices.values())
-        report = convert.bus_report(status, malformed, self.bus_config.interface)
-        report.values['commands_allowed'] = str(self.commands_allowed).lower()
-        report.values['commands_enabled'] = str(self.commands_enabled).lower()
-        report.values['commands_enabled changes'] = str(self.commands_changes)
-        return report
-
-    def _levels_changed(self, status: Any, stale: dict[str, bool] | None = None) -> bool:
-        stale = stale or {}
-        levels = {name: self._device_level(name, stale.get(name)) for name in self.devices}
-        levels['CAN bus'] = int(reports.bus_level(status))
-        return levels != self._levels
+        """Hand one frame to the engine (the bus thread; bench/bench_own_path.py calls it)."""
+        self.engine.on_frame(arbitration_id, data, is_extended_id, stamp)
 
     def publish_diagnostics(self) -> None:
-        """Publish one DiagnosticArray: every device plus the CAN bus."""
-        stamp = self._now()
-        node = self.status_prefix()
-        named = self._statuses()
-        self._levels = {name: int(report.level) for name, report in named}
-        statuses = [(f'{node}: {name}', report) for name, report in named]
-        if self._diag_encoder is not None:  # serialized here (diag_cdr.py), published raw
-            msg = self._diag_encoder.encode(stamp, statuses, self.hardware_id)
-        else:
-            msg = diag_cdr.diagnostic_array(stamp, statuses, self.hardware_id)
-        self._publish(self.diag_pub, msg)
+        """Publish one DiagnosticArray now: every device plus the CAN bus."""
+        self.engine.publish_diagnostics()
 
     def status_prefix(self) -> str:
         """
@@ -414,10 +364,7 @@ class BridgeNode(Node):
         its leading slash tells them apart ('car2/ams_can_bridge: ams'), and is the plain
         node name for a bridge without a namespace.
         """
-        prefix = getattr(self, '_status_prefix', None)
-        if prefix is None:
-            prefix = self._status_prefix = self.get_fully_qualified_name().lstrip('/')
-        return prefix
+        return self.get_fully_qualified_name().lstrip('/')
 
     def _now(self) -> float:
         """Return the time to stamp with when no frame gives one: a replay's log time."""
@@ -427,38 +374,20 @@ class BridgeNode(Node):
                 return stamp
         return time.time()
 
-    def _publish_clock(self) -> None:
-        stamp = self.can_io.last_stamp if self.can_io is not None else math.nan
-        if math.isfinite(stamp) and stamp != self._clock_sent:
-            self._clock_sent = stamp
-            self._publish(self.clock_pub, Clock(clock=convert.stamp_msg(stamp)))
+    def _bus_status(self) -> Any:
+        can_io = self.can_io
+        if can_io is None:
+            return self._closed_status
+        return can_io.status()
 
-    def _watch(self) -> None:
-        status = self.can_io.status()
-        self._bus_log.update(status)
-        now = time.monotonic()
-        for name, device in self.devices.items():
-            stale = device.is_stale()
-            if stale != self._stale[name]:
-                self._stale[name] = stale
-                if stale:
-                    self.get_logger().warning(
-                        f'{name}: no status frame for {device.stale_timeout:g} s: STALE')
-                    self._publish_stale_battery(name)
-                elif name in self._heard:
-                    self.get_logger().info(f'{name}: receiving again')
-                else:
-                    self.get_logger().info(f'{name}: first status frame received')
-                self._heard.add(name)
-            count = device.frames_malformed
-            logged, at = self._malformed_logged.get(name, (0, -math.inf))
-            if count > logged and now - at >= MALFORMED_LOG_PERIOD:
-                self._malformed_logged[name] = (count, now)
-                self.get_logger().warning(
-                    f'{name}: {count} malformed frame(s) so far, dropped; last: '
-                    f'{device.last_malformed}')
-        if self._levels_changed(status, self._stale):
-            self.publish_diagnostics()
+    def _bus_values(self) -> dict[str, str]:
+        return {'commands_allowed': str(self.commands_allowed).lower(),
+                'commands_enabled': str(self.commands_enabled).lower(),
+                'commands_enabled changes': str(self.commands_changes)}
+
+    def _publish_clock(self) -> None:
+        can_io = self.can_io
+        self.engine.publish_clock(can_io.last_stamp if can_io is not None else math.nan)
 
     # --- commands seam --------------------------------------------------------------------
     def wait_for_bus(self, limit: float | None = None) -> tuple[bool, str]:
@@ -597,6 +526,10 @@ class BridgeNode(Node):
                     and param.value is True and not self.commands_allowed):
                 reason = arming_refused()
                 self.get_logger().warning(f'refused: {reason}')
+            if (reason is None and self._ready and not self._active and param.value is True
+                    and param.name == 'commands_enabled'):
+                reason = ('commands_enabled = true refused: the bridge is inactive (lifecycle): '
+                          'activate it first (ros2 lifecycle set /ams_can_bridge activate)')
             prefix, _, key = param.name.partition('.')
             if reason is None and self._ready and prefix in self.devices and key:
                 reason = self.devices[prefix].config_reason(key, self.params.value(param))
@@ -639,17 +572,9 @@ class BridgeNode(Node):
 
     # --- shutdown -------------------------------------------------------------------------
     def destroy_node(self) -> None:
-        """Stop the periodic work, the commanders and the bus thread (closes the bus)."""
-        self._ready = False
-        periodic = getattr(self, 'periodic', None)
-        if periodic is not None:
-            periodic.stop()
-        for commander in self.commanders.values():
-            commander.destroy()
-        if self.context.ok():  # after Ctrl-C the logger may be gone with the context
-            self._log_heartbeats('the bridge is shutting down')
-        self.commanders.clear()
-        if self.can_io is not None:
-            self.can_io.stop()
-            self.can_io = None
+        """Release everything (as on_shutdown) and destroy the node."""
+        self._release()
         super().destroy_node()
+        # rclpy (Jazzy) leaves the lifecycle state machine alive, and with it the node's
+        # handle and its DDS participant (11 file descriptors per node, never freed)
+        self._state_machine.destroy_when_not_in_use()

@@ -12,6 +12,7 @@ import re
 from typing import Any, Iterable
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.exceptions import ParameterUninitializedException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 import yaml
@@ -71,6 +72,13 @@ class ParamRegistry:
         Raises ParamError naming the parameter when the value given (override) is unusable.
         """
         self.specs[name] = spec
+        if self.node.has_parameter(name):  # configured again (lifecycle): as it stands
+            try:
+                value = self.node.get_parameter(name).value
+            except ParameterUninitializedException:  # declared unset: no value given
+                value = None
+            value = coerce(name, spec, value)
+            return [] if value is None and spec.default == [] else value
         desc = descriptor(spec)
         # Check the value from the params file / overrides with our own rules first, so the
         # user gets our message, and every bad value at once (rclpy stops at the first).

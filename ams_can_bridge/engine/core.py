@@ -1,0 +1,262 @@
+"""
+The engine: every "what to emit, and when" decision of the bridge, without ROS.
+
+Data flows bus -> ``on_frame`` -> devices -> one snapshot of a primary frame -> ``Sink``.
+The engine also owns the periodic decisions: a ``present: false`` BatteryState every
+second while a device is silent, /diagnostics every ``diagnostics_period`` and early when
+a level changes (the watch), and the CAN bus report. The live node drives it with the
+monotonic clock and a thread of its own (``Periodic``); ``log2bag`` drives the same engine
+with the log's time (``Schedule``), so a bag holds what the live bridge publishes.
+
+Threads (live): ``on_frame`` runs on the bus thread, the periodic work on another. A
+device's BatteryState is emitted under ``_emit``: a staleness check and its ``present:
+false`` message are one step, so a fresh ``present: true`` can never be overtaken by a
+stale message decided just before it (test_engine.py).
+"""
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from typing import Callable, Protocol
+
+from ams_can_bridge import reports
+from ams_can_bridge.can_io.config import BusStatus
+from ams_can_bridge.device_set import DeviceSet
+from ams_can_bridge.devices.base import BatteryReport, DiagnosticReport
+
+Arrays = dict[str, tuple[int, int, list[float]]]
+Statuses = list[tuple[str, DiagnosticReport]]
+
+MALFORMED_LOG_PERIOD = 5.0  # s between malformed-frame log lines per device
+STALE_PUBLISH_PERIOD = 1.0  # s, battery_state present:false while stale
+WATCH_PERIOD = 0.2  # s, how fast bus state / staleness transitions are noticed
+# s: a device that keeps taking frames has its level rebuilt at most this often by the watch
+# (a report costs 40-150 us; at full load every device changes every watch, and rebuilding
+# all five reports 5 times a second was a third of the bridge's own CPU). A staleness change
+# and the first frame after a quiet spell are still noticed at the next watch.
+LEVEL_RECHECK_PERIOD = 0.5
+
+
+class Sink(Protocol):
+    """Where the engine's messages go: the ROS node, a bag, a test's list."""
+
+    def battery(self, name: str, frame_id: str, report: BatteryReport, arrays: Arrays,
+                stamp: float) -> None:
+        """
+        Emit a device's BatteryState (header stamp ``stamp``) and its arrays.
+
+        A repeated stale message passes the very same ``report`` object again: a sink may
+        keep what it built from it and only restamp it.
+        """
+
+    def diagnostics(self, statuses: Statuses, stamp: float) -> None:
+        """Emit one DiagnosticArray of (full status name, report)."""
+
+    def clock(self, stamp: float) -> None:
+        """Emit the replayed log time (/clock)."""
+
+
+class Engine:
+    """Frames in, messages out: device snapshots, stale messages, diagnostics, bus report."""
+
+    def __init__(self, device_set: DeviceSet, sink: Sink, *, status_prefix: str,
+                 interface: str, bus_status: Callable[[], BusStatus],
+                 now: Callable[[], float], monotonic: Callable[[], float] = time.monotonic,
+                 bus_values: Callable[[], dict[str, str]] | None = None,
+                 on_bus_status: Callable[[BusStatus], None] | None = None,
+                 logger: logging.Logger | None = None) -> None:
+        """
+        Wire the engine; nothing is emitted until frames or the periodic calls come.
+
+        ``now``: the stamp of a message no frame stamps (wall time live, the log's time in
+        a replay or offline); ``monotonic``: the clock of the level cache and the malformed
+        log throttle; ``bus_values``: extra values of the CAN bus report (the node's
+        command keys); ``on_bus_status``: sees every bus status the watch takes (logging).
+        """
+        self.device_set = device_set
+        self.devices = device_set.devices
+        self.sink = sink
+        self.status_prefix = status_prefix
+        self.interface = interface
+        self.bus_status = bus_status
+        self.now = now
+        self.monotonic = monotonic
+        self.bus_values = bus_values
+        self.on_bus_status = on_bus_status
+        self.log = logger or logging.getLogger('ams_can_bridge.engine')
+        self._emit = threading.Lock()  # a device's staleness check + its message: one step
+        self._levels: dict[str, int] = {}
+        # name -> (device revision, stale, level, monotonic time of the rebuild)
+        self._level_cache: dict[str, tuple[int, bool, int, float]] = {}
+        # name -> (device revision, stale report, stale arrays): built once while silent
+        self._stale_msgs: dict[str, tuple[int, BatteryReport, Arrays]] = {}
+        self._malformed_logged: dict[str, tuple[int, float]] = {}
+        self._stale = {name: True for name in self.devices}
+        self._heard: set[str] = set()
+        self._clock_sent = math.nan
+
+    # --- bus thread -------------------------------------------------------------------------
+    def on_frame(self, arbitration_id: int, data: bytes, is_extended_id: bool,
+                 stamp: float) -> None:
+        """Decode one frame; emit the BatteryState of every device it was primary for."""
+        primaries = self.device_set.handle_frame(arbitration_id, data, is_extended_id, stamp)
+        if primaries:
+            with self._emit:
+                for device in primaries:
+                    self._emit_snapshot(device.name, stamp)
+
+    def _emit_snapshot(self, name: str, stamp: float) -> None:
+        device = self.devices[name]
+        report, arrays = device.snapshot()
+        if not report.present:
+            arrays = _nan_arrays(arrays)
+        elif math.isfinite(report.stamp):
+            stamp = report.stamp
+        self.sink.battery(name, device.config.frame_id or '', report, arrays, stamp)
+
+    # --- periodic work ------------------------------------------------------------------------
+    def publish_stale(self) -> None:
+        """Emit ``present: false`` for every silent device (every STALE_PUBLISH_PERIOD)."""
+        for name, device in self.devices.items():
+            if device.is_stale():
+                self._emit_stale(name)
+
+    def _emit_stale(self, name: str) -> None:
+        device = self.devices[name]
+        with self._emit:
+            revision = device.revision
+            cached = self._stale_msgs.get(name)
+            if cached is None or cached[0] != revision:
+                report, arrays = device.snapshot()
+                # A frame may have come since is_stale() said so: that frame emitted itself.
+                if report.present:
+                    return
+                # Nothing in a silent device's message changes until a frame or a parameter
+                # does (its revision): built once, emitted again every second (idle CPU).
+                cached = (revision, report, _nan_arrays(arrays))
+                self._stale_msgs[name] = cached
+            # "Nothing heard, as of now": stamped when emitted, never with the last frame's
+            # time, which would make a silent device look as if it had just been repeated.
+            self.sink.battery(name, device.config.frame_id or '', cached[1], cached[2],
+                              self.now())
+
+    def statuses(self) -> Statuses:
+        """Return every device's report and the CAN bus's, named as the bridge names them."""
+        statuses = []
+        for name, device in self.devices.items():
+            revision, stale = device.revision, device.is_stale()
+            report = device.diagnostic_report()
+            self._level_cache[name] = (revision, stale, int(report.level), self.monotonic())
+            statuses.append((name, report))
+        statuses.append(('CAN bus', self.bus_report()))
+        self._levels = {name: int(report.level) for name, report in statuses}
+        return [(f'{self.status_prefix}: {name}', report) for name, report in statuses]
+
+    def publish_diagnostics(self) -> None:
+        """Emit one DiagnosticArray: every device plus the CAN bus."""
+        stamp = self.now()
+        self.sink.diagnostics(self.statuses(), stamp)
+
+    def bus_report(self, status: BusStatus | None = None) -> DiagnosticReport:
+        """Return the CAN bus report: the bus state and counters, the devices' malformed."""
+        status = status or self.bus_status()
+        malformed = sum(d.frames_malformed for d in self.devices.values())
+        report = reports.bus_report(status, malformed, self.interface)
+        if self.bus_values is not None:
+            report.values.update(self.bus_values())
+        return report
+
+    def _device_level(self, name: str, stale: bool | None = None) -> int:
+        """Return a device's diagnostic level, rebuilding its report only after a change."""
+        device = self.devices[name]
+        revision = device.revision
+        if stale is None:
+            stale = device.is_stale()
+        cached = self._level_cache.get(name)
+        now = self.monotonic()
+        if (cached is None or cached[1] != stale
+                or (cached[0] != revision and now - cached[3] >= LEVEL_RECHECK_PERIOD)):
+            cached = (revision, stale, int(device.diagnostic_level()), now)
+            self._level_cache[name] = cached
+        return cached[2]
+
+    def _levels_changed(self, status: BusStatus) -> bool:
+        levels = {name: self._device_level(name, self._stale.get(name))
+                  for name in self.devices}
+        levels['CAN bus'] = int(reports.bus_level(status))
+        return levels != self._levels
+
+    def watch(self) -> None:
+        """Notice staleness, malformed frames and level changes (every WATCH_PERIOD)."""
+        status = self.bus_status()
+        if self.on_bus_status is not None:
+            self.on_bus_status(status)
+        now = self.monotonic()
+        for name, device in self.devices.items():
+            stale = device.is_stale()
+            if stale != self._stale[name]:
+                self._stale[name] = stale
+                if stale:
+                    self.log.warning('%s: no status frame for %g s: STALE', name,
+                                     device.stale_timeout)
+                    self._emit_stale(name)
+                elif name in self._heard:
+                    self.log.info('%s: receiving again', name)
+                else:
+                    self.log.info('%s: first status frame received', name)
+                self._heard.add(name)
+            count = device.frames_malformed
+            logged, at = self._malformed_logged.get(name, (0, -math.inf))
+            if count > logged and now - at >= MALFORMED_LOG_PERIOD:
+                self._malformed_logged[name] = (count, now)
+                self.log.warning('%s: %d malformed frame(s) so far, dropped; last: %s',
+                                 name, count, device.last_malformed)
+        if self._levels_changed(status):
+            self.publish_diagnostics()
+
+    def publish_clock(self, stamp: float) -> None:
+        """Emit the replayed log time when it moved (every CLOCK_PERIOD of a replay)."""
+        if math.isfinite(stamp) and stamp != self._clock_sent:
+            self._clock_sent = stamp
+            self.sink.clock(stamp)
+
+    def schedule(self, diagnostics_period: float) -> list[tuple[float, Callable[[], None]]]:
+        """Return the periodic work as (period, call), in the order it runs when due."""
+        return [(diagnostics_period, self.publish_diagnostics),
+                (STALE_PUBLISH_PERIOD, self.publish_stale),
+                (WATCH_PERIOD, self.watch)]
+
+
+class Schedule:
+    """The engine's periodic work driven by a clock the caller moves (a log's time)."""
+
+    def __init__(self, tasks: list[tuple[float, Callable[[], None]]],
+                 set_now: Callable[[float], None]) -> None:
+        """Take (period, call) pairs; ``set_now`` moves the engine's clock before each call."""
+        self.tasks = [[math.nan, period, call] for period, call in tasks]
+        self.set_now = set_now
+        self.started = False
+
+    def start(self, now: float) -> None:
+        """Start the grid at ``now``: each task first runs one period later."""
+        self.started = True
+        for task in self.tasks:
+            task[0] = now + task[1]
+
+    def run_until(self, stamp: float) -> None:
+        """Run every task due up to ``stamp``, each at its own moment, in order."""
+        while self.started:
+            task = min(self.tasks, key=lambda t: t[0])  # the first of equals: list order
+            if task[0] > stamp:
+                break
+            self.set_now(task[0])
+            task[0] += task[1]
+            task[2]()
+
+
+def _nan_arrays(arrays: Arrays) -> Arrays:
+    """Return the arrays of a silent device: NaN, not the last values."""
+    return {suffix: (rows, cols, [math.nan] * len(data))
+            for suffix, (rows, cols, data) in arrays.items()}
