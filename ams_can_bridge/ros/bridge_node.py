@@ -13,18 +13,14 @@ wakes no executor at all. Services that wait go in ``service_group`` (reentrant)
 telemetry keeps flowing while a command waits for the device.
 
 COMMANDERS seam (the command services live in other modules). For each device instance
-whose type is in ``ams_can_bridge.registry.COMMANDERS`` the node builds ``cls(node, device,
-name)``; the parameters its services use are the device type's ``COMMAND_PARAMS``, declared
-with the device (``DeviceSet``). A commander may use:
-
-- ``node.commands_enabled`` (bool, follows the ``commands_enabled`` parameter);
-- ``node.transmit(frame, wait=True) -> (ok, message)``: refuses with a message naming
-  ``commands_enabled`` while commands are disabled, else sends through CanIo
-  (``(False, reason)`` when the bus refuses); with ``wait`` a bus that is still opening or
-  reconnecting is waited for (``wait_for_bus``), without it (a heartbeat) it fails at once;
-- ``node.wait_for_bus(limit=None) -> (ok, message)``: wait up to ``can.connect_wait`` (and
-  at most ``limit`` s) for a bus that is (re)opening; the message names the state and reason;
-- ``node.service_group`` for its services, ``node.params`` (ParamRegistry), ``node.devices``.
+whose type is in ``ams_can_bridge.registry.COMMANDERS`` the node builds ``cls(gate, device,
+name, node)``; the parameters its services use are the device type's ``COMMAND_PARAMS``,
+declared with the device (``DeviceSet``). Every frame goes through the gate
+(``engine/gate.py``, ``CommandGate``): commands_allowed / commands_enabled, the bus wait, the
+send locks and the command log line are the gate's; the node only forwards the
+``commands_enabled`` parameter to ``gate.set_enabled`` and names the service a thread answers
+(``gate.calling``). The node is the commander's ``ServiceHost`` (``ros/commander.py``):
+``create_service`` / ``destroy_service``, ``service_group``, ``get_logger``.
 
 and the node calls on it the methods of ``ros.commander.Commander`` (its base class):
 ``on_commands_enabled(enabled)`` when ``commands_enabled`` changes; ``destroy()`` at shutdown.
@@ -36,8 +32,8 @@ from __future__ import annotations
 
 import logging
 import math
-import threading
 import time
+import traceback
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -50,14 +46,13 @@ from sensor_msgs.msg import BatteryState
 from std_msgs.msg import Float32MultiArray
 
 from ams_can_bridge import registry, reports
-from ams_can_bridge.can_io import BusConfig, CanIo, CanSendError, parse_options
-from ams_can_bridge.can_io.config import RETRY_STATES
+from ams_can_bridge.can_io import BusConfig, CanIo, parse_options
 from ams_can_bridge.can_io.core import STATE_CHANGE_FORMAT
 from ams_can_bridge.device_set import DeviceSet, unknown_parameter_errors
 from ams_can_bridge.devices.base import Device
+from ams_can_bridge.engine.gate import CommandGate
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.periodic import Periodic
-from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.ros import convert, diag_cdr
 from ams_can_bridge.ros.bus_log import BusStateLog
 from ams_can_bridge.ros.commander import Commander
@@ -74,30 +69,9 @@ WATCH_PERIOD = 0.2  # s, how fast bus state / staleness transitions are noticed
 # and the first frame after a quiet spell are still noticed at the next watch.
 LEVEL_RECHECK_PERIOD = 0.5
 TELEMETRY_DEPTH = 100  # history of battery_state / array publishers
-# Commands that may wait for a down bus at once. A waiting call holds an executor thread
-# (the bridge runs 4): at most 2 wait, so telemetry, /diagnostics and the parameter
-# services (disarming) always keep a thread; a further command fails at once instead.
-BUS_WAIT_SLOTS = 2
 CLOCK_PERIOD = 0.01  # s between /clock messages of a replay (can.replay_clock)
 
 __all__ = ['BridgeNode', 'ConfigError', 'NODE_NAME']
-
-# The command service a thread is answering (create_service sets it): transmit names it.
-_CALL = threading.local()
-
-
-def candump_text(frame: Frame) -> str:
-    """Return a frame as candump writes it: '305#0102', 29-bit IDs with 8 digits."""
-    width = 8 if frame.is_extended_id else 3
-    return f'{frame.arbitration_id:0{width}X}#{frame.data.hex().upper()}'
-
-
-def arming_refused() -> str:
-    """Return the reason a commands_enabled = true is refused without commands_allowed."""
-    return ('commands_enabled = true refused: commands_allowed is false. commands_allowed is '
-            'read-only, set only at launch: start the bridge with commands_allowed: true '
-            '(params file or --ros-args -p commands_allowed:=true) to let commands be enabled; '
-            'bridge.launch.py commands_allowed:=..., when given, replaces the params file value')
 
 
 class BridgeNode(Node):
@@ -109,10 +83,7 @@ class BridgeNode(Node):
         self.service_group = ReentrantCallbackGroup()
         self.devices: dict[str, Device] = {}
         self.commanders: dict[str, Commander] = {}
-        self.commands_enabled = False
-        self.commands_allowed = False
-        self.commands_changes = 0  # run-time changes of commands_enabled (diagnostics)
-        self._bus_waits = threading.BoundedSemaphore(BUS_WAIT_SLOTS)
+        self.gate: CommandGate | None = None  # made in _configure (the bus parameters)
         self.can_io: CanIo | None = None
         self._ready = False
         self._replaying = False
@@ -153,6 +124,16 @@ class BridgeNode(Node):
         self._log_summary()
         self._log_heartbeats()  # commands_enabled at launch: the heartbeat runs already
 
+    @property
+    def commands_enabled(self) -> bool:
+        """Tell whether commands are enabled now (the gate's)."""
+        return self.gate is not None and self.gate.enabled
+
+    @property
+    def commands_allowed(self) -> bool:
+        """Tell whether commands may be enabled at all (the gate's, set at launch)."""
+        return self.gate is not None and self.gate.allowed
+
     # --- set-up ---------------------------------------------------------------------------
     def _unknown_parameters(self) -> list[str]:
         """Every key given for this node (file sections, -p) that nothing declared."""
@@ -163,11 +144,6 @@ class BridgeNode(Node):
         bus = self.params.declare_all('can.', BUS_PARAMS)
         node = self.params.declare_all('', NODE_PARAMS)
         self.diagnostics_period = node['diagnostics_period']
-        self.commands_allowed = node['commands_allowed']
-        self.commands_enabled = node['commands_enabled']
-        if self.commands_enabled and not self.commands_allowed:
-            self.params.errors.append(arming_refused())
-            self.commands_enabled = False
         # A bus setting that cannot work is collected, not raised: the devices are still
         # declared, so that every problem of the params file is reported at once.
         try:
@@ -187,7 +163,14 @@ class BridgeNode(Node):
             except ValueError as exc:
                 self.params.errors.append(str(exc))
         self.hardware_id = f"{bus['interface']}:{bus['channel']}"
-        self.connect_wait = bus['connect_wait']
+        gate_logger = self._stdlib_logger('gate')
+        gate_logger.setLevel(logging.DEBUG)  # the rclpy logger decides what is shown
+        self.gate = CommandGate(self.hardware_id, allowed=node['commands_allowed'],
+                                connect_wait=bus['connect_wait'], logger=gate_logger,
+                                node_name=self.get_fully_qualified_name())
+        refused = self.gate.start_enabled(node['commands_enabled'])
+        if refused:
+            self.params.errors.append(refused)
         self._bus_log = BusStateLog(self.get_logger(), self.hardware_id, bus['channel'],
                                     bus['reconnect_period'])
         self._replaying = bus['interface'] == 'replay'
@@ -211,6 +194,7 @@ class BridgeNode(Node):
         can_logger.setLevel(logging.WARNING)
         can_logger.addFilter(lambda record: record.msg != STATE_CHANGE_FORMAT)
         self.can_io = CanIo(self.bus_config, self._on_frame, filters, can_logger)
+        self.gate.attach_bus(self.can_io)
 
     def _make_publishers(self) -> None:
         self.battery_pubs = {}
@@ -252,7 +236,7 @@ class BridgeNode(Node):
         cls = registry.load(path)
         if not (isinstance(cls, type) and issubclass(cls, Commander)):
             raise TypeError(f'{path} is not a Commander (ams_can_bridge.ros.commander)')
-        self.commanders[name] = cls(self, device, name)
+        self.commanders[name] = cls(self.gate, device, name, self)
 
     def _log_summary(self) -> None:
         cfg = self.bus_config
@@ -383,7 +367,7 @@ class BridgeNode(Node):
         report = convert.bus_report(status, malformed, self.bus_config.interface)
         report.values['commands_allowed'] = str(self.commands_allowed).lower()
         report.values['commands_enabled'] = str(self.commands_enabled).lower()
-        report.values['commands_enabled changes'] = str(self.commands_changes)
+        report.values['commands_enabled changes'] = str(self.gate.changes)
         return report
 
     def _levels_changed(self, status: Any, stale: dict[str, bool] | None = None) -> bool:
@@ -461,106 +445,31 @@ class BridgeNode(Node):
             self.publish_diagnostics()
 
     # --- commands seam --------------------------------------------------------------------
-    def wait_for_bus(self, limit: float | None = None) -> tuple[bool, str]:
-        """
-        Wait for a bus that is opening or reconnecting: (connected, why not) - never raises.
-
-        Waits at most ``can.connect_wait`` s (and at most ``limit`` s, a state command's own
-        timeout); returns early when commands are disabled meanwhile.
-        """
-        can_io = self.can_io
-        if can_io is None:
-            return False, f'CAN bus {self.hardware_id} is closed: the bridge is shutting down'
-        status = can_io.status()
-        if status.connected:
-            return True, ''
-        wait = self.connect_wait if limit is None else min(self.connect_wait, limit)
-        if wait > 0 and status.state in RETRY_STATES:
-            if not self._bus_waits.acquire(blocking=False):
-                reason = f': {status.reason}' if status.reason else ''
-                return False, (f'CAN bus {self.hardware_id} is not connected ({status.state}'
-                               f'{reason}) and {BUS_WAIT_SLOTS} commands already wait for it: '
-                               'try again later')
-            try:
-                return self._wait_for_bus(can_io, status, wait, limit)
-            finally:
-                self._bus_waits.release()
-        return self._wait_for_bus(can_io, status, wait, limit)
-
-    def _wait_for_bus(self, can_io: CanIo, status: Any, wait: float,
-                      limit: float | None) -> tuple[bool, str]:
-        deadline = time.monotonic() + wait
-        while status.state in RETRY_STATES and self.commands_enabled:
-            left = deadline - time.monotonic()
-            if left <= 0:
-                break
-            # in slices, so that switching commands_enabled off ends the wait at once
-            status = can_io.wait_connected(min(left, 0.05))
-            if status.connected:
-                return True, ''
-        if not self.commands_enabled:
-            return False, 'commands_enabled was set to false while waiting for the CAN bus'
-        reason = f': {status.reason}' if status.reason else ''
-        waited = ''
-        if status.state in RETRY_STATES:
-            waited = (f' after waiting {wait:g} s (can.connect_wait {self.connect_wait:g} s'
-                      + (f', command timeout {limit:g} s)' if limit is not None else ')')
-                      if wait > 0 else ' (can.connect_wait is 0: commands do not wait)')
-        return False, (f'CAN bus {self.hardware_id} is not connected ({status.state}{reason})'
-                       f'{waited}')
-
-    def transmit(self, frame: Frame, wait: bool = True) -> tuple[bool, str]:
-        """
-        Send one frame if commands are enabled; (ok, message) - never raises.
-
-        Every frame sent on a service call is logged at INFO with the service, the frame
-        (candump's ID#data) and the outcome; the heartbeat's frames are not (its start and
-        stop are: ``_log_heartbeats``).
-        """
-        ok, message = self._transmit(frame, wait)
-        service = getattr(_CALL, 'service', None)
-        if service is not None:
-            outcome = 'sent' if ok else f'NOT sent: {message}'
-            self.get_logger().info(f'{service}: {candump_text(frame)} {outcome}')
-        return ok, message
-
-    def _transmit(self, frame: Frame, wait: bool) -> tuple[bool, str]:
-        if not self.commands_enabled:
-            return False, ('commands are disabled: set the parameter commands_enabled to true '
-                           '(ros2 param set /ams_can_bridge commands_enabled true) to transmit')
-        if wait:
-            ok, message = self.wait_for_bus()
-            if not ok:
-                return False, message
-        can_io = self.can_io
-        if can_io is None:
-            return False, f'CAN bus {self.hardware_id} is closed: the bridge is shutting down'
-        try:
-            can_io.send(frame)  # every driver failure arrives as CanSendError
-        except CanSendError as exc:
-            return False, f'CAN send failed on {self.hardware_id}: {exc}'
-        return True, f'sent 0x{frame.arbitration_id:X} [{frame.data.hex(" ").upper()}]'
-
     def create_service(self, srv_type: Any, srv_name: str, callback: Any,
                        **kwargs: Any) -> Any:
         """
         Create a service; a device's command service is logged (its frames and its answer).
 
-        The call's service name is kept for the thread running it, so ``transmit`` can name
-        it; the answer (success and message) is logged once the callback returns: INFO when
-        it succeeded, WARN when not. The node's parameter services pass through unchanged.
+        The call's service name is given to the gate for the thread running it, so the gate's
+        command log line names it; the answer (success and message) is logged once the
+        callback returns: INFO when it succeeded, WARN when not. A callback that raises is a
+        bug: its traceback is logged (ERROR) and the call answered as an internal error. The
+        node's parameter services pass through unchanged.
         """
         device = srv_name.split('/', 1)[0]
         if device not in getattr(self, 'devices', {}):
             return super().create_service(srv_type, srv_name, callback, **kwargs)
 
         def logged(request: Any, response: Any) -> Any:
-            outer = getattr(_CALL, 'service', None)
-            _CALL.service = srv_name
             try:
-                response = callback(request, response)
-            finally:
-                _CALL.service = outer
+                with self.gate.calling(srv_name):
+                    response = callback(request, response)
+            except Exception as exc:  # a bug, not a refusal: say so, keep the traceback
+                self.get_logger().error(f'{srv_name}: internal error:\n'
+                                        + traceback.format_exc())
+                response.success = False
+                response.message = (f'{srv_name}: internal error: {type(exc).__name__}: '
+                                    f'{exc}; see the log')
             answer = (f'{srv_name}: answered success={response.success}: '
                       f'{response.message}')
             if response.success:
@@ -594,9 +503,10 @@ class BridgeNode(Node):
         for param in parameters:
             reason = self.params.validate(param)
             if (reason is None and self._ready and param.name == 'commands_enabled'
-                    and param.value is True and not self.commands_allowed):
-                reason = arming_refused()
-                self.get_logger().warning(f'refused: {reason}')
+                    and param.value is True):
+                reason = self.gate.arming_reason(True)
+                if reason:
+                    self.get_logger().warning(f'refused: {reason}')
             prefix, _, key = param.name.partition('.')
             if reason is None and self._ready and prefix in self.devices and key:
                 reason = self.devices[prefix].config_reason(key, self.params.value(param))
@@ -619,22 +529,16 @@ class BridgeNode(Node):
                 self.devices[name].configure(changes)
             except ValueError as exc:  # checked key by key before; only a combination is left
                 self.get_logger().error(f'{name}: configuration change not applied: {exc}')
-        if 'commands_enabled' in changed and changed['commands_enabled'] != \
-                self.commands_enabled:
-            self.commands_enabled = bool(changed['commands_enabled'])
-            self.commands_changes += 1
+        if 'commands_enabled' in changed:
             # Who: ROS 2 hands the node the new value, never the caller (the parameter
             # event names this node); only SROS2 decides who may make this call at all.
-            who = ('set at run time through the parameter services; the caller is not known '
-                   'to the node (restrict who may set it with SROS2: security/policy.xml)')
-            if self.commands_enabled:
-                self.get_logger().warning(f'commands_enabled false -> true ({who}): commands '
-                                          'ENABLED, the bridge may transmit')
-            else:
-                self.get_logger().warning(f'commands_enabled true -> false ({who}): commands '
-                                          'disabled, listen only')
-            for commander in self.commanders.values():
-                commander.on_commands_enabled(self.commands_enabled)
+            # The gate tells the commanders (its listeners) before it returns.
+            refused = self.gate.set_enabled(
+                bool(changed['commands_enabled']),
+                how='set at run time through the parameter services; the caller is not known '
+                    'to the node (restrict who may set it with SROS2: security/policy.xml)')
+            if refused:  # checked in _on_set_parameters: not reached
+                self.get_logger().error(f'commands_enabled not applied: {refused}')
             self._log_heartbeats('commands_enabled is false')
 
     # --- shutdown -------------------------------------------------------------------------
@@ -649,6 +553,8 @@ class BridgeNode(Node):
         if self.context.ok():  # after Ctrl-C the logger may be gone with the context
             self._log_heartbeats('the bridge is shutting down')
         self.commanders.clear()
+        if self.gate is not None:
+            self.gate.attach_bus(None)  # a command from now on is answered 'shutting down'
         if self.can_io is not None:
             self.can_io.stop()
             self.can_io = None
