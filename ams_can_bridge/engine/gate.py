@@ -147,17 +147,19 @@ class CommandGate:
         Enable or disable commands; return the refusal reason (nothing changed) or None.
 
         A change is logged (WARN, with ``how``) and every listener is told at once, in the
-        caller's thread: a disarm stops the periodic senders before this returns.
+        caller's thread: a disarm stops the periodic senders before this returns, and no
+        frame goes out after it returns (a send in flight is waited for).
         """
         enabled = bool(enabled)
         reason = self.arming_reason(enabled)
         if reason:
             self._log.warning(f'refused: {reason}')
             return reason
-        if enabled == self._enabled:
-            return None
-        self._enabled = enabled
-        self.changes += 1
+        with self._io_lock:
+            if enabled == self._enabled:
+                return None
+            self._enabled = enabled
+            self.changes += 1
         because = f' ({how})' if how else ''
         if enabled:
             self._log.warning(f'commands_enabled false -> true{because}: commands ENABLED, '
@@ -299,13 +301,13 @@ class CommandGate:
                 f'(ros2 param set {self.node_name} commands_enabled true) to transmit')
 
     def _send(self, frame: Frame) -> tuple[bool, str]:
-        if not self._enabled:
-            return False, self._disabled()
         bus = self._bus
         if bus is None:
             return False, f'CAN bus {self.hardware_id} is closed: the bridge is shutting down'
         try:
-            with self._io_lock:
+            with self._io_lock:  # the gate is looked at under the lock a disarm takes
+                if not self._enabled:
+                    return False, self._disabled()
                 bus.send(frame)  # every driver failure arrives as CanSendError
         except CanSendError as exc:
             return False, f'CAN send failed on {self.hardware_id}: {exc}'
