@@ -61,11 +61,13 @@ class AmsCommands(Commander):
             'set the charge current', device.charge_current_frame))
         self._service(Trigger, 'override_bank_count', self._charger(
             'override the bank count', device.bank_count_frame))
+        self._heartbeat_logged = False  # the last heartbeat state logged
         if gate.enabled:
             self.master.start()
             self.charger.arm()
+            self._log_heartbeat()  # commands_enabled at launch: the heartbeat runs already
 
-    # --- hooks for the node ------------------------------------------------------------
+    # --- hooks for the gate and the node -----------------------------------------------
     def on_commands_enabled(self, enabled: bool) -> None:
         """Start the heartbeat when commands are enabled; stop it and the charger repeat."""
         if enabled:
@@ -75,11 +77,30 @@ class AmsCommands(Commander):
             self.charger.disarm('commands_enabled was set to false; no STOP sent')
             self.master.stop('commands_enabled was set to false while waiting; the heartbeat '
                              'stopped')
+        self._log_heartbeat('commands_enabled is false')
+
+    def _log_heartbeat(self, why: str = '') -> None:
+        """Log the heartbeat starting or stopping (once per change, never per frame)."""
+        running = bool(self.master.running)
+        if running == self._heartbeat_logged:
+            return
+        self._heartbeat_logged = running
+        if running:
+            base = getattr(self.device.config, 'base_id', None)
+            frame = f' 0x{base + 5:X}' if isinstance(base, int) else ''
+            self.host.get_logger().info(
+                f'{self.name}: heartbeat started: car status{frame} every '
+                f'{self.master.period * 1000:g} ms')
+        else:
+            because = f' ({why})' if why else ''
+            self.host.get_logger().info(f'{self.name}: heartbeat stopped{because}')
 
     def destroy(self) -> None:
         """Stop the heartbeat, the charger repeat, and remove the services."""
         self.charger.disarm('the bridge is shutting down')
         self.master.stop('the bridge is shutting down')
+        if self.host.context.ok():  # after Ctrl-C the logger may be gone with the context
+            self._log_heartbeat('the bridge is shutting down')
         self._remove_services()
 
     # --- services ----------------------------------------------------------------------

@@ -96,7 +96,6 @@ class BridgeNode(Node):
         self._malformed_logged: dict[str, tuple[int, float]] = {}
         self._stale: dict[str, bool] = {}
         self._heard: set[str] = set()
-        self._heartbeats: dict[str, bool] = {}  # commander name -> heartbeat running (logged)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
         try:
@@ -122,7 +121,6 @@ class BridgeNode(Node):
         self.can_io.start()
         self.periodic.start()
         self._log_summary()
-        self._log_heartbeats()  # commands_enabled at launch: the heartbeat runs already
 
     @property
     def commands_enabled(self) -> bool:
@@ -479,26 +477,6 @@ class BridgeNode(Node):
             return response
         return super().create_service(srv_type, srv_name, logged, **kwargs)
 
-    def _log_heartbeats(self, why: str = '') -> None:
-        """Log each commander's heartbeat starting or stopping (not each of its frames)."""
-        for name, commander in self.commanders.items():
-            master = getattr(commander, 'master', None)
-            if master is None:
-                continue
-            running = bool(master.running)
-            if running == self._heartbeats.get(name, False):
-                continue
-            self._heartbeats[name] = running
-            if running:
-                base = getattr(commander.device.config, 'base_id', None)
-                frame = f' 0x{base + 5:X}' if isinstance(base, int) else ''
-                self.get_logger().info(
-                    f'{name}: heartbeat started: car status{frame} every '
-                    f'{master.period * 1000:g} ms')
-            else:
-                because = f' ({why})' if why else ''
-                self.get_logger().info(f'{name}: heartbeat stopped{because}')
-
     def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         for param in parameters:
             reason = self.params.validate(param)
@@ -539,7 +517,6 @@ class BridgeNode(Node):
                     'to the node (restrict who may set it with SROS2: security/policy.xml)')
             if refused:  # checked in _on_set_parameters: not reached
                 self.get_logger().error(f'commands_enabled not applied: {refused}')
-            self._log_heartbeats('commands_enabled is false')
 
     # --- shutdown -------------------------------------------------------------------------
     def destroy_node(self) -> None:
@@ -550,8 +527,6 @@ class BridgeNode(Node):
             periodic.stop()
         for commander in self.commanders.values():
             commander.destroy()
-        if self.context.ok():  # after Ctrl-C the logger may be gone with the context
-            self._log_heartbeats('the bridge is shutting down')
         self.commanders.clear()
         if self.gate is not None:
             self.gate.attach_bus(None)  # a command from now on is answered 'shutting down'
