@@ -23,7 +23,10 @@ class ServiceHost(Protocol):
     """What a commander needs of the node: its services, its logger, its parameters."""
 
     service_group: Any
-    context: Any  # rclpy's: ``context.ok()`` is false once ROS is shutting down
+
+    @property
+    def context(self) -> Any:
+        """Return rclpy's context: ``context.ok()`` is false once ROS is shutting down."""
 
     def create_service(self, srv_type: Any, srv_name: str, callback: Callable,
                        **kwargs: Any) -> Any:

@@ -20,7 +20,9 @@ from typing import Any, Callable, Iterable
 from rclpy.parameter import Parameter
 from std_srvs.srv import SetBool, Trigger
 
-from ams_can_bridge.devices.base import Device
+from ams_can_bridge.devices.bms16 import Bms16Device
+from ams_can_bridge.devices.bms16_std import Bms16StdDevice
+from ams_can_bridge.devices.evms3 import Evms3Device
 from ams_can_bridge.engine.gate import CommandPort
 from ams_can_bridge.errors import RefusedCommand
 from ams_can_bridge.protocols.common import EncodeRangeError, Frame
@@ -60,7 +62,7 @@ class _ZevaCommands(Commander):
             frames = list(build())
         except (RefusedCommand, EncodeRangeError) as exc:
             return False, f'{self.name}: cannot {what}: {exc}; nothing was sent'
-        sent = []
+        sent: list[str] = []
         # A bus still opening (or reconnecting) is waited for once, before the first frame
         # and outside the batch, so calls wait side by side, not one after the other.
         ok, message = self.gate.wait_for_bus()
@@ -95,7 +97,7 @@ class Evms3Commands(_ZevaCommands):
 
     WRITE_GAP = 0.02  # s: CanTX(..., 20) after each configuration frame in the Monitor
 
-    def __init__(self, gate: CommandPort, device: Device, name: str,
+    def __init__(self, gate: CommandPort, device: Evms3Device, name: str,
                  host: ServiceHost) -> None:
         """Create the services of one EVMS3 instance."""
         super().__init__(gate, device, name, host)
@@ -155,9 +157,9 @@ class Bms16Commands(_ZevaCommands):
     32..35 with the device's pause after each (ZEVA's Monitor: 20 ms) / 37 / 38 / 39.
     """
 
-    def __init__(self, gate: CommandPort, device: Device, name: str,
+    def __init__(self, gate: CommandPort, device: Bms16Device | Bms16StdDevice, name: str,
                  host: ServiceHost) -> None:
-        """Create the services of one BMS16 instance."""
+        """Create the services of one BMS16 instance (either variant)."""
         super().__init__(gate, device, name, host)
         gap = float(getattr(device, 'CONFIG_FRAME_GAP', 0.0))
         self._service(Trigger, 'write_config', self._paced_trigger(
