@@ -20,10 +20,9 @@ declared with the device (``DeviceSet``). Every frame goes through the gate
 send locks and the command log line are the gate's; the node only forwards the
 ``commands_enabled`` parameter to ``gate.set_enabled`` and names the service a thread answers
 (``gate.calling``). The node is the commander's ``ServiceHost`` (``ros/commander.py``):
-``create_service`` / ``destroy_service``, ``service_group``, ``get_logger``.
-
-and the node calls on it the methods of ``ros.commander.Commander`` (its base class):
-``on_commands_enabled(enabled)`` when ``commands_enabled`` changes; ``destroy()`` at shutdown.
+``create_service`` / ``destroy_service``, ``service_group``, ``get_logger``. The gate calls
+a commander's ``on_commands_enabled(enabled)`` (a listener) when ``commands_enabled``
+changes; the node calls its ``destroy()`` at shutdown.
 A device's parameters ``<name>.<key>`` belong to the device: the node asks the device
 (``config_reason``) before a set and applies an accepted set to it (``configure``: a new
 frozen configuration swapped in whole); commanders read ``device.config`` when called.
