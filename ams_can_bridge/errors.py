@@ -87,8 +87,8 @@ class CanSendError(AmsCanBridgeError):
     """
     A frame could not be sent: the bus is not connected, or the driver refused it.
 
-    Raised by ``CanIo.send``; the node's ``transmit`` turns it into a failed service answer
-    (or a disarmed heartbeat) naming the bus and its state.
+    Raised by ``CanIo.send``; the command gate (``engine/gate.py``) turns it into a failed
+    service answer (or a disarmed heartbeat) naming the bus and its state.
     """
 
 

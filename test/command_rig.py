@@ -40,10 +40,23 @@ def battery_topics(devices: list[str]) -> dict[str, type]:
 
 
 class Capture:
-    """Every frame seen on a virtual channel, with its monotonic receive time."""
+    """
+    Every frame seen on a virtual channel, with its monotonic receive time.
+
+    ``sync()`` proves "nothing was sent" without sleeping: it sends a marker frame on the
+    channel and waits until the capture has read it. A virtual bus delivers in send order,
+    so every frame the bridge sent before ``sync`` was called is captured by then. Markers
+    are not kept in ``frames``.
+    """
+
+    MARKER_ID = 0x1FFFFFFE  # 29-bit, used by no device of the bridge
 
     def __init__(self, channel: str) -> None:
         self.bus = can.Bus(interface='virtual', channel=channel)
+        self._marker_bus = can.Bus(interface='virtual', channel=channel)
+        self._markers_seen = 0
+        self._markers_sent = 0
+        self._seen = threading.Condition()
         self.frames: list[tuple[float, Frame]] = []
         self.lock = threading.Lock()
         self._stop = threading.Event()
@@ -53,7 +66,11 @@ class Capture:
     def _run(self) -> None:
         while not self._stop.is_set():
             msg = self.bus.recv(0.01)
-            if msg is not None and not msg.is_error_frame:
+            if msg is not None and msg.is_extended_id and msg.arbitration_id == self.MARKER_ID:
+                with self._seen:
+                    self._markers_seen += 1
+                    self._seen.notify_all()
+            elif msg is not None and not msg.is_error_frame:
                 with self.lock:
                     self.frames.append((time.monotonic(), Frame(
                         msg.arbitration_id, bytes(msg.data), msg.is_extended_id)))
@@ -62,7 +79,19 @@ class Capture:
         """Stop capturing and close the bus."""
         self._stop.set()
         self._thread.join(2)
+        self._marker_bus.shutdown()
         self.bus.shutdown()
+
+    def sync(self, timeout: float = 5.0) -> None:
+        """Send a marker and wait until it is captured: every earlier frame is in by then."""
+        with self._seen:
+            self._markers_sent += 1
+            wanted = self._markers_sent
+        self._marker_bus.send(can.Message(arbitration_id=self.MARKER_ID, is_extended_id=True,
+                                          data=wanted.to_bytes(4, 'big')))
+        with self._seen:
+            if not self._seen.wait_for(lambda: self._markers_seen >= wanted, timeout):
+                raise AssertionError(f'the capture did not see its marker in {timeout} s')
 
     def mark(self) -> int:
         """Return the number of frames so far (a bookmark)."""

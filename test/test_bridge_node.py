@@ -79,11 +79,11 @@ def test_read_only_and_commands_enabled_gate(rig_factory):
     node = h.node
     refused = node.set_parameters([Parameter('can.channel', value='x')])[0]
     assert not refused.successful
-    ok, message = node.transmit(Frame(506, b''))
+    ok, message = node.gate.transmit(Frame(506, b''))
     assert not ok and 'commands_enabled' in message
     assert node.can_io.status().frames_out == 0
     assert node.set_parameters([Parameter('commands_enabled', value=True)])[0].successful
-    ok, message = node.transmit(Frame(506, b''))
+    ok, message = node.gate.transmit(Frame(506, b''))
     assert ok, message
     assert node.can_io.status().frames_out == 1
 

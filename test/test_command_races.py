@@ -19,7 +19,6 @@ import pytest
 from std_srvs.srv import Trigger
 
 from ams_can_bridge.protocols import evms3 as evms3_proto
-from ams_can_bridge.ros.bridge_node import BUS_WAIT_SLOTS
 from test_zeva_commands import bms16_params, EVMS3_CONFIG, evms3_in, evms3_params
 
 HEARTBEAT = 0x305
@@ -108,8 +107,8 @@ def test_commands_disabled_while_waiting_for_the_bus(rig_factory, tmp_path):
                        'can.channel': str(missing), 'can.connect_wait': 30.0},
                       wait_connected=False)
     call = rig.call_in_thread(Trigger, '/bms16/reset_soc')
-    # the call is waiting for the bus once it holds one of the node's bus-wait slots
-    assert rig.wait(lambda: rig.node._bus_waits._value < BUS_WAIT_SLOTS)
+    # the call is waiting for the bus once it holds one of the gate's bus-wait slots
+    assert rig.wait(lambda: rig.node.gate.bus_waiters() > 0)
     assert rig.set_param('commands_enabled', False).successful
     call['thread'].join(3)
     assert 'response' in call, 'the call kept waiting for the bus after the switch'

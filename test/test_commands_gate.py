@@ -123,7 +123,7 @@ def test_commands_enabled_needs_commands_allowed_at_run_time(rig_factory, capfd)
     assert rig.node.commands_allowed is False
     response = rig.call(Trigger, '/bms16/reset_soc')
     assert not response.success and 'commands_allowed' in response.message
-    time.sleep(0.3)
+    rig.capture.sync()  # a marker after the calls, no sleep
     assert rig.capture.since(0) == []  # no heartbeat, no command
     assert 'refused: commands_enabled = true refused' in capfd.readouterr().err
 
@@ -155,3 +155,28 @@ def test_every_change_of_commands_enabled_is_logged_and_counted(rig_factory, cap
     values = rig.node.engine.bus_report().values
     assert values['commands_enabled changes'] == '2'
     assert values['commands_allowed'] == 'true' and values['commands_enabled'] == 'false'
+
+
+def test_a_bug_in_a_command_is_an_internal_error_logged_with_its_traceback(rig_factory, capfd):
+    # issue 21 step 7: a TypeError/ValueError from a device is a bug, not a refusal: it is
+    # not answered as "cannot reset the SoC", but as an internal error, traceback in the log
+    rig = rig_factory({'devices': ['bms16'], 'commands_allowed': True,
+                       'commands_enabled': True})
+
+    def broken():
+        raise TypeError('unsupported operand')
+    rig.node.devices['bms16'].reset_soc_frame = broken
+    mark = rig.capture.mark()
+    response = rig.call(Trigger, '/bms16/reset_soc')
+    assert not response.success
+    assert response.message == ('bms16/reset_soc: internal error: TypeError: unsupported '
+                                'operand; see the log'), response.message
+    assert 'cannot' not in response.message
+    rig.capture.sync()
+    assert rig.capture.since(mark) == []
+    err = capfd.readouterr().err
+    assert 'bms16/reset_soc: internal error:' in err and 'Traceback' in err, err
+    assert "raise TypeError('unsupported operand')" in err
+    # the bridge goes on: the next call is served normally
+    del rig.node.devices['bms16'].reset_soc_frame
+    assert rig.call(Trigger, '/bms16/reset_soc').success

@@ -82,7 +82,7 @@ def test_a_bus_that_does_not_open_fails_after_connect_wait_naming_state_and_reas
     peer.reopen()
     try:
         rig.node.can_io.wait_connected(5.0)
-        rig.node.connect_wait = 5.0
+        rig.node.gate.connect_wait = 5.0
         response = rig.call(Trigger, '/bms16/reset_soc')
         assert response.success, response.message
         assert [f.arbitration_id for f in peer.wait_received(1)

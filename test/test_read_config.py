@@ -5,7 +5,6 @@ The simulator answers ID 51 like ZEVA's 2021 firmware (52..56 in the layout of 3
 capture on the bus sees what each side sends: read_config then write_config must send back
 exactly the frames that were read.
 """
-import time
 
 import can
 import pytest
@@ -61,7 +60,7 @@ def test_refused_without_config_request_names_it_and_sends_nothing(rig_factory, 
     assert not response.success
     assert 'evms3.config_request is false' in response.message
     assert 'throttle' in response.message and 'nothing was sent' in response.message
-    time.sleep(0.3)
+    rig.capture.sync()  # a marker after the calls, no sleep
     assert frames(rig, mark, {51}) == [] and sim.received == []
 
 
@@ -71,7 +70,7 @@ def test_refused_while_commands_are_disabled(rig_factory, evms3_on):
     mark = rig.capture.mark()
     response = rig.call(Trigger, READ)
     assert not response.success and 'commands_enabled' in response.message
-    time.sleep(0.3)
+    rig.capture.sync()  # a marker after the calls, no sleep
     assert frames(rig, mark, {51}) == []
 
 

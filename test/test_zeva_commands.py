@@ -1,5 +1,5 @@
 """EVMS3 and BMS16 services on a real node: exact bytes on the bus, and every refusal."""
-import time
+import contextlib
 
 import can
 import pytest
@@ -63,7 +63,7 @@ def test_bms16_write_config_names_every_missing_value_and_sends_nothing(rig_fact
     for name in ('cells', 'balance_v', 'shunt_size_a'):
         assert f'bms16.config.{name}' in response.message
     assert 'bms16.config.max_cell_v' not in response.message
-    time.sleep(0.3)
+    rig.capture.sync()  # a marker after the calls, no sleep
     assert sent(rig, mark) == []
 
 
@@ -92,7 +92,7 @@ def test_bms16_disabled_refuses_and_sends_nothing(rig_factory):
     for service in ('write_config', 'acknowledge_error', 'reset_soc', 'power_off'):
         response = rig.call(Trigger, f'/bms16/{service}')
         assert not response.success and 'commands_enabled' in response.message
-    time.sleep(0.3)
+    rig.capture.sync()  # a marker after the calls, no sleep
     assert sent(rig, mark) == []
 
 
@@ -194,7 +194,7 @@ def test_evms3_write_config_names_every_missing_value_and_sends_nothing(rig_fact
     for name in missing:
         assert f'evms3.config.{name}' in response.message, response.message
     assert '6 configuration value(s) unset' in response.message
-    time.sleep(0.3)
+    rig.capture.sync()  # a marker after the calls, no sleep
     assert sent(rig, mark) == []
 
 
@@ -240,20 +240,34 @@ def test_evms3_write_config_refused_to_a_bms16(rig_factory):
     refused_write_sends_nothing(rig, ('BMS16', 'byte 5 = 255'))
 
 
-class _FakeNode:
-    """Just enough node for Evms3Commands: records transmits and sleeps in one timeline."""
+class _FakeHost:
+    """Just enough node for Evms3Commands: services that go nowhere."""
 
-    commands_enabled = True
     service_group = None
-
-    def __init__(self):
-        self.events = []
 
     def create_service(self, *args, **kwargs):
         return object()
 
+
+class _FakeGate:
+    """Just enough gate for Evms3Commands: records transmits and sleeps in one timeline."""
+
+    enabled = True
+
+    def __init__(self):
+        self.events = []
+
+    def add_listener(self, listener):
+        pass
+
     def wait_for_bus(self):
         return True, ''
+
+    @contextlib.contextmanager
+    def batch(self):
+        self.events.append('batch')
+        yield
+        self.events.append('end')
 
     def transmit(self, frame, wait=False):
         self.events.append(('tx', frame.arbitration_id))
@@ -264,15 +278,16 @@ def test_evms3_write_config_paces_20_ms_after_each_frame():
     # EVMS_Monitor3.c TransmitSettings: CanTX(id, data, 8, 20) = 20 ms after each frame
     from ams_can_bridge.devices.evms3 import Evms3Device
     from ams_can_bridge.ros.zeva_commands import Evms3Commands
-    node = _FakeNode()
+    node = _FakeGate()
     device = Evms3Device('evms3', {f'config.{k}': v for k, v in EVMS3_CONFIG.items()})
     device.handle_frame(30, bytes([IDLE, 0x03, 0xE8, 0x0F, 0xA0, 0x8C, 100, 65]), 1.0)
-    commands = Evms3Commands(node, device, 'evms3')
+    commands = Evms3Commands(node, device, 'evms3', _FakeHost())
     commands._sleep = lambda seconds: node.events.append(('sleep', seconds))
     response = commands._write_config(None, Trigger.Response())
     assert response.success, response.message
-    assert node.events == [event for can_id in (36, 32, 33, 34, 35)
-                           for event in (('tx', can_id), ('sleep', 0.02))]
+    # one batch holds all five frames and their pauses: no other call's frame between them
+    assert node.events == ['batch'] + [event for can_id in (36, 32, 33, 34, 35)
+                                       for event in (('tx', can_id), ('sleep', 0.02))] + ['end']
 
 
 @pytest.mark.parametrize('data, payload', [(True, b'\x01'), (False, b'\x00')])
@@ -321,5 +336,5 @@ def test_evms3_disabled_refuses_and_sends_nothing(rig_factory):
                                       (SetBool, 'set_setup_mode', {'data': True})):
         response = rig.call(srv_type, f'/evms3/{service}', **fields)
         assert not response.success and 'commands_enabled' in response.message
-    time.sleep(0.3)
+    rig.capture.sync()  # a marker after the calls, no sleep
     assert sent(rig, mark) == []

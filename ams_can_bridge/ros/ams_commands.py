@@ -21,11 +21,12 @@ from std_srvs.srv import Trigger
 
 from ams_can_bridge.devices.ams_master import CommandResult
 from ams_can_bridge.devices.ams import AmsDevice
+from ams_can_bridge.engine.gate import CommandPort
 from ams_can_bridge.errors import RefusedCommand
 from ams_can_bridge.protocols.ams import CarCommand, ChargerStart
 from ams_can_bridge.protocols.common import EncodeRangeError, Frame
-from ams_can_bridge.ros.commander import Commander
-from ams_can_bridge.ros.zeva_commands import frame_text, gate_message
+from ams_can_bridge.ros.commander import Commander, ServiceHost
+from ams_can_bridge.ros.zeva_commands import frame_text
 
 CAR_COMMANDS = {
     'enable_sc': (CarCommand.ENABLE_SC, 'enable the safety circuit'),
@@ -40,32 +41,33 @@ CAR_COMMANDS = {
 class AmsCommands(Commander):
     """Car-command and charger-role services of one AMS instance."""
 
-    def __init__(self, node: Any, device: AmsDevice, name: str) -> None:
-        """Attach the device's (stopped) master to the bus and offer the services."""
-        self.node = node
-        self.device = device
-        self.name = name
+    def __init__(self, gate: CommandPort, device: AmsDevice, name: str,
+                 host: ServiceHost) -> None:
+        """Attach the device's (stopped) master to the gate and offer the services."""
+        super().__init__(gate, device, name, host)
         self._t0 = time.monotonic()  # origin of the charger-command time tick
-        # The heartbeat never waits for the bus: a late heartbeat is a wrong heartbeat.
-        self.master = device.attach_master(lambda frame: node.transmit(frame, wait=False))
-        # The repeats never wait for the bus either: one that cannot go out ends the request.
-        self.charger = device.attach_charger(lambda frame: node.transmit(frame, wait=False),
-                                             self.time_tick, node.get_logger())
+        # The heartbeat never waits for the bus (nor for another call's frames): a late
+        # heartbeat is a wrong heartbeat. The gate's periodic path does neither.
+        self.master = device.attach_master(gate.send_periodic)
+        # The repeats never wait either: one that cannot go out ends the request.
+        self.charger = device.attach_charger(gate.send_periodic, self.time_tick,
+                                             host.get_logger())
         self._charging_lock = threading.Lock()  # start/stop_charging one at a time
-        self._services = []
         for suffix, (command, what) in CAR_COMMANDS.items():
-            self._service(suffix, self._car_command(command, what))
-        self._service('start_charging', self._start_charging)
-        self._service('stop_charging', self._stop_charging)
-        self._service('set_charge_current', self._charger(
+            self._service(Trigger, suffix, self._car_command(command, what))
+        self._service(Trigger, 'start_charging', self._start_charging)
+        self._service(Trigger, 'stop_charging', self._stop_charging)
+        self._service(Trigger, 'set_charge_current', self._charger(
             'set the charge current', device.charge_current_frame))
-        self._service('override_bank_count', self._charger(
+        self._service(Trigger, 'override_bank_count', self._charger(
             'override the bank count', device.bank_count_frame))
-        if node.commands_enabled:
+        self._heartbeat_logged = False  # the last heartbeat state logged
+        if gate.enabled:
             self.master.start()
             self.charger.arm()
+            self._log_heartbeat()  # commands_enabled at launch: the heartbeat runs already
 
-    # --- hooks for the node ------------------------------------------------------------
+    # --- hooks for the gate and the node -----------------------------------------------
     def on_commands_enabled(self, enabled: bool) -> None:
         """Start the heartbeat when commands are enabled; stop it and the charger repeat."""
         if enabled:
@@ -75,30 +77,43 @@ class AmsCommands(Commander):
             self.charger.disarm('commands_enabled was set to false; no STOP sent')
             self.master.stop('commands_enabled was set to false while waiting; the heartbeat '
                              'stopped')
+        self._log_heartbeat('commands_enabled is false')
+
+    def _log_heartbeat(self, why: str = '') -> None:
+        """Log the heartbeat starting or stopping (once per change, never per frame)."""
+        running = bool(self.master.running)
+        if running == self._heartbeat_logged:
+            return
+        self._heartbeat_logged = running
+        if running:
+            base = getattr(self.device.config, 'base_id', None)
+            frame = f' 0x{base + 5:X}' if isinstance(base, int) else ''
+            self.host.get_logger().info(
+                f'{self.name}: heartbeat started: car status{frame} every '
+                f'{self.master.period * 1000:g} ms')
+        else:
+            because = f' ({why})' if why else ''
+            self.host.get_logger().info(f'{self.name}: heartbeat stopped{because}')
 
     def destroy(self) -> None:
         """Stop the heartbeat, the charger repeat, and remove the services."""
         self.charger.disarm('the bridge is shutting down')
         self.master.stop('the bridge is shutting down')
-        for service in self._services:
-            self.node.destroy_service(service)
-        self._services.clear()
+        if self.host.context.ok():  # after Ctrl-C the logger may be gone with the context
+            self._log_heartbeat('the bridge is shutting down')
+        self._remove_services()
 
     # --- services ----------------------------------------------------------------------
-    def _service(self, suffix: str, callback: Callable) -> None:
-        self._services.append(self.node.create_service(
-            Trigger, f'{self.name}/{suffix}', callback,
-            callback_group=self.node.service_group))
 
     def _car_command(self, command: CarCommand, what: str) -> Callable:
         def callback(request: Any, response: Any) -> Any:
             # the total bound, waiting for the bus included
             timeout = float(self.device.config.command_timeout or 2.0)
             started = time.monotonic()
-            if not self.node.commands_enabled:
-                result = CommandResult(False, gate_message(self.node, what))
+            if not self.gate.enabled:
+                result = CommandResult(False, self.gate.refusal(what))
             else:
-                ok, message = self.node.wait_for_bus(limit=timeout)
+                ok, message = self.gate.wait_for_bus(limit=timeout)
                 if not ok:
                     result = CommandResult(False, f'{command.name} not sent: {message}')
                 else:
@@ -109,7 +124,7 @@ class AmsCommands(Commander):
 
     def _start_charging(self, request: Any, response: Any) -> Any:
         with self._charging_lock:
-            if self.node.commands_enabled and self.charger.active:
+            if self.gate.enabled and self.charger.active:
                 response.success = True
                 response.message = (f'{self.name}: start charging: START is already repeated '
                                     f'every {self.charger.period * 1000:g} ms; nothing more '
@@ -129,8 +144,7 @@ class AmsCommands(Commander):
     def _stop_charging(self, request: Any, response: Any) -> Any:
         with self._charging_lock:
             # the repeat ends first: no START can follow the STOP on the bus
-            repeated = (self.node.commands_enabled
-                        and self.charger.halt('stop_charging'))
+            repeated = self.gate.enabled and self.charger.halt('stop_charging')
             ok, message = self._send_one('stop charging', lambda: self.device.charger_frame(
                 ChargerStart.STOP, self.time_tick()))
             if repeated:
@@ -145,13 +159,13 @@ class AmsCommands(Commander):
         return callback
 
     def _send_one(self, what: str, build: Callable[[], Frame]) -> tuple[bool, str]:
-        if not self.node.commands_enabled:
-            return False, f'{self.name}: {gate_message(self.node, what)}'
+        if not self.gate.enabled:
+            return False, f'{self.name}: {self.gate.refusal(what)}'
         try:
             frame = build()
-        except (RefusedCommand, EncodeRangeError, ValueError) as exc:
+        except (RefusedCommand, EncodeRangeError) as exc:  # anything else is a bug
             return False, f'{self.name}: cannot {what}: {exc}; nothing was sent'
-        ok, message = self.node.transmit(frame)
+        ok, message = self.gate.transmit(frame)
         if not ok:
             return False, f'{self.name}: {what} failed: {message}'
         return True, f'{self.name}: {what}: sent {frame_text(frame)}'

@@ -14,21 +14,16 @@ all. Services that wait go in ``service_group`` (reentrant), and telemetry keeps
 while a command waits for the device.
 
 COMMANDERS seam (the command services live in other modules). For each device instance
-whose type is in ``ams_can_bridge.registry.COMMANDERS`` the node builds ``cls(node, device,
-name)``; the parameters its services use are the device type's ``COMMAND_PARAMS``, declared
-with the device (``DeviceSet``). A commander may use:
-
-- ``node.commands_enabled`` (bool, follows the ``commands_enabled`` parameter);
-- ``node.transmit(frame, wait=True) -> (ok, message)``: refuses with a message naming
-  ``commands_enabled`` while commands are disabled, else sends through CanIo
-  (``(False, reason)`` when the bus refuses); with ``wait`` a bus that is still opening or
-  reconnecting is waited for (``wait_for_bus``), without it (a heartbeat) it fails at once;
-- ``node.wait_for_bus(limit=None) -> (ok, message)``: wait up to ``can.connect_wait`` (and
-  at most ``limit`` s) for a bus that is (re)opening; the message names the state and reason;
-- ``node.service_group`` for its services, ``node.params`` (ParamRegistry), ``node.devices``.
-
-and the node calls on it the methods of ``ros.commander.Commander`` (its base class):
-``on_commands_enabled(enabled)`` when ``commands_enabled`` changes; ``destroy()`` at shutdown.
+whose type is in ``ams_can_bridge.registry.COMMANDERS`` the node builds ``cls(gate, device,
+name, node)``; the parameters its services use are the device type's ``COMMAND_PARAMS``,
+declared with the device (``DeviceSet``). Every frame goes through the gate
+(``engine/gate.py``, ``CommandGate``): commands_allowed / commands_enabled, the bus wait, the
+send locks and the command log line are the gate's; the node only forwards the
+``commands_enabled`` parameter to ``gate.set_enabled`` and names the service a thread answers
+(``gate.calling``). The node is the commander's ``ServiceHost`` (``ros/commander.py``):
+``create_service`` / ``destroy_service``, ``service_group``, ``get_logger``. The gate calls
+a commander's ``on_commands_enabled(enabled)`` (a listener) when ``commands_enabled``
+changes; the node calls its ``destroy()`` at shutdown.
 A device's parameters ``<name>.<key>`` belong to the device: the node asks the device
 (``config_reason``) before a set and applies an accepted set to it (``configure``: a new
 frozen configuration swapped in whole); commanders read ``device.config`` when called.
@@ -37,7 +32,6 @@ from __future__ import annotations
 
 import logging
 import math
-import threading
 import time
 import traceback
 from typing import Any
@@ -48,16 +42,16 @@ from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackRet
 from rclpy.parameter import Parameter
 
 from ams_can_bridge import registry
-from ams_can_bridge.can_io import BusConfig, CanIo, CanSendError, parse_options
-from ams_can_bridge.can_io.config import BusState, BusStatus, RETRY_STATES
+from ams_can_bridge.can_io import BusConfig, CanIo, parse_options
+from ams_can_bridge.can_io.config import BusState, BusStatus
 from ams_can_bridge.can_io.core import STATE_CHANGE_FORMAT
 from ams_can_bridge.device_set import DeviceSet, unknown_parameter_errors
 from ams_can_bridge.devices.base import Device
 from ams_can_bridge.engine.core import Engine
+from ams_can_bridge.engine.gate import CommandGate
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.parameters import AUTOSTART
 from ams_can_bridge.periodic import Periodic
-from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.ros.bus_log import BusStateLog
 from ams_can_bridge.ros.commander import Commander
 from ams_can_bridge.ros.convert import format_ids, RosLogHandler
@@ -65,30 +59,9 @@ from ams_can_bridge.ros.params import BUS_PARAMS, NODE_PARAMS, ParamError, Param
 from ams_can_bridge.ros.sink import RosSink
 
 NODE_NAME = 'ams_can_bridge'
-# Commands that may wait for a down bus at once. A waiting call holds an executor thread
-# (the bridge runs 4): at most 2 wait, so telemetry, /diagnostics and the parameter
-# services (disarming) always keep a thread; a further command fails at once instead.
-BUS_WAIT_SLOTS = 2
 CLOCK_PERIOD = 0.01  # s between /clock messages of a replay (can.replay_clock)
 
 __all__ = ['BridgeNode', 'ConfigError', 'NODE_NAME']
-
-# The command service a thread is answering (create_service sets it): transmit names it.
-_CALL = threading.local()
-
-
-def candump_text(frame: Frame) -> str:
-    """Return a frame as candump writes it: '305#0102', 29-bit IDs with 8 digits."""
-    width = 8 if frame.is_extended_id else 3
-    return f'{frame.arbitration_id:0{width}X}#{frame.data.hex().upper()}'
-
-
-def arming_refused() -> str:
-    """Return the reason a commands_enabled = true is refused without commands_allowed."""
-    return ('commands_enabled = true refused: commands_allowed is false. commands_allowed is '
-            'read-only, set only at launch: start the bridge with commands_allowed: true '
-            '(params file or --ros-args -p commands_allowed:=true) to let commands be enabled; '
-            'bridge.launch.py commands_allowed:=..., when given, replaces the params file value')
 
 
 class BridgeNode(LifecycleNode):
@@ -100,14 +73,10 @@ class BridgeNode(LifecycleNode):
         self.service_group = ReentrantCallbackGroup()
         self.devices: dict[str, Device] = {}
         self.commanders: dict[str, Commander] = {}
-        self.commands_enabled = False
-        self.commands_allowed = False
-        self.commands_changes = 0  # run-time changes of commands_enabled (diagnostics)
-        self._bus_waits = threading.BoundedSemaphore(BUS_WAIT_SLOTS)
+        self.gate: CommandGate | None = None  # made in _configure (the bus parameters)
         self.can_io: CanIo | None = None
         self._ready = False
         self._replaying = False
-        self._heartbeats: dict[str, bool] = {}  # commander name -> heartbeat running (logged)
         self._active = False
         self._armed_at_launch = False  # commands_enabled: true given at launch, not autostart
         self._start_error: ConfigError | None = None
@@ -120,6 +89,16 @@ class BridgeNode(LifecycleNode):
                 self.destroy_node()
                 raise error
             self.trigger_activate()
+
+    @property
+    def commands_enabled(self) -> bool:
+        """Tell whether commands are enabled now (the gate's)."""
+        return self.gate is not None and self.gate.enabled
+
+    @property
+    def commands_allowed(self) -> bool:
+        """Tell whether commands may be enabled at all (the gate's, set at launch)."""
+        return self.gate is not None and self.gate.allowed
 
     # --- lifecycle --------------------------------------------------------------------------
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -147,7 +126,6 @@ class BridgeNode(LifecycleNode):
         if self._armed_at_launch:  # commands_enabled: true at launch applies when active
             self._armed_at_launch = False
             self.set_parameters([Parameter('commands_enabled', value=True)])
-        self._log_heartbeats()  # commands_enabled at launch: the heartbeat runs already
         return TransitionCallbackReturn.SUCCESS
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -203,10 +181,10 @@ class BridgeNode(LifecycleNode):
         periodic = getattr(self, 'periodic', None)
         if periodic is not None:
             periodic.stop()
+        if self.gate is not None:
+            self.gate.attach_bus(None)  # a command from now on is answered 'shutting down'
         for commander in self.commanders.values():
             commander.destroy()
-        if self.context.ok():  # after Ctrl-C the logger may be gone with the context
-            self._log_heartbeats('the bridge is shutting down')
         self.commanders.clear()
         if self.can_io is not None:
             self.can_io.stop()
@@ -228,16 +206,6 @@ class BridgeNode(LifecycleNode):
         bus = self.params.declare_all('can.', BUS_PARAMS)
         node = self.params.declare_all('', NODE_PARAMS)
         self.diagnostics_period = node['diagnostics_period']
-        self.commands_allowed = node['commands_allowed']
-        self.commands_enabled = node['commands_enabled']
-        if self.commands_enabled and not self.autostart:
-            # configured, not active: nothing may be sent; activate arms it as given
-            self.commands_enabled = False
-            self._armed_at_launch = self.commands_allowed
-            self.set_parameters([Parameter('commands_enabled', value=False)])
-        if self.commands_enabled and not self.commands_allowed:
-            self.params.errors.append(arming_refused())
-            self.commands_enabled = False
         # A bus setting that cannot work is collected, not raised: the devices are still
         # declared, so that every problem of the params file is reported at once.
         try:
@@ -257,7 +225,20 @@ class BridgeNode(LifecycleNode):
             except ValueError as exc:
                 self.params.errors.append(str(exc))
         self.hardware_id = f"{bus['interface']}:{bus['channel']}"
-        self.connect_wait = bus['connect_wait']
+        gate_logger = self._stdlib_logger('gate')
+        gate_logger.setLevel(logging.DEBUG)  # the rclpy logger decides what is shown
+        self.gate = CommandGate(self.hardware_id, allowed=node['commands_allowed'],
+                                connect_wait=bus['connect_wait'], logger=gate_logger,
+                                node_name=self.get_fully_qualified_name())
+        enabled = node['commands_enabled']
+        if enabled and not self.autostart and self.gate.allowed:
+            # configured, not active: nothing may be sent; activate arms it as given
+            enabled = False
+            self._armed_at_launch = True
+            self.set_parameters([Parameter('commands_enabled', value=False)])
+        refused = self.gate.start_enabled(enabled)
+        if refused:
+            self.params.errors.append(refused)
         self._bus_log = BusStateLog(self.get_logger(), self.hardware_id, bus['channel'],
                                     bus['reconnect_period'])
         self._replaying = bus['interface'] == 'replay'
@@ -280,6 +261,7 @@ class BridgeNode(LifecycleNode):
         can_logger.setLevel(logging.WARNING)
         can_logger.addFilter(lambda record: record.msg != STATE_CHANGE_FORMAT)
         self.can_io = CanIo(self.bus_config, self.engine.on_frame, filters, can_logger)
+        self.gate.attach_bus(self.can_io)
 
     def _make_publishers(self) -> None:
         self.sink = RosSink(self, {name: list(device.extra_arrays())
@@ -319,7 +301,7 @@ class BridgeNode(LifecycleNode):
         cls = registry.load(path)
         if not (isinstance(cls, type) and issubclass(cls, Commander)):
             raise TypeError(f'{path} is not a Commander (ams_can_bridge.ros.commander)')
-        self.commanders[name] = cls(self, device, name)
+        self.commanders[name] = cls(self.gate, device, name, self)
 
     def _log_summary(self) -> None:
         cfg = self.bus_config
@@ -383,113 +365,38 @@ class BridgeNode(LifecycleNode):
     def _bus_values(self) -> dict[str, str]:
         return {'commands_allowed': str(self.commands_allowed).lower(),
                 'commands_enabled': str(self.commands_enabled).lower(),
-                'commands_enabled changes': str(self.commands_changes)}
+                'commands_enabled changes': str(self.gate.changes if self.gate else 0)}
 
     def _publish_clock(self) -> None:
         can_io = self.can_io
         self.engine.publish_clock(can_io.last_stamp if can_io is not None else math.nan)
 
     # --- commands seam --------------------------------------------------------------------
-    def wait_for_bus(self, limit: float | None = None) -> tuple[bool, str]:
-        """
-        Wait for a bus that is opening or reconnecting: (connected, why not) - never raises.
-
-        Waits at most ``can.connect_wait`` s (and at most ``limit`` s, a state command's own
-        timeout); returns early when commands are disabled meanwhile.
-        """
-        can_io = self.can_io
-        if can_io is None:
-            return False, f'CAN bus {self.hardware_id} is closed: the bridge is shutting down'
-        status = can_io.status()
-        if status.connected:
-            return True, ''
-        wait = self.connect_wait if limit is None else min(self.connect_wait, limit)
-        if wait > 0 and status.state in RETRY_STATES:
-            if not self._bus_waits.acquire(blocking=False):
-                reason = f': {status.reason}' if status.reason else ''
-                return False, (f'CAN bus {self.hardware_id} is not connected ({status.state}'
-                               f'{reason}) and {BUS_WAIT_SLOTS} commands already wait for it: '
-                               'try again later')
-            try:
-                return self._wait_for_bus(can_io, status, wait, limit)
-            finally:
-                self._bus_waits.release()
-        return self._wait_for_bus(can_io, status, wait, limit)
-
-    def _wait_for_bus(self, can_io: CanIo, status: Any, wait: float,
-                      limit: float | None) -> tuple[bool, str]:
-        deadline = time.monotonic() + wait
-        while status.state in RETRY_STATES and self.commands_enabled:
-            left = deadline - time.monotonic()
-            if left <= 0:
-                break
-            # in slices, so that switching commands_enabled off ends the wait at once
-            status = can_io.wait_connected(min(left, 0.05))
-            if status.connected:
-                return True, ''
-        if not self.commands_enabled:
-            return False, 'commands_enabled was set to false while waiting for the CAN bus'
-        reason = f': {status.reason}' if status.reason else ''
-        waited = ''
-        if status.state in RETRY_STATES:
-            waited = (f' after waiting {wait:g} s (can.connect_wait {self.connect_wait:g} s'
-                      + (f', command timeout {limit:g} s)' if limit is not None else ')')
-                      if wait > 0 else ' (can.connect_wait is 0: commands do not wait)')
-        return False, (f'CAN bus {self.hardware_id} is not connected ({status.state}{reason})'
-                       f'{waited}')
-
-    def transmit(self, frame: Frame, wait: bool = True) -> tuple[bool, str]:
-        """
-        Send one frame if commands are enabled; (ok, message) - never raises.
-
-        Every frame sent on a service call is logged at INFO with the service, the frame
-        (candump's ID#data) and the outcome; the heartbeat's frames are not (its start and
-        stop are: ``_log_heartbeats``).
-        """
-        ok, message = self._transmit(frame, wait)
-        service = getattr(_CALL, 'service', None)
-        if service is not None:
-            outcome = 'sent' if ok else f'NOT sent: {message}'
-            self.get_logger().info(f'{service}: {candump_text(frame)} {outcome}')
-        return ok, message
-
-    def _transmit(self, frame: Frame, wait: bool) -> tuple[bool, str]:
-        if not self.commands_enabled:
-            return False, ('commands are disabled: set the parameter commands_enabled to true '
-                           '(ros2 param set /ams_can_bridge commands_enabled true) to transmit')
-        if wait:
-            ok, message = self.wait_for_bus()
-            if not ok:
-                return False, message
-        can_io = self.can_io
-        if can_io is None:
-            return False, f'CAN bus {self.hardware_id} is closed: the bridge is shutting down'
-        try:
-            can_io.send(frame)  # every driver failure arrives as CanSendError
-        except CanSendError as exc:
-            return False, f'CAN send failed on {self.hardware_id}: {exc}'
-        return True, f'sent 0x{frame.arbitration_id:X} [{frame.data.hex(" ").upper()}]'
-
     def create_service(self, srv_type: Any, srv_name: str, callback: Any,
                        **kwargs: Any) -> Any:
         """
         Create a service; a device's command service is logged (its frames and its answer).
 
-        The call's service name is kept for the thread running it, so ``transmit`` can name
-        it; the answer (success and message) is logged once the callback returns: INFO when
-        it succeeded, WARN when not. The node's parameter services pass through unchanged.
+        The call's service name is given to the gate for the thread running it, so the gate's
+        command log line names it; the answer (success and message) is logged once the
+        callback returns: INFO when it succeeded, WARN when not. A callback that raises is a
+        bug: its traceback is logged (ERROR) and the call answered as an internal error. The
+        node's parameter services pass through unchanged.
         """
         device = srv_name.split('/', 1)[0]
         if device not in getattr(self, 'devices', {}):
             return super().create_service(srv_type, srv_name, callback, **kwargs)
 
         def logged(request: Any, response: Any) -> Any:
-            outer = getattr(_CALL, 'service', None)
-            _CALL.service = srv_name
             try:
-                response = callback(request, response)
-            finally:
-                _CALL.service = outer
+                with self.gate.calling(srv_name):
+                    response = callback(request, response)
+            except Exception as exc:  # a bug, not a refusal: say so, keep the traceback
+                self.get_logger().error(f'{srv_name}: internal error:\n'
+                                        + traceback.format_exc())
+                response.success = False
+                response.message = (f'{srv_name}: internal error: {type(exc).__name__}: '
+                                    f'{exc}; see the log')
             answer = (f'{srv_name}: answered success={response.success}: '
                       f'{response.message}')
             if response.success:
@@ -499,33 +406,14 @@ class BridgeNode(LifecycleNode):
             return response
         return super().create_service(srv_type, srv_name, logged, **kwargs)
 
-    def _log_heartbeats(self, why: str = '') -> None:
-        """Log each commander's heartbeat starting or stopping (not each of its frames)."""
-        for name, commander in self.commanders.items():
-            master = getattr(commander, 'master', None)
-            if master is None:
-                continue
-            running = bool(master.running)
-            if running == self._heartbeats.get(name, False):
-                continue
-            self._heartbeats[name] = running
-            if running:
-                base = getattr(commander.device.config, 'base_id', None)
-                frame = f' 0x{base + 5:X}' if isinstance(base, int) else ''
-                self.get_logger().info(
-                    f'{name}: heartbeat started: car status{frame} every '
-                    f'{master.period * 1000:g} ms')
-            else:
-                because = f' ({why})' if why else ''
-                self.get_logger().info(f'{name}: heartbeat stopped{because}')
-
     def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         for param in parameters:
             reason = self.params.validate(param)
             if (reason is None and self._ready and param.name == 'commands_enabled'
-                    and param.value is True and not self.commands_allowed):
-                reason = arming_refused()
-                self.get_logger().warning(f'refused: {reason}')
+                    and param.value is True):
+                reason = self.gate.arming_reason(True)
+                if reason:
+                    self.get_logger().warning(f'refused: {reason}')
             if (reason is None and self._ready and not self._active and param.value is True
                     and param.name == 'commands_enabled'):
                 reason = ('commands_enabled = true refused: the bridge is inactive (lifecycle): '
@@ -552,23 +440,16 @@ class BridgeNode(LifecycleNode):
                 self.devices[name].configure(changes)
             except ValueError as exc:  # checked key by key before; only a combination is left
                 self.get_logger().error(f'{name}: configuration change not applied: {exc}')
-        if 'commands_enabled' in changed and changed['commands_enabled'] != \
-                self.commands_enabled:
-            self.commands_enabled = bool(changed['commands_enabled'])
-            self.commands_changes += 1
+        if 'commands_enabled' in changed:
             # Who: ROS 2 hands the node the new value, never the caller (the parameter
             # event names this node); only SROS2 decides who may make this call at all.
-            who = ('set at run time through the parameter services; the caller is not known '
-                   'to the node (restrict who may set it with SROS2: security/policy.xml)')
-            if self.commands_enabled:
-                self.get_logger().warning(f'commands_enabled false -> true ({who}): commands '
-                                          'ENABLED, the bridge may transmit')
-            else:
-                self.get_logger().warning(f'commands_enabled true -> false ({who}): commands '
-                                          'disabled, listen only')
-            for commander in self.commanders.values():
-                commander.on_commands_enabled(self.commands_enabled)
-            self._log_heartbeats('commands_enabled is false')
+            # The gate tells the commanders (its listeners) before it returns.
+            refused = self.gate.set_enabled(
+                bool(changed['commands_enabled']),
+                how='set at run time through the parameter services; the caller is not known '
+                    'to the node (restrict who may set it with SROS2: security/policy.xml)')
+            if refused:  # checked in _on_set_parameters: not reached
+                self.get_logger().error(f'commands_enabled not applied: {refused}')
 
     # --- shutdown -------------------------------------------------------------------------
     def destroy_node(self) -> None:

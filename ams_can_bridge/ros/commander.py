@@ -2,8 +2,11 @@
 The extension point the node calls on a device's command services (python-can listener style).
 
 For each device instance whose type is in ``registry.COMMANDERS`` the node builds
-``cls(node, device, name)``; ``cls`` must derive from :class:`Commander`. The node calls these
-methods, from the executor (commands_enabled) or the shutting-down thread (destroy).
+``cls(gate, device, name, host)``; ``cls`` must derive from :class:`Commander`. Frames go to
+the bus only through ``gate`` (``engine.gate.CommandPort``: the commands_enabled gate, the
+bus wait, the send locks, the command log line); ``host`` (:class:`ServiceHost`, the node)
+only creates and removes services. The gate calls ``on_commands_enabled`` (a listener) from
+the thread that changed commands_enabled; the node calls ``destroy`` at shutdown.
 Parameters are not the commander's: the node checks and applies a device's parameters on the
 device itself (``Device.config_reason`` / ``Device.configure``), and a commander reads the
 device's current configuration when a call comes.
@@ -11,18 +14,60 @@ device's current configuration when a call comes.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import Any
+from typing import Any, Callable, Protocol
+
+from ams_can_bridge.engine.gate import CommandPort
+
+
+class ServiceHost(Protocol):
+    """What a commander needs of the node: its services, its logger, its parameters."""
+
+    service_group: Any
+
+    @property
+    def context(self) -> Any:
+        """Return rclpy's context: ``context.ok()`` is false once ROS is shutting down."""
+
+    def create_service(self, srv_type: Any, srv_name: str, callback: Callable,
+                       **kwargs: Any) -> Any:
+        """Create a service (logged, see the node)."""
+
+    def destroy_service(self, service: Any) -> Any:
+        """Remove a service."""
+
+    def get_logger(self) -> Any:
+        """Return the node's logger."""
+
+    def set_parameters_atomically(self, parameters: list) -> Any:
+        """Set parameters all or none (the EVMS3 read-back)."""
 
 
 class Commander(ABC):
     """The command services of one device instance (``<name>/...``)."""
 
-    @abstractmethod
-    def __init__(self, node: Any, device: Any, name: str) -> None:
-        """Create the services; raise ConfigError/ParamError naming any bad start value."""
+    def __init__(self, gate: CommandPort, device: Any, name: str, host: ServiceHost) -> None:
+        """Keep the gate, the device and the host; follow commands_enabled from now on."""
+        self.gate = gate
+        self.device = device
+        self.name = name
+        self.host = host
+        self._services: list[Any] = []
+        gate.add_listener(self.on_commands_enabled)
 
     def on_commands_enabled(self, enabled: bool) -> None:
         """Follow the commands_enabled parameter (stop anything that transmits when false)."""
+
+    def _service(self, srv_type: Any, suffix: str, callback: Callable) -> None:
+        """Offer ``<name>/<suffix>`` in the host's service group (callbacks may wait)."""
+        self._services.append(self.host.create_service(
+            srv_type, f'{self.name}/{suffix}', callback,
+            callback_group=self.host.service_group))
+
+    def _remove_services(self) -> None:
+        self.gate.remove_listener(self.on_commands_enabled)
+        for service in self._services:
+            self.host.destroy_service(service)
+        self._services.clear()
 
     @abstractmethod
     def destroy(self) -> None:

@@ -15,9 +15,9 @@ from typing import Any, Callable
 from std_srvs.srv import SetBool, Trigger
 
 from ams_can_bridge.devices.ivt_s import IvtSDevice
+from ams_can_bridge.engine.gate import CommandPort
 from ams_can_bridge.protocols.common import Frame
-from ams_can_bridge.ros.commander import Commander
-from ams_can_bridge.ros.zeva_commands import gate_message
+from ams_can_bridge.ros.commander import Commander, ServiceHost
 
 START_CHECK_POLL = 0.05  # s between looks for "heard and commands enabled"
 
@@ -25,12 +25,10 @@ START_CHECK_POLL = 0.05  # s between looks for "heard and commands enabled"
 class IvtCommands(Commander):
     """The command services of one IVT-S instance."""
 
-    def __init__(self, node: Any, device: IvtSDevice, name: str) -> None:
+    def __init__(self, gate: CommandPort, device: IvtSDevice, name: str,
+                 host: ServiceHost) -> None:
         """Offer the services; start the one-time check when check_config_at_start is set."""
-        self.node = node
-        self.device = device
-        self.name = name
-        self._services: list[Any] = []
+        super().__init__(gate, device, name, host)
         self._stop = threading.Event()
         self.start_check: tuple[bool, str] | None = None  # its outcome, once done
         for suffix, what, call in (
@@ -52,22 +50,15 @@ class IvtCommands(Commander):
         self._stop.set()
         if self._thread is not None:
             self._thread.join(2.0)
-        for service in self._services:
-            self.node.destroy_service(service)
-        self._services.clear()
+        self._remove_services()
 
     # --- services ----------------------------------------------------------------------
-    def _service(self, srv_type: Any, suffix: str, callback: Callable) -> None:
-        self._services.append(self.node.create_service(
-            srv_type, f'{self.name}/{suffix}', callback,
-            callback_group=self.node.service_group))
-
     def _send(self, frame: Frame) -> tuple[bool, str]:
-        return self.node.transmit(frame)  # the gate again at each frame; waits for the bus
+        return self.gate.transmit(frame)  # the gate again at each frame; waits for the bus
 
     def _call(self, what: str, call: Callable[[Callable], tuple[bool, str]]) -> tuple[bool, str]:
-        if not self.node.commands_enabled:
-            return False, f'{self.name}: {gate_message(self.node, what)}'
+        if not self.gate.enabled:
+            return False, f'{self.name}: {self.gate.refusal(what)}'
         return call(self._send)
 
     def _trigger(self, what: str, call: Callable) -> Callable:
@@ -87,11 +78,11 @@ class IvtCommands(Commander):
     def _check_at_start(self) -> None:
         """Wait until the sensor is heard while commands are enabled; read once."""
         while not self._stop.wait(START_CHECK_POLL):
-            if self.device.heard() and self.node.commands_enabled:
+            if self.device.heard() and self.gate.enabled:
                 break
         else:
             return
         ok, message = self.device.read_config(self._send)
         self.start_check = (ok, message)
-        log = self.node.get_logger()
+        log = self.host.get_logger()
         (log.info if ok else log.error)(f'check_config_at_start: {message}')

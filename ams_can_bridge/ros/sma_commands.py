@@ -8,24 +8,21 @@ at once when either goes false. Its start and stop are logged once each.
 """
 from __future__ import annotations
 
-from typing import Any
-
 from ams_can_bridge.devices.sma import SmaDevice
-from ams_can_bridge.ros.commander import Commander
+from ams_can_bridge.engine.gate import CommandPort
+from ams_can_bridge.ros.commander import Commander, ServiceHost
 
 
 class SmaCommands(Commander):
     """The keep-alive of one SMA instance, armed by commands_enabled."""
 
-    def __init__(self, node: Any, device: SmaDevice, name: str) -> None:
-        """Attach the device's keep-alive to the bus (never waiting for it) and arm it."""
-        self.node = node
-        self.name = name
-        logger = node.get_logger()
+    def __init__(self, gate: CommandPort, device: SmaDevice, name: str,
+                 host: ServiceHost) -> None:
+        """Attach the device's keep-alive to the gate (never waiting for the bus); arm it."""
+        super().__init__(gate, device, name, host)
         # A keep-alive never waits for the bus: a late one is a wrong one.
-        self.keepalive = device.attach_keepalive(
-            lambda frame: node.transmit(frame, wait=False), logger.info)
-        self.keepalive.set_armed(node.commands_enabled)
+        self.keepalive = device.attach_keepalive(gate.send_periodic, host.get_logger().info)
+        self.keepalive.set_armed(gate.enabled)
 
     def on_commands_enabled(self, enabled: bool) -> None:
         """Run the keep-alive (if configured) while commands are enabled, stop it at once not."""
@@ -34,3 +31,4 @@ class SmaCommands(Commander):
     def destroy(self) -> None:
         """Stop the keep-alive."""
         self.keepalive.stop('the bridge is shutting down')
+        self._remove_services()

@@ -8,32 +8,25 @@ value is set and names all missing ones. The EVMS3 can report its configuration:
 it, so a write after it is a read-modify-write; it is refused unless ``<name>.config_request``
 is true, because ID 51 is also a ZEVA motor controller's throttle frame.
 Nothing is sent unless ``commands_enabled`` is true, and a refused call sends nothing: every
-frame of a call is built (and so validated) before the first one is sent.
+frame of a call is built (and so validated) before the first one is sent. Frames go through
+the gate (``engine/gate.py``); the frames of one call go out in one ``gate.batch()``, so no
+other call's frame lands between two of them.
 """
 from __future__ import annotations
 
-import threading
 import time
 from typing import Any, Callable, Iterable
 
 from rclpy.parameter import Parameter
 from std_srvs.srv import SetBool, Trigger
 
-from ams_can_bridge.devices.base import Device
+from ams_can_bridge.devices.bms16 import Bms16Device
+from ams_can_bridge.devices.bms16_std import Bms16StdDevice
+from ams_can_bridge.devices.evms3 import Evms3Device
+from ams_can_bridge.engine.gate import CommandPort
 from ams_can_bridge.errors import RefusedCommand
 from ams_can_bridge.protocols.common import EncodeRangeError, Frame
-from ams_can_bridge.ros.commander import Commander
-
-
-def gate_message(node: Any, what: str) -> str:
-    """Return the refusal text while commands are disabled (names the parameter(s))."""
-    if not getattr(node, 'commands_allowed', True):
-        return (f'commands_enabled is false and commands_allowed is false: to {what}, start '
-                'the bridge with commands_allowed: true (read-only, launch only), then set '
-                'commands_enabled to true; nothing was sent')
-    return (f'commands_enabled is false: set the bridge parameter commands_enabled to true to '
-            f'{what} (ros2 param set {node.get_fully_qualified_name()} commands_enabled true); '
-            'nothing was sent')
+from ams_can_bridge.ros.commander import Commander, ServiceHost
 
 
 def frame_text(frame: Frame) -> str:
@@ -45,27 +38,11 @@ def frame_text(frame: Frame) -> str:
 class _ZevaCommands(Commander):
     """Shared plumbing: the gate, all-or-nothing frame sequences, services."""
 
-    def __init__(self, node: Any, device: Device, name: str) -> None:
-        """Keep the node and the device; the subclass offers the services."""
-        self.node = node
-        self.device = device
-        self.name = name
-        self._send_lock = threading.Lock()  # one call's frames are never interleaved
-        self._services: list[Any] = []
-
-    # --- hooks for the node ------------------------------------------------------------
     def destroy(self) -> None:
         """Remove the services."""
-        for service in self._services:
-            self.node.destroy_service(service)
-        self._services.clear()
+        self._remove_services()
 
     # --- helpers -------------------------------------------------------------------------
-    def _service(self, srv_type: Any, suffix: str, handler: Callable) -> None:
-        self._services.append(self.node.create_service(
-            srv_type, f'{self.name}/{suffix}', handler,
-            callback_group=self.node.service_group))
-
     def _trigger(self, what: str, build: Callable[[], Iterable[Frame]]) -> Callable:
         """Make a Trigger callback that builds its frames, then sends them all in order."""
         def callback(request: Any, response: Any) -> Any:
@@ -74,24 +51,26 @@ class _ZevaCommands(Commander):
         return callback
 
     def _send_frames(self, what: str, build: Callable[[], Iterable[Frame]],
-                     gap: float = 0.0) -> tuple[bool, str]:
-        if not self.node.commands_enabled:
-            return False, f'{self.name}: {gate_message(self.node, what)}'
+                     gap: float = 0.0, note_gap: bool = False) -> tuple[bool, str]:
+        if not self.gate.enabled:
+            return False, f'{self.name}: {self.gate.refusal(what)}'
         try:
             # Validation happens here, before anything is sent; a device builds a write from
             # one configuration object, so a parameter set meanwhile cannot mix two sets.
+            # Only the deliberate refusals are answered here: anything else is a bug, which
+            # the node logs with its traceback and answers as an internal error.
             frames = list(build())
-        except (RefusedCommand, EncodeRangeError, ValueError, TypeError) as exc:
+        except (RefusedCommand, EncodeRangeError) as exc:
             return False, f'{self.name}: cannot {what}: {exc}; nothing was sent'
-        sent = []
+        sent: list[str] = []
         # A bus still opening (or reconnecting) is waited for once, before the first frame
-        # and outside the send lock, so calls wait side by side, not one after the other.
-        ok, message = self.node.wait_for_bus()
+        # and outside the batch, so calls wait side by side, not one after the other.
+        ok, message = self.gate.wait_for_bus()
         if not ok:
             return False, f'{self.name}: cannot {what}: {message}; nothing was sent'
-        with self._send_lock:
+        with self.gate.batch():  # the pause after each frame too: nothing else lands there
             for frame in frames:
-                ok, message = self.node.transmit(frame, wait=False)
+                ok, message = self.gate.transmit(frame, wait=False)
                 if not ok:
                     done = ', '.join(sent) if sent else 'nothing'
                     return False, (f'{self.name}: {what} failed at {frame_text(frame)}: '
@@ -99,7 +78,8 @@ class _ZevaCommands(Commander):
                 sent.append(frame_text(frame))
                 if gap:
                     self._sleep(gap)  # after each frame, as the device's own tool paces it
-        return True, f'{self.name}: {what}: sent ' + ', '.join(sent)
+        apart = f' ({gap * 1000:g} ms apart)' if note_gap else ''
+        return True, f'{self.name}: {what}: sent ' + ', '.join(sent) + apart
 
     @staticmethod
     def _sleep(seconds: float) -> None:
@@ -117,9 +97,10 @@ class Evms3Commands(_ZevaCommands):
 
     WRITE_GAP = 0.02  # s: CanTX(..., 20) after each configuration frame in the Monitor
 
-    def __init__(self, node: Any, device: Device, name: str) -> None:
-        """Create the codec and the services of one EVMS3 instance."""
-        super().__init__(node, device, name)
+    def __init__(self, gate: CommandPort, device: Evms3Device, name: str,
+                 host: ServiceHost) -> None:
+        """Create the services of one EVMS3 instance."""
+        super().__init__(gate, device, name, host)
         self._service(Trigger, 'write_config', self._write_config)
         self._service(SetBool, 'set_setup_mode', self._set_setup_mode)
         self._service(Trigger, 'acknowledge_error', self._trigger(
@@ -145,20 +126,14 @@ class Evms3Commands(_ZevaCommands):
                 'asks the EVMS3 for its configuration, but a ZEVA motor controller takes ID 51 '
                 'as its throttle frame: set the parameter ' + self.name + '.config_request to '
                 'true only if no ZEVA motor controller is on this bus; nothing was sent')
-        if not self.node.commands_enabled:
-            return False, f'{self.name}: {gate_message(self.node, "read the configuration")}'
-
-        def send(frame: Frame) -> tuple[bool, str]:
-            ok, message = self.node.wait_for_bus()  # outside the send lock, as every call
-            if not ok:
-                return False, message
-            with self._send_lock:
-                return self.node.transmit(frame, wait=False)
-        result = self.device.read_config(send, float(config.read_timeout or 2.0))
+        if not self.gate.enabled:
+            return False, f'{self.name}: {self.gate.refusal("read the configuration")}'
+        # the gate waits for the bus outside its batch lock, then sends ID 51 under it
+        result = self.device.read_config(self.gate.transmit, float(config.read_timeout or 2.0))
         if not result.ok:
             return False, f'{self.name}: read_config failed: {result.error}; nothing was set'
         values = result.readback.parameter_values()
-        outcome = self.node.set_parameters_atomically([
+        outcome = self.host.set_parameters_atomically([
             Parameter(f'{self.name}.config.{key}', value=value) for key, value in values.items()])
         if not outcome.successful:
             return False, (f'{self.name}: read_config: the EVMS3 answered, but its values '
@@ -182,9 +157,10 @@ class Bms16Commands(_ZevaCommands):
     32..35 with the device's pause after each (ZEVA's Monitor: 20 ms) / 37 / 38 / 39.
     """
 
-    def __init__(self, node: Any, device: Device, name: str) -> None:
-        """Create the codec and the services of one BMS16 instance."""
-        super().__init__(node, device, name)
+    def __init__(self, gate: CommandPort, device: Bms16Device | Bms16StdDevice, name: str,
+                 host: ServiceHost) -> None:
+        """Create the services of one BMS16 instance (either variant)."""
+        super().__init__(gate, device, name, host)
         gap = float(getattr(device, 'CONFIG_FRAME_GAP', 0.0))
         self._service(Trigger, 'write_config', self._paced_trigger(
             'write the configuration', device.config_frames, gap) if gap else self._trigger(
@@ -200,33 +176,6 @@ class Bms16Commands(_ZevaCommands):
                        gap: float) -> Callable:
         """Make a Trigger callback that sends its frames in order, ``gap`` s after each."""
         def callback(request: Any, response: Any) -> Any:
-            response.success, response.message = self._send_paced(what, build, gap)
+            response.success, response.message = self._send_frames(what, build, gap, True)
             return response
         return callback
-
-    def _send_paced(self, what: str, build: Callable[[], Iterable[Frame]],
-                    gap: float) -> tuple[bool, str]:
-        # As _send_frames (gate, every frame built and so validated first, the bus waited
-        # for once), with the pause the device needs after each frame; the send lock is held
-        # throughout, so no other call's frame lands between two of these.
-        if not self.node.commands_enabled:
-            return False, f'{self.name}: {gate_message(self.node, what)}'
-        try:
-            frames = list(build())
-        except (RefusedCommand, EncodeRangeError, ValueError, TypeError) as exc:
-            return False, f'{self.name}: cannot {what}: {exc}; nothing was sent'
-        ok, message = self.node.wait_for_bus()
-        if not ok:
-            return False, f'{self.name}: cannot {what}: {message}; nothing was sent'
-        sent: list[str] = []
-        with self._send_lock:
-            for frame in frames:
-                ok, message = self.node.transmit(frame, wait=False)
-                if not ok:
-                    done = ', '.join(sent) if sent else 'nothing'
-                    return False, (f'{self.name}: {what} failed at {frame_text(frame)}: '
-                                   f'{message}; sent before it: {done}')
-                sent.append(frame_text(frame))
-                time.sleep(gap)
-        return True, (f'{self.name}: {what}: sent ' + ', '.join(sent)
-                      + f' ({gap * 1000:g} ms apart)')

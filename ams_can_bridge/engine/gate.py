@@ -1,0 +1,314 @@
+"""
+The one command path: every frame the bridge sends passes this gate (no ROS here).
+
+``commands_allowed`` (read-only, from launch) and ``commands_enabled`` (set at run time) are
+the gate's; commanders, the AMS master, the charger repeat, the SMA keep-alive, the EVMS3
+read-back and the IVT-S exchanges reach the bus only through it (``CommandPort``):
+
+- ``transmit`` (a service call's frame): refused naming ``commands_enabled`` while disabled;
+  else waits (``wait=True``) up to ``can.connect_wait`` for a bus that is (re)opening, with
+  at most ``BUS_WAIT_SLOTS`` callers waiting; then sends under the batch lock, so it never
+  lands between two frames of another call's ``batch()``; logs ``<service>: ID#hex sent``
+  (or ``NOT sent: reason``) at INFO when it runs for a service call;
+- ``send_periodic`` (the heartbeat, the charger repeat, the keep-alive): the same gate, but
+  never waits, neither for the bus nor for a batch (a late heartbeat is a wrong heartbeat),
+  and is not logged per frame;
+- ``batch()``: hold the batch lock for the frames of one call (and its pacing);
+- ``add_listener``: told at once when commands are enabled or disabled, so everything that
+  transmits on its own stops on a disarm.
+"""
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from contextlib import AbstractContextManager, contextmanager
+from typing import Callable, Iterator, Protocol
+
+from ams_can_bridge.can_io.config import BusStatus, RETRY_STATES
+from ams_can_bridge.errors import CanSendError
+from ams_can_bridge.protocols.common import Frame
+
+# Commands that may wait for a down bus at once. A waiting call holds an executor thread
+# (the bridge runs 4): at most 2 wait, so telemetry, /diagnostics and the parameter
+# services (disarming) always keep a thread; a further command fails at once instead.
+BUS_WAIT_SLOTS = 2
+WAIT_SLICE = 0.05  # s: a bus wait looks at commands_enabled this often
+
+Listener = Callable[[bool], None]
+
+
+class BusPort(Protocol):
+    """What the gate needs of the bus (``can_io.CanIo``)."""
+
+    def status(self) -> BusStatus:
+        """Return a snapshot of the bus state."""
+
+    def wait_connected(self, timeout: float) -> BusStatus:
+        """Wait up to timeout s while the bus is (re)opening; return the status then."""
+
+    def send(self, frame: Frame) -> None:
+        """Send one frame; raise CanSendError when the bus or driver refuses."""
+
+
+class CommandPort(Protocol):
+    """The gate as commanders and device command helpers see it."""
+
+    @property
+    def enabled(self) -> bool:
+        """Tell whether commands are enabled now."""
+
+    @property
+    def allowed(self) -> bool:
+        """Tell whether commands may be enabled at all (set at launch)."""
+
+    def refusal(self, what: str) -> str:
+        """Return the answer to a command refused while disabled (names the parameters)."""
+
+    def wait_for_bus(self, limit: float | None = None) -> tuple[bool, str]:
+        """Wait for a (re)opening bus: (connected, why not)."""
+
+    def transmit(self, frame: Frame, *, wait: bool = True,
+                 source: str | None = None) -> tuple[bool, str]:
+        """Send one frame of a call: (ok, message)."""
+
+    def send_periodic(self, frame: Frame) -> tuple[bool, str]:
+        """Send one frame of a periodic sender, never waiting: (ok, message)."""
+
+    def batch(self) -> AbstractContextManager[None]:
+        """Hold the batch lock: no other call's frame goes out meanwhile."""
+
+    def add_listener(self, listener: Listener) -> None:
+        """Call listener(enabled) whenever commands_enabled changes."""
+
+    def remove_listener(self, listener: Listener) -> None:
+        """Stop calling listener."""
+
+
+def candump_text(frame: Frame) -> str:
+    """Return a frame as candump writes it: '305#0102', 29-bit IDs with 8 digits."""
+    width = 8 if frame.is_extended_id else 3
+    return f'{frame.arbitration_id:0{width}X}#{frame.data.hex().upper()}'
+
+
+def arming_refused() -> str:
+    """Return the reason a commands_enabled = true is refused without commands_allowed."""
+    return ('commands_enabled = true refused: commands_allowed is false. commands_allowed is '
+            'read-only, set only at launch: start the bridge with commands_allowed: true '
+            '(params file or --ros-args -p commands_allowed:=true) to let commands be enabled; '
+            'bridge.launch.py commands_allowed:=..., when given, replaces the params file value')
+
+
+class CommandGate:
+    """commands_allowed / commands_enabled, the bus wait, the send locks and the command log."""
+
+    def __init__(self, hardware_id: str, *, allowed: bool, connect_wait: float,
+                 logger: logging.Logger, node_name: str = '/ams_can_bridge') -> None:
+        """Make a disabled gate; ``attach_bus`` gives it the bus, ``set_enabled`` arms it."""
+        self.hardware_id = hardware_id
+        self.connect_wait = connect_wait
+        self.node_name = node_name
+        self.changes = 0  # run-time changes of commands_enabled (diagnostics)
+        self._allowed = bool(allowed)
+        self._enabled = False
+        self._log = logger
+        self._bus: BusPort | None = None
+        self._bus_waits = threading.BoundedSemaphore(BUS_WAIT_SLOTS)
+        # batch: one call's frames (and pacing) are never interleaved with another call's;
+        # io: one frame at a time into the driver, the periodic senders included.
+        self._batch_lock = threading.RLock()
+        self._io_lock = threading.Lock()
+        self._listeners: list[Listener] = []
+        self._call = threading.local()  # the service a thread is answering (log line)
+
+    # --- state ------------------------------------------------------------------------
+    @property
+    def allowed(self) -> bool:
+        """Tell whether commands may be enabled at all (read-only, set at launch)."""
+        return self._allowed
+
+    @property
+    def enabled(self) -> bool:
+        """Tell whether commands are enabled now."""
+        return self._enabled
+
+    def attach_bus(self, bus: BusPort | None) -> None:
+        """Send through ``bus`` from now on (None: the bridge is shutting down)."""
+        self._bus = bus
+
+    def arming_reason(self, enabled: bool) -> str | None:
+        """Return why commands_enabled = enabled would be refused, or None."""
+        if enabled and not self._allowed:
+            return arming_refused()
+        return None
+
+    def set_enabled(self, enabled: bool, how: str = '') -> str | None:
+        """
+        Enable or disable commands; return the refusal reason (nothing changed) or None.
+
+        A change is logged (WARN, with ``how``) and every listener is told at once, in the
+        caller's thread: a disarm stops the periodic senders before this returns, and no
+        frame goes out after it returns (a send in flight is waited for).
+        """
+        enabled = bool(enabled)
+        reason = self.arming_reason(enabled)
+        if reason:
+            self._log.warning(f'refused: {reason}')
+            return reason
+        with self._io_lock:
+            if enabled == self._enabled:
+                return None
+            self._enabled = enabled
+            self.changes += 1
+        because = f' ({how})' if how else ''
+        if enabled:
+            self._log.warning(f'commands_enabled false -> true{because}: commands ENABLED, '
+                              'the bridge may transmit')
+        else:
+            self._log.warning(f'commands_enabled true -> false{because}: commands disabled, '
+                              'listen only')
+        for listener in list(self._listeners):
+            listener(enabled)
+        return None
+
+    def start_enabled(self, enabled: bool) -> str | None:
+        """Apply commands_enabled given at launch (no change logged, no listener yet)."""
+        reason = self.arming_reason(bool(enabled))
+        if reason is None:
+            self._enabled = bool(enabled)
+        return reason
+
+    def add_listener(self, listener: Listener) -> None:
+        """Call listener(enabled) whenever commands_enabled changes."""
+        self._listeners.append(listener)
+
+    def remove_listener(self, listener: Listener) -> None:
+        """Stop calling listener."""
+        if listener in self._listeners:
+            self._listeners.remove(listener)
+
+    def refusal(self, what: str) -> str:
+        """Return the refusal text while commands are disabled (names the parameter(s))."""
+        if not self._allowed:
+            return (f'commands_enabled is false and commands_allowed is false: to {what}, '
+                    'start the bridge with commands_allowed: true (read-only, launch only), '
+                    'then set commands_enabled to true; nothing was sent')
+        return (f'commands_enabled is false: set the bridge parameter commands_enabled to true '
+                f'to {what} (ros2 param set {self.node_name} commands_enabled true); '
+                'nothing was sent')
+
+    # --- the bus wait -------------------------------------------------------------------
+    def wait_for_bus(self, limit: float | None = None) -> tuple[bool, str]:
+        """
+        Wait for a bus that is opening or reconnecting: (connected, why not) - never raises.
+
+        Waits at most ``connect_wait`` s (and at most ``limit`` s, a state command's own
+        timeout); returns early when commands are disabled meanwhile.
+        """
+        bus = self._bus
+        if bus is None:
+            return False, f'CAN bus {self.hardware_id} is closed: the bridge is shutting down'
+        status = bus.status()
+        if status.connected:
+            return True, ''
+        wait = self.connect_wait if limit is None else min(self.connect_wait, limit)
+        if wait > 0 and status.state in RETRY_STATES:
+            if not self._bus_waits.acquire(blocking=False):
+                reason = f': {status.reason}' if status.reason else ''
+                return False, (f'CAN bus {self.hardware_id} is not connected ({status.state}'
+                               f'{reason}) and {BUS_WAIT_SLOTS} commands already wait for it: '
+                               'try again later')
+            try:
+                return self._wait_for_bus(bus, status, wait, limit)
+            finally:
+                self._bus_waits.release()
+        return self._wait_for_bus(bus, status, wait, limit)
+
+    def bus_waiters(self) -> int:
+        """Return how many calls wait for the bus now."""
+        return BUS_WAIT_SLOTS - self._bus_waits._value
+
+    def _wait_for_bus(self, bus: BusPort, status: BusStatus, wait: float,
+                      limit: float | None) -> tuple[bool, str]:
+        deadline = time.monotonic() + wait
+        while status.state in RETRY_STATES and self._enabled:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                break
+            # in slices, so that switching commands_enabled off ends the wait at once
+            status = bus.wait_connected(min(left, WAIT_SLICE))
+            if status.connected:
+                return True, ''
+        if not self._enabled:
+            return False, 'commands_enabled was set to false while waiting for the CAN bus'
+        reason = f': {status.reason}' if status.reason else ''
+        waited = ''
+        if status.state in RETRY_STATES:
+            waited = (f' after waiting {wait:g} s (can.connect_wait {self.connect_wait:g} s'
+                      + (f', command timeout {limit:g} s)' if limit is not None else ')')
+                      if wait > 0 else ' (can.connect_wait is 0: commands do not wait)')
+        return False, (f'CAN bus {self.hardware_id} is not connected ({status.state}{reason})'
+                       f'{waited}')
+
+    # --- sending --------------------------------------------------------------------------
+    @contextmanager
+    def batch(self) -> Iterator[None]:
+        """Hold the batch lock: the frames sent meanwhile are one call's, in order."""
+        with self._batch_lock:
+            yield
+
+    @contextmanager
+    def calling(self, source: str) -> Iterator[None]:
+        """Name the service this thread answers meanwhile (``transmit`` logs with it)."""
+        outer = getattr(self._call, 'source', None)
+        self._call.source = source
+        try:
+            yield
+        finally:
+            self._call.source = outer
+
+    def transmit(self, frame: Frame, *, wait: bool = True,
+                 source: str | None = None) -> tuple[bool, str]:
+        """
+        Send one frame of a call if commands are enabled; (ok, message) - never raises.
+
+        The frame is logged at INFO with its source (the service a call answers, or
+        ``source``), the frame (candump's ID#data) and the outcome.
+        """
+        ok, message = self._transmit(frame, wait)
+        source = source or getattr(self._call, 'source', None)
+        if source is not None:
+            outcome = 'sent' if ok else f'NOT sent: {message}'
+            self._log.info(f'{source}: {candump_text(frame)} {outcome}')
+        return ok, message
+
+    def send_periodic(self, frame: Frame) -> tuple[bool, str]:
+        """Send one frame of a periodic sender: the gate, no wait, no batch, no log line."""
+        return self._send(frame)
+
+    def _transmit(self, frame: Frame, wait: bool) -> tuple[bool, str]:
+        if not self._enabled:
+            return False, self._disabled()
+        if wait:  # outside the batch lock: calls wait for the bus side by side
+            ok, message = self.wait_for_bus()
+            if not ok:
+                return False, message
+        with self._batch_lock:
+            return self._send(frame)
+
+    def _disabled(self) -> str:
+        return ('commands are disabled: set the parameter commands_enabled to true '
+                f'(ros2 param set {self.node_name} commands_enabled true) to transmit')
+
+    def _send(self, frame: Frame) -> tuple[bool, str]:
+        bus = self._bus
+        if bus is None:
+            return False, f'CAN bus {self.hardware_id} is closed: the bridge is shutting down'
+        try:
+            with self._io_lock:  # the gate is looked at under the lock a disarm takes
+                if not self._enabled:
+                    return False, self._disabled()
+                bus.send(frame)  # every driver failure arrives as CanSendError
+        except CanSendError as exc:
+            return False, f'CAN send failed on {self.hardware_id}: {exc}'
+        return True, f'sent 0x{frame.arbitration_id:X} [{frame.data.hex(" ").upper()}]'
