@@ -13,6 +13,7 @@ The hierarchy::
      +-- ProtocolError                      the protocol layer (protocols/)
      |    +-- MalformedFrameError           a received frame that is not a valid message
      |    +-- EncodeRangeError (ValueError) a value to send that the wire cannot carry
+     |    +-- LayoutError (RuntimeError)    an installed DBC that no longer matches a codec
      +-- CanSendError                       the bus is not available for sending
      +-- RefusedCommand                     a service call refused before any frame is sent
      +-- LogFileError                       a CAN log that cannot be read at all
@@ -81,6 +82,15 @@ class EncodeRangeError(ProtocolError, ValueError):
         self.value = value
         self.allowed = allowed
         super().__init__(f'{field} = {value!r} cannot be sent: allowed {allowed}')
+
+
+class LayoutError(ProtocolError, RuntimeError):
+    """
+    An installed DBC (msg_defs/) that no longer has the layout a codec was written for.
+
+    Raised by ``protocols/layout.py`` when the first codec of a protocol is built: the bridge
+    fails at start instead of decoding frames with the wrong bits.
+    """
 
 
 class CanSendError(AmsCanBridgeError):
