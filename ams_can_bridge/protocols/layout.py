@@ -156,22 +156,25 @@ class Layout:
             expr = f'(({expr}) ^ {half:#x}) - {half:#x}'
         return expr
 
-    def _physical(self, s: Signal) -> str:
+    def _physical(self, s: Signal, raw_only: bool = False) -> str:
         raw = self._raw(s)
-        if s.scale == 1 and s.offset == 0:
+        if raw_only or (s.scale == 1 and s.offset == 0):
             return raw
         divisor = 1 / s.scale
         if self.divide and abs(divisor - round(divisor)) < 1e-9:
+            shift = s.offset * round(divisor)  # (raw - 8388608) / 1000, as the vendor
+            if shift == round(shift):
+                return f'(({raw}) + {round(shift)}) / {round(divisor)}'
             scaled = f'({raw}) / {round(divisor)}'
         else:
             scaled = f'({raw}) * {s.scale!r}'
         return scaled if s.offset == 0 else f'{scaled} + {s.offset!r}'
 
-    def decoder(self, *names: str) -> Callable[[bytes], tuple]:
-        """Return ``decode(data) -> tuple`` of the physical values (of names, else all)."""
+    def decoder(self, *names: str, raw: bool = False) -> Callable[[bytes], tuple]:
+        """Return ``decode(data) -> tuple`` of the physical (or raw) values of names/all."""
         by_name = {s.name: s for s in self.signals}
         signals = [by_name[n] for n in names] if names else self.signals
-        body = ', '.join(self._physical(s) for s in signals)
+        body = ', '.join(self._physical(s, raw) for s in signals)
         return _compile(f'def decode(data):\n    return ({body},)\n', self.name, 'decode')
 
     def encoder(self) -> Callable[..., bytes]:
@@ -207,4 +210,3 @@ def _compile(source: str, name: str, function: str,
     scope = dict(scope or {})
     exec(compile(source, f'<layout {name}>', 'exec'), scope)  # noqa: S102 (our own table)
     return scope[function]
-
