@@ -270,7 +270,8 @@ class _Bad(Exception):
 def _s(name: str, start: int, length: int, scale: float = 1, signed: bool = False,
        low: float | None = None, high: float | None = None, unit: str = '',
        field: str = '') -> Signal:
-    return Signal(name, start, length, BIG, signed, scale, 0, low, high, unit, field)
+    return Signal(name, start, length, BIG, signed, scale, 0, low, high, unit, field,
+                  flag=length == 1)
 
 
 _WORD = tuple(_s(dbc, 7 - bit, 1, field=attr) for bit, (dbc, attr) in enumerate(_STATUS_BITS)
@@ -337,10 +338,6 @@ def _check_dbc() -> None:
 # The bus thread decodes every AMS frame (about 60/s with 5 banks); the generated code reads
 # the bytes as hand code would (about 1 us a frame; cantools took 4-13 us).
 _D = {offset: layout.decoder() for offset, layout in LAYOUTS.items()}
-_D_STATUS = LAYOUTS[STATUS].decoder('Volt_min', 'Temp_max', 'SOC', 'Counter',
-                                    'Relay_Error_AIR_Minus', 'Relay_Error_AIR_Plus',
-                                    'Relay_Error_Precharge')
-_D_CHARGER = LAYOUTS[CHARGER_STATUS].decoder('SOC', 'Charger_Current', 'Turn_On_Charger')
 _D_WORD = LAYOUTS[STATUS].decoder(*(s.name for s in _WORD))
 # Status words seen so far, by the two bytes that carry them: a car sends a handful of
 # distinct words, and building a frozen dataclass costs more than decoding the rest.
@@ -358,7 +355,7 @@ def _status_word(data: bytes) -> AmsStatusWord:
         raise _Bad(f'unknown AMS state {raw_state} (known 0..9)')
     if banks > MAX_BANKS:
         raise _Bad(f'status bank count {banks} (allowed 0..{MAX_BANKS})')
-    word = AmsStatusWord(*map(bool, flags), banks, state)
+    word = AmsStatusWord(*flags, banks, state)
     _WORD_CACHE[key] = word  # bounded: at most 2**16 words
     return word
 
@@ -368,17 +365,6 @@ def _bank_group(bank: int, group: int, groups: int) -> None:
         raise _Bad(f'bank ID {bank} (allowed 1..{MAX_BANKS})')
     if group >= groups:
         raise _Bad(f'group ID {group} (allowed 0..{groups - 1})')
-
-
-def _dec_status(data: bytes) -> AmsStatus:
-    volts, temp, soc, counter, minus, plus, pre = _D_STATUS(data)
-    return AmsStatus(_status_word(data), volts, temp, soc, counter,
-                     bool(minus), bool(plus), bool(pre))
-
-
-def _dec_charger_status(data: bytes) -> AmsChargerStatus:
-    soc, amps, on = _D_CHARGER(data)
-    return AmsChargerStatus(_status_word(data), soc, amps, bool(on))
 
 
 def _dec_car_status(data: bytes) -> CarStatus:
@@ -425,26 +411,25 @@ def _dec_override_banks(data: bytes) -> OverrideBankCount:
 
 
 _DECODERS: dict[int, Callable[[bytes], Any]] = {
-    STATUS: _dec_status, CHARGER_STATUS: _dec_charger_status, CAR_STATUS: _dec_car_status,
+    STATUS: LAYOUTS[STATUS].decoder(
+        'Volt_min', 'Temp_max', 'SOC', 'Counter', 'Relay_Error_AIR_Minus',
+        'Relay_Error_AIR_Plus', 'Relay_Error_Precharge', into=AmsStatus, head=_status_word),
+    CHARGER_STATUS: LAYOUTS[CHARGER_STATUS].decoder(
+        'SOC', 'Charger_Current', 'Turn_On_Charger', into=AmsChargerStatus, head=_status_word),
+    CAR_STATUS: _dec_car_status,
     CHARGER_COMMANDS: _dec_charger_commands,
     CELL_VOLTAGES: _series_decoder(CELL_VOLTAGES, CELL_GROUPS, CellVoltages),
     CELL_TEMPERATURES: _series_decoder(CELL_TEMPERATURES, TEMP_GROUPS, CellTemperatures),
     DISCHARGE_TEMPERATURES: _series_decoder(DISCHARGE_TEMPERATURES, TEMP_GROUPS,
                                             DischargeTemperatures),
     ERROR: _dec_error,
-    OVERRIDE_CHARGE_CURRENT: lambda data: OverrideChargeCurrent(
-        *_D[OVERRIDE_CHARGE_CURRENT](data)),
+    OVERRIDE_CHARGE_CURRENT: LAYOUTS[OVERRIDE_CHARGE_CURRENT].decoder(
+        into=OverrideChargeCurrent),
     OVERRIDE_BANK_COUNT: _dec_override_banks,
 }
 
 
 # --- encoding: what the DBC cannot say, then the generated encoder checks every value --------
-def _flag(field: str, value: Any) -> int:
-    if value not in (0, 1) or not isinstance(value, (bool, int)):
-        raise EncodeRangeError(field, value, 'True/False (or 0/1)')
-    return int(value)
-
-
 def _member(field: str, value: Any, enum_cls: type[enum.IntEnum]) -> int:
     values = {int(m) for m in enum_cls}
     if isinstance(value, bool) or not isinstance(value, int) or int(value) not in values:
@@ -462,21 +447,17 @@ def _values(field: str, values: Any, count: int) -> tuple:
 def _word(word: AmsStatusWord) -> list[Any]:
     if not isinstance(word, AmsStatusWord):
         raise EncodeRangeError('status', word, 'an AmsStatusWord')
-    return [_flag(attr, getattr(word, attr)) for _, attr in _STATUS_BITS] + [
+    return [getattr(word, attr) for _, attr in _STATUS_BITS] + [
         word.bank_count, _member('state', word.state, AmsState)]
-
-
-def _relays(m: AmsStatus) -> list[int]:
-    return [_flag(name, getattr(m, name)) for name in (
-        'relay_error_air_minus', 'relay_error_air_plus', 'relay_error_precharge')]
 
 
 # reading type -> (offset, its values in the layout's signal order)
 _ENCODERS: dict[type, tuple[int, Callable[[Any], Sequence[Any]]]] = {
     AmsStatus: (STATUS, lambda m: _word(m.status) + [
-        m.volt_min_v, m.temp_max_c, m.soc_pct, m.counter] + _relays(m)),
+        m.volt_min_v, m.temp_max_c, m.soc_pct, m.counter, m.relay_error_air_minus,
+        m.relay_error_air_plus, m.relay_error_precharge]),
     AmsChargerStatus: (CHARGER_STATUS, lambda m: _word(m.status) + [
-        m.soc_pct, m.charger_current_a, _flag('charger_on', m.charger_on)]),
+        m.soc_pct, m.charger_current_a, m.charger_on]),
     CarStatus: (CAR_STATUS, lambda m: (
         _member('command', m.command, CarCommand), m.bank_count, m.counter)),
     ChargerCommand: (CHARGER_COMMANDS, lambda m: (

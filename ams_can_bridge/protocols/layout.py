@@ -19,6 +19,7 @@ step validator of the package (the encoders here, the protocol modules, ``parame
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -33,9 +34,9 @@ def check_value(field: str, value: Any, low: float, high: float, step: float | N
     """
     Return value if it is a number in low..high (on the step grid from low), else raise.
 
-    The one tolerance of the package: float noise of a billionth of the range at the ends
-    (255 * 0.02 = 5.1000000000000005 is 5.1, and comes back as 5.1) and of a millionth of a
-    step on the grid. bool, NaN and non-numbers are refused; integer=True also refuses a
+    The one tolerance of the package: float noise of a billionth of a step (of the range if
+    there is no step) at the ends (255 * 0.02 = 5.1000000000000005 is 5.1, and comes back as
+    5.1) and of a millionth of a step on the grid. bool, NaN and non-numbers are refused; integer=True also refuses a
     fraction (3.0 is fine, YAML spells numbers either way) and returns an int.
     """
     suffix = f' {unit}' if unit else ''
@@ -47,7 +48,7 @@ def check_value(field: str, value: Any, low: float, high: float, step: float | N
     if value != value:  # NaN
         raise EncodeRangeError(field, value, allowed)
     if not low <= value <= high:
-        tol = 1e-9 * max(1.0, abs(low), abs(high))
+        tol = 1e-9 * (step or (1 if integer else max(1.0, abs(low), abs(high))))
         if low - tol <= value < low:
             value = low
         elif high < value <= high + tol:
@@ -65,6 +66,13 @@ def check_value(field: str, value: Any, low: float, high: float, step: float | N
     return value
 
 
+def check_flag(field: str, value: Any) -> int:
+    """Return 0 or 1 for a bool (or 0/1); anything else is refused."""
+    if value not in (0, 1) or not isinstance(value, (bool, int)):
+        raise EncodeRangeError(field, value, 'True/False (or 0/1)')
+    return int(value)
+
+
 @dataclass(frozen=True)
 class Signal:
     """One signal of a message, as a DBC ``SG_`` line states it."""
@@ -80,6 +88,7 @@ class Signal:
     high: float | None = None
     unit: str = ''
     field: str = ''  # the reading's name for it in error messages (default: name)
+    flag: bool = False  # a 1-bit signal decoded as a bool (True/False or 0/1 to encode)
 
     def bounds(self) -> tuple[float, float]:
         """Return the physical range: the stated one, else what the raw bits can carry."""
@@ -156,10 +165,23 @@ class Layout:
             expr = f'(({expr}) ^ {half:#x}) - {half:#x}'
         return expr
 
-    def _physical(self, s: Signal, raw_only: bool = False) -> str:
+    def _physical(self, s: Signal, raw_only: bool = False,
+                  tables: dict[str, tuple] | None = None) -> str:
         raw = self._raw(s)
+        if s.flag and not raw_only:
+            return f'({raw}) != 0'
         if raw_only or (s.scale == 1 and s.offset == 0):
             return raw
+        if tables is not None and s.length <= 8 and not s.signed:
+            # A byte or less: look the scaled value up (no float built per frame), each
+            # entry computed by the very expression used otherwise.
+            scale = _compile(f'def f(r):\n    return {self._scaled(s, "r")}\n', self.name, 'f')
+            name = f'T{len(tables)}'
+            tables[name] = tuple(scale(r) for r in range(1 << s.length))
+            return f'{name}[{raw}]'
+        return self._scaled(s, raw)
+
+    def _scaled(self, s: Signal, raw: str) -> str:
         divisor = 1 / s.scale
         if self.divide and abs(divisor - round(divisor)) < 1e-9:
             shift = s.offset * round(divisor)  # (raw - 8388608) / 1000, as the vendor
@@ -170,24 +192,47 @@ class Layout:
             scaled = f'({raw}) * {s.scale!r}'
         return scaled if s.offset == 0 else f'{scaled} + {s.offset!r}'
 
-    def decoder(self, *names: str, raw: bool = False) -> Callable[[bytes], tuple]:
-        """Return ``decode(data) -> tuple`` of the physical (or raw) values of names/all."""
+    def decoder(self, *names: str, raw: bool = False, into: Callable | None = None,
+                head: Callable | None = None) -> Callable[[bytes], Any]:
+        """
+        Return ``decode(data)``: the physical (or raw) values of names (default all).
+
+        As a tuple, or ``into(values...)`` (a reading class), or ``into(head(data), values...)``
+        (a part decoded elsewhere first, as a cached status word): one call per frame.
+        """
         by_name = {s.name: s for s in self.signals}
         signals = [by_name[n] for n in names] if names else self.signals
-        body = ', '.join(self._physical(s, raw) for s in signals)
-        return _compile(f'def decode(data):\n    return ({body},)\n', self.name, 'decode')
+        tables: dict[str, tuple] = {}
+        body = ', '.join(self._physical(s, raw, tables) for s in signals)
+        result = (f'into(head(data), {body})' if head else f'into({body})') if into \
+            else f'({body},)'
+        return _compile(f'def decode(data):\n    return {result}\n', self.name, 'decode',
+                        {'into': into, 'head': head, **tables})
+
+    def reader(self, name: str, raw: bool = False) -> Callable[[bytes], Any]:
+        """Return ``read(data) -> value`` of one signal (no tuple: the hottest paths)."""
+        signal = next(s for s in self.signals if s.name == name)
+        return _compile(f'def read(data):\n    return {self._physical(signal, raw)}\n',
+                        self.name, 'read')
+
+    def replace(self, name: str, **changes: Any) -> Layout:
+        """Return this layout with one signal changed (a variant the DBC cannot describe)."""
+        return dataclasses.replace(self, signals=tuple(
+            dataclasses.replace(s, **changes) if s.name == name else s for s in self.signals))
 
     def encoder(self) -> Callable[..., bytes]:
         """Return ``encode(*values) -> bytes``: each value checked, scaled, packed."""
         args = [f'v{i}' for i in range(len(self.signals))]
         lines = [f'def encode({", ".join(args)}):', '    n = 0']
-        scope: dict[str, Any] = {'check': check_value}
+        scope: dict[str, Any] = {'check': check_value, 'flag': check_flag}
         for i, s in enumerate(self.signals):
             low, high = s.bounds()
             integer = s.scale == 1 and s.offset == 0 and float(low).is_integer()
             step = None if integer else abs(s.scale)
             scope[f'S{i}'] = (low, high, step, s.unit, integer)
             checked = f'check({s.field or s.name!r}, v{i}, *S{i})'
+            if s.flag:  # 0/1 or a bool; 2 or 'yes' is refused
+                checked = f'flag({s.field or s.name!r}, v{i})'
             raw = checked if integer else f'round(({checked} - {s.offset!r}) / {s.scale!r})'
             if s.signed:
                 raw = f'({raw}) & {(1 << s.length) - 1:#x}'
