@@ -36,8 +36,9 @@ def check_value(field: str, value: Any, low: float, high: float, step: float | N
 
     The one tolerance of the package: float noise of a billionth of a step (of the range if
     there is no step) at the ends (255 * 0.02 = 5.1000000000000005 is 5.1, and comes back as
-    5.1) and of a millionth of a step on the grid. bool, NaN and non-numbers are refused; integer=True also refuses a
-    fraction (3.0 is fine, YAML spells numbers either way) and returns an int.
+    5.1) and of a millionth of a step on the grid. bool, NaN and non-numbers are refused;
+    integer=True also refuses a fraction (3.0 is fine, YAML spells numbers either way) and
+    returns an int.
     """
     suffix = f' {unit}' if unit else ''
     allowed = f'{low:g}..{high:g}{suffix}' + (
@@ -220,20 +221,27 @@ class Layout:
         return dataclasses.replace(self, signals=tuple(
             dataclasses.replace(s, **changes) if s.name == name else s for s in self.signals))
 
-    def encoder(self) -> Callable[..., bytes]:
-        """Return ``encode(*values) -> bytes``: each value checked, scaled, packed."""
+    def encoder(self, exact: bool = True) -> Callable[..., bytes]:
+        """
+        Return ``encode(*values) -> bytes``: each value checked, scaled, packed.
+
+        exact (commands, configuration): a value off the signal's step is refused. exact=False
+        (telemetry a simulator sends): the range is checked and the value rounded to the step.
+        """
         args = [f'v{i}' for i in range(len(self.signals))]
         lines = [f'def encode({", ".join(args)}):', '    n = 0']
         scope: dict[str, Any] = {'check': check_value, 'flag': check_flag}
         for i, s in enumerate(self.signals):
             low, high = s.bounds()
-            integer = s.scale == 1 and s.offset == 0 and float(low).is_integer()
-            step = None if integer else abs(s.scale)
+            integer = exact and s.scale == 1 and s.offset == 0 and float(low).is_integer()
+            step = None if integer or not exact else abs(s.scale)
             scope[f'S{i}'] = (low, high, step, s.unit, integer)
             checked = f'check({s.field or s.name!r}, v{i}, *S{i})'
             if s.flag:  # 0/1 or a bool; 2 or 'yes' is refused
                 checked = f'flag({s.field or s.name!r}, v{i})'
             raw = checked if integer else f'round(({checked} - {s.offset!r}) / {s.scale!r})'
+            if not exact and s.scale == 1 and s.offset == 0:
+                raw = f'round({checked})'
             if s.signed:
                 raw = f'({raw}) & {(1 << s.length) - 1:#x}'
             lsb = s.lsb(self.length)
