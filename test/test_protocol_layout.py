@@ -63,3 +63,31 @@ def test_check_value_takes_float_noise_at_the_ends_and_whole_floats():
     assert check_value('v', 255 * 0.02, 0, 5.1, 0.02) == 5.1
     assert check_value('n', 3.0, 0, 5, integer=True) == 3
     assert isinstance(check_value('n', 3.0, 0, 5, integer=True), int)
+
+
+@pytest.mark.parametrize('module,dbc,old,new,message', [
+    ('bms16', 'bms16', 'SG_ Voltage : 16|16@1+ (0.1,0)', 'SG_ Voltage : 16|16@1+ (0.2,0)',
+     'BMS16_Status'),
+    ('sma', 'sma', 'SG_ SoH : 16|16@1+ (1,0)', 'SG_ SoH : 16|8@1+ (1,0)', 'SMA_SoC'),
+    ('sma', 'sma', 'SG_ ModuleCount : 32|8@1+', 'SG_ ModuleCount : 40|8@1+',
+     'Pylontech_AlarmsWarnings'),
+    ('ivt_s', 'ivt_s', 'SG_ IVT_MsgCount_Result_W : 11|4@0+',
+     'SG_ IVT_MsgCount_Result_W : 11|3@0+', 'IVT_Msg_Result_W'),
+])
+def test_each_codec_checks_its_whole_table_against_its_dbc(monkeypatch, module, dbc, old, new,
+                                                           message):
+    import importlib
+    protocol = importlib.import_module(f'ams_can_bridge.protocols.{module}')
+    text = (msg_defs_dir() / f'{dbc}.dbc').read_text()
+    assert old in text
+    changed = cantools.database.load_string(text.replace(old, new, 1), strict=True)
+    monkeypatch.setattr(protocol, 'load_dbc', lambda name: changed)
+    check = getattr(protocol, 'check_dbc', None) or protocol._check_dbc
+    if hasattr(check, 'cache_clear'):
+        check.cache_clear()
+    try:
+        with pytest.raises(LayoutError, match=message):
+            check()
+    finally:
+        if hasattr(check, 'cache_clear'):
+            check.cache_clear()

@@ -42,10 +42,11 @@ from dataclasses import dataclass, field
 from typing import Union
 
 from ams_can_bridge.protocols.common import (
-    check_dlc, check_range, EncodeRangeError, Frame, load_dbc, MalformedFrameError)
+    check_dlc, EncodeRangeError, Frame, load_dbc, MalformedFrameError)
+from ams_can_bridge.protocols.layout import Layout, LITTLE, Signal
 from ams_can_bridge.protocols.sma_dialects import (
-    ascii_text, decode_dialect, DIALECT_DECODERS, DIALECT_IDS, DialectReading, encode_ascii,
-    encode_dialect, PYLONTECH_ALARMS_ID, VICTRON_CELL_EXTREMES_ID, VICTRON_MODULES_ID)
+    ascii_text, decode_dialect, DIALECT_DECODERS, DIALECT_IDS, DIALECT_LAYOUTS, DialectReading,
+    encode_ascii, encode_dialect, put_int)
 
 LIMITS_ID = 0x351
 SOC_ID = 0x355
@@ -215,55 +216,54 @@ def _s16(data: bytes, i: int, scale: int) -> float | None:
 
 def _put_u16(field_name: str, value: float | None, scale: int, unit: str,
              high: float | None = None) -> bytes:
-    if value is None:
-        return INVALID_U16.to_bytes(2, 'little')
-    top = (INVALID_U16 - 1) / scale if high is None else high
-    check_range(f'sma.{field_name}', value, 0, top, unit=unit)
-    return round(value * scale).to_bytes(2, 'little')
+    return put_int(field_name, value, scale, unit, high=high)
 
 
 def _put_s16(field_name: str, value: float | None, scale: int, unit: str) -> bytes:
-    if value is None:
-        return INVALID_S16.to_bytes(2, 'little', signed=True)
-    check_range(f'sma.{field_name}', value, -0x7FFF / scale, 0x7FFF / scale, unit=unit)
-    return round(value * scale).to_bytes(2, 'little', signed=True)
+    return put_int(field_name, value, scale, unit, signed=True)
 
 
-# signal -> (start, length, scale, signed) the fast path assumes; checked once per process.
-_DBC_LAYOUT = {
-    (LIMITS_ID, 'ChargeVoltageLimit'): (0, 16, 0.1, False),
-    (LIMITS_ID, 'ChargeCurrentLimit'): (16, 16, 0.1, True),
-    (LIMITS_ID, 'DischargeCurrentLimit'): (32, 16, 0.1, True),
-    (LIMITS_ID, 'DischargeVoltageLimit'): (48, 16, 0.1, False),
-    (SOC_ID, 'SoC'): (0, 16, 1, False),
-    (SOC_ID, 'SoH'): (16, 16, 1, False),
-    (SOC_ID, 'SoCHighRes'): (32, 16, 0.01, False),
-    (BATTERY_ID, 'Voltage'): (0, 16, 0.01, True),
-    (BATTERY_ID, 'Current'): (16, 16, 0.1, True),
-    (BATTERY_ID, 'Temperature'): (32, 16, 0.1, True),
-    (ALARMS_ID, 'Alarm_HighVoltage'): (2, 2, 1, False),
-    (ALARMS_ID, 'Warning_General'): (32, 2, 1, False),
-    (ALARMS_ID, 'Warning_Generator'): (62, 2, 1, False),
-    (ALARMS_ID, 'SystemOnline'): (58, 2, 1, False),
-    (INFO_ID, 'Capacity'): (32, 16, 1, False),
-    (PYLONTECH_ALARMS_ID, 'Alarm_OverVoltage'): (1, 1, 1, False),
-    (PYLONTECH_ALARMS_ID, 'Warning_BmsInternal'): (27, 1, 1, False),
-    (PYLONTECH_ALARMS_ID, 'ModuleCount'): (32, 8, 1, False),
-    (VICTRON_MODULES_ID, 'NumberOfModulesOffline'): (48, 16, 1, False),
-    (VICTRON_CELL_EXTREMES_ID, 'MinCellVoltage'): (0, 16, 0.001, False),
-    (VICTRON_CELL_EXTREMES_ID, 'HighestCellTemperature'): (48, 16, 1, False),
+# --- the wire layout, one table checked against msg_defs/sma.dbc ------------------------------
+# Frames of this family may be cut short (DLC ranges) and mark "not available" with 0xFFFF /
+# 0x8000, so the decoders read values with the length checks above; the table fixes the bits.
+def _s(name: str, start: int, length: int = 16, scale: float = 1, signed: bool = False,
+       unit: str = '') -> Signal:
+    return Signal(name, start, length, LITTLE, signed, scale, unit=unit)
+
+
+def _camel(name: str) -> str:
+    return ''.join(part.capitalize() for part in name.split('_'))
+
+
+LAYOUTS = {
+    LIMITS_ID: Layout('SMA_Limits', 8, (
+        _s('ChargeVoltageLimit', 0, scale=0.1, unit='V'),
+        _s('ChargeCurrentLimit', 16, scale=0.1, signed=True, unit='A'),
+        _s('DischargeCurrentLimit', 32, scale=0.1, signed=True, unit='A'),
+        _s('DischargeVoltageLimit', 48, scale=0.1, unit='V'))),
+    SOC_ID: Layout('SMA_SoC', 6, (_s('SoC', 0, unit='%'), _s('SoH', 16, unit='%'),
+                                  _s('SoCHighRes', 32, scale=0.01, unit='%'))),
+    BATTERY_ID: Layout('SMA_Battery', 6, (
+        _s('Voltage', 0, scale=0.01, signed=True, unit='V'),
+        _s('Current', 16, scale=0.1, signed=True, unit='A'),
+        _s('Temperature', 32, scale=0.1, signed=True, unit='degC'))),
+    ALARMS_ID: Layout('SMA_AlarmsWarnings', 8, tuple(
+        _s('SystemOnline' if (kind, name) == ('Warning', ONLINE_CONDITION)
+           else f'{kind}_{_camel(name)}', first + 2 * k, 2)
+        for kind, first in (('Alarm', 0), ('Warning', 32))
+        for k, name in enumerate(SMA_CONDITIONS))),
+    MANUFACTURER_ID: Layout('SMA_Manufacturer', 8, (_s('Manufacturer', 0, 64),)),
+    INFO_ID: Layout('SMA_BatteryInfo', 6, (_s('BatteryType', 0), _s('BmsVersion', 16),
+                                           _s('Capacity', 32, unit='Ah'))),
 }
 
 
 @functools.cache
 def check_dbc() -> None:
-    """Raise RuntimeError unless msg_defs/sma.dbc has the layout the codec assumes."""
+    """Raise LayoutError unless msg_defs/sma.dbc has the bits of LAYOUTS and the dialects'."""
     db = load_dbc('sma')
-    for (frame_id, name), want in _DBC_LAYOUT.items():
-        sig = db.get_message_by_frame_id(frame_id).get_signal_by_name(name)
-        have = (sig.start, sig.length, sig.scale, sig.is_signed)
-        if have != want or sig.byte_order != 'little_endian':
-            raise RuntimeError(f'sma.dbc: signal {name} is {have}, the codec assumes {want}')
+    for frame_id, layout in {**LAYOUTS, **DIALECT_LAYOUTS}.items():
+        layout.check_dbc(db.get_message_by_frame_id(frame_id), 'msg_defs/sma.dbc', 'SMA')
 
 
 class SmaCodec:

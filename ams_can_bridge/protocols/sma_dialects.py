@@ -41,7 +41,8 @@ from dataclasses import dataclass
 from typing import Callable, Union
 
 from ams_can_bridge.protocols.common import (
-    check_dlc, check_range, EncodeRangeError, Frame, MalformedFrameError)
+    check_dlc, EncodeRangeError, Frame, MalformedFrameError)
+from ams_can_bridge.protocols.layout import check_value, Layout, LITTLE, Signal
 
 # Pylontech
 PYLONTECH_KEEPALIVE_ID = 0x305  # inverter -> BMS, "every second", 8 zero bytes
@@ -298,6 +299,48 @@ DIALECT_DECODERS: dict[int, Callable[[int, bytes], DialectReading]] = {
 }
 
 
+# --- the wire layout of the dialects' frames (checked against msg_defs/sma.dbc by sma.py) ---
+_PYLONTECH_DBC_NAMES = {
+    'high_voltage': 'OverVoltage', 'low_voltage': 'UnderVoltage',
+    'high_temperature': 'OverTemperature', 'low_temperature': 'UnderTemperature',
+    'high_discharge_current': 'DischargeOverCurrent',
+    'high_charge_current': 'ChargeOverCurrent', 'bms_internal': 'BmsInternal'}
+
+
+def _u(name: str, start: int, length: int, scale: float = 1, unit: str = '') -> Signal:
+    return Signal(name, start, length, LITTLE, scale=scale, unit=unit)
+
+
+DIALECT_LAYOUTS = {
+    PYLONTECH_ALARMS_ID: Layout('Pylontech_AlarmsWarnings', 8, tuple(
+        _u(f'{kind}_{_PYLONTECH_DBC_NAMES[name]}', first + 8 * byte + bit, 1)
+        for kind, first in (('Alarm', 0), ('Warning', 16))
+        for name, byte, bit in PYLONTECH_CONDITIONS) + (_u('ModuleCount', 32, 8),)),
+    PYLONTECH_REQUEST_ID: Layout('Pylontech_Request', 2, tuple(_u(name, bit, 1) for name, bit in (
+        ('FullChargeRequest', FULL_CHARGE_REQUEST_BIT),
+        ('ForceChargeRequestII', FORCE_CHARGE_REQUEST_II_BIT),
+        ('RequestChargeImmediately', REQUEST_CHARGE_IMMEDIATELY_BIT),
+        ('DischargeEnable', DISCHARGE_ENABLE_BIT), ('ChargeEnable', CHARGE_ENABLE_BIT)))),
+    VICTRON_BMS_NAME1_ID: Layout('Victron_BmsName1', 8, (_u('BmsName1', 0, 64),)),
+    VICTRON_BMS_NAME2_ID: Layout('Victron_BmsName2', 8, (_u('BmsName2', 0, 64),)),
+    VICTRON_MODULES_ID: Layout('Victron_Modules', 8, tuple(
+        _u(f'NumberOfModules{name}', 16 * k, 16) for k, name in enumerate(
+            ('Ok', 'BlockingCharge', 'BlockingDischarge', 'Offline')))),
+    VICTRON_CELL_EXTREMES_ID: Layout('Victron_CellExtremes', 8, (
+        _u('MinCellVoltage', 0, 16, 0.001, 'V'), _u('MaxCellVoltage', 16, 16, 0.001, 'V'),
+        _u('LowestCellTemperature', 32, 16, unit='K'),
+        _u('HighestCellTemperature', 48, 16, unit='K'))),
+    **{VICTRON_MIN_VOLTAGE_CELL_ID + k: Layout(f'Victron_{name}CellId', 8, (
+        _u(f'{name}CellId', 0, 64),)) for k, name in enumerate(
+            ('MinVoltage', 'MaxVoltage', 'MinTemperature', 'MaxTemperature'))},
+    VICTRON_ENERGY_ID: Layout('Victron_Energy', 8, (
+        _u('ChargedEnergy', 0, 32, 0.1, 'kWh'), _u('DischargedEnergy', 32, 32, 0.1, 'kWh'))),
+    VICTRON_INSTALLED_CAPACITY_ID: Layout('Victron_InstalledCapacity', 2, (
+        _u('InstalledCapacity', 0, 16, unit='Ah'),)),
+    VICTRON_PRODUCT_NAME_ID: Layout('Victron_ProductName', 8, (_u('ProductName', 0, 64),)),
+}
+
+
 def decode_dialect(arbitration_id: int, data: bytes) -> DialectReading:
     """Decode one dialect frame; MalformedFrameError for a DLC or value out of range."""
     decoder = DIALECT_DECODERS.get(arbitration_id)
@@ -313,20 +356,22 @@ def keepalive_frame() -> Frame:
     return Frame(PYLONTECH_KEEPALIVE_ID, bytes(8))
 
 
-def _put_u16(field: str, value: float | None, scale: int, unit: str,
-             high: float | None = None) -> bytes:
+def put_int(field: str, value: float | None, scale: float, unit: str, length: int = 2,
+            signed: bool = False, high: float | None = None) -> bytes:
+    """
+    Pack one little-endian value of this family (SMA, Pylontech, Victron) from physical units.
+
+    None is the family's "not available" marker (0xFFFF, 0xFFFFFFFF, signed 0x8000), which no
+    value may then use. Telemetry a simulator sends: the range is checked with the package's
+    one validator and the value rounded to the wire's resolution (1 / scale).
+    """
+    top_raw = (1 << (8 * length - 1)) - 1 if signed else (1 << 8 * length) - 2
     if value is None:
-        return INVALID_U16.to_bytes(2, 'little')
-    top = (INVALID_U16 - 1) / scale if high is None else high
-    check_range(f'sma.{field}', value, 0, top, 1 / scale, unit)
-    return round(value * scale).to_bytes(2, 'little')
-
-
-def _put_u32(field: str, kwh: float | None) -> bytes:
-    if kwh is None:
-        return INVALID_U32.to_bytes(4, 'little')
-    check_range(f'sma.{field}', kwh, 0, (INVALID_U32 - 1) / 10, 0.1, 'kWh')
-    return round(kwh * 10).to_bytes(4, 'little')
+        marker = -(top_raw + 1) if signed else top_raw + 1
+        return marker.to_bytes(length, 'little', signed=signed)
+    top = top_raw / scale if high is None else high
+    value = check_value(f'sma.{field}', value, -top if signed else 0, top, unit=unit)
+    return round(value * scale).to_bytes(length, 'little', signed=signed)
 
 
 def _names(field: str, names: frozenset[str]) -> frozenset[str]:
@@ -347,8 +392,8 @@ def encode_dialect(message: DialectReading) -> Frame:
                 if name in active:
                     data[first + byte] |= 1 << bit
         if message.module_count is not None:
-            check_range('sma.pylontech.module_count', message.module_count, 0, 255, 1)
-            data[4] = int(message.module_count)
+            data[4] = check_value('sma.pylontech.module_count', message.module_count, 0, 255,
+                                  integer=True)
         return Frame(PYLONTECH_ALARMS_ID, bytes(data if message.module_count is not None
                                                 else data[:4]))
     if isinstance(message, PylontechRequest):
@@ -364,16 +409,16 @@ def encode_dialect(message: DialectReading) -> Frame:
         return Frame(VICTRON_BMS_NAME1_ID + message.part - 1,
                      encode_ascii('sma.victron.bms_name', message.text))
     if isinstance(message, VictronModules):
-        data = b''.join(_put_u16(f'victron.modules_{n}', getattr(message, n), 1, '')
+        data = b''.join(put_int(f'victron.modules_{n}', getattr(message, n), 1, '')
                         for n in ('ok', 'blocking_charge', 'blocking_discharge', 'offline'))
         return Frame(VICTRON_MODULES_ID, data)
     if isinstance(message, VictronCellExtremes):
-        data = (_put_u16('victron.min_cell_v', message.min_cell_v, 1000, 'V')
-                + _put_u16('victron.max_cell_v', message.max_cell_v, 1000, 'V')
-                + _put_u16('victron.min_temperature_k', message.min_temperature_k, 1, 'K',
-                           MAX_TEMPERATURE_K)
-                + _put_u16('victron.max_temperature_k', message.max_temperature_k, 1, 'K',
-                           MAX_TEMPERATURE_K))
+        data = (put_int('victron.min_cell_v', message.min_cell_v, 1000, 'V')
+                + put_int('victron.max_cell_v', message.max_cell_v, 1000, 'V')
+                + put_int('victron.min_temperature_k', message.min_temperature_k, 1, 'K',
+                          high=MAX_TEMPERATURE_K)
+                + put_int('victron.max_temperature_k', message.max_temperature_k, 1, 'K',
+                          high=MAX_TEMPERATURE_K))
         return Frame(VICTRON_CELL_EXTREMES_ID, data)
     if isinstance(message, VictronCellId):
         if message.kind not in CELL_ID_KINDS:
@@ -382,13 +427,13 @@ def encode_dialect(message: DialectReading) -> Frame:
         return Frame(VICTRON_MIN_VOLTAGE_CELL_ID + CELL_ID_KINDS.index(message.kind),
                      encode_ascii(f'sma.victron.{message.kind}_cell_id', message.text))
     if isinstance(message, VictronEnergy):
-        data = b''.join(_put_u32(f'victron.{n}', getattr(message, n))
+        data = b''.join(put_int(f'victron.{n}', getattr(message, n), 10, 'kWh', 4)
                         for n in ('charged_kwh', 'discharged_kwh'))
         return Frame(VICTRON_ENERGY_ID, data)
     if isinstance(message, VictronInstalledCapacity):
         return Frame(VICTRON_INSTALLED_CAPACITY_ID,
-                     _put_u16('victron.installed_capacity_ah', message.capacity_ah, 1, 'Ah'))
+                     put_int('victron.installed_capacity_ah', message.capacity_ah, 1, 'Ah'))
     if isinstance(message, VictronProductName):
         return Frame(VICTRON_PRODUCT_NAME_ID,
                      encode_ascii('sma.victron.product_name', message.text))
-    raise TypeError(f'not an SMA, Pylontech or Victron message: {message!r}')
+    raise EncodeRangeError('message', message, 'an SMA, Pylontech or Victron message')
