@@ -14,6 +14,7 @@ The hierarchy::
      |    +-- MalformedFrameError           a received frame that is not a valid message
      |    +-- EncodeRangeError (ValueError) a value to send that the wire cannot carry
      |    +-- LayoutError (RuntimeError)    an installed DBC that no longer matches a codec
+     |    +-- BadConfigBytes (ValueError)   setting bytes no device would send
      +-- CanSendError                       the bus is not available for sending
      +-- RefusedCommand                     a service call refused before any frame is sent
      +-- LogFileError                       a CAN log that cannot be read at all
@@ -90,6 +91,15 @@ class LayoutError(ProtocolError, RuntimeError):
 
     Raised by ``protocols/layout.py`` when the first codec of a protocol is built: the bridge
     fails at start instead of decoding frames with the wrong bits.
+    """
+
+
+class BadConfigBytes(ProtocolError, ValueError):
+    """
+    Setting bytes (a whole configuration read back or received) that cannot be a configuration.
+
+    Raised by the decoders of configuration payloads that have no single frame to blame
+    (``protocols/bms16_std.decode_config``); the simulator ignores such a configuration.
     """
 
 
