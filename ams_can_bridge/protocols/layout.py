@@ -90,11 +90,17 @@ class Signal:
     unit: str = ''
     field: str = ''  # the reading's name for it in error messages (default: name)
     flag: bool = False  # a 1-bit signal decoded as a bool (True/False or 0/1 to encode)
+    invalid: int | None = None  # raw value meaning "not available": None both ways
+
+    def raw_range(self) -> tuple[int, int]:
+        """Return the raw values the bits carry, without the "not available" marker."""
+        low = -(1 << (self.length - 1)) if self.signed else 0
+        high = (1 << (self.length - 1)) - 1 if self.signed else (1 << self.length) - 1
+        return low + (self.invalid == low), high - (self.invalid == high)
 
     def bounds(self) -> tuple[float, float]:
         """Return the physical range: the stated one, else what the raw bits can carry."""
-        lo_raw = -(1 << (self.length - 1)) if self.signed else 0
-        hi_raw = (1 << (self.length - 1)) - 1 if self.signed else (1 << self.length) - 1
+        lo_raw, hi_raw = self.raw_range()
         ends = sorted((lo_raw * self.scale + self.offset, hi_raw * self.scale + self.offset))
         return (ends[0] if self.low is None else self.low,
                 ends[1] if self.high is None else self.high)
@@ -171,7 +177,12 @@ class Layout:
         raw = self._raw(s)
         if s.flag and not raw_only:
             return f'({raw}) != 0'
-        if raw_only or (s.scale == 1 and s.offset == 0):
+        plain = raw_only or (s.scale == 1 and s.offset == 0)
+        if s.invalid is not None:
+            var = f'r_{s.start}_{s.length}'
+            value = var if plain else self._scaled(s, var)
+            return f'(None if ({var} := {raw}) == {s.invalid} else {value})'
+        if plain:
             return raw
         if tables is not None and s.length <= 8 and not s.signed:
             # A byte or less: look the scaled value up (no float built per frame), each
@@ -242,6 +253,8 @@ class Layout:
             raw = checked if integer else f'round(({checked} - {s.offset!r}) / {s.scale!r})'
             if not exact and s.scale == 1 and s.offset == 0:
                 raw = f'round({checked})'
+            if s.invalid is not None:  # None: the marker
+                raw = f'{s.invalid} if v{i} is None else {raw}'
             if s.signed:
                 raw = f'({raw}) & {(1 << s.length) - 1:#x}'
             lsb = s.lsb(self.length)
