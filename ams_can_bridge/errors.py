@@ -10,6 +10,7 @@ The hierarchy::
     AmsCanBridgeError
      +-- ConfigError (also ValueError)      cannot start with these parameters
      |    +-- ParamError                    one parameter value that cannot be used
+     |    +-- MsgDefsNotFound (FileNotFoundError) the installed msg_defs/ (DBC files) is missing
      +-- ProtocolError                      the protocol layer (protocols/)
      |    +-- MalformedFrameError           a received frame that is not a valid message
      |    +-- EncodeRangeError (ValueError) a value to send that the wire cannot carry
@@ -43,6 +44,15 @@ class ConfigError(AmsCanBridgeError, ValueError):
 
 class ParamError(ConfigError):
     """One parameter value that cannot be used (the message names it and what is allowed)."""
+
+
+class MsgDefsNotFound(ConfigError, FileNotFoundError):
+    """
+    The installed msg_defs/ folder (the DBC files) cannot be found: an incomplete install.
+
+    Raised by ``protocols.common.msg_defs_dir``; a FileNotFoundError too, for callers that
+    treat a missing file alike.
+    """
 
 
 class ProtocolError(AmsCanBridgeError):

@@ -18,8 +18,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field, fields
 from typing import Any, Iterable, Mapping, Sequence
 
+from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols.common import (
-    check_range, ConfigField, EncodeRangeError, MalformedFrameError)
+    ConfigField, EncodeRangeError, MalformedFrameError)
+from ams_can_bridge.protocols.layout import check_value
 
 BMS12_MAX_MODULES = 16
 BALANCE_DYNAMIC = 251
@@ -301,7 +303,7 @@ def check_config_value(name: str, value: Any, multiplier: int = 1) -> Any:
 def _scaled(spec: ConfigField, multiplier: int) -> ConfigField:
     """Return the range of a full/charge voltage on a build with this multiplier."""
     if multiplier not in VOLTAGE_MULTIPLIERS:
-        raise ValueError(f'voltage multiplier {multiplier!r}: allowed 1 or 2')
+        raise ConfigError(f'voltage multiplier {multiplier!r}: allowed 1 or 2')
     if spec.name == 'full_voltage_v':
         low, high, step = 10 * multiplier, 502 * multiplier, 2 * multiplier
     else:
@@ -310,11 +312,7 @@ def _scaled(spec: ConfigField, multiplier: int) -> ConfigField:
 
 
 def _number(name: str, value: Any, spec: ConfigField) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise EncodeRangeError(name, value, f'a number {spec.low:g}..{spec.high:g} {spec.unit}'
-                               .rstrip())
-    check_range(name, value, spec.low, spec.high, spec.step, spec.unit)
-    return value
+    return check_value(name, value, spec.low, spec.high, spec.step, spec.unit)
 
 
 def config_payloads(cfg: Evms3Config, multiplier: int = 1) -> list[bytearray]:

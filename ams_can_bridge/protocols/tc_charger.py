@@ -26,7 +26,8 @@ from dataclasses import dataclass
 from typing import Union
 
 from ams_can_bridge.protocols.common import (
-    check_dlc, check_range, EncodeRangeError, Frame, MalformedFrameError)
+    check_dlc, EncodeRangeError, Frame, MalformedFrameError)
+from ams_can_bridge.protocols.layout import check_value
 
 TC_CHARGER1_RX_ID = 0x1806E5F4
 TC_CHARGER1_TX_ID = 0x18FF50E5
@@ -96,7 +97,7 @@ def _be16(data: bytes, i: int) -> int:
 
 
 def _put_decis(field: str, value: float, unit: str) -> bytes:
-    check_range(field, value, 0, MAX_DECIVOLTS / 10, 0.1, unit)
+    value = check_value(field, value, 0, MAX_DECIVOLTS / 10, 0.1, unit)
     return round(value * 10).to_bytes(2, 'big')
 
 
@@ -137,13 +138,13 @@ class TcChargerCodec:
                     + bytes([1 if message.stop else 0, 0, 0, 0]))
             return Frame(COMMAND_IDS[charger - 1], data, True)
         if isinstance(message, ChargerStatus):
-            check_range('status', message.status, 0, 255, 1)
+            check_value('status', message.status, 0, 255, integer=True)
             temperature = message.temperature_raw
             if temperature is not None:
-                check_range('temperature_raw', temperature, 0, 255, 1)
+                check_value('temperature_raw', temperature, 0, 255, integer=True)
             data = (_put_decis('output_voltage_v', message.output_voltage_v, 'V')
                     + _put_decis('output_current_a', message.output_current_a, 'A')
                     + bytes([message.status, temperature or 0, 0, 0]))
             return Frame(STATUS_IDS[charger - 1], data if temperature is not None
                          else data[:5], True)
-        raise TypeError(f'not a TC charger message: {message!r}')
+        raise EncodeRangeError('message', message, 'a TC charger message')
