@@ -149,7 +149,7 @@ class Layout:
                               f'layout: {got}')
 
     # --- code generation --------------------------------------------------------------------
-    def _raw(self, s: Signal) -> str:
+    def raw_expression(self, s: Signal) -> str:
         """Return a Python expression of a signal's raw value, as cheap as hand code."""
         if s.byte_order == BIG:
             msb = (s.start // 8) * 8 + (7 - s.start % 8)  # bit from the frame's first MSB
@@ -174,26 +174,27 @@ class Layout:
 
     def _physical(self, s: Signal, raw_only: bool = False,
                   tables: dict[str, tuple] | None = None) -> str:
-        raw = self._raw(s)
+        raw = self.raw_expression(s)
         if s.flag and not raw_only:
             return f'({raw}) != 0'
         plain = raw_only or (s.scale == 1 and s.offset == 0)
         if s.invalid is not None:
             var = f'r_{s.start}_{s.length}'
-            value = var if plain else self._scaled(s, var)
+            value = var if plain else self.scaled_expression(s, var)
             return f'(None if ({var} := {raw}) == {s.invalid} else {value})'
         if plain:
             return raw
         if tables is not None and s.length <= 8 and not s.signed:
             # A byte or less: look the scaled value up (no float built per frame), each
             # entry computed by the very expression used otherwise.
-            scale = _compile(f'def f(r):\n    return {self._scaled(s, "r")}\n', self.name, 'f')
+            scale = _compile(f'def f(r):\n    return {self.scaled_expression(s, "r")}\n',
+                             self.name, 'f')
             name = f'T{len(tables)}'
             tables[name] = tuple(scale(r) for r in range(1 << s.length))
             return f'{name}[{raw}]'
-        return self._scaled(s, raw)
+        return self.scaled_expression(s, raw)
 
-    def _scaled(self, s: Signal, raw: str) -> str:
+    def scaled_expression(self, s: Signal, raw: str) -> str:
         divisor = 1 / s.scale
         if self.divide and abs(divisor - round(divisor)) < 1e-9:
             shift = s.offset * round(divisor)  # (raw - 8388608) / 1000, as the vendor
