@@ -212,6 +212,7 @@ _CONFIG_SCALE = {s.field: s.scale for layout in LAYOUTS[CONFIG_1:CONFIG_2 + 1]
 _D_STATUS = LAYOUTS[STATUS].decoder()
 _E_STATUS = LAYOUTS[STATUS].encoder(exact=False)  # telemetry: rounded to the resolution
 _D_CELLS = tuple(layout.decoder() for layout in LAYOUTS[CELLS_1:CELLS_3 + 1])
+_NINTH = tuple(tuple(256 * (bits >> k & 1) for k in range(8)) for bits in range(256))
 
 
 def check_config_value(name: str, value: object) -> int:
@@ -314,7 +315,7 @@ class Bms16Codec:
         *lows, ninth = _D_CELLS[index](data)
         # The 9th bit of cell k is bit k of NinthBits (a split the DBC cannot describe).
         return Bms16Cells(CELL_FRAME_FIRST[index], tuple(
-            (low | ((ninth >> k) & 1) << 8) / 100 for k, low in enumerate(lows)))
+            [(low + high) / 100 for low, high in zip(lows, _NINTH[ninth])]))
 
     @staticmethod
     def _config1(arbitration_id: int, offset: int, data: bytes) -> Bms16ConfigPart1:

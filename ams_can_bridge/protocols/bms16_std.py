@@ -28,7 +28,7 @@ from ams_can_bridge.protocols.common import (
     check_dlc, ConfigField, EncodeRangeError, Frame, MalformedFrameError)
 from ams_can_bridge.protocols.evms3 import (
     AcknowledgeError, BatteryCurrent, Bms12Cells, Evms3Codec, Evms3Error, Evms3State, LAYOUTS,
-    PowerOff, ResetSoc)
+    PowerOff, ResetSoc, status_fault)
 from ams_can_bridge.protocols.layout import check_value
 
 DEFAULT_BASE_ID = 30                  # Common.h CAN_BASE_ID
@@ -53,7 +53,9 @@ SLOTS = 32                            # setting bytes in IDs 32..35
 
 
 # ID 30 and ID 40 have the EVMS3 layout (protocols.evms3.LAYOUTS, checked against its DBC).
-_D_STATUS = LAYOUTS['EVMS3_Status'].decoder(raw=False)
+_D_STATUS = LAYOUTS['EVMS3_Status'].decoder(  # byte 6 (isolation on an EVMS3) is unused
+    'State', 'ErrorCode', 'AmpHoursRemaining', 'BatteryVoltage', 'Temperature',
+    into=lambda *values: Bms16StdStatus(*values))
 _E_STATUS = LAYOUTS['EVMS3_Status'].encoder(exact=False)  # telemetry: rounded to 0.1
 _D_CURRENT = LAYOUTS['EVMS3_BatteryCurrent'].decoder()
 _E_CURRENT = LAYOUTS['EVMS3_BatteryCurrent'].encoder()
@@ -264,13 +266,10 @@ class Bms16StdCodec:
             raise MalformedFrameError(
                 aid, data, f'byte 5 = {data[5]}, not the BMS16 marker 255: the status of '
                 'another device (an EVMS3 sends its aux voltage there), not decoded')
-        state, error, ah, volts, _, _, _, temp = _D_STATUS(data)
-        if state > 5:
-            raise MalformedFrameError(aid, data, f'unknown state {state} (0..5)')
-        if error > 16:
-            raise MalformedFrameError(aid, data, f'unknown error code {error} (0..16)')
-        return Bms16StdStatus(Evms3State(state), Evms3Error(error), ah, volts,
-                              None if temp == -40 else temp)
+        try:
+            return _D_STATUS(data)
+        except IndexError:
+            raise MalformedFrameError(aid, data, status_fault(data)) from None
 
     # --- encode ---------------------------------------------------------------------------
     def _frame(self, offset: int, data: bytes) -> Frame:
@@ -304,9 +303,7 @@ class Bms16StdCodec:
 
     def _encode_status(self, msg: Bms16StdStatus) -> Frame:
         # The EVMS3 status layout: byte 5 the marker (aux voltage 25.5 V), byte 6 unused.
-        temp = -40 if msg.temperature_c is None else check_value(
-            'temperature_c', msg.temperature_c, -39, 215, unit='degC')
         return self._frame(STATUS, _E_STATUS(
             check_value('state', msg.state, 0, 5, integer=True),
             check_value('error', msg.error, 0, 16, integer=True), msg.amp_hours_ah,
-            msg.pack_voltage_v, BMS16_MARKER / 10, 0, 0, temp))
+            msg.pack_voltage_v, BMS16_MARKER / 10, 0, 0, msg.temperature_c))

@@ -98,8 +98,10 @@ _ERRORS = tuple(Evms3Error)
 # ZEVA's firmware divides (1234 -> 123.4 V): divide=True keeps those values exact.
 def _u(name: str, start: int, length: int = 8, scale: float = 1, offset: float = 0,
        low: float | None = None, high: float | None = None, unit: str = '', field: str = '',
-       order: str = LITTLE) -> Signal:
-    return Signal(name, start, length, order, False, scale, offset, low, high, unit, field)
+       order: str = LITTLE, invalid: int | None = None, flag: bool = False,
+       lookup: tuple | None = None) -> Signal:
+    return Signal(name, start, length, order, False, scale, offset, low, high, unit, field,
+                  flag, invalid, lookup)
 
 
 def _cells(first: int) -> tuple[Signal, ...]:
@@ -109,13 +111,16 @@ def _cells(first: int) -> tuple[Signal, ...]:
 
 LAYOUTS = {
     'EVMS3_Status': Layout('EVMS3_Status', 8, (
-        _u('State', 0, 3, high=5, field='state'), _u('ErrorCode', 3, 5, high=16, field='error'),
+        _u('State', 0, 3, high=5, field='state', lookup=tuple(Evms3State)),
+        _u('ErrorCode', 3, 5, high=16, field='error', lookup=tuple(Evms3Error)),
         _u('AmpHoursRemaining', 15, 16, 0.1, unit='Ah', field='amp_hours_ah', order=BIG),
         _u('BatteryVoltage', 31, 16, 0.1, unit='V', field='pack_voltage_v', order=BIG),
         _u('AuxVoltage', 40, 8, 0.1, unit='V', field='aux_voltage_v'),
-        _u('IsolationIntegrity', 48, 7, high=101, unit='%', field='isolation_pct'),
-        _u('Headlights', 55, 1, field='headlights'),
-        _u('Temperature', 56, 8, 1, -40, unit='degC', field='temperature_c')), divide=True),
+        _u('IsolationIntegrity', 48, 7, high=101, unit='%', field='isolation_pct',
+           invalid=101, lookup=tuple(range(101)) + (None,)),  # 101: cannot be measured
+        _u('Headlights', 55, 1, field='headlights', flag=True),
+        _u('Temperature', 56, 8, 1, -40, unit='degC', field='temperature_c', invalid=0)),
+        divide=True),  # raw 0: no sensor
     'EVMS3_BatteryCurrent': Layout('EVMS3_BatteryCurrent', 3, (
         _u('BatteryCurrent', 7, 24, 0.001, -8388.608, unit='A', field='current_a',
            order=BIG),), divide=True),
@@ -125,17 +130,22 @@ LAYOUTS = {
     'BMS12_M0_Cells5to8': Layout('BMS12_M0_Cells5to8', 8, _cells(5), divide=True),
     'BMS12_M0_Cells9to12': Layout('BMS12_M0_Cells9to12', 8, _cells(9), divide=True),
     'BMS12_M0_Temperatures': Layout('BMS12_M0_Temperatures', 8, (
-        _u('Temperature1', 0, 8, 1, -40, unit='degC'),
-        _u('Temperature2', 8, 8, 1, -40, unit='degC')), divide=True),
+        _u('Temperature1', 0, 8, 1, -40, unit='degC', field='temperatures_c[0]', invalid=0),
+        _u('Temperature2', 8, 8, 1, -40, unit='degC', field='temperatures_c[1]', invalid=0)),
+        divide=True),
 }
-_D_STATUS = LAYOUTS['EVMS3_Status'].decoder()
+_D_STATUS_RAW = LAYOUTS['EVMS3_Status'].decoder('State', 'ErrorCode', 'IsolationIntegrity',
+                                                raw=True)
 _E_STATUS = LAYOUTS['EVMS3_Status'].encoder()
 _D_CURRENT = LAYOUTS['EVMS3_BatteryCurrent'].decoder()
 _E_CURRENT = LAYOUTS['EVMS3_BatteryCurrent'].encoder()
 _D_REQUEST = LAYOUTS['BMS12_M0_Request'].decoder(raw=True)  # the firmware's mV
 _D_CELLS = LAYOUTS['BMS12_M0_Cells1to4'].decoder()  # the same bits for the three frames
 _E_CELLS = LAYOUTS['BMS12_M0_Cells1to4'].encoder()
-_D_TEMPS = LAYOUTS['BMS12_M0_Temperatures'].decoder(raw=True)  # raw 0 = no sensor
+# Raw 0 = no sensor: the BMS12 firmware's LineariseTemp returns 0 for "not available", and
+# the EVMS3 and the Monitor skip 0.
+_D_TEMPS = LAYOUTS['BMS12_M0_Temperatures'].decoder()
+_E_TEMPS = LAYOUTS['BMS12_M0_Temperatures'].encoder()
 
 
 @functools.cache
@@ -260,6 +270,21 @@ class Bms12Temperatures:
     temperatures_c: tuple[int | None, int | None]
 
 
+_STATUS = LAYOUTS['EVMS3_Status'].decoder(  # in the order of the reading's fields
+    'State', 'ErrorCode', 'AmpHoursRemaining', 'BatteryVoltage', 'AuxVoltage', 'Headlights',
+    'IsolationIntegrity', 'Temperature', into=Evms3Status)
+
+
+def status_fault(data: bytes) -> str:
+    """Say why an ID 30 frame is no status: the state, error or isolation byte."""
+    state, error, iso = _D_STATUS_RAW(data)
+    if state > 5:
+        return f'unknown state {state} (0..5)'
+    if error > 16:
+        return f'unknown error code {error} (0..16)'
+    return f'isolation {iso} % (0..100, 101 = n/a)'
+
+
 # --- the codec -------------------------------------------------------------------------------
 class Evms3Codec:
     """EVMS3 frames at base_id + 0..11, BMS12 modules 0..bms12_modules-1, TC chargers 1..3."""
@@ -330,15 +355,10 @@ class Evms3Codec:
     def _decode_status(self, aid: int, data: bytes) -> Evms3Status:
         if len(data) != 8:
             check_dlc(aid, data, 8)
-        state, error, ah, volts, aux, iso, lights, temp = _D_STATUS(data)
-        if state > 5:
-            raise MalformedFrameError(aid, data, f'unknown state {state} (0..5)')
-        if error > 16:
-            raise MalformedFrameError(aid, data, f'unknown error code {error} (0..16)')
-        if iso > 101:
-            raise MalformedFrameError(aid, data, f'isolation {iso} % (0..100, 101 = n/a)')
-        return Evms3Status(_STATES[state], _ERRORS[error], ah, volts, aux, bool(lights),
-                           None if iso == 101 else iso, None if temp == -40 else temp)
+        try:  # the reading built in one generated call; an unknown code is past a lookup
+            return _STATUS(data)
+        except IndexError:
+            raise MalformedFrameError(aid, data, status_fault(data)) from None
 
     def _decode_set_state(self, aid: int, data: bytes) -> SetState:
         check_dlc(aid, data, (1, 2))
@@ -407,10 +427,7 @@ class Evms3Codec:
         if t == 4:
             # The BMS12 PDF says DLC 2; ZEVA's firmware sends 8 with zero padding.
             check_dlc(aid, data, (2, 8))
-            # Raw 0 = no sensor: the BMS12 firmware's LineariseTemp returns 0 for "not
-            # available", and the EVMS3 and the Monitor skip 0.
-            t1, t2 = _D_TEMPS(data)
-            return Bms12Temperatures(module, (t1 - 40 if t1 else None, t2 - 40 if t2 else None))
+            return Bms12Temperatures(module, _D_TEMPS(data))
         if len(data) != 8:
             check_dlc(aid, data, 8)
         return Bms12Cells(module, 4 * (t - 1), _D_CELLS(data))
@@ -468,14 +485,12 @@ class Evms3Codec:
         raise EncodeRangeError('message', msg, 'an EVMS3, BMS12 or TC charger message')
 
     def _encode_status(self, msg: Evms3Status) -> Frame:
-        iso = 101 if msg.isolation_pct is None else _check_int(
+        iso = None if msg.isolation_pct is None else _check_int(
             'isolation_pct', msg.isolation_pct, 0, 100)
-        temp = -40 if msg.temperature_c is None else _check_int(
-            'temperature_c', msg.temperature_c, -39, 215)
         return self._frame(STATUS, _E_STATUS(
             _check_int('state', msg.state, 0, 5), _check_int('error', msg.error, 0, 16),
             msg.amp_hours_ah, msg.pack_voltage_v, msg.aux_voltage_v, iso,
-            int(bool(msg.headlights)), temp))
+            int(bool(msg.headlights)), msg.temperature_c))
 
     def _encode_bms12(self, msg: Any) -> Frame:
         module = _check_int('module', msg.module, 0, BMS12_MAX_MODULES - 1)
@@ -487,9 +502,7 @@ class Evms3Codec:
         if isinstance(msg, Bms12Temperatures):
             if len(msg.temperatures_c) != 2:
                 raise EncodeRangeError('temperatures_c', msg.temperatures_c, '2 values')
-            raw = [0 if t is None else 40 + _check_int(f'temperatures_c[{i}]', t, -39, 215)
-                   for i, t in enumerate(msg.temperatures_c)]
-            return Frame(base + 4, bytes(raw + [0] * 6), self.is_extended_id)
+            return Frame(base + 4, _E_TEMPS(*msg.temperatures_c), self.is_extended_id)
         if msg.first_cell not in (0, 4, 8):
             raise EncodeRangeError('first_cell', msg.first_cell, '0, 4 or 8')
         if len(msg.voltages_v) != 4:

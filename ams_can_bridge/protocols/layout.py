@@ -91,6 +91,8 @@ class Signal:
     field: str = ''  # the reading's name for it in error messages (default: name)
     flag: bool = False  # a 1-bit signal decoded as a bool (True/False or 0/1 to encode)
     invalid: int | None = None  # raw value meaning "not available": None both ways
+    # decode only: raw value -> reading value (an enum member, None); IndexError past its end
+    lookup: tuple | None = None
 
     def raw_range(self) -> tuple[int, int]:
         """Return the raw values the bits carry, without the "not available" marker."""
@@ -177,6 +179,10 @@ class Layout:
         raw = self.raw_expression(s)
         if s.flag and not raw_only:
             return f'({raw}) != 0'
+        if s.lookup is not None and not raw_only and tables is not None:
+            name = f'T{len(tables)}'
+            tables[name] = s.lookup
+            return f'{name}[{raw}]'
         plain = raw_only or (s.scale == 1 and s.offset == 0)
         if s.invalid is not None:
             var = f'r_{s.start}_{s.length}'
@@ -195,7 +201,10 @@ class Layout:
         return self.scaled_expression(s, raw)
 
     def scaled_expression(self, s: Signal, raw: str) -> str:
+        """Return the physical value of a raw expression (divide: as the vendor computes it)."""
         divisor = 1 / s.scale
+        if self.divide and s.scale == 1 and s.offset == round(s.offset):
+            return f'({raw}) + {round(s.offset)}'  # whole numbers stay int (raw 65 -> 25 degC)
         if self.divide and abs(divisor - round(divisor)) < 1e-9:
             shift = s.offset * round(divisor)  # (raw - 8388608) / 1000, as the vendor
             if shift == round(shift):
