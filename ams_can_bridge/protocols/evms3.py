@@ -270,6 +270,7 @@ class Bms12Temperatures:
     temperatures_c: tuple[int | None, int | None]
 
 
+_CELLS = LAYOUTS['BMS12_M0_Cells1to4'].decoder(into=Bms12Cells, pack=2)  # module, first
 _STATUS = LAYOUTS['EVMS3_Status'].decoder(  # in the order of the reading's fields
     'State', 'ErrorCode', 'AmpHoursRemaining', 'BatteryVoltage', 'AuxVoltage', 'Headlights',
     'IsolationIntegrity', 'Temperature', into=Evms3Status)
@@ -350,7 +351,10 @@ class Evms3Codec:
             if arbitration_id in CHARGER_IDS:
                 return self.chargers.decode(arbitration_id, data)
             raise MalformedFrameError(arbitration_id, data, 'not an EVMS3/BMS12 ID of this codec')
-        return self._decode_bms12(arbitration_id, data, *module_type)
+        module, t = module_type
+        if 1 <= t <= 3 and len(data) == 8:  # the bulk of the bus: cells in one call
+            return _CELLS(data, module, 4 * (t - 1))
+        return self._decode_bms12(arbitration_id, data, module, t)
 
     def _decode_status(self, aid: int, data: bytes) -> Evms3Status:
         if len(data) != 8:

@@ -215,21 +215,26 @@ class Layout:
         return scaled if s.offset == 0 else f'{scaled} + {s.offset!r}'
 
     def decoder(self, *names: str, raw: bool = False, into: Callable | None = None,
-                head: Callable | None = None) -> Callable[[bytes], Any]:
+                head: Callable | None = None, pack: int = 0) -> Callable[..., Any]:
         """
         Return ``decode(data)``: the physical (or raw) values of names (default all).
 
         As a tuple, or ``into(values...)`` (a reading class), or ``into(head(data), values...)``
         (a part decoded elsewhere first, as a cached status word): one call per frame.
+        pack=n: ``decode(data, a1..an)`` returns ``into(a1..an, (values...))``, values as one
+        tuple after n arguments of the caller (as a module and a first cell).
         """
         by_name = {s.name: s for s in self.signals}
         signals = [by_name[n] for n in names] if names else self.signals
         tables: dict[str, tuple] = {}
         body = ', '.join(self._physical(s, raw, tables) for s in signals)
+        args = ''.join(f', a{k}' for k in range(pack))
+        if pack:
+            body = f'{args[2:]}, ({body},)'
         result = (f'into(head(data), {body})' if head else f'into({body})') if into \
             else f'({body},)'
-        return _compile(f'def decode(data):\n    return {result}\n', self.name, 'decode',
-                        {'into': into, 'head': head, **tables})
+        return _compile(f'def decode(data{args}):\n    return {result}\n', self.name,
+                        'decode', {'into': into, 'head': head, **tables})
 
     def reader(self, name: str, raw: bool = False) -> Callable[[bytes], Any]:
         """Return ``read(data) -> value`` of one signal (no tuple: the hottest paths)."""
