@@ -71,6 +71,10 @@ def test_check_value_takes_float_noise_at_the_ends_and_whole_floats():
     ('sma', 'sma', 'SG_ SoH : 16|16@1+ (1,0)', 'SG_ SoH : 16|8@1+ (1,0)', 'SMA_SoC'),
     ('sma', 'sma', 'SG_ ModuleCount : 32|8@1+', 'SG_ ModuleCount : 40|8@1+',
      'Pylontech_AlarmsWarnings'),
+    ('evms3', 'evms3', 'SG_ BmsMinVoltage : 40|8@1+ (0.01,1.5)',
+     'SG_ BmsMinVoltage : 40|8@1+ (0.01,1.6)', 'EVMS3_Config2'),
+    ('evms3', 'evms3', 'SG_ Module15Cells : 60|4@1+', 'SG_ Module15Cells : 60|3@1+',
+     'EVMS3_BmsCellNumbers'),
     ('ivt_s', 'ivt_s', 'SG_ IVT_MsgCount_Result_W : 11|4@0+',
      'SG_ IVT_MsgCount_Result_W : 11|3@0+', 'IVT_Msg_Result_W'),
 ])

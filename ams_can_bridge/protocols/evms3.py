@@ -34,7 +34,7 @@ from ams_can_bridge.protocols.common import (
     check_dlc, EncodeRangeError, Frame, load_dbc, MalformedFrameError)
 from ams_can_bridge.protocols.evms3_config import (  # noqa: F401 (re-exported)
     BALANCE_DYNAMIC, BALANCE_MODES, BALANCE_OFF, BMS12_MAX_MODULES, CELLS_MAX, CELLS_MIN,
-    check_config_value,
+    check_config_value, config_layouts,
     CONFIG_FIELDS, CONFIG_FILLER, config_payloads, ConfigReadback, ConfigReport,
     CORE_REQUEST_CONFIG, CORE_SEND_CELL_NUMS, CORE_SEND_CONFIG1, CORE_SEND_CONFIG2,
     CORE_SEND_CONFIG3, CORE_SEND_CONFIG4, decode_config_packet, Evms3Config, Evms3ConfigPart,
@@ -154,6 +154,13 @@ def check_dbc() -> None:
     db = load_dbc('evms3')
     for name, layout in LAYOUTS.items():
         layout.check_dbc(db.get_message_by_name(name), 'msg_defs/evms3.dbc', 'EVMS3')
+    # the configuration, sent on 32..36 and read back on 52..56 in the same layout
+    pairs = [(f'EVMS3_Config{k}', f'EVMS3_SendConfig{k}') for k in range(1, 5)] + [
+        ('EVMS3_BmsCellNumbers', 'EVMS3_SendCellNumbers')]
+    for layout, names in zip(config_layouts(), pairs):
+        for name in names:
+            layout.check_dbc(db.get_message_by_name(name), 'msg_defs/evms3.dbc',
+                             'EVMS3 configuration')
 
 
 # --- readings and commands ------------------------------------------------------------------
