@@ -292,8 +292,8 @@ _PYLONTECH_DBC_NAMES = {
 
 def _u(name: str, start: int, length: int, scale: float = 1, unit: str = '', field: str = '',
        high: float | None = None) -> Signal:
-    """A field; one with a name to send has the family's "not available" marker (all ones)."""
-    marker = (1 << length) - 1 if field else None
+    """Return a field; one with a name to send has the family's "not available" marker."""
+    marker = (1 << length) - 1 if field else None  # all ones
     return Signal(name, start, length, LITTLE, False, scale, 0, None, high, unit,
                   f'sma.victron.{field}', invalid=marker)
 
