@@ -75,6 +75,8 @@ def test_check_value_takes_float_noise_at_the_ends_and_whole_floats():
      'SG_ BmsMinVoltage : 40|8@1+ (0.01,1.6)', 'EVMS3_Config2'),
     ('evms3', 'evms3', 'SG_ Module15Cells : 60|4@1+', 'SG_ Module15Cells : 60|3@1+',
      'EVMS3_BmsCellNumbers'),
+    ('evms3', 'evms3', 'SG_ CurrentLimit : 23|16@0+ (0.1,0)',
+     'SG_ CurrentLimit : 23|16@0+ (0.2,0)', 'TC_Charger1_Command'),
     ('ivt_s', 'ivt_s', 'SG_ IVT_MsgCount_Result_W : 11|4@0+',
      'SG_ IVT_MsgCount_Result_W : 11|3@0+', 'IVT_Msg_Result_W'),
 ])

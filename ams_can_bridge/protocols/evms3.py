@@ -41,7 +41,7 @@ from ams_can_bridge.protocols.evms3_config import (  # noqa: F401 (re-exported)
     READBACK_IDS, READBACK_NAMES)
 from ams_can_bridge.protocols.layout import BIG, check_value, Layout, LITTLE, Signal
 from ams_can_bridge.protocols.tc_charger import (
-    CHARGER_IDS, ChargerCommand, ChargerStatus, TcChargerCodec)
+    CHARGER_IDS, ChargerCommand, ChargerStatus, LAYOUTS as TC_LAYOUTS, TcChargerCodec)
 
 BMS12_BASE_ID = 300
 BMS16_MARKER = 255  # ID 30 byte 5 (aux voltage on an EVMS3): EVMS_Monitor3.c sets isBMS16
@@ -154,6 +154,11 @@ def check_dbc() -> None:
     db = load_dbc('evms3')
     for name, layout in LAYOUTS.items():
         layout.check_dbc(db.get_message_by_name(name), 'msg_defs/evms3.dbc', 'EVMS3')
+    for n in range(1, 4):  # the TC chargers 1..3 the EVMS drives: one layout each way
+        for kind in ('Command', 'Status'):
+            TC_LAYOUTS[f'TC_Charger1_{kind}'].check_dbc(
+                db.get_message_by_name(f'TC_Charger{n}_{kind}'), 'msg_defs/evms3.dbc',
+                'TC charger')
     # the configuration, sent on 32..36 and read back on 52..56 in the same layout
     pairs = [(f'EVMS3_Config{k}', f'EVMS3_SendConfig{k}') for k in range(1, 5)] + [
         ('EVMS3_BmsCellNumbers', 'EVMS3_SendCellNumbers')]
