@@ -5,9 +5,11 @@ A protocol module states each message once, as a :class:`Layout` of :class:`Sign
 (start bit in DBC numbering, length, byte order, sign, scale, offset, range, unit), written
 in Python or read from a DBC message (:meth:`Layout.from_dbc`). From that table come:
 
-* ``decoder()``: one generated function ``data -> tuple`` of the physical values, with no
-  loop and no call per signal (byte-aligned signals read ``data[k]`` directly, others one
-  ``int.from_bytes`` with shifts and masks). The bus thread runs it for every frame.
+* ``decoder()``: one generated function ``data -> tuple`` (or straight into a reading) of
+  the physical values, with no loop and no call per signal: each signal reads its bytes
+  ``data[k]`` with shifts and masks, a scaled byte is a table lookup, "not available" raw
+  values (``invalid``) become None, enum codes come from a ``lookup`` column. The bus thread
+  runs it for every frame.
 * ``encoder()``: one generated function ``(*values) -> bytes`` that validates every value with
   :func:`check_value` (range and step of its signal) before packing it.
 * ``check_dbc(message)``: raises :class:`LayoutError` at the first codec if the installed DBC
