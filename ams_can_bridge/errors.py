@@ -10,9 +10,12 @@ The hierarchy::
     AmsCanBridgeError
      +-- ConfigError (also ValueError)      cannot start with these parameters
      |    +-- ParamError                    one parameter value that cannot be used
+     |    +-- MsgDefsNotFound (FileNotFoundError) the installed msg_defs/ (DBC files) is missing
      +-- ProtocolError                      the protocol layer (protocols/)
      |    +-- MalformedFrameError           a received frame that is not a valid message
      |    +-- EncodeRangeError (ValueError) a value to send that the wire cannot carry
+     |    +-- LayoutError (RuntimeError)    an installed DBC that no longer matches a codec
+     |    +-- BadConfigBytes (ValueError)   setting bytes no device would send
      +-- CanSendError                       the bus is not available for sending
      +-- RefusedCommand                     a service call refused before any frame is sent
      +-- LogFileError                       a CAN log that cannot be read at all
@@ -41,6 +44,15 @@ class ConfigError(AmsCanBridgeError, ValueError):
 
 class ParamError(ConfigError):
     """One parameter value that cannot be used (the message names it and what is allowed)."""
+
+
+class MsgDefsNotFound(ConfigError, FileNotFoundError):
+    """
+    The installed msg_defs/ folder (the DBC files) cannot be found: an incomplete install.
+
+    Raised by ``protocols.common.msg_defs_dir``; a FileNotFoundError too, for callers that
+    treat a missing file alike.
+    """
 
 
 class ProtocolError(AmsCanBridgeError):
@@ -81,6 +93,24 @@ class EncodeRangeError(ProtocolError, ValueError):
         self.value = value
         self.allowed = allowed
         super().__init__(f'{field} = {value!r} cannot be sent: allowed {allowed}')
+
+
+class LayoutError(ProtocolError, RuntimeError):
+    """
+    An installed DBC (msg_defs/) that no longer has the layout a codec was written for.
+
+    Raised by ``protocols/layout.py`` when the first codec of a protocol is built: the bridge
+    fails at start instead of decoding frames with the wrong bits.
+    """
+
+
+class BadConfigBytes(ProtocolError, ValueError):
+    """
+    Setting bytes (a whole configuration read back or received) that cannot be a configuration.
+
+    Raised by the decoders of configuration payloads that have no single frame to blame
+    (``protocols/bms16_std.decode_config``); the simulator ignores such a configuration.
+    """
 
 
 class CanSendError(AmsCanBridgeError):

@@ -12,8 +12,9 @@ import math
 from typing import Any, Iterable
 
 from ams_can_bridge.devices.base import ParamSpec
-from ams_can_bridge.errors import ParamError
+from ams_can_bridge.errors import EncodeRangeError, ParamError
 from ams_can_bridge.protocols.common import ConfigField
+from ams_can_bridge.protocols.layout import check_value
 
 CONFIG_PREFIX = 'config.'
 
@@ -50,13 +51,18 @@ def allowed_text(spec: ParamSpec) -> str:
 
 
 def _check_range(name: str, spec: ParamSpec, value: float) -> None:
-    if spec.low is not None and spec.high is not None:
-        if value != value or not spec.low - 1e-9 <= value <= spec.high + 1e-9:
-            raise ParamError(f'{name} = {value!r} is out of range: allowed {allowed_text(spec)}')
-    if spec.step and spec.low is not None:
-        n = (value - spec.low) / spec.step
-        if abs(n - round(n)) > 1e-6:
-            raise ParamError(f'{name} = {value!r} is off the step: allowed {allowed_text(spec)}')
+    """Check with the package's one validator (protocols.layout.check_value), in its words."""
+    if spec.low is None:
+        return
+    high = math.inf if spec.high is None else spec.high
+    for step, what in ((None, 'is out of range'), (spec.step, 'is off the step')):
+        if spec.high is None and step is None:
+            continue  # no upper bound: only the step from low is a rule
+        try:
+            check_value(name, value, spec.low, high, step)
+        except EncodeRangeError:
+            raise ParamError(f'{name} = {value!r} {what}: allowed {allowed_text(spec)}') \
+                from None
 
 
 def coerce(name: str, spec: ParamSpec, value: Any) -> Any:

@@ -2,9 +2,9 @@
 Formula-Student AMS (accumulator management system) protocol: docs/protocols.md section 1.
 
 Ten 11-bit messages at ``base_id + offset`` (default base 0x300). The field layout is
-``msg_defs/ams.dbc``: frames are encoded through cantools, and decoded by hand on that layout
-(the bus thread decodes every frame; cantools cost 4-13 us a frame), checked against the
-installed DBC when the first codec is built and against cantools in the tests. The module
+``LAYOUTS`` (protocols/layout.py tables): encoders and decoders are generated from it, it is
+checked against the installed ``msg_defs/ams.dbc`` when the first codec is built and
+against cantools in the tests. The module
 adds what a DBC cannot say (valid bank/group IDs, known enum values, DLC checks: a frame
 padded beyond its layout up to 8 bytes is accepted, a shorter one is malformed; typed
 readings) and checks every value before it is encoded, so a bad command fails loudly
@@ -15,10 +15,10 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass
-from typing import Any, Callable, Union
+from typing import Any, Callable, Sequence, Union
 
-from ams_can_bridge.protocols.common import (
-    check_range, EncodeRangeError, Frame, load_dbc, MalformedFrameError)
+from ams_can_bridge.protocols.common import EncodeRangeError, Frame, load_dbc, MalformedFrameError
+from ams_can_bridge.protocols.layout import BIG, Layout, Signal
 
 DEFAULT_BASE_ID = 0x300
 
@@ -249,11 +249,6 @@ _STATUS_BITS = (('AIR_Plus', 'air_plus'), ('AIR_Minus', 'air_minus'),
                 ('Precharge_Relay', 'precharge'), ('Warn_Volt', 'warn_volt'),
                 ('Warn_Temp', 'warn_temp'), ('HVDC_Interlock', 'hvdc_interlock'),
                 ('IMD_Error', 'imd_error'), ('AMS_Error', 'ams_error'))
-_CELL_SIGNALS = tuple(f'Cell_Voltage_{k}' for k in range(1, CELLS_PER_GROUP + 1))
-_TEMP_SIGNALS = tuple(f'Cell_Temperature_{k}' for k in range(1, TEMPS_PER_GROUP + 1))
-_DISCHARGE_SIGNALS = tuple(
-    f'Discharge_Temperature_{k}' for k in range(1, DISCHARGE_TEMPS_PER_GROUP + 1))
-
 _DBC_NAMES = {
     STATUS: 'AMS_Status', CHARGER_STATUS: 'AMS_Status_Charger', CAR_STATUS: 'CAR_Status',
     CHARGER_COMMANDS: 'CHARGER_Commands', CELL_VOLTAGES: 'AMS_Cell_Voltages',
@@ -268,192 +263,173 @@ class _Bad(Exception):
     """Internal: a decoded value is impossible (becomes MalformedFrameError with the data)."""
 
 
-# --- decoding: by hand, on the layout msg_defs/ams.dbc gives --------------------------------
-# The bus thread decodes every AMS frame (about 60/s with 5 banks): cantools took 4-13 us a
-# frame, these take about 1. The DBC stays the reference: _check_dbc() fails at the first
-# codec if the installed DBC no longer has this layout, and test_protocol_ams.py compares
-# every message with cantools on random frames. Layout per message: DLC and its signals as
-# (name, start bit (DBC numbering), length, signed, scale); every one big-endian, offset 0.
-_FLAG_SIGNALS = tuple((dbc, 7 - bit, 1, False, 1) for bit, (dbc, _) in enumerate(_STATUS_BITS))
-_WORD_SIGNALS = _FLAG_SIGNALS + (('Bank_Count', 15, 3, False, 1), ('AMS_State', 12, 5, False, 1))
-_BANK_GROUP = (('Bank_ID', 7, 3, False, 1), ('Group_ID', 2, 3, False, 1))
-_LAYOUT: dict[int, tuple[int, tuple[tuple[str, int, int, bool, float], ...]]] = {
-    STATUS: (7, _WORD_SIGNALS + (
-        ('Volt_min', 23, 8, False, CELL_VOLT_STEP), ('Temp_max', 31, 8, False, 1),
-        ('SOC', 39, 8, False, 1), ('Counter', 47, 8, False, 1),
-        ('Relay_Error_AIR_Minus', 48, 1, False, 1), ('Relay_Error_AIR_Plus', 49, 1, False, 1),
-        ('Relay_Error_Precharge', 50, 1, False, 1))),
-    CHARGER_STATUS: (5, _WORD_SIGNALS + (
-        ('SOC', 23, 8, False, 1), ('Charger_Current', 31, 8, False, CURRENT_STEP),
-        ('Turn_On_Charger', 32, 1, False, 1))),
-    CAR_STATUS: (2, (('CMD', 3, 4, False, 1), ('Bank_Count', 7, 4, False, 1),
-                     ('Counter', 15, 8, False, 1))),
-    CHARGER_COMMANDS: (3, (('Start', 1, 2, False, 1), ('Time_Tick', 15, 16, False, 1))),
-    CELL_VOLTAGES: (8, _BANK_GROUP + tuple(
-        (name, 15 + 8 * k, 8, False, CELL_VOLT_STEP) for k, name in enumerate(_CELL_SIGNALS))),
-    CELL_TEMPERATURES: (6, _BANK_GROUP + tuple(
-        (name, 15 + 8 * k, 8, True, 1) for k, name in enumerate(_TEMP_SIGNALS))),
-    DISCHARGE_TEMPERATURES: (8, _BANK_GROUP + tuple(
-        (name, 15 + 8 * k, 8, True, 1) for k, name in enumerate(_DISCHARGE_SIGNALS))),
-    ERROR: (3, (('AMS_Error_ID', 7, 8, False, 1), ('AMS_Time_Tick', 15, 16, False, 1))),
-    OVERRIDE_CHARGE_CURRENT: (1, (('Charge_Current', 7, 8, False, CURRENT_STEP),)),
-    OVERRIDE_BANK_COUNT: (1, (('Bank_Count', 7, 8, False, 1),)),
-}
-# Scaled values of a byte, as cantools computes them (raw * scale + offset).
-_VOLTS = tuple(raw * CELL_VOLT_STEP + 0 for raw in range(256))
-_AMPS = tuple(raw * CURRENT_STEP + 0 for raw in range(256))
-_SIGNED = tuple(raw - 256 if raw > 127 else raw for raw in range(256))
-_volts = _VOLTS.__getitem__
-_signed = _SIGNED.__getitem__
+# --- the wire layout: one table, checked against msg_defs/ams.dbc ----------------------------
+# Every AMS signal is big-endian with offset 0. The ranges are what the encoder accepts (the
+# DBC cannot say that a status word counts 0..5 banks and the car status 1..5); the decoders
+# are generated from the same rows, and the DBC must have the same bits at the first codec.
+def _s(name: str, start: int, length: int, scale: float = 1, signed: bool = False,
+       low: float | None = None, high: float | None = None, unit: str = '',
+       field: str = '') -> Signal:
+    return Signal(name, start, length, BIG, signed, scale, 0, low, high, unit, field,
+                  flag=length == 1)
+
+
+_WORD = tuple(_s(dbc, 7 - bit, 1, field=attr) for bit, (dbc, attr) in enumerate(_STATUS_BITS)
+              ) + (_s('Bank_Count', 15, 3, high=MAX_BANKS, field='bank_count'),
+                   _s('AMS_State', 12, 5, field='state'))
+
+
+def _bank_group_signals(groups: int) -> tuple[Signal, ...]:
+    return (_s('Bank_ID', 7, 3, low=1, high=MAX_BANKS, field='bank'),
+            _s('Group_ID', 2, 3, high=groups - 1, field='group'))
+
+
+def _series(prefix: str, count: int, field: str, **kwargs: Any) -> tuple[Signal, ...]:
+    return tuple(_s(f'{prefix}_{k + 1}', 15 + 8 * k, 8, field=f'{field}[{k}]', **kwargs)
+                 for k in range(count))
+
+
+_VOLTS = dict(scale=CELL_VOLT_STEP, high=5.1, unit='V')
+_AMPS = dict(scale=CURRENT_STEP, high=25.5, unit='A')
+_TEMPS = dict(signed=True, unit='degC')
+LAYOUTS: dict[int, Layout] = {offset: Layout(_DBC_NAMES[offset], length, signals) for
+                              offset, length, signals in (
+    (STATUS, 7, _WORD + (
+        _s('Volt_min', 23, 8, field='volt_min_v', **_VOLTS),
+        _s('Temp_max', 31, 8, unit='degC', field='temp_max_c'),
+        _s('SOC', 39, 8, high=100, unit='%', field='soc_pct'),
+        _s('Counter', 47, 8, field='counter'),
+        _s('Relay_Error_AIR_Minus', 48, 1, field='relay_error_air_minus'),
+        _s('Relay_Error_AIR_Plus', 49, 1, field='relay_error_air_plus'),
+        _s('Relay_Error_Precharge', 50, 1, field='relay_error_precharge'))),
+    (CHARGER_STATUS, 5, _WORD + (
+        _s('SOC', 23, 8, high=100, unit='%', field='soc_pct'),
+        _s('Charger_Current', 31, 8, field='charger_current_a', **_AMPS),
+        _s('Turn_On_Charger', 32, 1, field='charger_on'))),
+    (CAR_STATUS, 2, (_s('CMD', 3, 4, field='command'),
+                     _s('Bank_Count', 7, 4, low=1, high=MAX_BANKS, field='bank_count'),
+                     _s('Counter', 15, 8, field='counter'))),
+    (CHARGER_COMMANDS, 3, (_s('Start', 1, 2, field='start'),
+                           _s('Time_Tick', 15, 16, field='time_tick'))),
+    (CELL_VOLTAGES, 8, _bank_group_signals(CELL_GROUPS)
+     + _series('Cell_Voltage', CELLS_PER_GROUP, 'voltages_v', **_VOLTS)),
+    (CELL_TEMPERATURES, 6, _bank_group_signals(TEMP_GROUPS)
+     + _series('Cell_Temperature', TEMPS_PER_GROUP, 'temperatures_c', **_TEMPS)),
+    (DISCHARGE_TEMPERATURES, 8, _bank_group_signals(TEMP_GROUPS)
+     + _series('Discharge_Temperature', DISCHARGE_TEMPS_PER_GROUP, 'temperatures_c',
+               **_TEMPS)),
+    (ERROR, 3, (_s('AMS_Error_ID', 7, 8, field='error'),
+                _s('AMS_Time_Tick', 15, 16, field='time_tick'))),
+    (OVERRIDE_CHARGE_CURRENT, 1, (_s('Charge_Current', 7, 8, field='current_a', **_AMPS),)),
+    (OVERRIDE_BANK_COUNT, 1, (_s('Bank_Count', 7, 8, low=1, high=MAX_BANKS,
+                                 field='bank_count'),)),
+)}
 
 
 def _check_dbc() -> None:
-    """Fail loudly if msg_defs/ams.dbc no longer has the layout the decoders hard-code."""
+    """Fail loudly (LayoutError) if msg_defs/ams.dbc no longer has the layout of LAYOUTS."""
     db = load_dbc('ams')
-    for offset, (length, signals) in _LAYOUT.items():
-        msg = db.get_message_by_name(_DBC_NAMES[offset])
-        got = (msg.length, sorted(
-            (s.name, s.start, s.length, s.is_signed, s.scale, s.offset, s.byte_order,
-             s.is_float) for s in msg.signals))
-        want = (length, sorted(
-            (name, start, bits, signed, scale, 0, 'big_endian', False)
-            for name, start, bits, signed, scale in signals))
-        if got != want:
-            raise RuntimeError(f'msg_defs/ams.dbc {msg.name} does not match the AMS codec '
-                               f'layout: {got}')
+    for offset, layout in LAYOUTS.items():
+        layout.check_dbc(db.get_message_by_name(_DBC_NAMES[offset]), 'msg_defs/ams.dbc',
+                         'AMS')
 
 
-# Status words seen so far, by their raw 16-bit value: a car sends a handful of distinct words,
-# and building a frozen dataclass costs more than decoding the rest of the frame.
+# --- decoding: the generated decoders plus what the DBC cannot say ---------------------------
+# The bus thread decodes every AMS frame (about 60/s with 5 banks); the generated code reads
+# the bytes as hand code would (about 1 us a frame; cantools took 4-13 us).
+_D = {offset: layout.decoder() for offset, layout in LAYOUTS.items()}
+_D_WORD = LAYOUTS[STATUS].decoder(*(s.name for s in _WORD))
+# Status words seen so far, by the two bytes that carry them: a car sends a handful of
+# distinct words, and building a frozen dataclass costs more than decoding the rest.
 _WORD_CACHE: dict[int, AmsStatusWord] = {}
 
 
 def _status_word(data: bytes) -> AmsStatusWord:
-    raw = data[0] << 8 | data[1]  # bytes or bytearray (python-can gives the latter)
-    word = _WORD_CACHE.get(raw)
+    key = data[0] << 8 | data[1]  # bytes or bytearray (python-can gives the latter)
+    word = _WORD_CACHE.get(key)
     if word is not None:
         return word
-    state = _STATES.get(raw & 0x1F)
+    *flags, banks, raw_state = _D_WORD(data)
+    state = _STATES.get(raw_state)
     if state is None:
-        raise _Bad(f'unknown AMS state {raw & 0x1F} (known 0..9)')
-    banks = raw >> 5 & 0x07
+        raise _Bad(f'unknown AMS state {raw_state} (known 0..9)')
     if banks > MAX_BANKS:
         raise _Bad(f'status bank count {banks} (allowed 0..{MAX_BANKS})')
-    flags = data[0]
-    word = AmsStatusWord(bool(flags & 0x80), bool(flags & 0x40), bool(flags & 0x20),
-                         bool(flags & 0x10), bool(flags & 0x08), bool(flags & 0x04),
-                         bool(flags & 0x02), bool(flags & 0x01), banks, state)
-    _WORD_CACHE[raw] = word  # bounded: at most 2**16 words
+    word = AmsStatusWord(*flags, banks, state)
+    _WORD_CACHE[key] = word  # bounded: at most 2**16 words
     return word
 
 
-def _bank_group(data: bytes, groups: int) -> tuple[int, int]:
-    bank, group = data[0] >> 5, data[0] & 0x07
+def _bank_group(bank: int, group: int, groups: int) -> None:
     if not 1 <= bank <= MAX_BANKS:
         raise _Bad(f'bank ID {bank} (allowed 1..{MAX_BANKS})')
     if group >= groups:
         raise _Bad(f'group ID {group} (allowed 0..{groups - 1})')
-    return bank, group
-
-
-def _dec_status(data: bytes) -> AmsStatus:
-    relays = data[6]
-    return AmsStatus(_status_word(data), _VOLTS[data[2]], data[3], data[4], data[5],
-                     bool(relays & 0x01), bool(relays & 0x02), bool(relays & 0x04))
-
-
-def _dec_charger_status(data: bytes) -> AmsChargerStatus:
-    return AmsChargerStatus(_status_word(data), data[2], _AMPS[data[3]], bool(data[4] & 0x01))
 
 
 def _dec_car_status(data: bytes) -> CarStatus:
-    command = _COMMANDS.get(data[0] & 0x0F)
+    raw, banks, counter = _D[CAR_STATUS](data)
+    command = _COMMANDS.get(raw)
     if command is None:
-        raise _Bad(f'unknown car command {data[0] & 0x0F} (known 0..6)')
-    banks = data[0] >> 4
+        raise _Bad(f'unknown car command {raw} (known 0..6)')
     if not 1 <= banks <= MAX_BANKS:
         raise _Bad(f'car status bank count {banks} (allowed 1..{MAX_BANKS})')
-    return CarStatus(command, banks, data[1])
+    return CarStatus(command, banks, counter)
 
 
 def _dec_charger_commands(data: bytes) -> ChargerCommand:
-    start = _STARTS.get(data[0] & 0x03)
+    raw, tick = _D[CHARGER_COMMANDS](data)
+    start = _STARTS.get(raw)
     if start is None:
-        raise _Bad(f'unknown charger start command {data[0] & 0x03} (known 0..2)')
-    return ChargerCommand(start, data[1] << 8 | data[2])
+        raise _Bad(f'unknown charger start command {raw} (known 0..2)')
+    return ChargerCommand(start, tick)
 
 
-def _dec_cells(data: bytes) -> CellVoltages:
-    bank, group = _bank_group(data, CELL_GROUPS)
-    return CellVoltages(bank, group, tuple(map(_volts, data[1:8])))
+def _series_decoder(offset: int, groups: int, cls: type) -> Callable[[bytes], Any]:
+    decode = _D[offset]
 
-
-def _dec_temps(data: bytes) -> CellTemperatures:
-    bank, group = _bank_group(data, TEMP_GROUPS)
-    return CellTemperatures(bank, group, tuple(map(_signed, data[1:6])))
-
-
-def _dec_discharge(data: bytes) -> DischargeTemperatures:
-    bank, group = _bank_group(data, TEMP_GROUPS)
-    return DischargeTemperatures(bank, group, tuple(map(_signed, data[1:8])))
+    def build(data: bytes) -> Any:
+        bank, group, *values = decode(data)
+        _bank_group(bank, group, groups)
+        return cls(bank, group, tuple(values))
+    return build
 
 
 def _dec_error(data: bytes) -> AmsErrorEvent:
-    error = _ERRORS.get(data[0])
+    raw, tick = _D[ERROR](data)
+    error = _ERRORS.get(raw)
     if error is None:
-        raise _Bad(f'unknown AMS error ID {data[0]} (known 1..23)')
-    return AmsErrorEvent(error, data[1] << 8 | data[2])
-
-
-def _dec_override_current(data: bytes) -> OverrideChargeCurrent:
-    return OverrideChargeCurrent(_AMPS[data[0]])
+        raise _Bad(f'unknown AMS error ID {raw} (known 1..23)')
+    return AmsErrorEvent(error, tick)
 
 
 def _dec_override_banks(data: bytes) -> OverrideBankCount:
-    banks = data[0]
+    banks, = _D[OVERRIDE_BANK_COUNT](data)
     if not 1 <= banks <= MAX_BANKS:
         raise _Bad(f'override bank count {banks} (allowed 1..{MAX_BANKS})')
     return OverrideBankCount(banks)
 
 
 _DECODERS: dict[int, Callable[[bytes], Any]] = {
-    STATUS: _dec_status, CHARGER_STATUS: _dec_charger_status, CAR_STATUS: _dec_car_status,
-    CHARGER_COMMANDS: _dec_charger_commands, CELL_VOLTAGES: _dec_cells,
-    CELL_TEMPERATURES: _dec_temps, DISCHARGE_TEMPERATURES: _dec_discharge, ERROR: _dec_error,
-    OVERRIDE_CHARGE_CURRENT: _dec_override_current, OVERRIDE_BANK_COUNT: _dec_override_banks,
+    STATUS: LAYOUTS[STATUS].decoder(
+        'Volt_min', 'Temp_max', 'SOC', 'Counter', 'Relay_Error_AIR_Minus',
+        'Relay_Error_AIR_Plus', 'Relay_Error_Precharge', into=AmsStatus, head=_status_word),
+    CHARGER_STATUS: LAYOUTS[CHARGER_STATUS].decoder(
+        'SOC', 'Charger_Current', 'Turn_On_Charger', into=AmsChargerStatus, head=_status_word),
+    CAR_STATUS: _dec_car_status,
+    CHARGER_COMMANDS: _dec_charger_commands,
+    CELL_VOLTAGES: _series_decoder(CELL_VOLTAGES, CELL_GROUPS, CellVoltages),
+    CELL_TEMPERATURES: _series_decoder(CELL_TEMPERATURES, TEMP_GROUPS, CellTemperatures),
+    DISCHARGE_TEMPERATURES: _series_decoder(DISCHARGE_TEMPERATURES, TEMP_GROUPS,
+                                            DischargeTemperatures),
+    ERROR: _dec_error,
+    OVERRIDE_CHARGE_CURRENT: LAYOUTS[OVERRIDE_CHARGE_CURRENT].decoder(
+        into=OverrideChargeCurrent),
+    OVERRIDE_BANK_COUNT: _dec_override_banks,
 }
 
 
-# --- encode-side checks ---------------------------------------------------------------------
-def _num(field: str, value: Any, low: float, high: float, step: float | None = None,
-         unit: str = '') -> float:
-    """Check a number against its wire range and step; bool and non-numbers are refused."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        suffix = f' {unit}' if unit else ''
-        raise EncodeRangeError(field, value, f'a number {low:g}..{high:g}{suffix}')
-    # Float noise at the ends (255 * 0.02 = 5.1000000000000005, as decoded) is no overrange.
-    eps = (step or 1.0) * 1e-9
-    if high < value <= high + eps:
-        value = high
-    elif low - eps <= value < low:
-        value = low
-    check_range(field, value, low, high, step, unit)
-    return value
-
-
-def _int(field: str, value: Any, low: int, high: int) -> int:
-    # 3.0 is accepted (YAML spells numbers either way); 2.5 is not.
-    if isinstance(value, float) and value == value and not value.is_integer():
-        raise EncodeRangeError(field, value, f'{low}..{high}, a whole number')
-    return int(_num(field, value, low, high))
-
-
-def _flag(field: str, value: Any) -> int:
-    if value not in (0, 1) or not isinstance(value, (bool, int)):
-        raise EncodeRangeError(field, value, 'True/False (or 0/1)')
-    return int(value)
-
-
+# --- encoding: what the DBC cannot say, then the generated encoder checks every value --------
 def _member(field: str, value: Any, enum_cls: type[enum.IntEnum]) -> int:
     values = {int(m) for m in enum_cls}
     if isinstance(value, bool) or not isinstance(value, int) or int(value) not in values:
@@ -462,104 +438,41 @@ def _member(field: str, value: Any, enum_cls: type[enum.IntEnum]) -> int:
     return int(value)
 
 
-def _values(field: str, values: Any, count: int, low: float, high: float, step: float,
-            unit: str) -> list[float]:
+def _values(field: str, values: Any, count: int) -> tuple:
     if not isinstance(values, (tuple, list)) or len(values) != count:
         raise EncodeRangeError(field, values, f'exactly {count} values')
-    return [_num(f'{field}[{i}]', v, low, high, step, unit) for i, v in enumerate(values)]
+    return tuple(values)
 
 
-def _enc_status_word(word: AmsStatusWord) -> dict[str, Any]:
+def _word(word: AmsStatusWord) -> list[Any]:
     if not isinstance(word, AmsStatusWord):
         raise EncodeRangeError('status', word, 'an AmsStatusWord')
-    sig = {name: _flag(attr, getattr(word, attr)) for name, attr in _STATUS_BITS}
-    sig['Bank_Count'] = _int('bank_count', word.bank_count, 0, MAX_BANKS)
-    sig['AMS_State'] = _member('state', word.state, AmsState)
-    return sig
+    return [getattr(word, attr) for _, attr in _STATUS_BITS] + [
+        word.bank_count, _member('state', word.state, AmsState)]
 
 
-def _enc_status(m: AmsStatus) -> dict[str, Any]:
-    sig = _enc_status_word(m.status)
-    sig['Volt_min'] = _num('volt_min_v', m.volt_min_v, 0, 5.1, CELL_VOLT_STEP, 'V')
-    sig['Temp_max'] = _int('temp_max_c', m.temp_max_c, 0, 255)
-    sig['SOC'] = _int('soc_pct', m.soc_pct, 0, 100)
-    sig['Counter'] = _int('counter', m.counter, 0, 255)
-    sig['Relay_Error_AIR_Minus'] = _flag('relay_error_air_minus', m.relay_error_air_minus)
-    sig['Relay_Error_AIR_Plus'] = _flag('relay_error_air_plus', m.relay_error_air_plus)
-    sig['Relay_Error_Precharge'] = _flag('relay_error_precharge', m.relay_error_precharge)
-    return sig
-
-
-def _enc_charger_status(m: AmsChargerStatus) -> dict[str, Any]:
-    sig = _enc_status_word(m.status)
-    sig['SOC'] = _int('soc_pct', m.soc_pct, 0, 100)
-    sig['Charger_Current'] = _num('charger_current_a', m.charger_current_a, 0, 25.5,
-                                  CURRENT_STEP, 'A')
-    sig['Turn_On_Charger'] = _flag('charger_on', m.charger_on)
-    return sig
-
-
-def _enc_car_status(m: CarStatus) -> dict[str, Any]:
-    return {'CMD': _member('command', m.command, CarCommand),
-            'Bank_Count': _int('bank_count', m.bank_count, 1, MAX_BANKS),
-            'Counter': _int('counter', m.counter, 0, 255)}
-
-
-def _enc_charger_commands(m: ChargerCommand) -> dict[str, Any]:
-    return {'Start': _member('start', m.start, ChargerStart),
-            'Time_Tick': _int('time_tick', m.time_tick, 0, 0xFFFF)}
-
-
-def _enc_bank_group(m: Any, groups: int) -> dict[str, Any]:
-    return {'Bank_ID': _int('bank', m.bank, 1, MAX_BANKS),
-            'Group_ID': _int('group', m.group, 0, groups - 1)}
-
-
-def _enc_cells(m: CellVoltages) -> dict[str, Any]:
-    sig = _enc_bank_group(m, CELL_GROUPS)
-    values = _values('voltages_v', m.voltages_v, CELLS_PER_GROUP, 0, 5.1, CELL_VOLT_STEP, 'V')
-    sig.update(zip(_CELL_SIGNALS, values))
-    return sig
-
-
-def _enc_temps(m: CellTemperatures) -> dict[str, Any]:
-    sig = _enc_bank_group(m, TEMP_GROUPS)
-    values = _values('temperatures_c', m.temperatures_c, TEMPS_PER_GROUP, -128, 127, 1, 'degC')
-    sig.update(zip(_TEMP_SIGNALS, values))
-    return sig
-
-
-def _enc_discharge(m: DischargeTemperatures) -> dict[str, Any]:
-    sig = _enc_bank_group(m, TEMP_GROUPS)
-    values = _values('temperatures_c', m.temperatures_c, DISCHARGE_TEMPS_PER_GROUP,
-                     -128, 127, 1, 'degC')
-    sig.update(zip(_DISCHARGE_SIGNALS, values))
-    return sig
-
-
-def _enc_error(m: AmsErrorEvent) -> dict[str, Any]:
-    return {'AMS_Error_ID': _member('error', m.error, AmsError),
-            'AMS_Time_Tick': _int('time_tick', m.time_tick, 0, 0xFFFF)}
-
-
-def _enc_override_current(m: OverrideChargeCurrent) -> dict[str, Any]:
-    return {'Charge_Current': _num('current_a', m.current_a, 0, 25.5, CURRENT_STEP, 'A')}
-
-
-def _enc_override_banks(m: OverrideBankCount) -> dict[str, Any]:
-    return {'Bank_Count': _int('bank_count', m.bank_count, 1, MAX_BANKS)}
-
-
-_ENCODERS: dict[type, tuple[int, Callable[[Any], dict[str, Any]]]] = {
-    AmsStatus: (STATUS, _enc_status), AmsChargerStatus: (CHARGER_STATUS, _enc_charger_status),
-    CarStatus: (CAR_STATUS, _enc_car_status),
-    ChargerCommand: (CHARGER_COMMANDS, _enc_charger_commands),
-    CellVoltages: (CELL_VOLTAGES, _enc_cells), CellTemperatures: (CELL_TEMPERATURES, _enc_temps),
-    DischargeTemperatures: (DISCHARGE_TEMPERATURES, _enc_discharge),
-    AmsErrorEvent: (ERROR, _enc_error),
-    OverrideChargeCurrent: (OVERRIDE_CHARGE_CURRENT, _enc_override_current),
-    OverrideBankCount: (OVERRIDE_BANK_COUNT, _enc_override_banks),
+# reading type -> (offset, its values in the layout's signal order)
+_ENCODERS: dict[type, tuple[int, Callable[[Any], Sequence[Any]]]] = {
+    AmsStatus: (STATUS, lambda m: _word(m.status) + [
+        m.volt_min_v, m.temp_max_c, m.soc_pct, m.counter, m.relay_error_air_minus,
+        m.relay_error_air_plus, m.relay_error_precharge]),
+    AmsChargerStatus: (CHARGER_STATUS, lambda m: _word(m.status) + [
+        m.soc_pct, m.charger_current_a, m.charger_on]),
+    CarStatus: (CAR_STATUS, lambda m: (
+        _member('command', m.command, CarCommand), m.bank_count, m.counter)),
+    ChargerCommand: (CHARGER_COMMANDS, lambda m: (
+        _member('start', m.start, ChargerStart), m.time_tick)),
+    CellVoltages: (CELL_VOLTAGES, lambda m: (m.bank, m.group) + _values(
+        'voltages_v', m.voltages_v, CELLS_PER_GROUP)),
+    CellTemperatures: (CELL_TEMPERATURES, lambda m: (m.bank, m.group) + _values(
+        'temperatures_c', m.temperatures_c, TEMPS_PER_GROUP)),
+    DischargeTemperatures: (DISCHARGE_TEMPERATURES, lambda m: (m.bank, m.group) + _values(
+        'temperatures_c', m.temperatures_c, DISCHARGE_TEMPS_PER_GROUP)),
+    AmsErrorEvent: (ERROR, lambda m: (_member('error', m.error, AmsError), m.time_tick)),
+    OverrideChargeCurrent: (OVERRIDE_CHARGE_CURRENT, lambda m: (m.current_a,)),
+    OverrideBankCount: (OVERRIDE_BANK_COUNT, lambda m: (m.bank_count,)),
 }
+_ENCODE = {offset: layout.encoder() for offset, layout in LAYOUTS.items()}
 
 
 class AmsCodec:
@@ -578,14 +491,13 @@ class AmsCodec:
         if not AmsCodec._dbc_checked:
             _check_dbc()
             AmsCodec._dbc_checked = True
-        db = load_dbc('ams')
         # One dict lookup per frame: ID -> (DLC, reading builder).
         self._decode_table: dict[int, tuple[int, Callable[[bytes], Any]]] = {
-            base_id + offset: (_LAYOUT[offset][0], _DECODERS[offset]) for offset in OFFSETS}
-        self._encode_table: dict[type, tuple[int, Callable, Callable]] = {}
-        for cls, (offset, encoder) in _ENCODERS.items():
-            msg = db.get_message_by_name(_DBC_NAMES[offset])
-            self._encode_table[cls] = (base_id + offset, msg.encode, encoder)
+            base_id + offset: (LAYOUTS[offset].length, _DECODERS[offset])
+            for offset in OFFSETS}
+        self._encode_table: dict[type, tuple[int, Callable, Callable]] = {
+            cls: (base_id + offset, _ENCODE[offset], values)
+            for cls, (offset, values) in _ENCODERS.items()}
         self.arbitration_ids = frozenset(self._decode_table)
 
     def id_of(self, offset: int) -> int:
@@ -617,5 +529,5 @@ class AmsCodec:
         if entry is None:
             raise EncodeRangeError('message', message,
                                    'one of ' + ', '.join(c.__name__ for c in _ENCODERS))
-        arbitration_id, encode_signals, check = entry
-        return Frame(arbitration_id, encode_signals(check(message)), False)
+        arbitration_id, encode, values = entry
+        return Frame(arbitration_id, encode(*values(message)), False)

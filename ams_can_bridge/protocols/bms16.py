@@ -26,9 +26,9 @@ Decisions (where the vendor document is silent):
 - Telemetry encoders (used by the simulator) round to the wire resolution and refuse what
   the wire cannot carry.
 
-Speed: ``decode`` runs in the bus thread for every frame, so it is hand-written with
-``int.from_bytes``; the DBC (msg_defs/bms16.dbc) stays the reference, and the codec checks
-at construction that it has the layout the fast path assumes.
+Speed: ``decode`` runs in the bus thread for every frame; its bits come from code generated
+from ``LAYOUTS`` (protocols/layout.py), a table the codec checks against msg_defs/bms16.dbc
+at construction. The module adds the 9th bits of the cells and the enum codes.
 """
 from __future__ import annotations
 
@@ -38,8 +38,8 @@ from dataclasses import dataclass, fields
 from typing import Union
 
 from ams_can_bridge.protocols.common import (
-    check_dlc, check_range, ConfigField, EncodeRangeError, Frame, load_dbc,
-    MalformedFrameError)
+    check_dlc, ConfigField, EncodeRangeError, Frame, load_dbc, MalformedFrameError)
+from ams_can_bridge.protocols.layout import check_value, Layout, LITTLE, Signal
 
 DEFAULT_BASE_ID = 500
 STATUS, CELLS_1, CELLS_2, CELLS_3, CONFIG_1, CONFIG_2, ACK_ERROR, RESET_SOC, POWER_OFF = range(9)
@@ -168,14 +168,51 @@ CONFIG_FIELDS: tuple[ConfigField, ...] = (
                 'current shunt size: 0 (no shunt), 100, 200 or 500 A'),
 )
 CONFIG_FIELD = {f.name: f for f in CONFIG_FIELDS}
-# Physical units per wire count of each configuration byte (shunt size is an enum).
-_CONFIG_SCALE = {
-    'cells': 1, 'pack_capacity_ah': 10, 'soc_warning_pct': 1, 'full_voltage_v': 1,
-    'warn_current_a': 10, 'trip_current_a': 10, 'temperature_limit_c': 1,
-    'min_cell_v': 0.05, 'max_cell_v': 0.05, 'hysteresis_v': 0.05, 'balance_v': 0.05,
-}
 _PART1 = tuple(f.name for f in fields(Bms16ConfigPart1))
 _PART2 = tuple(f.name for f in fields(Bms16ConfigPart2))
+
+
+# --- the wire layout: one table, checked against msg_defs/bms16.dbc --------------------------
+def _u(name: str, start: int, length: int = 8, scale: float = 1, offset: float = 0,
+       unit: str = '', field: str = '') -> Signal:
+    return Signal(name, start, length, LITTLE, False, scale, offset, unit=unit, field=field)
+
+
+def _cell_frame(first: int, count: int) -> tuple[Signal, ...]:
+    return tuple(_u(f'Cell{first + k + 1}_Low', 8 * k) for k in range(count)) + (
+        _u('NinthBits', 48),)
+
+
+LAYOUTS: tuple[Layout, ...] = (  # by offset from base_id; divide: 523 -> 52.3 V exactly
+    Layout('BMS16_Status', 7, (
+        _u('Error', 0, field='error'), _u('SoC', 8, unit='%', field='soc_pct'),
+        _u('Voltage', 16, 16, 0.1, unit='V', field='voltage_v'),
+        _u('Current', 32, 16, 0.1, -3276.8, 'A', 'current_a'),
+        _u('Temperature', 48, unit='degC', field='temperature_c')), divide=True),
+    Layout('BMS16_Cells_1_6', 7, _cell_frame(0, 6)),
+    Layout('BMS16_Cells_7_12', 7, _cell_frame(6, 6)),
+    Layout('BMS16_Cells_13_16', 7, _cell_frame(12, 4)),
+    Layout('BMS16_Config_1', 8, tuple(_u(name, 8 * k, scale=scale, field=field) for k, (
+        name, scale, field) in enumerate(zip(
+            ('Cells', 'PackCapacity', 'SocWarning', 'FullVoltage', 'WarnCurrent',
+             'TripCurrent', 'TemperatureLimit', 'MinCellVoltage'),
+            (1, 10, 1, 1, 10, 10, 1, 0.05), _PART1)))),
+    Layout('BMS16_Config_2', 4, tuple(_u(name, 8 * k, scale=scale, field=field) for k, (
+        name, scale, field) in enumerate(zip(
+            ('MaxCellVoltage', 'Hysteresis', 'BalanceVoltage', 'ShuntSize'),
+            (0.05, 0.05, 0.05, 1), _PART2)))),
+    Layout('BMS16_AcknowledgeError', 0, ()),
+    Layout('BMS16_ResetSoc', 0, ()),
+    Layout('BMS16_PowerOff', 0, ()),
+)
+_DLC = tuple(layout.length for layout in LAYOUTS)
+# Physical units per wire count of each configuration byte (shunt size is an enum).
+_CONFIG_SCALE = {s.field: s.scale for layout in LAYOUTS[CONFIG_1:CONFIG_2 + 1]
+                 for s in layout.signals if s.field != 'shunt_size_a'}
+_D_STATUS = LAYOUTS[STATUS].decoder()
+_E_STATUS = LAYOUTS[STATUS].encoder(exact=False)  # telemetry: rounded to the resolution
+_D_CELLS = tuple(layout.decoder() for layout in LAYOUTS[CELLS_1:CELLS_3 + 1])
+_NINTH = tuple(tuple(256 * (bits >> k & 1) for k in range(8)) for bits in range(256))
 
 
 def check_config_value(name: str, value: object) -> int:
@@ -194,11 +231,7 @@ def check_config_value(name: str, value: object) -> int:
             if value == size:
                 return code
         raise EncodeRangeError(name, value, allowed)
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise EncodeRangeError(
-            name, value,
-            f'a number {spec.low:g}..{spec.high:g} {spec.unit}'.rstrip())
-    check_range(name, value, spec.low, spec.high, spec.step, spec.unit)
+    value = check_value(name, value, spec.low, spec.high, spec.step, spec.unit)
     return round(value / _CONFIG_SCALE[name])
 
 
@@ -231,40 +264,13 @@ def unchecked_config_values(data: bytes, part: int) -> dict[str, float | int]:
     return {name: _config_value(name, raw) for name, raw in zip(names, data)}
 
 
-# (message offset, signal name) -> (start bit, length, scale, offset, signed) as the fast
-# path assumes; checked against the installed DBC once per process.
-_DBC_LAYOUT = {
-    (STATUS, 'Error'): (0, 8, 1, 0, False),
-    (STATUS, 'SoC'): (8, 8, 1, 0, False),
-    (STATUS, 'Voltage'): (16, 16, 0.1, 0, False),
-    (STATUS, 'Current'): (32, 16, 0.1, -3276.8, False),
-    (STATUS, 'Temperature'): (48, 8, 1, 0, False),
-    (CELLS_1, 'Cell1_Low'): (0, 8, 1, 0, False),
-    (CELLS_1, 'NinthBits'): (48, 8, 1, 0, False),
-    (CELLS_3, 'Cell16_Low'): (24, 8, 1, 0, False),
-    (CELLS_3, 'NinthBits'): (48, 8, 1, 0, False),
-    (CONFIG_1, 'PackCapacity'): (8, 8, 10, 0, False),
-    (CONFIG_1, 'MinCellVoltage'): (56, 8, 0.05, 0, False),
-    (CONFIG_2, 'Hysteresis'): (8, 8, 0.05, 0, False),
-    (CONFIG_2, 'ShuntSize'): (24, 8, 1, 0, False),
-}
-_DLC = (7, 7, 7, 7, 8, 4, 0, 0, 0)
-
-
 @functools.cache
 def check_dbc() -> None:
-    """Raise RuntimeError unless msg_defs/bms16.dbc has the layout the codec assumes."""
+    """Raise LayoutError unless msg_defs/bms16.dbc has the bits of LAYOUTS."""
     db = load_dbc('bms16')
-    for offset, dlc in enumerate(_DLC):
-        msg = db.get_message_by_frame_id(DEFAULT_BASE_ID + offset)
-        if msg.length != dlc or msg.is_extended_frame:
-            raise RuntimeError(f'bms16.dbc: message {DEFAULT_BASE_ID + offset} has DLC '
-                               f'{msg.length}, the codec assumes {dlc}')
-    for (offset, name), want in _DBC_LAYOUT.items():
-        sig = db.get_message_by_frame_id(DEFAULT_BASE_ID + offset).get_signal_by_name(name)
-        have = (sig.start, sig.length, sig.scale, sig.offset, sig.is_signed)
-        if have != want or sig.byte_order != 'little_endian':
-            raise RuntimeError(f'bms16.dbc: signal {name} is {have}, the codec assumes {want}')
+    for offset, layout in enumerate(LAYOUTS):
+        layout.check_dbc(db.get_message_by_frame_id(DEFAULT_BASE_ID + offset),
+                         'msg_defs/bms16.dbc', 'BMS16')
 
 
 class Bms16Codec:
@@ -295,24 +301,21 @@ class Bms16Codec:
 
     @staticmethod
     def _status(arbitration_id: int, offset: int, data: bytes) -> Bms16Status:
-        code = data[0]
+        code, soc, volts, amps, temp = _D_STATUS(data)
         if code >= len(_ERRORS):
             raise MalformedFrameError(arbitration_id, data,
                                       f'error code {code}, known codes are 0..8')
-        if data[1] > 100:
-            raise MalformedFrameError(arbitration_id, data, f'SoC {data[1]} %, above 100 %')
-        return Bms16Status(
-            error=_ERRORS[code], soc_pct=data[1],
-            voltage_v=(data[2] | data[3] << 8) / 10,
-            current_a=((data[4] | data[5] << 8) - CURRENT_OFFSET) / 10,
-            temperature_c=data[6])
+        if soc > 100:
+            raise MalformedFrameError(arbitration_id, data, f'SoC {soc} %, above 100 %')
+        return Bms16Status(_ERRORS[code], soc, volts, amps, temp)
 
     @staticmethod
     def _cells(arbitration_id: int, offset: int, data: bytes) -> Bms16Cells:
         index = offset - CELLS_1
-        ninth = data[6]
+        *lows, ninth = _D_CELLS[index](data)
+        # The 9th bit of cell k is bit k of NinthBits (a split the DBC cannot describe).
         return Bms16Cells(CELL_FRAME_FIRST[index], tuple(
-            (data[k] | ((ninth >> k) & 1) << 8) / 100 for k in range(CELL_FRAME_COUNT[index])))
+            [(low + high) / 100 for low, high in zip(lows, _NINTH[ninth])]))
 
     @staticmethod
     def _config1(arbitration_id: int, offset: int, data: bytes) -> Bms16ConfigPart1:
@@ -353,7 +356,7 @@ class Bms16Codec:
                             (POWER_OFF, PowerOff)):
             if isinstance(message, cls):
                 return self.frame(offset, b'')
-        raise TypeError(f'not a BMS16 message: {message!r}')
+        raise EncodeRangeError('message', message, 'a BMS16 message')
 
     def config_frames(self, config: Bms16Config) -> list[Frame]:
         """Build the two configuration frames [base + 4, base + 5], validating every value."""
@@ -375,17 +378,9 @@ class Bms16Codec:
         return self.encode(PowerOff())
 
     def _encode_status(self, status: Bms16Status) -> Frame:
-        error = status.error
-        check_range('error', error, 0, 8, 1)
-        check_range('soc_pct', status.soc_pct, 0, 100)
-        check_range('voltage_v', status.voltage_v, 0, 6553.5, unit='V')
-        check_range('current_a', status.current_a, -3276.8, 3276.7, unit='A')
-        check_range('temperature_c', status.temperature_c, 0, 255, unit='degC')
-        volts = round(status.voltage_v * 10)
-        amps = round(status.current_a * 10) + CURRENT_OFFSET
-        return self.frame(STATUS, bytes((
-            int(error), round(status.soc_pct), volts & 0xFF, volts >> 8, amps & 0xFF,
-            amps >> 8, round(status.temperature_c))))
+        return self.frame(STATUS, _E_STATUS(
+            check_value('error', status.error, 0, 8, integer=True), status.soc_pct,
+            status.voltage_v, status.current_a, status.temperature_c))
 
     def _encode_cells(self, cells: Bms16Cells) -> Frame:
         if cells.first_cell not in CELL_FRAME_FIRST:
@@ -397,8 +392,8 @@ class Bms16Codec:
                                    len(cells.voltages_v), f'exactly {count} voltages')
         data = bytearray(7)
         for k, volts in enumerate(cells.voltages_v):
-            check_range(f'cell{cells.first_cell + k + 1}_v', volts, 0, 5.11, unit='V')
-            raw = round(volts * 100)
+            raw = round(check_value(f'cell{cells.first_cell + k + 1}_v', volts, 0, 5.11,
+                                    unit='V') * 100)
             data[k] = raw & 0xFF
             data[6] |= (raw >> 8) << k
         return self.frame(CELLS_1 + index, bytes(data))

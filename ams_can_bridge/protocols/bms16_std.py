@@ -23,11 +23,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Mapping
 
+from ams_can_bridge.errors import BadConfigBytes, ConfigError
 from ams_can_bridge.protocols.common import (
-    check_dlc, check_range, ConfigField, EncodeRangeError, Frame, MalformedFrameError)
+    check_dlc, ConfigField, EncodeRangeError, Frame, MalformedFrameError)
 from ams_can_bridge.protocols.evms3 import (
-    AcknowledgeError, BatteryCurrent, Bms12Cells, Evms3Codec, Evms3Error, Evms3State, PowerOff,
-    ResetSoc)
+    AcknowledgeError, BatteryCurrent, Bms12Cells, Evms3Codec, Evms3Error, Evms3State, LAYOUTS,
+    PowerOff, ResetSoc, status_fault)
+from ams_can_bridge.protocols.layout import check_value
 
 DEFAULT_BASE_ID = 30                  # Common.h CAN_BASE_ID
 BMS16_MARKER = 255                    # status byte 5 of a BMS16 (EVMS_Monitor3.c)
@@ -48,6 +50,15 @@ BALANCE_DYNAMIC = 251
 BALANCE_OFF = 252
 BALANCE_MODES = ('static', 'dynamic', 'off')
 SLOTS = 32                            # setting bytes in IDs 32..35
+
+
+# ID 30 and ID 40 have the EVMS3 layout (protocols.evms3.LAYOUTS, checked against its DBC).
+_D_STATUS = LAYOUTS['EVMS3_Status'].decoder(  # byte 6 (isolation on an EVMS3) is unused
+    'State', 'ErrorCode', 'AmpHoursRemaining', 'BatteryVoltage', 'Temperature',
+    into=lambda *values: Bms16StdStatus(*values))
+_E_STATUS = LAYOUTS['EVMS3_Status'].encoder(exact=False)  # telemetry: rounded to 0.1
+_D_CURRENT = LAYOUTS['EVMS3_BatteryCurrent'].decoder()
+_E_CURRENT = LAYOUTS['EVMS3_BatteryCurrent'].encoder()
 
 
 @dataclass(frozen=True, slots=True)
@@ -158,10 +169,7 @@ def check_config_value(name: str, value: Any) -> Any:
         if isinstance(value, bool) or value not in SHUNT_SIZES_A:
             raise EncodeRangeError(name, value, '0 (no shunt), 100, 200 or 500 A')
         return int(value)
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise EncodeRangeError(name, value,
-                               f'a number {spec.low:g}..{spec.high:g} {spec.unit}'.rstrip())
-    check_range(name, value, spec.low, spec.high, spec.step, spec.unit)
+    value = check_value(name, value, spec.low, spec.high, spec.step, spec.unit)
     return int(round(value)) if spec.type is int else round(float(value), 6)
 
 
@@ -195,21 +203,21 @@ def config_payloads(cfg: Bms16StdConfig) -> list[bytes]:
 
 
 def decode_config(payloads: list[bytes]) -> dict[str, Any]:
-    """Read the four payloads of IDs 32..35 back into values; ValueError for a raw value."""
+    """Read the four payloads of IDs 32..35 back into values; BadConfigBytes for a raw value."""
     slots = b''.join(payloads)
     if len(slots) != SLOTS:
-        raise ValueError(f'{len(slots)} setting bytes, expected {SLOTS}')
+        raise BadConfigBytes(f'{len(slots)} setting bytes, expected {SLOTS}')
     values: dict[str, Any] = {}
     for name, typ, slot, scale, offset, rlo, rhi, _, _ in _LINEAR:
         if not rlo <= slots[slot] <= rhi:
-            raise ValueError(f'{name} raw {slots[slot]} outside {rlo}..{rhi}')
+            raise BadConfigBytes(f'{name} raw {slots[slot]} outside {rlo}..{rhi}')
         values[name] = _phys(typ, scale, offset, slots[slot])
     if slots[_SHUNT_SLOT] >= len(SHUNT_SIZES_A):
-        raise ValueError(f'shunt size code {slots[_SHUNT_SLOT]} outside 0..3')
+        raise BadConfigBytes(f'shunt size code {slots[_SHUNT_SLOT]} outside 0..3')
     values['shunt_size_a'] = SHUNT_SIZES_A[slots[_SHUNT_SLOT]]
     raw = slots[_BALANCE_SLOT]
     if raw > BALANCE_OFF:
-        raise ValueError(f'balance voltage raw {raw} outside 0..252')
+        raise BadConfigBytes(f'balance voltage raw {raw} outside 0..252')
     values['balance_mode'] = ('dynamic' if raw == BALANCE_DYNAMIC else
                               'off' if raw == BALANCE_OFF else 'static')
     values['balance_v'] = round(2.0 + raw * 0.01, 2) if raw <= 250 else None
@@ -226,13 +234,13 @@ class Bms16StdCodec:
     def __init__(self, base_id: int = DEFAULT_BASE_ID) -> None:
         """Use IDs base_id .. base_id + 9, 40 and 301, 302, 311, 312 (ValueError on overlap)."""
         if not 0 <= base_id <= 0x1FFFFFFF - (ID_COUNT - 1):
-            raise ValueError(f'base_id {base_id} outside 0..0x{0x1FFFFFFF - ID_COUNT + 1:X} '
-                             '(29-bit IDs, 10 of them)')
+            raise ConfigError(f'base_id {base_id} outside 0..0x{0x1FFFFFFF - ID_COUNT + 1:X} '
+                              '(29-bit IDs, 10 of them)')
         own = set(range(base_id, base_id + ID_COUNT))
         fixed = {CAN_CURRENT_SENSOR_ID} | set(CELL_IDS)
         if own & fixed:
-            raise ValueError(f'base_id {base_id}: IDs {base_id}..{base_id + ID_COUNT - 1} '
-                             f'overlap the fixed IDs 40 (current) or 301..312 (cells)')
+            raise ConfigError(f'base_id {base_id}: IDs {base_id}..{base_id + ID_COUNT - 1} '
+                              f'overlap the fixed IDs 40 (current) or 301..312 (cells)')
         self.base_id = base_id
         self._bms12 = Evms3Codec(bms12_modules=2)  # reads the BMS12 frames of modules 0, 1
         # received: the status, the cell frames and the current (the rest are sent to it)
@@ -248,7 +256,7 @@ class Bms16StdCodec:
             return self._bms12.decode(arbitration_id, data)
         if arbitration_id == CAN_CURRENT_SENSOR_ID:
             check_dlc(arbitration_id, data, 3)
-            return BatteryCurrent((int.from_bytes(data, 'big') - CURRENT_OFFSET_MA) / 1000)
+            return BatteryCurrent(*_D_CURRENT(data))
         raise MalformedFrameError(arbitration_id, data, 'not an ID of this BMS16')
 
     @staticmethod
@@ -258,14 +266,10 @@ class Bms16StdCodec:
             raise MalformedFrameError(
                 aid, data, f'byte 5 = {data[5]}, not the BMS16 marker 255: the status of '
                 'another device (an EVMS3 sends its aux voltage there), not decoded')
-        state, error = data[0] & 0x07, data[0] >> 3
-        if state > 5:
-            raise MalformedFrameError(aid, data, f'unknown state {state} (0..5)')
-        if error > 16:
-            raise MalformedFrameError(aid, data, f'unknown error code {error} (0..16)')
-        return Bms16StdStatus(Evms3State(state), Evms3Error(error),
-                              (data[1] << 8 | data[2]) / 10, (data[3] << 8 | data[4]) / 10,
-                              data[7] - 40 if data[7] else None)
+        try:
+            return _D_STATUS(data)
+        except IndexError:
+            raise MalformedFrameError(aid, data, status_fault(data)) from None
 
     # --- encode ---------------------------------------------------------------------------
     def _frame(self, offset: int, data: bytes) -> Frame:
@@ -294,19 +298,12 @@ class Bms16StdCodec:
         if isinstance(msg, Bms12Cells):
             return self._bms12.encode(msg)
         if isinstance(msg, BatteryCurrent):
-            check_range('current_a', msg.current_a, -8388.608, 8388.607, 0.001, 'A')
-            raw = int(round(msg.current_a * 1000)) + CURRENT_OFFSET_MA
-            return Frame(CAN_CURRENT_SENSOR_ID, raw.to_bytes(3, 'big'), True)
-        raise TypeError(f'cannot encode {type(msg).__name__} as a BMS16 (standard) frame')
+            return Frame(CAN_CURRENT_SENSOR_ID, _E_CURRENT(msg.current_a), True)
+        raise EncodeRangeError('message', msg, 'a BMS16 (standard) message')
 
     def _encode_status(self, msg: Bms16StdStatus) -> Frame:
-        check_range('state', int(msg.state), 0, 5, 1)
-        check_range('error', int(msg.error), 0, 16, 1)
-        check_range('amp_hours_ah', msg.amp_hours_ah, 0, 6553.5, unit='Ah')
-        check_range('pack_voltage_v', msg.pack_voltage_v, 0, 6553.5, unit='V')
-        temp = 0 if msg.temperature_c is None else msg.temperature_c + 40
-        check_range('temperature_c + 40', temp, 1 if msg.temperature_c is not None else 0, 255)
-        ah, volts = round(msg.amp_hours_ah * 10), round(msg.pack_voltage_v * 10)
-        return self._frame(STATUS, bytes([
-            int(msg.state) | int(msg.error) << 3, ah >> 8, ah & 0xFF, volts >> 8,
-            volts & 0xFF, BMS16_MARKER, 0, round(temp)]))
+        # The EVMS3 status layout: byte 5 the marker (aux voltage 25.5 V), byte 6 unused.
+        return self._frame(STATUS, _E_STATUS(
+            check_value('state', msg.state, 0, 5, integer=True),
+            check_value('error', msg.error, 0, 16, integer=True), msg.amp_hours_ah,
+            msg.pack_voltage_v, BMS16_MARKER / 10, 0, 0, msg.temperature_c))

@@ -16,7 +16,7 @@ import cantools
 from cantools.database.can import Database
 
 from ams_can_bridge.errors import (  # noqa: F401 (their import place before errors.py)
-    EncodeRangeError, MalformedFrameError, ProtocolError)
+    EncodeRangeError, MalformedFrameError, MsgDefsNotFound, ProtocolError)
 
 PACKAGE = 'ams_can_bridge'
 
@@ -58,19 +58,6 @@ def check_dlc(arbitration_id: int, data: bytes, expected: int | tuple[int, ...])
         raise MalformedFrameError(arbitration_id, data, f'DLC {len(data)}, expected {want}')
 
 
-def check_range(field: str, value: float, low: float, high: float,
-                step: float | None = None, unit: str = '') -> None:
-    """Raise EncodeRangeError unless low <= value <= high (and on the step grid from low)."""
-    suffix = f' {unit}' if unit else ''
-    allowed = f'{low:g}..{high:g}{suffix}' + (f' in steps of {step:g}{suffix}' if step else '')
-    if value != value or not low <= value <= high:  # NaN fails too
-        raise EncodeRangeError(field, value, allowed)
-    if step:
-        n = (value - low) / step
-        if abs(n - round(n)) > 1e-6:
-            raise EncodeRangeError(field, value, allowed)
-
-
 def msg_defs_dir() -> Path:
     """
     Find the installed msg_defs/ (colcon, pip or the source tree), wherever we run from.
@@ -95,7 +82,7 @@ def msg_defs_dir() -> Path:
     for path in candidates:
         if path.is_dir() and any(path.glob('*.dbc')):
             return path
-    raise FileNotFoundError(
+    raise MsgDefsNotFound(
         'cannot find the ams_can_bridge msg_defs/ folder (DBC files); looked in: '
         + ', '.join(str(p) for p in candidates)
         + '. Install the package (colcon build or pip install .) or set AMS_CAN_BRIDGE_MSG_DEFS.')

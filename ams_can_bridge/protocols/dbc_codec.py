@@ -5,7 +5,7 @@ docs/protocols.md section 8. cantools reads the DBC (strictly: overlapping or ou
 signals fail) and stays the reference; the bus thread does not call it per frame. A
 cantools ``Message.decode`` builds a dict of every signal and costs several microseconds;
 here each message becomes one generated Python function that pulls its signals out of one
-integer (``int.from_bytes``) with shifts and masks and returns a tuple in the order of
+frame with the shifts and masks of protocols/layout.py and returns a tuple in the order of
 ``CompiledMessage.signals``. Messages the generator does not cover (float signals, nested
 multiplexers) fall back to cantools, still returning the same tuple.
 
@@ -24,6 +24,7 @@ import cantools
 from cantools.database.can import Database, Message
 
 from ams_can_bridge.protocols.common import MalformedFrameError
+from ams_can_bridge.protocols.layout import Layout
 
 NAN = math.nan
 
@@ -100,30 +101,10 @@ def _info(message: Message) -> tuple[SignalInfo, ...]:
         is_multiplexer=bool(s.is_multiplexer)) for s in message.signals)
 
 
-def _shift_of(signal: Any, length: int) -> tuple[str, int]:
-    """Return ('b' little-endian int | 'B' big-endian int, right shift) of a signal's LSB."""
-    if signal.byte_order == 'little_endian':
-        return 'b', signal.start
-    # Motorola: DBC start = MSB in sawtooth numbering; count from the first byte's MSB.
-    msb = (signal.start // 8) * 8 + (7 - signal.start % 8)
-    return 'B', 8 * length - 1 - (msb + signal.length - 1)
-
-
-def _expression(signal: Any, length: int) -> str:
-    """Return a Python expression of the signal's raw value (signed if the DBC says so)."""
-    which, shift = _shift_of(signal, length)
-    mask = (1 << signal.length) - 1
-    raw = f'(({which} >> {shift}) & {mask:#x})'
-    if signal.is_signed:
-        half = 1 << (signal.length - 1)
-        raw = f'(({raw} ^ {half:#x}) - {half:#x})'
-    return raw
-
-
-def _scaled(expr: str, info: SignalInfo) -> str:
+def _scaled(expr: str, info: SignalInfo, layout: Layout, i: int) -> str:
     if info.scale == 1 and info.offset == 0:
         return expr
-    return f'({expr} * {info.scale!r} + {info.offset!r})'
+    return layout.scaled_expression(layout.signals[i], expr)  # raw * scale + offset
 
 
 def _range_check(index: int, info: SignalInfo, var: str) -> list[str]:
@@ -145,17 +126,15 @@ def _generate(message: Message, infos: tuple[SignalInfo, ...]) -> Callable | Non
     muxes = [i for i, s in enumerate(signals) if s.is_multiplexer]
     if len(muxes) > 1 or any(s.is_multiplexer and s.multiplexer_ids for s in signals):
         return None  # nested multiplexing
-    length = message.length
+    # The bits as protocols/layout.py reads them (data[k], shifts and masks).
+    layout = Layout.from_dbc(message)
+    raw = [layout.raw_expression(s) for s in layout.signals]
     lines = ['def decode(data):', '    bad = []']
-    if any(s.byte_order == 'little_endian' for s in signals):
-        lines.append(f"    b = int.from_bytes(data[:{length}], 'little')")
-    if any(s.byte_order == 'big_endian' for s in signals):
-        lines.append(f"    B = int.from_bytes(data[:{length}], 'big')")
     names = [f'v{i}' for i in range(len(signals))]
     if muxes:
         m = muxes[0]
-        lines.append(f'    mux = {_expression(signals[m], length)}')
-        lines.append(f'    v{m} = {_scaled("mux", infos[m])}')
+        lines.append(f'    mux = {raw[m]}')
+        lines.append(f'    v{m} = {_scaled("mux", infos[m], layout, m)}')
         lines += _range_check(m, infos[m], f'v{m}')
     branches: dict[int, list[int]] = {}
     plain = []
@@ -168,7 +147,7 @@ def _generate(message: Message, infos: tuple[SignalInfo, ...]) -> Callable | Non
         else:
             plain.append(i)
     for i in plain:
-        lines.append(f'    v{i} = {_scaled(_expression(signals[i], length), infos[i])}')
+        lines.append(f'    v{i} = {_scaled(raw[i], infos[i], layout, i)}')
         lines += _range_check(i, infos[i], f'v{i}')
     if branches:
         muxed = sorted({i for members in branches.values() for i in members})
@@ -178,8 +157,7 @@ def _generate(message: Message, infos: tuple[SignalInfo, ...]) -> Callable | Non
             lines.append(f'    {keyword} mux == {mux_id}:')
             keyword = 'elif'
             for i in members:
-                lines.append(f'        v{i} = '
-                             f'{_scaled(_expression(signals[i], length), infos[i])}')
+                lines.append(f'        v{i} = {_scaled(raw[i], infos[i], layout, i)}')
                 lines += ['    ' + text for text in _range_check(i, infos[i], f'v{i}')]
         lines += ['    else:', '        raise _UnknownMux(mux)']
     lines.append(f'    return ({", ".join(names)}{"," if len(names) == 1 else ""}), bad')

@@ -6,9 +6,10 @@ IDs of the EVMS3 are ``base_id + 0..11`` (30 status .. 41 zero current sensor by
 BMS12 module ``m`` uses ``300 + 10 m + t`` (t = 0 request, 1..3 cells, 4 temperatures).
 29-bit by default; ``extended_id=False`` for a firmware built with 11-bit IDs. The TC chargers
 the EVMS drives (``protocols.tc_charger``, always 29-bit) are decoded here too.
-msg_defs/evms3.dbc describes the same frames for other tools; this codec is written by hand
-because it runs on the bus thread for every frame (a few microseconds, no cantools), and
-because the DBC cannot carry what is done here: the 9th bit of the charge voltages, the
+The bits of the status, current and BMS12 frames are one table (``LAYOUTS``, the format of
+protocols/layout.py), checked against msg_defs/evms3.dbc at the first codec; decoders and
+encoders are generated from it (a few microseconds a frame, no cantools). The module adds
+what the DBC cannot carry: the 9th bit of the charge voltages, the
 balance special values (251 dynamic, 252 off) and refusing, instead of clamping, any
 configuration value the EVMS would silently limit.
 
@@ -24,21 +25,23 @@ The configuration (typed config, its layout in 32..36, the read-back 51..56) liv
 from __future__ import annotations
 
 import enum
-import math
+import functools
 from dataclasses import dataclass
 from typing import Any, Sequence
 
+from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols.common import (
-    check_dlc, check_range, EncodeRangeError, Frame, MalformedFrameError)
+    check_dlc, EncodeRangeError, Frame, load_dbc, MalformedFrameError)
 from ams_can_bridge.protocols.evms3_config import (  # noqa: F401 (re-exported)
     BALANCE_DYNAMIC, BALANCE_MODES, BALANCE_OFF, BMS12_MAX_MODULES, CELLS_MAX, CELLS_MIN,
-    check_config_value,
+    check_config_value, config_layouts,
     CONFIG_FIELDS, CONFIG_FILLER, config_payloads, ConfigReadback, ConfigReport,
     CORE_REQUEST_CONFIG, CORE_SEND_CELL_NUMS, CORE_SEND_CONFIG1, CORE_SEND_CONFIG2,
     CORE_SEND_CONFIG3, CORE_SEND_CONFIG4, decode_config_packet, Evms3Config, Evms3ConfigPart,
     READBACK_IDS, READBACK_NAMES)
+from ams_can_bridge.protocols.layout import BIG, check_value, Layout, LITTLE, Signal
 from ams_can_bridge.protocols.tc_charger import (
-    CHARGER_IDS, ChargerCommand, ChargerStatus, TcChargerCodec)
+    CHARGER_IDS, ChargerCommand, ChargerStatus, LAYOUTS as TC_LAYOUTS, TcChargerCodec)
 
 BMS12_BASE_ID = 300
 BMS16_MARKER = 255  # ID 30 byte 5 (aux voltage on an EVMS3): EVMS_Monitor3.c sets isBMS16
@@ -89,6 +92,80 @@ class Evms3Error(enum.IntEnum):
 EVMS3_WARNINGS = frozenset({2, 4, 6, 10})
 _STATES = tuple(Evms3State)
 _ERRORS = tuple(Evms3Error)
+
+
+# --- the wire layout: one table, checked against msg_defs/evms3.dbc --------------------------
+# ZEVA's firmware divides (1234 -> 123.4 V): divide=True keeps those values exact.
+def _u(name: str, start: int, length: int = 8, scale: float = 1, offset: float = 0,
+       low: float | None = None, high: float | None = None, unit: str = '', field: str = '',
+       order: str = LITTLE, invalid: int | None = None, flag: bool = False,
+       lookup: tuple | None = None) -> Signal:
+    return Signal(name, start, length, order, False, scale, offset, low, high, unit, field,
+                  flag, invalid, lookup)
+
+
+def _cells(first: int) -> tuple[Signal, ...]:
+    return tuple(_u(f'Cell{first + k}', 7 + 16 * k, 16, 0.001, unit='V',
+                    field=f'voltages_v[{k}]', order=BIG) for k in range(4))
+
+
+LAYOUTS = {
+    'EVMS3_Status': Layout('EVMS3_Status', 8, (
+        _u('State', 0, 3, high=5, field='state', lookup=tuple(Evms3State)),
+        _u('ErrorCode', 3, 5, high=16, field='error', lookup=tuple(Evms3Error)),
+        _u('AmpHoursRemaining', 15, 16, 0.1, unit='Ah', field='amp_hours_ah', order=BIG),
+        _u('BatteryVoltage', 31, 16, 0.1, unit='V', field='pack_voltage_v', order=BIG),
+        _u('AuxVoltage', 40, 8, 0.1, unit='V', field='aux_voltage_v'),
+        _u('IsolationIntegrity', 48, 7, high=101, unit='%', field='isolation_pct',
+           invalid=101, lookup=tuple(range(101)) + (None,)),  # 101: cannot be measured
+        _u('Headlights', 55, 1, field='headlights', flag=True),
+        _u('Temperature', 56, 8, 1, -40, unit='degC', field='temperature_c', invalid=0)),
+        divide=True),  # raw 0: no sensor
+    'EVMS3_BatteryCurrent': Layout('EVMS3_BatteryCurrent', 3, (
+        _u('BatteryCurrent', 7, 24, 0.001, -8388.608, unit='A', field='current_a',
+           order=BIG),), divide=True),
+    'BMS12_M0_Request': Layout('BMS12_M0_Request', 2, (
+        _u('BalanceVoltage', 7, 16, 0.001, unit='V', order=BIG),), divide=True),
+    'BMS12_M0_Cells1to4': Layout('BMS12_M0_Cells1to4', 8, _cells(1), divide=True),
+    'BMS12_M0_Cells5to8': Layout('BMS12_M0_Cells5to8', 8, _cells(5), divide=True),
+    'BMS12_M0_Cells9to12': Layout('BMS12_M0_Cells9to12', 8, _cells(9), divide=True),
+    'BMS12_M0_Temperatures': Layout('BMS12_M0_Temperatures', 8, (
+        _u('Temperature1', 0, 8, 1, -40, unit='degC', field='temperatures_c[0]', invalid=0),
+        _u('Temperature2', 8, 8, 1, -40, unit='degC', field='temperatures_c[1]', invalid=0)),
+        divide=True),
+}
+_D_STATUS_RAW = LAYOUTS['EVMS3_Status'].decoder('State', 'ErrorCode', 'IsolationIntegrity',
+                                                raw=True)
+_E_STATUS = LAYOUTS['EVMS3_Status'].encoder()
+_D_CURRENT = LAYOUTS['EVMS3_BatteryCurrent'].decoder()
+_E_CURRENT = LAYOUTS['EVMS3_BatteryCurrent'].encoder()
+_D_REQUEST = LAYOUTS['BMS12_M0_Request'].decoder(raw=True)  # the firmware's mV
+_D_CELLS = LAYOUTS['BMS12_M0_Cells1to4'].decoder()  # the same bits for the three frames
+_E_CELLS = LAYOUTS['BMS12_M0_Cells1to4'].encoder()
+# Raw 0 = no sensor: the BMS12 firmware's LineariseTemp returns 0 for "not available", and
+# the EVMS3 and the Monitor skip 0.
+_D_TEMPS = LAYOUTS['BMS12_M0_Temperatures'].decoder()
+_E_TEMPS = LAYOUTS['BMS12_M0_Temperatures'].encoder()
+
+
+@functools.cache
+def check_dbc() -> None:
+    """Raise LayoutError unless msg_defs/evms3.dbc has the bits of LAYOUTS."""
+    db = load_dbc('evms3')
+    for name, layout in LAYOUTS.items():
+        layout.check_dbc(db.get_message_by_name(name), 'msg_defs/evms3.dbc', 'EVMS3')
+    for n in range(1, 4):  # the TC chargers 1..3 the EVMS drives: one layout each way
+        for kind in ('Command', 'Status'):
+            TC_LAYOUTS[f'TC_Charger1_{kind}'].check_dbc(
+                db.get_message_by_name(f'TC_Charger{n}_{kind}'), 'msg_defs/evms3.dbc',
+                'TC charger')
+    # the configuration, sent on 32..36 and read back on 52..56 in the same layout
+    pairs = [(f'EVMS3_Config{k}', f'EVMS3_SendConfig{k}') for k in range(1, 5)] + [
+        ('EVMS3_BmsCellNumbers', 'EVMS3_SendCellNumbers')]
+    for layout, names in zip(config_layouts(), pairs):
+        for name in names:
+            layout.check_dbc(db.get_message_by_name(name), 'msg_defs/evms3.dbc',
+                             'EVMS3 configuration')
 
 
 # --- readings and commands ------------------------------------------------------------------
@@ -205,6 +282,22 @@ class Bms12Temperatures:
     temperatures_c: tuple[int | None, int | None]
 
 
+_CELLS = LAYOUTS['BMS12_M0_Cells1to4'].decoder(into=Bms12Cells, pack=2)  # module, first
+_STATUS = LAYOUTS['EVMS3_Status'].decoder(  # in the order of the reading's fields
+    'State', 'ErrorCode', 'AmpHoursRemaining', 'BatteryVoltage', 'AuxVoltage', 'Headlights',
+    'IsolationIntegrity', 'Temperature', into=Evms3Status)
+
+
+def status_fault(data: bytes) -> str:
+    """Say why an ID 30 frame is no status: the state, error or isolation byte."""
+    state, error, iso = _D_STATUS_RAW(data)
+    if state > 5:
+        return f'unknown state {state} (0..5)'
+    if error > 16:
+        return f'unknown error code {error} (0..16)'
+    return f'isolation {iso} % (0..100, 101 = n/a)'
+
+
 # --- the codec -------------------------------------------------------------------------------
 class Evms3Codec:
     """EVMS3 frames at base_id + 0..11, BMS12 modules 0..bms12_modules-1, TC chargers 1..3."""
@@ -214,16 +307,17 @@ class Evms3Codec:
                  voltage_multiplier: int = 1) -> None:
         """Decode/encode at base_id (+ the fixed read-back IDs 51..56); ValueError on overlap."""
         if voltage_multiplier not in (1, 2):
-            raise ValueError(f'voltage_multiplier {voltage_multiplier!r}: allowed 1 or 2')
+            raise ConfigError(f'voltage_multiplier {voltage_multiplier!r}: allowed 1 or 2')
         self.voltage_multiplier = voltage_multiplier
+        check_dbc()
         # ZEVA's firmware uses 29-bit IDs unless built with USE_29BIT_IDS 0; the TC chargers
         # on the same bus always use 29-bit IDs, so one EVMS3 may need both widths.
         top = 0x1FFFFFFF if extended_id else 0x7FF
         if not 0 <= base_id <= top - 11:
-            raise ValueError(f'base_id {base_id} outside 0..0x{top - 11:X} '
-                             f'({29 if extended_id else 11}-bit IDs)')
+            raise ConfigError(f'base_id {base_id} outside 0..0x{top - 11:X} '
+                              f'({29 if extended_id else 11}-bit IDs)')
         if not 0 <= bms12_modules <= BMS12_MAX_MODULES:
-            raise ValueError(f'bms12_modules {bms12_modules} outside 0..16')
+            raise ConfigError(f'bms12_modules {bms12_modules} outside 0..16')
         self.is_extended_id = bool(extended_id)
         self.base_id = base_id
         self.bms12_base = bms12_base
@@ -232,12 +326,12 @@ class Evms3Codec:
                        for m in range(bms12_modules) for t in range(5)}
         own = set(range(base_id, base_id + 12))
         if own & set(self._bms12):
-            raise ValueError(f'EVMS3 IDs {base_id}..{base_id + 11} overlap the BMS12 IDs '
-                             f'{bms12_base}..{bms12_base + 10 * bms12_modules - 6}')
+            raise ConfigError(f'EVMS3 IDs {base_id}..{base_id + 11} overlap the BMS12 IDs '
+                              f'{bms12_base}..{bms12_base + 10 * bms12_modules - 6}')
         fixed = set(range(CORE_REQUEST_CONFIG, CORE_SEND_CELL_NUMS + 1))
         if fixed & (own | set(self._bms12)):
-            raise ValueError(f'EVMS3 IDs {base_id}..{base_id + 11} or the BMS12 IDs overlap '
-                             'the read-back IDs 51..56 (fixed in the EVMS3 firmware)')
+            raise ConfigError(f'EVMS3 IDs {base_id}..{base_id + 11} or the BMS12 IDs overlap '
+                              'the read-back IDs 51..56 (fixed in the EVMS3 firmware)')
         own |= set(READBACK_IDS)  # 51 is not listened to: on a ZEVA bus it may be throttle
         self.chargers = TcChargerCodec()
         self.arbitration_ids = frozenset(own | set(self._bms12) | CHARGER_IDS)
@@ -269,24 +363,18 @@ class Evms3Codec:
             if arbitration_id in CHARGER_IDS:
                 return self.chargers.decode(arbitration_id, data)
             raise MalformedFrameError(arbitration_id, data, 'not an EVMS3/BMS12 ID of this codec')
-        return self._decode_bms12(arbitration_id, data, *module_type)
+        module, t = module_type
+        if 1 <= t <= 3 and len(data) == 8:  # the bulk of the bus: cells in one call
+            return _CELLS(data, module, 4 * (t - 1))
+        return self._decode_bms12(arbitration_id, data, module, t)
 
     def _decode_status(self, aid: int, data: bytes) -> Evms3Status:
         if len(data) != 8:
             check_dlc(aid, data, 8)
-        b0 = data[0]
-        state, error = b0 & 0x07, b0 >> 3
-        if state > 5:
-            raise MalformedFrameError(aid, data, f'unknown state {state} (0..5)')
-        if error > 16:
-            raise MalformedFrameError(aid, data, f'unknown error code {error} (0..16)')
-        iso = data[6] & 0x7F
-        if iso > 101:
-            raise MalformedFrameError(aid, data, f'isolation {iso} % (0..100, 101 = n/a)')
-        temp = data[7]
-        return Evms3Status(_STATES[state], _ERRORS[error], (data[1] << 8 | data[2]) / 10,
-                           (data[3] << 8 | data[4]) / 10, data[5] / 10, data[6] >= 0x80,
-                           None if iso == 101 else iso, temp - 40 if temp else None)
+        try:  # the reading built in one generated call; an unknown code is past a lookup
+            return _STATUS(data)
+        except IndexError:
+            raise MalformedFrameError(aid, data, status_fault(data)) from None
 
     def _decode_set_state(self, aid: int, data: bytes) -> SetState:
         check_dlc(aid, data, (1, 2))
@@ -345,26 +433,20 @@ class Evms3Codec:
     def _decode_current(self, aid: int, data: bytes) -> BatteryCurrent:
         if len(data) != 3:
             check_dlc(aid, data, 3)
-        return BatteryCurrent(((data[0] << 16 | data[1] << 8 | data[2]) - CURRENT_OFFSET_MA)
-                              / 1000)
+        return BatteryCurrent(*_D_CURRENT(data))
 
     def _decode_bms12(self, aid: int, data: bytes, module: int, t: int) -> Any:
         if t == 0:
             check_dlc(aid, data, 2)
-            mv = data[0] << 8 | data[1]
+            mv, = _D_REQUEST(data)
             return Bms12Request(module, mv or None)
         if t == 4:
             # The BMS12 PDF says DLC 2; ZEVA's firmware sends 8 with zero padding.
             check_dlc(aid, data, (2, 8))
-            # Raw 0 = no sensor: the BMS12 firmware's LineariseTemp returns 0 for "not
-            # available", and the EVMS3 and the Monitor skip 0.
-            return Bms12Temperatures(module, (data[0] - 40 if data[0] else None,
-                                              data[1] - 40 if data[1] else None))
+            return Bms12Temperatures(module, _D_TEMPS(data))
         if len(data) != 8:
             check_dlc(aid, data, 8)
-        return Bms12Cells(module, 4 * (t - 1), (
-            (data[0] << 8 | data[1]) / 1000, (data[2] << 8 | data[3]) / 1000,
-            (data[4] << 8 | data[5]) / 1000, (data[6] << 8 | data[7]) / 1000))
+        return Bms12Cells(module, 4 * (t - 1), _D_CELLS(data))
 
     # --- encode ---------------------------------------------------------------------------
     def _frame(self, offset: int, data: bytes | bytearray) -> Frame:
@@ -411,29 +493,20 @@ class Evms3Codec:
         if isinstance(msg, ZeroCurrentSensor):
             return self._frame(ZERO_CURRENT, b'')
         if isinstance(msg, BatteryCurrent):
-            check_range('current_a', msg.current_a, -8388.608, 8388.607, 0.001, 'A')
-            raw = int(round(msg.current_a * 1000)) + CURRENT_OFFSET_MA
-            return self._frame(BATTERY_CURRENT, raw.to_bytes(3, 'big'))
+            return self._frame(BATTERY_CURRENT, _E_CURRENT(msg.current_a))
         if isinstance(msg, (Bms12Request, Bms12Cells, Bms12Temperatures)):
             return self._encode_bms12(msg)
         if isinstance(msg, (ChargerCommand, ChargerStatus)):
             return self.chargers.encode(msg)
-        raise TypeError(f'cannot encode {type(msg).__name__} as an EVMS3 frame')
+        raise EncodeRangeError('message', msg, 'an EVMS3, BMS12 or TC charger message')
 
     def _encode_status(self, msg: Evms3Status) -> Frame:
-        _check_int('state', msg.state, 0, 5)
-        _check_int('error', msg.error, 0, 16)
-        check_range('amp_hours_ah', msg.amp_hours_ah, 0, 6553.5, 0.1, 'Ah')
-        check_range('pack_voltage_v', msg.pack_voltage_v, 0, 6553.5, 0.1, 'V')
-        check_range('aux_voltage_v', msg.aux_voltage_v, 0, 25.5, 0.1, 'V')
-        iso = (101 if msg.isolation_pct is None
-               else _check_int('isolation_pct', msg.isolation_pct, 0, 100))
-        temp = 0 if msg.temperature_c is None else 40 + _check_int(
-            'temperature_c', msg.temperature_c, -39, 215)
-        ah, volts = round(msg.amp_hours_ah * 10), round(msg.pack_voltage_v * 10)
-        return self._frame(STATUS, bytes([
-            int(msg.state) | int(msg.error) << 3, ah >> 8, ah & 0xFF, volts >> 8, volts & 0xFF,
-            round(msg.aux_voltage_v * 10), iso | (0x80 if msg.headlights else 0), temp]))
+        iso = None if msg.isolation_pct is None else _check_int(
+            'isolation_pct', msg.isolation_pct, 0, 100)
+        return self._frame(STATUS, _E_STATUS(
+            _check_int('state', msg.state, 0, 5), _check_int('error', msg.error, 0, 16),
+            msg.amp_hours_ah, msg.pack_voltage_v, msg.aux_voltage_v, iso,
+            int(bool(msg.headlights)), msg.temperature_c))
 
     def _encode_bms12(self, msg: Any) -> Frame:
         module = _check_int('module', msg.module, 0, BMS12_MAX_MODULES - 1)
@@ -445,23 +518,14 @@ class Evms3Codec:
         if isinstance(msg, Bms12Temperatures):
             if len(msg.temperatures_c) != 2:
                 raise EncodeRangeError('temperatures_c', msg.temperatures_c, '2 values')
-            raw = [0 if t is None else 40 + _check_int(f'temperatures_c[{i}]', t, -39, 215)
-                   for i, t in enumerate(msg.temperatures_c)]
-            return Frame(base + 4, bytes(raw + [0] * 6), self.is_extended_id)
+            return Frame(base + 4, _E_TEMPS(*msg.temperatures_c), self.is_extended_id)
         if msg.first_cell not in (0, 4, 8):
             raise EncodeRangeError('first_cell', msg.first_cell, '0, 4 or 8')
         if len(msg.voltages_v) != 4:
             raise EncodeRangeError('voltages_v', msg.voltages_v, '4 values')
-        data = bytearray()
-        for i, volts in enumerate(msg.voltages_v):
-            check_range(f'voltages_v[{i}]', volts, 0, 65.535, 0.001, 'V')
-            data += int(round(volts * 1000)).to_bytes(2, 'big')
-        return Frame(base + 1 + msg.first_cell // 4, bytes(data), self.is_extended_id)
+        return Frame(base + 1 + msg.first_cell // 4, _E_CELLS(*msg.voltages_v),
+                     self.is_extended_id)
 
 
 def _check_int(name: str, value: Any, low: int, high: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) \
-            or (isinstance(value, float) and not math.isfinite(value)):
-        raise EncodeRangeError(name, value, f'an integer {low}..{high}')
-    check_range(name, value, low, high, 1)
-    return int(round(value))
+    return check_value(name, value, low, high, integer=True)

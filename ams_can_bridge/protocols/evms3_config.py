@@ -18,8 +18,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field, fields
 from typing import Any, Iterable, Mapping, Sequence
 
+from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols.common import (
-    check_range, ConfigField, EncodeRangeError, MalformedFrameError)
+    ConfigField, EncodeRangeError, MalformedFrameError)
+from ams_can_bridge.protocols.layout import check_value, Layout, LITTLE, Signal
 
 BMS12_MAX_MODULES = 16
 BALANCE_DYNAMIC = 251
@@ -211,6 +213,40 @@ _CHARGE = (('max_charge_voltage_v', 'max_charge_current_a', 3),
 _BOOLS = (('enable_precharge', 4), ('stationary_mode', 5),
           ('reverse_current_display', 6))  # packet 4 (ID 35)
 BALANCE_MODES = ('static', 'dynamic', 'off')
+# The name msg_defs/evms3.dbc gives each setting byte of _LINEAR and _BOOLS.
+_DBC_NAMES = dict(zip(
+    [row[0] for row in _LINEAR] + [name for name, _ in _BOOLS],
+    ('PackCapacity', 'SocWarning', 'FullVoltage', 'WarnCurrent', 'TripCurrent',
+     'EvmsTempWarning', 'MinAuxVoltage', 'MinIsolation', 'TachoPpr', 'FuelGaugeFull',
+     'FuelGaugeEmpty', 'TempGaugeHot', 'TempGaugeCold', 'BmsMinVoltage', 'BmsMaxVoltage',
+     'BmsHysteresis', 'BmsMinTemp', 'BmsMaxTemp', 'SleepDelay', 'MpiFunction', 'Mpo1Function',
+     'Mpo2Function', 'ParallelStrings', 'NightBrightness', 'EnablePrecharge', 'StationaryMode',
+     'ReverseCurrentDisplay')))
+
+
+def config_layouts() -> list[Layout]:
+    """
+    Return the bits of IDs 32..35 and 36 in the table format of protocols/layout.py.
+
+    Built from the tables the encoder and decoder here use (_LINEAR, _CHARGE, _BOOLS, the
+    balance byte, the cell nibbles), so ``evms3.check_dbc`` proves them against the DBC.
+    """
+    def u(name: str, start: int, length: int = 8, scale: float = 1,
+          offset: float = 0) -> Signal:
+        return Signal(name, start, length, LITTLE, False, scale, offset)
+    packets: list[list[Signal]] = [[] for _ in range(4)]
+    for name, _, packet, byte, scale, offset, *_ in _LINEAR:
+        packets[packet].append(u(_DBC_NAMES[name], 8 * byte, scale=scale, offset=offset))
+    packets[1].append(u('BalanceVoltage', 56, scale=0.01, offset=2.0))
+    for (volt, _, byte), prefix in zip(_CHARGE, ('Max', 'Alt')):
+        packets[2] += [u(f'{prefix}ChargeVoltageLow', 8 * byte),
+                       u(f'{prefix}ChargeCurrent', 8 * byte + 8, 7),
+                       u(f'{prefix}ChargeVoltageBit8', 8 * byte + 15, 1, 256)]
+    packets[3] += [u(_DBC_NAMES[name], 8 * byte) for name, byte in _BOOLS]
+    cells = [u(f'Module{m}Cells', 4 * m, 4) for m in range(BMS12_MAX_MODULES)]
+    return [Layout(f'EVMS3_Config{k + 1}', 8, tuple(signals))
+            for k, signals in enumerate(packets)] + [Layout('EVMS3_BmsCellNumbers', 8,
+                                                            tuple(cells))]
 
 
 def _linear_field(row: tuple) -> ConfigField:
@@ -301,7 +337,7 @@ def check_config_value(name: str, value: Any, multiplier: int = 1) -> Any:
 def _scaled(spec: ConfigField, multiplier: int) -> ConfigField:
     """Return the range of a full/charge voltage on a build with this multiplier."""
     if multiplier not in VOLTAGE_MULTIPLIERS:
-        raise ValueError(f'voltage multiplier {multiplier!r}: allowed 1 or 2')
+        raise ConfigError(f'voltage multiplier {multiplier!r}: allowed 1 or 2')
     if spec.name == 'full_voltage_v':
         low, high, step = 10 * multiplier, 502 * multiplier, 2 * multiplier
     else:
@@ -310,11 +346,7 @@ def _scaled(spec: ConfigField, multiplier: int) -> ConfigField:
 
 
 def _number(name: str, value: Any, spec: ConfigField) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise EncodeRangeError(name, value, f'a number {spec.low:g}..{spec.high:g} {spec.unit}'
-                               .rstrip())
-    check_range(name, value, spec.low, spec.high, spec.step, spec.unit)
-    return value
+    return check_value(name, value, spec.low, spec.high, spec.step, spec.unit)
 
 
 def config_payloads(cfg: Evms3Config, multiplier: int = 1) -> list[bytearray]:

@@ -38,14 +38,15 @@ from __future__ import annotations
 
 import enum
 import functools
-from dataclasses import dataclass, field
+from dataclasses import astuple, dataclass, field
 from typing import Union
 
 from ams_can_bridge.protocols.common import (
-    check_dlc, check_range, EncodeRangeError, Frame, load_dbc, MalformedFrameError)
+    check_dlc, EncodeRangeError, Frame, load_dbc, MalformedFrameError)
+from ams_can_bridge.protocols.layout import Layout, LITTLE, Signal
 from ams_can_bridge.protocols.sma_dialects import (
-    ascii_text, decode_dialect, DIALECT_DECODERS, DIALECT_IDS, DialectReading, encode_ascii,
-    encode_dialect, PYLONTECH_ALARMS_ID, VICTRON_CELL_EXTREMES_ID, VICTRON_MODULES_ID)
+    ascii_text, decode_dialect, DIALECT_DECODERS, DIALECT_IDS, DIALECT_LAYOUTS, DialectReading,
+    encode_ascii, encode_dialect)
 
 LIMITS_ID = 0x351
 SOC_ID = 0x355
@@ -197,73 +198,68 @@ SmaReading = Union[SmaLimits, SmaSoc, SmaBattery, SmaAlarms, SmaManufacturer, Sm
 ABSOLUTE_ZERO_C = -273.15
 
 
-def _u16(data: bytes, i: int, scale: int = 1) -> float | int | None:
-    if len(data) < i + 2:
-        return None
-    raw = data[i] | data[i + 1] << 8
-    if raw == INVALID_U16:
-        return None
-    return raw if scale == 1 else raw / scale
+# --- the wire layout, one table checked against msg_defs/sma.dbc ------------------------------
+# "Not available" is 0xFFFF (unsigned) or 0x8000 (signed); a frame cut short (DLC range) is
+# padded with 0xFF first, so the fields not sent read as not available. divide: 1234 -> 12.34.
+def _s(name: str, start: int, length: int = 16, scale: float = 1, signed: bool = False,
+       unit: str = '', field: str = '', high: float | None = None) -> Signal:
+    marker = (-0x8000 if signed else 0xFFFF) if field else None
+    return Signal(name, start, length, LITTLE, signed, scale, 0, None, high, unit,
+                  f'sma.{field}', invalid=marker)
 
 
-def _s16(data: bytes, i: int, scale: int) -> float | None:
-    raw = data[i] | data[i + 1] << 8
-    if raw == 0x8000:
-        return None
-    return (raw - 0x10000 if raw & 0x8000 else raw) / scale
+def _camel(name: str) -> str:
+    return ''.join(part.capitalize() for part in name.split('_'))
 
 
-def _put_u16(field_name: str, value: float | None, scale: int, unit: str,
-             high: float | None = None) -> bytes:
-    if value is None:
-        return INVALID_U16.to_bytes(2, 'little')
-    top = (INVALID_U16 - 1) / scale if high is None else high
-    check_range(f'sma.{field_name}', value, 0, top, unit=unit)
-    return round(value * scale).to_bytes(2, 'little')
-
-
-def _put_s16(field_name: str, value: float | None, scale: int, unit: str) -> bytes:
-    if value is None:
-        return INVALID_S16.to_bytes(2, 'little', signed=True)
-    check_range(f'sma.{field_name}', value, -0x7FFF / scale, 0x7FFF / scale, unit=unit)
-    return round(value * scale).to_bytes(2, 'little', signed=True)
-
-
-# signal -> (start, length, scale, signed) the fast path assumes; checked once per process.
-_DBC_LAYOUT = {
-    (LIMITS_ID, 'ChargeVoltageLimit'): (0, 16, 0.1, False),
-    (LIMITS_ID, 'ChargeCurrentLimit'): (16, 16, 0.1, True),
-    (LIMITS_ID, 'DischargeCurrentLimit'): (32, 16, 0.1, True),
-    (LIMITS_ID, 'DischargeVoltageLimit'): (48, 16, 0.1, False),
-    (SOC_ID, 'SoC'): (0, 16, 1, False),
-    (SOC_ID, 'SoH'): (16, 16, 1, False),
-    (SOC_ID, 'SoCHighRes'): (32, 16, 0.01, False),
-    (BATTERY_ID, 'Voltage'): (0, 16, 0.01, True),
-    (BATTERY_ID, 'Current'): (16, 16, 0.1, True),
-    (BATTERY_ID, 'Temperature'): (32, 16, 0.1, True),
-    (ALARMS_ID, 'Alarm_HighVoltage'): (2, 2, 1, False),
-    (ALARMS_ID, 'Warning_General'): (32, 2, 1, False),
-    (ALARMS_ID, 'Warning_Generator'): (62, 2, 1, False),
-    (ALARMS_ID, 'SystemOnline'): (58, 2, 1, False),
-    (INFO_ID, 'Capacity'): (32, 16, 1, False),
-    (PYLONTECH_ALARMS_ID, 'Alarm_OverVoltage'): (1, 1, 1, False),
-    (PYLONTECH_ALARMS_ID, 'Warning_BmsInternal'): (27, 1, 1, False),
-    (PYLONTECH_ALARMS_ID, 'ModuleCount'): (32, 8, 1, False),
-    (VICTRON_MODULES_ID, 'NumberOfModulesOffline'): (48, 16, 1, False),
-    (VICTRON_CELL_EXTREMES_ID, 'MinCellVoltage'): (0, 16, 0.001, False),
-    (VICTRON_CELL_EXTREMES_ID, 'HighestCellTemperature'): (48, 16, 1, False),
+LAYOUTS = {
+    LIMITS_ID: Layout('SMA_Limits', 8, (
+        _s('ChargeVoltageLimit', 0, scale=0.1, unit='V', field='charge_voltage_v'),
+        _s('ChargeCurrentLimit', 16, scale=0.1, signed=True, unit='A',
+           field='charge_current_a'),
+        _s('DischargeCurrentLimit', 32, scale=0.1, signed=True, unit='A',
+           field='discharge_current_a'),
+        _s('DischargeVoltageLimit', 48, scale=0.1, unit='V', field='discharge_voltage_v')),
+        divide=True),
+    SOC_ID: Layout('SMA_SoC', 6, (
+        _s('SoC', 0, unit='%', field='soc_pct', high=100),
+        _s('SoH', 16, unit='%', field='soh_pct', high=100),
+        _s('SoCHighRes', 32, scale=0.01, unit='%', field='soc_hires_pct', high=100)),
+        divide=True),
+    BATTERY_ID: Layout('SMA_Battery', 6, (
+        _s('Voltage', 0, scale=0.01, signed=True, unit='V', field='voltage_v'),
+        _s('Current', 16, scale=0.1, signed=True, unit='A', field='current_a'),
+        _s('Temperature', 32, scale=0.1, signed=True, unit='degC', field='temperature_c')),
+        divide=True),
+    ALARMS_ID: Layout('SMA_AlarmsWarnings', 8, tuple(
+        _s('SystemOnline' if (kind, name) == ('Warning', ONLINE_CONDITION)
+           else f'{kind}_{_camel(name)}', first + 2 * k, 2)
+        for kind, first in (('Alarm', 0), ('Warning', 32))
+        for k, name in enumerate(SMA_CONDITIONS))),
+    MANUFACTURER_ID: Layout('SMA_Manufacturer', 8, (_s('Manufacturer', 0, 64),)),
+    INFO_ID: Layout('SMA_BatteryInfo', 6, (
+        _s('BatteryType', 0, field='battery_type'), _s('BmsVersion', 16, field='bms_version'),
+        _s('Capacity', 32, unit='Ah', field='capacity_ah'))),
 }
+_D = {i: LAYOUTS[i].decoder() for i in (LIMITS_ID, SOC_ID, BATTERY_ID, ALARMS_ID, INFO_ID)}
+_E = {i: LAYOUTS[i].encoder(exact=False) for i in (LIMITS_ID, SOC_ID, BATTERY_ID, INFO_ID)}
+_ONLINE = 16 + SMA_CONDITIONS.index(ONLINE_CONDITION)  # SystemOnline among the pairs
+
+
+def _full(data: bytes, length: int) -> bytes:
+    """Pad a frame cut short with 0xFF: the fields not sent read as "not available"."""
+    return data if len(data) >= length else bytes(data) + b'\xff' * (length - len(data))
 
 
 @functools.cache
 def check_dbc() -> None:
-    """Raise RuntimeError unless msg_defs/sma.dbc has the layout the codec assumes."""
+    """Raise LayoutError unless msg_defs/sma.dbc has the bits of LAYOUTS and the dialects'."""
     db = load_dbc('sma')
-    for (frame_id, name), want in _DBC_LAYOUT.items():
-        sig = db.get_message_by_frame_id(frame_id).get_signal_by_name(name)
-        have = (sig.start, sig.length, sig.scale, sig.is_signed)
-        if have != want or sig.byte_order != 'little_endian':
-            raise RuntimeError(f'sma.dbc: signal {name} is {have}, the codec assumes {want}')
+    for frame_id, layout in {**LAYOUTS, **DIALECT_LAYOUTS}.items():
+        layout.check_dbc(db.get_message_by_frame_id(frame_id), 'msg_defs/sma.dbc', 'SMA')
+
+
+_ENCODED = {SmaLimits: LIMITS_ID, SmaSoc: SOC_ID, SmaBattery: BATTERY_ID, SmaBatteryInfo: INFO_ID}
 
 
 class SmaCodec:
@@ -292,13 +288,13 @@ class SmaCodec:
 
     @staticmethod
     def _limits(data: bytes) -> SmaLimits:
-        discharge_v = _u16(data, 6, 10)
-        return SmaLimits(_u16(data, 0, 10), _s16(data, 2, 10), _s16(data, 4, 10),
+        charge_v, charge_a, discharge_a, discharge_v = _D[LIMITS_ID](_full(data, 8))
+        return SmaLimits(charge_v, charge_a, discharge_a,
                          discharge_v or None)  # 0 = no limit sent, not 0 V
 
     @staticmethod
     def _soc(data: bytes) -> SmaSoc:
-        soc = SmaSoc(_u16(data, 0), _u16(data, 2), _u16(data, 4, 100))
+        soc = SmaSoc(*_D[SOC_ID](_full(data, 6)))
         # A state of charge above 100 % is no reading: it would publish percentage > 1.
         for name, value in (('SoC', soc.soc_pct), ('high-resolution SoC', soc.soc_hires_pct)):
             if value is not None and value > 100:
@@ -307,7 +303,7 @@ class SmaCodec:
 
     @staticmethod
     def _battery(data: bytes) -> SmaBattery:
-        battery = SmaBattery(_s16(data, 0, 100), _s16(data, 2, 10), _s16(data, 4, 10))
+        battery = SmaBattery(*_D[BATTERY_ID](data))
         if battery.temperature_c is not None and battery.temperature_c < ABSOLUTE_ZERO_C:
             raise MalformedFrameError(BATTERY_ID, data, f'temperature {battery.temperature_c:g} '
                                       'degC is below absolute zero')
@@ -315,18 +311,15 @@ class SmaCodec:
 
     @staticmethod
     def _alarms(data: bytes) -> SmaAlarms:
-        padded = data + bytes(8 - len(data))  # bytes not sent: conditions not supported
+        pairs = _D[ALARMS_ID](data + bytes(8 - len(data)))  # not sent: not supported
         # Built complete here, so skip __post_init__'s normalising (hot path).
         alarms = object.__new__(SmaAlarms)
-        object.__setattr__(alarms, 'alarms', {
-            name: _FLAGS[(padded[k >> 2] >> ((k & 3) << 1)) & 3]
-            for k, name in enumerate(SMA_CONDITIONS)})
-        warnings = {name: _FLAGS[(padded[4 + (k >> 2)] >> ((k & 3) << 1)) & 3]
-                    for k, name in enumerate(SMA_CONDITIONS)}
+        flags = [_FLAGS[pair] for pair in pairs]
+        object.__setattr__(alarms, 'alarms', dict(zip(SMA_CONDITIONS, flags)))
+        warnings = dict(zip(SMA_CONDITIONS, flags[16:]))
         warnings[ONLINE_CONDITION] = SmaFlag.NOT_SUPPORTED  # that pair is the online status
         object.__setattr__(alarms, 'warnings', warnings)
-        object.__setattr__(alarms, 'online',
-                           ONLINE_CODES.get(padded[ONLINE_BYTE] >> ONLINE_SHIFT & 3))
+        object.__setattr__(alarms, 'online', ONLINE_CODES.get(pairs[_ONLINE]))
         return alarms
 
     @staticmethod
@@ -335,7 +328,7 @@ class SmaCodec:
 
     @staticmethod
     def _info(data: bytes) -> SmaBatteryInfo:
-        return SmaBatteryInfo(_u16(data, 0), _u16(data, 2), _u16(data, 4))
+        return SmaBatteryInfo(*_D[INFO_ID](data))
 
     # --- encode ---------------------------------------------------------------------
     def encode_soc(self, message: SmaSoc, layout: str = 'sma') -> Frame:
@@ -344,39 +337,20 @@ class SmaCodec:
             return self.encode(message)
         if layout not in SOC_LAYOUTS:
             raise EncodeRangeError('sma.soc_layout', layout, 'one of ' + ', '.join(SOC_LAYOUTS))
-        soc = _put_u16('soc_pct', message.soc_pct, 1, '%', 100)
         if layout == 'diybms':
-            return Frame(SOC_ID, soc)
-        return Frame(SOC_ID, soc + _put_u16('soh_pct', message.soh_pct, 1, '%', 100) + bytes(4))
+            return Frame(SOC_ID, _E[SOC_ID](message.soc_pct, None, None)[:2])
+        return Frame(SOC_ID, _E[SOC_ID](message.soc_pct, message.soh_pct, None)[:4] + bytes(4))
 
     def encode(self, message: SmaReading) -> Frame:
         """Encode any SMA message (None fields as invalid markers); EncodeRangeError else."""
-        if isinstance(message, SmaLimits):
-            data = (_put_u16('charge_voltage_v', message.charge_voltage_v, 10, 'V')
-                    + _put_s16('charge_current_a', message.charge_current_a, 10, 'A')
-                    + _put_s16('discharge_current_a', message.discharge_current_a, 10, 'A')
-                    + _put_u16('discharge_voltage_v', message.discharge_voltage_v, 10, 'V'))
-            return Frame(LIMITS_ID, data)
-        if isinstance(message, SmaSoc):
-            # Always 6 bytes (0xFFFF = no high-resolution SoC), the layout of the DBC.
-            data = (_put_u16('soc_pct', message.soc_pct, 1, '%', 100)
-                    + _put_u16('soh_pct', message.soh_pct, 1, '%', 100)
-                    + _put_u16('soc_hires_pct', message.soc_hires_pct, 100, '%', 100))
-            return Frame(SOC_ID, data)
-        if isinstance(message, SmaBattery):
-            data = (_put_s16('voltage_v', message.voltage_v, 100, 'V')
-                    + _put_s16('current_a', message.current_a, 10, 'A')
-                    + _put_s16('temperature_c', message.temperature_c, 10, 'degC'))
-            return Frame(BATTERY_ID, data)
+        # SoC: always 6 bytes (0xFFFF = no high-resolution SoC), the layout of the DBC.
+        for cls, frame_id in _ENCODED.items():
+            if isinstance(message, cls):
+                return Frame(frame_id, _E[frame_id](*astuple(message)))
         if isinstance(message, SmaAlarms):
             return Frame(ALARMS_ID, self._encode_flags(message))
         if isinstance(message, SmaManufacturer):
             return Frame(MANUFACTURER_ID, encode_ascii('sma.manufacturer', message.name))
-        if isinstance(message, SmaBatteryInfo):
-            data = (_put_u16('battery_type', message.battery_type, 1, '')
-                    + _put_u16('bms_version', message.bms_version, 1, '')
-                    + _put_u16('capacity_ah', message.capacity_ah, 1, 'Ah'))
-            return Frame(INFO_ID, data)
         return encode_dialect(message)
 
     @staticmethod

@@ -37,11 +37,12 @@ Decisions:
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import astuple, dataclass
 from typing import Callable, Union
 
 from ams_can_bridge.protocols.common import (
-    check_dlc, check_range, EncodeRangeError, Frame, MalformedFrameError)
+    check_dlc, EncodeRangeError, Frame, MalformedFrameError)
+from ams_can_bridge.protocols.layout import check_value, Layout, LITTLE, Signal
 
 # Pylontech
 PYLONTECH_KEEPALIVE_ID = 0x305  # inverter -> BMS, "every second", 8 zero bytes
@@ -216,20 +217,6 @@ def encode_ascii(field: str, text: str) -> bytes:
     return text.encode('ascii').ljust(8, b'\x00')
 
 
-def _u16s(data: bytes) -> list[int | None]:
-    """Return the four U16 fields; a field the frame is too short for is None."""
-    raws = (data[i] | data[i + 1] << 8 if len(data) >= i + 2 else INVALID_U16
-            for i in range(0, 8, 2))
-    return [None if raw == INVALID_U16 else raw for raw in raws]
-
-
-def _u32(data: bytes, i: int) -> int | None:
-    if len(data) < i + 4:
-        return None
-    raw = int.from_bytes(data[i:i + 4], 'little')
-    return None if raw == INVALID_U32 else raw
-
-
 # --- decode ------------------------------------------------------------------------------------
 def _pylontech_alarms(aid: int, data: bytes) -> PylontechAlarms:
     alarms = frozenset(n for n, byte, bit in PYLONTECH_CONDITIONS if data[byte] >> bit & 1)
@@ -252,11 +239,11 @@ def _bms_name(aid: int, data: bytes) -> VictronBmsName:
 
 
 def _modules(aid: int, data: bytes) -> VictronModules:
-    return VictronModules(*_u16s(data))
+    return VictronModules(*_D[VICTRON_MODULES_ID](_full(data, 8)))
 
 
 def _cell_extremes(aid: int, data: bytes) -> VictronCellExtremes:
-    vmin, vmax, tmin, tmax = _u16s(data)
+    vmin, vmax, tmin, tmax = _D_RAW(data)
     if vmin is not None and vmax is not None and vmin > vmax:
         raise MalformedFrameError(aid, data, f'min cell {vmin} mV above max cell {vmax} mV')
     if tmin is not None and tmax is not None and tmin > tmax:
@@ -265,8 +252,7 @@ def _cell_extremes(aid: int, data: bytes) -> VictronCellExtremes:
         if kelvin is not None and kelvin > MAX_TEMPERATURE_K:
             raise MalformedFrameError(aid, data, f'cell temperature {kelvin} K is above '
                                       f'{MAX_TEMPERATURE_K} K')
-    return VictronCellExtremes(None if vmin is None else vmin / 1000,
-                               None if vmax is None else vmax / 1000, tmin, tmax)
+    return VictronCellExtremes(*_D[VICTRON_CELL_EXTREMES_ID](data))
 
 
 def _cell_id(aid: int, data: bytes) -> VictronCellId:
@@ -274,13 +260,11 @@ def _cell_id(aid: int, data: bytes) -> VictronCellId:
 
 
 def _energy(aid: int, data: bytes) -> VictronEnergy:
-    charged, discharged = _u32(data, 0), _u32(data, 4)
-    return VictronEnergy(None if charged is None else charged / 10,
-                         None if discharged is None else discharged / 10)
+    return VictronEnergy(*_D[VICTRON_ENERGY_ID](_full(data, 8)))
 
 
 def _installed_capacity(aid: int, data: bytes) -> VictronInstalledCapacity:
-    return VictronInstalledCapacity(_u16s(data)[0])
+    return VictronInstalledCapacity(*_D[VICTRON_INSTALLED_CAPACITY_ID](data))
 
 
 def _product_name(aid: int, data: bytes) -> VictronProductName:
@@ -298,6 +282,69 @@ DIALECT_DECODERS: dict[int, Callable[[int, bytes], DialectReading]] = {
 }
 
 
+# --- the wire layout of the dialects' frames (checked against msg_defs/sma.dbc by sma.py) ---
+_PYLONTECH_DBC_NAMES = {
+    'high_voltage': 'OverVoltage', 'low_voltage': 'UnderVoltage',
+    'high_temperature': 'OverTemperature', 'low_temperature': 'UnderTemperature',
+    'high_discharge_current': 'DischargeOverCurrent',
+    'high_charge_current': 'ChargeOverCurrent', 'bms_internal': 'BmsInternal'}
+
+
+def _u(name: str, start: int, length: int, scale: float = 1, unit: str = '', field: str = '',
+       high: float | None = None) -> Signal:
+    """Return a field; one with a name to send has the family's "not available" marker."""
+    marker = (1 << length) - 1 if field else None  # all ones
+    return Signal(name, start, length, LITTLE, False, scale, 0, None, high, unit,
+                  f'sma.victron.{field}', invalid=marker)
+
+
+DIALECT_LAYOUTS = {
+    PYLONTECH_ALARMS_ID: Layout('Pylontech_AlarmsWarnings', 8, tuple(
+        _u(f'{kind}_{_PYLONTECH_DBC_NAMES[name]}', first + 8 * byte + bit, 1)
+        for kind, first in (('Alarm', 0), ('Warning', 16))
+        for name, byte, bit in PYLONTECH_CONDITIONS) + (_u('ModuleCount', 32, 8),)),
+    PYLONTECH_REQUEST_ID: Layout('Pylontech_Request', 2, tuple(_u(name, bit, 1) for name, bit in (
+        ('FullChargeRequest', FULL_CHARGE_REQUEST_BIT),
+        ('ForceChargeRequestII', FORCE_CHARGE_REQUEST_II_BIT),
+        ('RequestChargeImmediately', REQUEST_CHARGE_IMMEDIATELY_BIT),
+        ('DischargeEnable', DISCHARGE_ENABLE_BIT), ('ChargeEnable', CHARGE_ENABLE_BIT)))),
+    VICTRON_BMS_NAME1_ID: Layout('Victron_BmsName1', 8, (_u('BmsName1', 0, 64),)),
+    VICTRON_BMS_NAME2_ID: Layout('Victron_BmsName2', 8, (_u('BmsName2', 0, 64),)),
+    VICTRON_MODULES_ID: Layout('Victron_Modules', 8, tuple(
+        _u(f'NumberOfModules{name}', 16 * k, 16, field=f'modules_{field}')
+        for k, (name, field) in enumerate((
+            ('Ok', 'ok'), ('BlockingCharge', 'blocking_charge'),
+            ('BlockingDischarge', 'blocking_discharge'), ('Offline', 'offline'))))),
+    VICTRON_CELL_EXTREMES_ID: Layout('Victron_CellExtremes', 8, (
+        _u('MinCellVoltage', 0, 16, 0.001, 'V', 'min_cell_v'),
+        _u('MaxCellVoltage', 16, 16, 0.001, 'V', 'max_cell_v'),
+        _u('LowestCellTemperature', 32, 16, 1, 'K', 'min_temperature_k', MAX_TEMPERATURE_K),
+        _u('HighestCellTemperature', 48, 16, 1, 'K', 'max_temperature_k', MAX_TEMPERATURE_K)),
+        divide=True),
+    **{VICTRON_MIN_VOLTAGE_CELL_ID + k: Layout(f'Victron_{name}CellId', 8, (
+        _u(f'{name}CellId', 0, 64),)) for k, name in enumerate(
+            ('MinVoltage', 'MaxVoltage', 'MinTemperature', 'MaxTemperature'))},
+    VICTRON_ENERGY_ID: Layout('Victron_Energy', 8, (
+        _u('ChargedEnergy', 0, 32, 0.1, 'kWh', 'charged_kwh'),
+        _u('DischargedEnergy', 32, 32, 0.1, 'kWh', 'discharged_kwh')), divide=True),
+    VICTRON_INSTALLED_CAPACITY_ID: Layout('Victron_InstalledCapacity', 2, (
+        _u('InstalledCapacity', 0, 16, 1, 'Ah', 'installed_capacity_ah'),)),
+    VICTRON_PRODUCT_NAME_ID: Layout('Victron_ProductName', 8, (_u('ProductName', 0, 64),)),
+}
+
+# Victron frames with numbers: decoded and built by code generated from the table. Cut short
+# (DLC range), the fields not sent read as not available (padded with 0xFF).
+_NUMBERS = (VICTRON_MODULES_ID, VICTRON_CELL_EXTREMES_ID, VICTRON_ENERGY_ID,
+            VICTRON_INSTALLED_CAPACITY_ID)
+_D = {i: DIALECT_LAYOUTS[i].decoder() for i in _NUMBERS}
+_D_RAW = DIALECT_LAYOUTS[VICTRON_CELL_EXTREMES_ID].decoder(raw=True)  # mV, K to compare
+_E = {i: DIALECT_LAYOUTS[i].encoder(exact=False) for i in _NUMBERS}
+
+
+def _full(data: bytes, length: int) -> bytes:
+    return data if len(data) >= length else bytes(data) + b'\xff' * (length - len(data))
+
+
 def decode_dialect(arbitration_id: int, data: bytes) -> DialectReading:
     """Decode one dialect frame; MalformedFrameError for a DLC or value out of range."""
     decoder = DIALECT_DECODERS.get(arbitration_id)
@@ -313,28 +360,17 @@ def keepalive_frame() -> Frame:
     return Frame(PYLONTECH_KEEPALIVE_ID, bytes(8))
 
 
-def _put_u16(field: str, value: float | None, scale: int, unit: str,
-             high: float | None = None) -> bytes:
-    if value is None:
-        return INVALID_U16.to_bytes(2, 'little')
-    top = (INVALID_U16 - 1) / scale if high is None else high
-    check_range(f'sma.{field}', value, 0, top, 1 / scale, unit)
-    return round(value * scale).to_bytes(2, 'little')
-
-
-def _put_u32(field: str, kwh: float | None) -> bytes:
-    if kwh is None:
-        return INVALID_U32.to_bytes(4, 'little')
-    check_range(f'sma.{field}', kwh, 0, (INVALID_U32 - 1) / 10, 0.1, 'kWh')
-    return round(kwh * 10).to_bytes(4, 'little')
-
-
 def _names(field: str, names: frozenset[str]) -> frozenset[str]:
     unknown = set(names) - set(PYLONTECH_CONDITION_NAMES)
     if unknown:
         raise EncodeRangeError(field, sorted(unknown),
                                'condition names ' + ', '.join(PYLONTECH_CONDITION_NAMES))
     return frozenset(names)
+
+
+_ENCODED = {VictronModules: VICTRON_MODULES_ID, VictronCellExtremes: VICTRON_CELL_EXTREMES_ID,
+            VictronEnergy: VICTRON_ENERGY_ID,
+            VictronInstalledCapacity: VICTRON_INSTALLED_CAPACITY_ID}
 
 
 def encode_dialect(message: DialectReading) -> Frame:
@@ -347,8 +383,8 @@ def encode_dialect(message: DialectReading) -> Frame:
                 if name in active:
                     data[first + byte] |= 1 << bit
         if message.module_count is not None:
-            check_range('sma.pylontech.module_count', message.module_count, 0, 255, 1)
-            data[4] = int(message.module_count)
+            data[4] = check_value('sma.pylontech.module_count', message.module_count, 0, 255,
+                                  integer=True)
         return Frame(PYLONTECH_ALARMS_ID, bytes(data if message.module_count is not None
                                                 else data[:4]))
     if isinstance(message, PylontechRequest):
@@ -363,32 +399,16 @@ def encode_dialect(message: DialectReading) -> Frame:
             raise EncodeRangeError('sma.victron.bms_name.part', message.part, '1 or 2')
         return Frame(VICTRON_BMS_NAME1_ID + message.part - 1,
                      encode_ascii('sma.victron.bms_name', message.text))
-    if isinstance(message, VictronModules):
-        data = b''.join(_put_u16(f'victron.modules_{n}', getattr(message, n), 1, '')
-                        for n in ('ok', 'blocking_charge', 'blocking_discharge', 'offline'))
-        return Frame(VICTRON_MODULES_ID, data)
-    if isinstance(message, VictronCellExtremes):
-        data = (_put_u16('victron.min_cell_v', message.min_cell_v, 1000, 'V')
-                + _put_u16('victron.max_cell_v', message.max_cell_v, 1000, 'V')
-                + _put_u16('victron.min_temperature_k', message.min_temperature_k, 1, 'K',
-                           MAX_TEMPERATURE_K)
-                + _put_u16('victron.max_temperature_k', message.max_temperature_k, 1, 'K',
-                           MAX_TEMPERATURE_K))
-        return Frame(VICTRON_CELL_EXTREMES_ID, data)
+    for cls, frame_id in _ENCODED.items():
+        if isinstance(message, cls):
+            return Frame(frame_id, _E[frame_id](*astuple(message)))
     if isinstance(message, VictronCellId):
         if message.kind not in CELL_ID_KINDS:
             raise EncodeRangeError('sma.victron.cell_id.kind', message.kind,
                                    'one of ' + ', '.join(CELL_ID_KINDS))
         return Frame(VICTRON_MIN_VOLTAGE_CELL_ID + CELL_ID_KINDS.index(message.kind),
                      encode_ascii(f'sma.victron.{message.kind}_cell_id', message.text))
-    if isinstance(message, VictronEnergy):
-        data = b''.join(_put_u32(f'victron.{n}', getattr(message, n))
-                        for n in ('charged_kwh', 'discharged_kwh'))
-        return Frame(VICTRON_ENERGY_ID, data)
-    if isinstance(message, VictronInstalledCapacity):
-        return Frame(VICTRON_INSTALLED_CAPACITY_ID,
-                     _put_u16('victron.installed_capacity_ah', message.capacity_ah, 1, 'Ah'))
     if isinstance(message, VictronProductName):
         return Frame(VICTRON_PRODUCT_NAME_ID,
                      encode_ascii('sma.victron.product_name', message.text))
-    raise TypeError(f'not an SMA, Pylontech or Victron message: {message!r}')
+    raise EncodeRangeError('message', message, 'an SMA, Pylontech or Victron message')

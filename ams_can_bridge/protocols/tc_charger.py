@@ -26,7 +26,8 @@ from dataclasses import dataclass
 from typing import Union
 
 from ams_can_bridge.protocols.common import (
-    check_dlc, check_range, EncodeRangeError, Frame, MalformedFrameError)
+    check_dlc, EncodeRangeError, Frame, MalformedFrameError)
+from ams_can_bridge.protocols.layout import BIG, check_value, Layout, LITTLE, Signal
 
 TC_CHARGER1_RX_ID = 0x1806E5F4
 TC_CHARGER1_TX_ID = 0x18FF50E5
@@ -91,13 +92,29 @@ class ChargerStatus:
 ChargerReading = Union[ChargerCommand, ChargerStatus]
 
 
-def _be16(data: bytes, i: int) -> int:
-    return data[i] << 8 | data[i + 1]
+def _decis(name: str, start: int, unit: str, field: str) -> Signal:
+    return Signal(name, start, 16, BIG, False, 0.1, 0, unit=unit, field=field)
 
 
-def _put_decis(field: str, value: float, unit: str) -> bytes:
-    check_range(field, value, 0, MAX_DECIVOLTS / 10, 0.1, unit)
-    return round(value * 10).to_bytes(2, 'big')
+# The same bits for chargers 1..3 (msg_defs/evms3.dbc TC_Charger<n>_*, checked by
+# evms3.check_dbc). The status byte stays raw: bits 5..7 are not in the DBC but still warn.
+LAYOUTS = {
+    'TC_Charger1_Command': Layout('TC_Charger1_Command', 8, (
+        _decis('TargetVoltage', 7, 'V', 'target_voltage_v'),
+        _decis('CurrentLimit', 23, 'A', 'current_limit_a'),
+        Signal('ShutdownByBms', 32, 8, LITTLE, high=1, field='stop')), divide=True),
+    'TC_Charger1_Status': Layout('TC_Charger1_Status', 8, (
+        _decis('OutputVoltage', 7, 'V', 'output_voltage_v'),
+        _decis('OutputCurrent', 23, 'A', 'output_current_a')) + tuple(
+        Signal(name, 32 + bit, 1, LITTLE) for bit, name in enumerate((
+            'HardwareFailure', 'OverTemperature', 'InputVoltageError', 'BatteryFault',
+            'CommunicationTimeout'))) + (Signal('Temperature', 40, 8, LITTLE),), divide=True),
+}
+_D_COMMAND = LAYOUTS['TC_Charger1_Command'].decoder()
+_E_COMMAND = LAYOUTS['TC_Charger1_Command'].encoder()
+_D_OUTPUT = LAYOUTS['TC_Charger1_Status'].decoder('OutputVoltage', 'OutputCurrent')
+_E_OUTPUT = Layout('TC output', 4, LAYOUTS['TC_Charger1_Status'].signals[:2],
+                   divide=True).encoder()
 
 
 def _check_charger(charger: object) -> int:
@@ -116,34 +133,31 @@ class TcChargerCodec:
         """Frame -> reading; MalformedFrameError for a foreign ID, DLC or value."""
         if arbitration_id in COMMAND_IDS:
             check_dlc(arbitration_id, data, DLC_RANGE)
-            if data[4] > 1:
+            volts, amps, stop = _D_COMMAND(data)
+            if stop > 1:
                 raise MalformedFrameError(arbitration_id, data,
-                                          f'byte 4 = {data[4]}, expected 0 (charge) or 1 (stop)')
-            return ChargerCommand(COMMAND_IDS.index(arbitration_id) + 1, _be16(data, 0) / 10,
-                                  _be16(data, 2) / 10, bool(data[4]))
+                                          f'byte 4 = {stop}, expected 0 (charge) or 1 (stop)')
+            return ChargerCommand(COMMAND_IDS.index(arbitration_id) + 1, volts, amps, bool(stop))
         if arbitration_id in STATUS_IDS:
             check_dlc(arbitration_id, data, DLC_RANGE)
-            return ChargerStatus(STATUS_IDS.index(arbitration_id) + 1, _be16(data, 0) / 10,
-                                 _be16(data, 2) / 10, data[4],
-                                 data[5] if len(data) > 5 else None)
+            return ChargerStatus(STATUS_IDS.index(arbitration_id) + 1, *_D_OUTPUT(data),
+                                 data[4], data[5] if len(data) > 5 else None)
         raise MalformedFrameError(arbitration_id, data, 'not a TC charger ID')
 
     def encode(self, message: ChargerReading) -> Frame:
         """Encode a reading as an 8-byte frame (reserved bytes 0); EncodeRangeError else."""
         charger = _check_charger(message.charger)
         if isinstance(message, ChargerCommand):
-            data = (_put_decis('target_voltage_v', message.target_voltage_v, 'V')
-                    + _put_decis('current_limit_a', message.current_limit_a, 'A')
-                    + bytes([1 if message.stop else 0, 0, 0, 0]))
+            data = _E_COMMAND(message.target_voltage_v, message.current_limit_a,
+                              1 if message.stop else 0)
             return Frame(COMMAND_IDS[charger - 1], data, True)
         if isinstance(message, ChargerStatus):
-            check_range('status', message.status, 0, 255, 1)
+            check_value('status', message.status, 0, 255, integer=True)
             temperature = message.temperature_raw
             if temperature is not None:
-                check_range('temperature_raw', temperature, 0, 255, 1)
-            data = (_put_decis('output_voltage_v', message.output_voltage_v, 'V')
-                    + _put_decis('output_current_a', message.output_current_a, 'A')
+                check_value('temperature_raw', temperature, 0, 255, integer=True)
+            data = (_E_OUTPUT(message.output_voltage_v, message.output_current_a)
                     + bytes([message.status, temperature or 0, 0, 0]))
             return Frame(STATUS_IDS[charger - 1], data if temperature is not None
                          else data[:5], True)
-        raise TypeError(f'not a TC charger message: {message!r}')
+        raise EncodeRangeError('message', message, 'a TC charger message')

@@ -1,0 +1,295 @@
+"""
+One table format for every wire layout, compiled once into straight-line code.
+
+A protocol module states each message once, as a :class:`Layout` of :class:`Signal` rows
+(start bit in DBC numbering, length, byte order, sign, scale, offset, range, unit), written
+in Python or read from a DBC message (:meth:`Layout.from_dbc`). From that table come:
+
+* ``decoder()``: one generated function ``data -> tuple`` (or straight into a reading) of
+  the physical values, with no loop and no call per signal: each signal reads its bytes
+  ``data[k]`` with shifts and masks, a scaled byte is a table lookup, "not available" raw
+  values (``invalid``) become None, enum codes come from a ``lookup`` column. The bus thread
+  runs it for every frame.
+* ``encoder()``: one generated function ``(*values) -> bytes`` that validates every value with
+  :func:`check_value` (range and step of its signal) before packing it.
+* ``check_dbc(message)``: raises :class:`LayoutError` at the first codec if the installed DBC
+  no longer describes the same bits, so the Python table and msg_defs/ cannot drift apart.
+
+The module keeps what a DBC cannot say (enum values, IDs that must match, special raw
+values, readings); this file only moves bits. :func:`check_value` is the one number / range /
+step validator of the package (the encoders here, the protocol modules, ``parameters``).
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from ams_can_bridge.errors import EncodeRangeError, LayoutError
+
+BIG = 'big_endian'
+LITTLE = 'little_endian'
+
+
+def check_value(field: str, value: Any, low: float, high: float, step: float | None = None,
+                unit: str = '', integer: bool = False) -> Any:
+    """
+    Return value if it is a number in low..high (on the step grid from low), else raise.
+
+    The one tolerance of the package: float noise of a billionth of a step (of the range if
+    there is no step) at the ends (255 * 0.02 = 5.1000000000000005 is 5.1, and comes back as
+    5.1) and of a millionth of a step on the grid. bool, NaN and non-numbers are refused;
+    integer=True also refuses a fraction (3.0 is fine, YAML spells numbers either way) and
+    returns an int.
+    """
+    suffix = f' {unit}' if unit else ''
+    allowed = f'{low:g}..{high:g}{suffix}' + (
+        f' in steps of {step:g}{suffix}' if step and step != 1 else
+        ', a whole number' if integer or step == 1 else '')
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise EncodeRangeError(field, value, f'a number {allowed}')
+    if value != value:  # NaN
+        raise EncodeRangeError(field, value, allowed)
+    if not low <= value <= high:
+        tol = 1e-9 * (step or (1 if integer else max(1.0, abs(low), abs(high))))
+        if low - tol <= value < low:
+            value = low
+        elif high < value <= high + tol:
+            value = high
+        else:
+            raise EncodeRangeError(field, value, allowed)
+    if step:
+        n = (value - low) / step
+        if abs(n - round(n)) > 1e-6:
+            raise EncodeRangeError(field, value, allowed)
+    if integer or step == 1:
+        if isinstance(value, float) and not value.is_integer():
+            raise EncodeRangeError(field, value, allowed)
+        return int(value)
+    return value
+
+
+def check_flag(field: str, value: Any) -> int:
+    """Return 0 or 1 for a bool (or 0/1); anything else is refused."""
+    if value not in (0, 1) or not isinstance(value, (bool, int)):
+        raise EncodeRangeError(field, value, 'True/False (or 0/1)')
+    return int(value)
+
+
+@dataclass(frozen=True)
+class Signal:
+    """One signal of a message, as a DBC ``SG_`` line states it."""
+
+    name: str
+    start: int  # DBC numbering: LSB (little-endian) or MSB in sawtooth order (big-endian)
+    length: int
+    byte_order: str = BIG
+    signed: bool = False
+    scale: float = 1
+    offset: float = 0
+    low: float | None = None  # physical range; None: what the bits can carry
+    high: float | None = None
+    unit: str = ''
+    field: str = ''  # the reading's name for it in error messages (default: name)
+    flag: bool = False  # a 1-bit signal decoded as a bool (True/False or 0/1 to encode)
+    invalid: int | None = None  # raw value meaning "not available": None both ways
+    # decode only: raw value -> reading value (an enum member, None); IndexError past its end
+    lookup: tuple | None = None
+
+    def raw_range(self) -> tuple[int, int]:
+        """Return the raw values the bits carry, without the "not available" marker."""
+        low = -(1 << (self.length - 1)) if self.signed else 0
+        high = (1 << (self.length - 1)) - 1 if self.signed else (1 << self.length) - 1
+        return low + (self.invalid == low), high - (self.invalid == high)
+
+    def bounds(self) -> tuple[float, float]:
+        """Return the physical range: the stated one, else what the raw bits can carry."""
+        lo_raw, hi_raw = self.raw_range()
+        ends = sorted((lo_raw * self.scale + self.offset, hi_raw * self.scale + self.offset))
+        return (ends[0] if self.low is None else self.low,
+                ends[1] if self.high is None else self.high)
+
+    def lsb(self, length: int) -> int:
+        """Return the bit of its LSB in the frame read as one integer in its byte order."""
+        if self.byte_order == LITTLE:
+            return self.start
+        msb = (self.start // 8) * 8 + (7 - self.start % 8)
+        return 8 * length - 1 - (msb + self.length - 1)
+
+
+@dataclass(frozen=True)
+class Layout:
+    """
+    One message: its name, DLC and signals; ``divide`` writes a scale 1/n as ``raw / n``.
+
+    ``divide`` is for vendors whose firmware divides (EVMS3: 1234 -> 123.4 V exactly, where
+    1234 * 0.1 is 123.4000...01); without it the values are exactly what cantools computes.
+    """
+
+    name: str
+    length: int
+    signals: tuple[Signal, ...]
+    divide: bool = False
+
+    @classmethod
+    def from_dbc(cls, message: Any, divide: bool = False) -> Layout:
+        """Build the layout of a cantools message (integer signals, no multiplexing)."""
+        return cls(message.name, message.length, tuple(Signal(
+            s.name, s.start, s.length, s.byte_order, bool(s.is_signed), s.scale, s.offset,
+            s.minimum, s.maximum, s.unit or '') for s in message.signals), divide)
+
+    def check_dbc(self, message: Any, dbc: str, codec: str) -> None:
+        """Raise LayoutError unless the DBC message has exactly these bits, scales and DLC."""
+        def bits(signals: Any) -> list[tuple]:
+            return sorted((s[0], s[1], s[2], s[3], bool(s[4]), float(s[5]), float(s[6]))
+                          for s in signals)
+        got = (message.length, bits((s.name, s.start, s.length, s.byte_order, s.is_signed,
+                                     s.scale, s.offset) for s in message.signals),
+               any(s.is_float for s in message.signals))
+        want = (self.length, bits((s.name, s.start, s.length, s.byte_order, s.signed,
+                                   s.scale, s.offset) for s in self.signals), False)
+        if got != want:
+            raise LayoutError(f'{dbc} {message.name} does not match the {codec} codec '
+                              f'layout: {got}')
+
+    # --- code generation --------------------------------------------------------------------
+    def raw_expression(self, s: Signal) -> str:
+        """Return a Python expression of a signal's raw value, as cheap as hand code."""
+        if s.byte_order == BIG:
+            msb = (s.start // 8) * 8 + (7 - s.start % 8)  # bit from the frame's first MSB
+            first, last = msb // 8, (msb + s.length - 1) // 8
+            shift = 7 - (msb + s.length - 1) % 8
+            parts = [f'data[{k}] << {8 * (last - k)}' if k < last else f'data[{k}]'
+                     for k in range(first, last + 1)]
+        else:
+            first, last = s.start // 8, (s.start + s.length - 1) // 8
+            shift = s.start % 8
+            parts = [f'data[{k}] << {8 * (k - first)}' if k > first else f'data[{k}]'
+                     for k in range(first, last + 1)]
+        expr = ' | '.join(parts)
+        if shift:
+            expr = f'({expr}) >> {shift}'
+        if shift or s.length != 8 * (last - first + 1):
+            expr = f'({expr}) & {(1 << s.length) - 1:#x}'
+        if s.signed:
+            half = 1 << (s.length - 1)
+            expr = f'(({expr}) ^ {half:#x}) - {half:#x}'
+        return expr
+
+    def _physical(self, s: Signal, raw_only: bool = False,
+                  tables: dict[str, tuple] | None = None) -> str:
+        raw = self.raw_expression(s)
+        if s.flag and not raw_only:
+            return f'({raw}) != 0'
+        if s.lookup is not None and not raw_only and tables is not None:
+            name = f'T{len(tables)}'
+            tables[name] = s.lookup
+            return f'{name}[{raw}]'
+        plain = raw_only or (s.scale == 1 and s.offset == 0)
+        if s.invalid is not None:
+            var = f'r_{s.start}_{s.length}'
+            value = var if plain else self.scaled_expression(s, var)
+            return f'(None if ({var} := {raw}) == {s.invalid} else {value})'
+        if plain:
+            return raw
+        if tables is not None and s.length <= 8 and not s.signed:
+            # A byte or less: look the scaled value up (no float built per frame), each
+            # entry computed by the very expression used otherwise.
+            scale = _compile(f'def f(r):\n    return {self.scaled_expression(s, "r")}\n',
+                             self.name, 'f')
+            name = f'T{len(tables)}'
+            tables[name] = tuple(scale(r) for r in range(1 << s.length))
+            return f'{name}[{raw}]'
+        return self.scaled_expression(s, raw)
+
+    def scaled_expression(self, s: Signal, raw: str) -> str:
+        """Return the physical value of a raw expression (divide: as the vendor computes it)."""
+        divisor = 1 / s.scale
+        if self.divide and s.scale == 1 and s.offset == round(s.offset):
+            return f'({raw}) + {round(s.offset)}'  # whole numbers stay int (raw 65 -> 25 degC)
+        if self.divide and abs(divisor - round(divisor)) < 1e-9:
+            shift = s.offset * round(divisor)  # (raw - 8388608) / 1000, as the vendor
+            if shift == round(shift):
+                return f'(({raw}) + {round(shift)}) / {round(divisor)}'
+            scaled = f'({raw}) / {round(divisor)}'
+        else:
+            scaled = f'({raw}) * {s.scale!r}'
+        return scaled if s.offset == 0 else f'{scaled} + {s.offset!r}'
+
+    def decoder(self, *names: str, raw: bool = False, into: Callable | None = None,
+                head: Callable | None = None, pack: int = 0) -> Callable[..., Any]:
+        """
+        Return ``decode(data)``: the physical (or raw) values of names (default all).
+
+        As a tuple, or ``into(values...)`` (a reading class), or ``into(head(data), values...)``
+        (a part decoded elsewhere first, as a cached status word): one call per frame.
+        pack=n: ``decode(data, a1..an)`` returns ``into(a1..an, (values...))``, values as one
+        tuple after n arguments of the caller (as a module and a first cell).
+        """
+        by_name = {s.name: s for s in self.signals}
+        signals = [by_name[n] for n in names] if names else self.signals
+        tables: dict[str, tuple] = {}
+        body = ', '.join(self._physical(s, raw, tables) for s in signals)
+        args = ''.join(f', a{k}' for k in range(pack))
+        if pack:
+            body = f'{args[2:]}, ({body},)'
+        result = (f'into(head(data), {body})' if head else f'into({body})') if into \
+            else f'({body},)'
+        return _compile(f'def decode(data{args}):\n    return {result}\n', self.name,
+                        'decode', {'into': into, 'head': head, **tables})
+
+    def reader(self, name: str, raw: bool = False) -> Callable[[bytes], Any]:
+        """Return ``read(data) -> value`` of one signal (no tuple: the hottest paths)."""
+        signal = next(s for s in self.signals if s.name == name)
+        return _compile(f'def read(data):\n    return {self._physical(signal, raw)}\n',
+                        self.name, 'read')
+
+    def replace(self, name: str, **changes: Any) -> Layout:
+        """Return this layout with one signal changed (a variant the DBC cannot describe)."""
+        return dataclasses.replace(self, signals=tuple(
+            dataclasses.replace(s, **changes) if s.name == name else s for s in self.signals))
+
+    def encoder(self, exact: bool = True) -> Callable[..., bytes]:
+        """
+        Return ``encode(*values) -> bytes``: each value checked, scaled, packed.
+
+        exact (commands, configuration): a value off the signal's step is refused. exact=False
+        (telemetry a simulator sends): the range is checked and the value rounded to the step.
+        """
+        args = [f'v{i}' for i in range(len(self.signals))]
+        lines = [f'def encode({", ".join(args)}):', '    n = 0']
+        scope: dict[str, Any] = {'check': check_value, 'flag': check_flag}
+        for i, s in enumerate(self.signals):
+            low, high = s.bounds()
+            integer = exact and s.scale == 1 and s.offset == 0 and float(low).is_integer()
+            step = None if integer or not exact else abs(s.scale)
+            scope[f'S{i}'] = (low, high, step, s.unit, integer)
+            checked = f'check({s.field or s.name!r}, v{i}, *S{i})'
+            if s.flag:  # 0/1 or a bool; 2 or 'yes' is refused
+                checked = f'flag({s.field or s.name!r}, v{i})'
+            raw = checked if integer else f'round(({checked} - {s.offset!r}) / {s.scale!r})'
+            if not exact and s.scale == 1 and s.offset == 0:
+                raw = f'round({checked})'
+            if s.invalid is not None:  # None: the marker
+                raw = f'{s.invalid} if v{i} is None else {raw}'
+            if s.signed:
+                raw = f'({raw}) & {(1 << s.length) - 1:#x}'
+            lsb = s.lsb(self.length)
+            if s.byte_order == LITTLE:
+                lines.append(f'    n |= ({raw}) << {lsb}')
+            else:
+                lines.append(f'    n |= ({raw}) << {lsb + 8 * self.length}')  # 2nd half
+        # Little-endian signals fill the low half, big-endian ones a high half read
+        # big-endian; both halves are folded into one frame below.
+        lines += [f'    lo = (n & {(1 << 8 * self.length) - 1:#x}).to_bytes('
+                  f"{self.length}, 'little')",
+                  f"    hi = (n >> {8 * self.length}).to_bytes({self.length}, 'big')",
+                  '    return bytes(a | b for a, b in zip(lo, hi))']
+        return _compile('\n'.join(lines) + '\n', self.name, 'encode', scope)
+
+
+def _compile(source: str, name: str, function: str,
+             scope: dict[str, Any] | None = None) -> Callable:
+    scope = dict(scope or {})
+    exec(compile(source, f'<layout {name}>', 'exec'), scope)  # noqa: S102 (our own table)
+    return scope[function]

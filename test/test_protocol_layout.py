@@ -1,0 +1,99 @@
+"""protocols/layout.py: generated decoders and encoders equal cantools; one validator."""
+import cantools
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from ams_can_bridge.errors import EncodeRangeError, LayoutError
+from ams_can_bridge.protocols import evms3 as evms3_protocol
+from ams_can_bridge.protocols.common import load_dbc, msg_defs_dir
+from ams_can_bridge.protocols.evms3 import Evms3Codec
+from ams_can_bridge.protocols.layout import check_value, Layout
+
+MESSAGES = [(name, m) for name in ('ams', 'bms16', 'evms3', 'ivt_s', 'sma')
+            for m in load_dbc(name).messages
+            if m.length and not m.is_multiplexed() and not any(s.is_float for s in m.signals)]
+
+
+@settings(max_examples=400, deadline=None)
+@given(which=st.sampled_from(range(len(MESSAGES))), data=st.binary(min_size=8, max_size=8))
+def test_generated_code_equals_cantools_on_every_dbc(which, data):
+    _, message = MESSAGES[which]
+    layout = Layout.from_dbc(message)
+    data = data[:message.length]
+    want = message.decode(data, decode_choices=False)
+    got = layout.decoder()(data)
+    assert got == tuple(want[s.name] for s in message.signals)
+    try:
+        encoded = layout.encoder()(*got)
+    except EncodeRangeError:  # a value outside the DBC's [min|max]: refused, as cantools
+        with pytest.raises(cantools.database.EncodeError):
+            message.encode(want, strict=True)
+        return
+    assert encoded == message.encode(want, strict=False)
+
+
+def test_the_evms3_codec_refuses_a_dbc_with_other_bits(monkeypatch):
+    text = (msg_defs_dir() / 'evms3.dbc').read_text()
+    changed = cantools.database.load_string(text.replace(
+        'SG_ AuxVoltage : 40|8@1+ (0.1,0)', 'SG_ AuxVoltage : 40|8@1+ (0.2,0)', 1), strict=True)
+    monkeypatch.setattr(evms3_protocol, 'load_dbc', lambda name: changed)
+    evms3_protocol.check_dbc.cache_clear()
+    try:
+        with pytest.raises(LayoutError, match='EVMS3_Status does not match the EVMS3 codec'):
+            Evms3Codec()
+    finally:
+        evms3_protocol.check_dbc.cache_clear()
+
+
+@pytest.mark.parametrize('value,kwargs,allowed', [
+    (5.12, dict(low=0, high=5.1, step=0.02, unit='V'), '0..5.1 V in steps of 0.02 V'),
+    (3.61, dict(low=0, high=5.1, step=0.02, unit='V'), 'in steps of 0.02 V'),
+    (2.5, dict(low=1, high=5, integer=True), '1..5, a whole number'),
+    (True, dict(low=0, high=5), 'a number 0..5'),
+    ('3', dict(low=0, high=5), 'a number 0..5'),
+    (float('nan'), dict(low=0, high=5), '0..5'),
+])
+def test_check_value_refuses(value, kwargs, allowed):
+    with pytest.raises(EncodeRangeError) as info:
+        check_value('x', value, **kwargs)
+    assert allowed in info.value.allowed and info.value.field == 'x'
+
+
+def test_check_value_takes_float_noise_at_the_ends_and_whole_floats():
+    assert check_value('v', 255 * 0.02, 0, 5.1, 0.02) == 5.1
+    assert check_value('n', 3.0, 0, 5, integer=True) == 3
+    assert isinstance(check_value('n', 3.0, 0, 5, integer=True), int)
+
+
+@pytest.mark.parametrize('module,dbc,old,new,message', [
+    ('bms16', 'bms16', 'SG_ Voltage : 16|16@1+ (0.1,0)', 'SG_ Voltage : 16|16@1+ (0.2,0)',
+     'BMS16_Status'),
+    ('sma', 'sma', 'SG_ SoH : 16|16@1+ (1,0)', 'SG_ SoH : 16|8@1+ (1,0)', 'SMA_SoC'),
+    ('sma', 'sma', 'SG_ ModuleCount : 32|8@1+', 'SG_ ModuleCount : 40|8@1+',
+     'Pylontech_AlarmsWarnings'),
+    ('evms3', 'evms3', 'SG_ BmsMinVoltage : 40|8@1+ (0.01,1.5)',
+     'SG_ BmsMinVoltage : 40|8@1+ (0.01,1.6)', 'EVMS3_Config2'),
+    ('evms3', 'evms3', 'SG_ Module15Cells : 60|4@1+', 'SG_ Module15Cells : 60|3@1+',
+     'EVMS3_BmsCellNumbers'),
+    ('evms3', 'evms3', 'SG_ CurrentLimit : 23|16@0+ (0.1,0)',
+     'SG_ CurrentLimit : 23|16@0+ (0.2,0)', 'TC_Charger1_Command'),
+    ('ivt_s', 'ivt_s', 'SG_ IVT_MsgCount_Result_W : 11|4@0+',
+     'SG_ IVT_MsgCount_Result_W : 11|3@0+', 'IVT_Msg_Result_W'),
+])
+def test_each_codec_checks_its_whole_table_against_its_dbc(monkeypatch, module, dbc, old, new,
+                                                           message):
+    import importlib
+    protocol = importlib.import_module(f'ams_can_bridge.protocols.{module}')
+    text = (msg_defs_dir() / f'{dbc}.dbc').read_text()
+    assert old in text
+    changed = cantools.database.load_string(text.replace(old, new, 1), strict=True)
+    monkeypatch.setattr(protocol, 'load_dbc', lambda name: changed)
+    check = getattr(protocol, 'check_dbc', None) or protocol._check_dbc
+    if hasattr(check, 'cache_clear'):
+        check.cache_clear()
+    try:
+        with pytest.raises(LayoutError, match=message):
+            check()
+    finally:
+        if hasattr(check, 'cache_clear'):
+            check.cache_clear()
