@@ -33,7 +33,7 @@ def spec_from_config_field(field: ConfigField, key_prefix: str = 'config.',
 
 def format_number(value: float, key: str = '') -> str:
     """Format a range bound as a user writes it: CAN IDs in hex, whole numbers exactly."""
-    if key.endswith('base_id'):
+    if key.endswith('_id'):  # base_id, command_id, answer_id
         return f'0x{int(value):X}'
     return str(int(value)) if float(value).is_integer() else f'{value:g}'
 

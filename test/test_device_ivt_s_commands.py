@@ -261,3 +261,32 @@ def test_a_second_sequence_waits_for_none(rig):
     ok, message = device.restart(bus.send)
     first.join(5)
     assert not ok and 'another IVT-S command is running' in message
+
+
+def test_a_second_sensor_is_commanded_on_its_own_ids():
+    """
+    command_id / answer_id: a second IVT-S on the bus, set to 0x412 / 0x512 in the sensor.
+
+    Its commands go out on 0x412 (the protocol builds them on 0x411); it listens on 0x512,
+    not on the factory 0x511 (another sensor's), and the answer there completes the call.
+    """
+    device = IvtSDevice('rear', {'base_id': 0x621, 'command_id': 0x412, 'answer_id': 0x512,
+                                 'command_timeout': 3.0})
+    assert (0x512, False) in device.frame_ids and (0x511, False) not in device.frame_ids
+    device.handle_frame(0x621, bytes([0x00, 0x01, 0, 0, 0x03, 0xE8]), time.time())  # I 1 A
+    sent: list[Frame] = []
+    answer = bytes([0xB4, 0x00, 0x01, 0, 0, 0, 0, 0])  # mode answer: STOP, power-up RUN
+
+    def send(frame):
+        sent.append(frame)
+        threading.Timer(0.05, lambda: device.handle_frame(0x512, answer, time.time())).start()
+        return True, 'sent'
+    ok, message = device.set_running(send, False)
+    assert ok, message
+    assert [(f.arbitration_id, f.data[:2]) for f in sent] == [(0x412, bytes([0x34, 0x00]))]
+    assert message == 'rear: set_running: the sensor reports STOP'
+
+
+def test_an_answer_id_among_the_result_ids_is_refused():
+    with pytest.raises(ValueError, match='rear.answer_id = 0x622 is one of its result IDs'):
+        IvtSDevice('rear', {'base_id': 0x621, 'answer_id': 0x622})

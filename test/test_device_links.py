@@ -35,7 +35,8 @@ def test_the_ams_declares_its_link_and_device_set_knows_no_type_names():
 
 def test_an_unset_current_sensor_stays_unset_and_the_first_ivt_s_is_used():
     devices = device_set(['ams', 'shunt', 'other'],
-                         **{'shunt.type': 'ivt_s', 'other.type': 'ivt_s'})
+                         **{'shunt.type': 'ivt_s', 'other.type': 'ivt_s', 'other.base_id': 0x621,
+                            'other.command_id': 0x412, 'other.answer_id': 0x512})
     ams = devices.devices['ams']
     assert ams.current_sensor is devices.devices['shunt']
     assert ams.config.current_sensor == ''  # the parameter server's value, unchanged
@@ -48,7 +49,8 @@ def test_an_unset_current_sensor_stays_unset_and_the_first_ivt_s_is_used():
 
 def test_a_named_current_sensor_is_used_as_named():
     devices = device_set(['ams', 'shunt', 'other'],
-                         **{'shunt.type': 'ivt_s', 'other.type': 'ivt_s',
+                         **{'shunt.type': 'ivt_s', 'other.type': 'ivt_s', 'other.base_id': 0x621,
+                            'other.command_id': 0x412, 'other.answer_id': 0x512,
                             'ams.current_sensor': 'other'})
     ams = devices.devices['ams']
     assert ams.current_sensor is devices.devices['other']

@@ -36,8 +36,8 @@ from ams_can_bridge.devices.timed import CounterHealth, TimedStore
 from ams_can_bridge.errors import ParamError
 from ams_can_bridge.protocols.common import ProtocolError
 from ams_can_bridge.protocols.ivt_s import (
-    BYTE_ORDERS, DBC_NAME, DEFAULT_BASE_ID, IvtMux, IvtResult, IvtSCodec, RAW_UNIT,
-    RESPONSE_ID, SI_UNIT)
+    BYTE_ORDERS, COMMAND_ID, DBC_NAME, DEFAULT_BASE_ID, IvtMux, IvtResult, IvtSCodec,
+    RAW_UNIT, RESPONSE_ID, SI_UNIT)
 from ams_can_bridge.protocols.ivt_s_commands import CYCLE_MAX_MS, decode_answer, TriggerMode
 
 NAN = math.nan
@@ -89,6 +89,12 @@ class IvtSDevice(IvtSControl, Device):
                   'true if the IVT-S reports a positive current while the pack discharges '
                   '(depends on how the shunt is mounted); ROS current is negative while '
                   'discharging either way'),
+        ParamSpec('command_id', int, COMMAND_ID,
+                  'CAN ID the bridge sends IVT-S commands on (factory 0x411); a second IVT-S '
+                  'on the same bus needs IDs of its own, set in the sensor and here',
+                  low=0, high=0x7FF),
+        ParamSpec('answer_id', int, RESPONSE_ID,
+                  'CAN ID the IVT-S answers commands on (factory 0x511)', low=0, high=0x7FF),
         ParamSpec('mounted_reversed', bool, False,
                   'true if the IVT-S, with its sign setting normal, reports charging current '
                   'as positive (shunt mounted the other way round); read_config and '
@@ -127,18 +133,26 @@ class IvtSDevice(IvtSControl, Device):
         self._results: TimedStore[IvtMux, IvtResult] = TimedStore()  # the last of each kind
         self._tracks: dict[IvtMux, _Track] = {}
         self._stamp = NAN
-        self.link = CommandLink(self.lock)
-        self._ids = self.codec.arbitration_ids | {RESPONSE_ID}
+        self.command_id = COMMAND_ID if self.config.command_id is None \
+            else int(self.config.command_id)
+        self.answer_id = RESPONSE_ID if self.config.answer_id is None \
+            else int(self.config.answer_id)
+        if self.answer_id in self.codec.arbitration_ids:
+            raise ParamError(f'{name}.answer_id = 0x{self.answer_id:X} is one of its result IDs '
+                             f'(base_id 0x{base_id:X}..0x{base_id + 7:X}): give it an ID '
+                             'of its own')
+        self.link = CommandLink(self.lock, self.command_id)
+        self._ids = self.codec.arbitration_ids | {self.answer_id}
 
     # --- receive side ------------------------------------------------------------------------
     @property
     def arbitration_ids(self) -> frozenset[int]:
-        """Return the result IDs and the answer ID 0x511."""
+        """Return the result IDs and the answer ID (answer_id, factory 0x511)."""
         return self._ids
 
     def handle_frame(self, arbitration_id: int, data: bytes, stamp: float) -> bool:
         """Decode a result frame, or a 0x511 answer (never primary, never raises)."""
-        if arbitration_id != RESPONSE_ID:
+        if arbitration_id != self.answer_id:
             return super().handle_frame(arbitration_id, data, stamp)
         try:
             answer = decode_answer(data)

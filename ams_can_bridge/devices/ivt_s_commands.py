@@ -116,8 +116,9 @@ def config_problems(configs: dict[IvtMux, ResultConfig], instance: str, byte_ord
 class CommandLink:
     """The answers of one IVT-S; its lock is the device's (the bus thread offers under it)."""
 
-    def __init__(self, lock: threading.Lock) -> None:
+    def __init__(self, lock: threading.Lock, command_id: int = 0x411) -> None:
         self._cv = threading.Condition(lock)
+        self.command_id = command_id  # the protocol builds 0x411 frames: sent on this ID
         self._seq = 0
         self._recent: deque[tuple[int, IvtAnswer]] = deque(maxlen=64)
         self._busy = False
@@ -181,6 +182,8 @@ class CommandLink:
     def exchange(self, send: Send, frame: Frame, match: Callable[[IvtAnswer], bool],
                  what: str, timeout: float) -> IvtAnswer:
         """Send one command and return its answer; NoAnswer saying why not."""
+        if frame.arbitration_id != self.command_id:
+            frame = Frame(self.command_id, frame.data, frame.is_extended_id)
         with self._cv:
             start = self._seq
         ok, why = send(frame)
