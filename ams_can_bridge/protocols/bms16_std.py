@@ -26,6 +26,7 @@ from typing import Any, Mapping
 from ams_can_bridge.errors import BadConfigBytes, ConfigError
 from ams_can_bridge.protocols.common import (
     check_dlc, ConfigField, EncodeRangeError, Frame, MalformedFrameError)
+from ams_can_bridge.protocols.bms16 import shunt_code, SHUNT_SIZES_A  # slot 7: code 0..3
 from ams_can_bridge.protocols.evms3 import (
     AcknowledgeError, BatteryCurrent, Bms12Cells, Evms3Codec, Evms3Error, Evms3State, LAYOUTS,
     PowerOff, ResetSoc, status_fault)
@@ -48,7 +49,6 @@ CELLS_PER_MODULE = 8                  # reply 1 and 2 of a BMS12 frame set: 4 + 
 CELL_FRAMES = {(0, 1): 0, (0, 2): 4, (1, 1): 8, (1, 2): 12}
 CELL_IDS = {BMS12_BASE_ID + 10 * m + t: first for (m, t), first in CELL_FRAMES.items()}
 CONFIG_GAP_S = 0.02                   # the Monitor waits 20 ms after each settings frame
-SHUNT_SIZES_A = (0, 100, 200, 500)    # slot 7 code 0..3 (the Monitor's "None", "100A", ...)
 SLOTS = 32                            # setting bytes in IDs 32..35
 
 
@@ -134,9 +134,7 @@ CONFIG_FIELD = {f.name: f for f in CONFIG_FIELDS}
 def check_config_value(name: str, value: Any) -> Any:
     """Validate one value (physical units) and return it normalized; EncodeRangeError if not."""
     if name == 'shunt_size_a':
-        if isinstance(value, bool) or value not in SHUNT_SIZES_A:
-            raise EncodeRangeError(name, value, '0 (no shunt), 100, 200 or 500 A')
-        return int(value)
+        return SHUNT_SIZES_A[shunt_code(name, value)]
     return check_field(CONFIG_FIELD.get(name), name, value, CONFIG_FIELD)
 
 
@@ -154,8 +152,7 @@ def config_payloads(cfg: Bms16StdConfig) -> list[bytes]:
     """Return the payloads of IDs 32..35: 32 slots, the unused ones 0 (EncodeRangeError)."""
     slots = bytearray(SLOTS)
     pack_slots(_LINEAR, slots, cfg, check_config_value)
-    slots[_SHUNT_SLOT] = SHUNT_SIZES_A.index(check_config_value('shunt_size_a',
-                                                                cfg.shunt_size_a))
+    slots[_SHUNT_SLOT] = shunt_code('shunt_size_a', cfg.shunt_size_a)
     for name, slot, _ in _BOOLS:
         slots[slot] = int(check_config_value(name, getattr(cfg, name)))
     return [bytes(slots[8 * k:8 * k + 8]) for k in range(4)]

@@ -37,7 +37,7 @@ Decisions:
 """
 from __future__ import annotations
 
-from dataclasses import astuple, dataclass
+from dataclasses import astuple, dataclass, fields
 from typing import Callable, Union
 
 from ams_can_bridge.protocols.common import (
@@ -226,12 +226,7 @@ def _pylontech_alarms(aid: int, data: bytes) -> PylontechAlarms:
 
 
 def _pylontech_request(aid: int, data: bytes) -> PylontechRequest:
-    b0 = data[0]
-    return PylontechRequest(bool(b0 >> CHARGE_ENABLE_BIT & 1),
-                            bool(b0 >> DISCHARGE_ENABLE_BIT & 1),
-                            bool(b0 >> REQUEST_CHARGE_IMMEDIATELY_BIT & 1),
-                            bool(b0 >> FORCE_CHARGE_REQUEST_II_BIT & 1),
-                            bool(b0 >> FULL_CHARGE_REQUEST_BIT & 1))
+    return _D_REQUEST(data)
 
 
 def _bms_name(aid: int, data: bytes) -> VictronBmsName:
@@ -303,11 +298,13 @@ DIALECT_LAYOUTS = {
         _u(f'{kind}_{_PYLONTECH_DBC_NAMES[name]}', first + 8 * byte + bit, 1)
         for kind, first in (('Alarm', 0), ('Warning', 16))
         for name, byte, bit in PYLONTECH_CONDITIONS) + (_u('ModuleCount', 32, 8),)),
-    PYLONTECH_REQUEST_ID: Layout('Pylontech_Request', 2, tuple(_u(name, bit, 1) for name, bit in (
-        ('FullChargeRequest', FULL_CHARGE_REQUEST_BIT),
-        ('ForceChargeRequestII', FORCE_CHARGE_REQUEST_II_BIT),
-        ('RequestChargeImmediately', REQUEST_CHARGE_IMMEDIATELY_BIT),
-        ('DischargeEnable', DISCHARGE_ENABLE_BIT), ('ChargeEnable', CHARGE_ENABLE_BIT)))),
+    PYLONTECH_REQUEST_ID: Layout('Pylontech_Request', 2, tuple(  # in PylontechRequest's order
+        Signal(name, bit, 1, LITTLE, field=f'sma.pylontech.{field.name}', flag=True)
+        for (name, bit), field in zip((
+            ('ChargeEnable', CHARGE_ENABLE_BIT), ('DischargeEnable', DISCHARGE_ENABLE_BIT),
+            ('RequestChargeImmediately', REQUEST_CHARGE_IMMEDIATELY_BIT),
+            ('ForceChargeRequestII', FORCE_CHARGE_REQUEST_II_BIT),
+            ('FullChargeRequest', FULL_CHARGE_REQUEST_BIT)), fields(PylontechRequest)))),
     VICTRON_BMS_NAME1_ID: Layout('Victron_BmsName1', 8, (_u('BmsName1', 0, 64),)),
     VICTRON_BMS_NAME2_ID: Layout('Victron_BmsName2', 8, (_u('BmsName2', 0, 64),)),
     VICTRON_MODULES_ID: Layout('Victron_Modules', 8, tuple(
@@ -339,6 +336,8 @@ _NUMBERS = (VICTRON_MODULES_ID, VICTRON_CELL_EXTREMES_ID, VICTRON_ENERGY_ID,
 _D = {i: DIALECT_LAYOUTS[i].decoder() for i in _NUMBERS}
 _D_RAW = DIALECT_LAYOUTS[VICTRON_CELL_EXTREMES_ID].decoder(raw=True)  # mV, K to compare
 _E = {i: DIALECT_LAYOUTS[i].encoder(exact=False) for i in _NUMBERS}
+_D_REQUEST = DIALECT_LAYOUTS[PYLONTECH_REQUEST_ID].decoder(into=PylontechRequest)
+_E_REQUEST = DIALECT_LAYOUTS[PYLONTECH_REQUEST_ID].encoder()
 
 
 def _full(data: bytes, length: int) -> bytes:
@@ -388,12 +387,7 @@ def encode_dialect(message: DialectReading) -> Frame:
         return Frame(PYLONTECH_ALARMS_ID, bytes(data if message.module_count is not None
                                                 else data[:4]))
     if isinstance(message, PylontechRequest):
-        b0 = (message.charge_enable << CHARGE_ENABLE_BIT
-              | message.discharge_enable << DISCHARGE_ENABLE_BIT
-              | message.request_charge_immediately << REQUEST_CHARGE_IMMEDIATELY_BIT
-              | message.force_charge_request_ii << FORCE_CHARGE_REQUEST_II_BIT
-              | message.full_charge_request << FULL_CHARGE_REQUEST_BIT)
-        return Frame(PYLONTECH_REQUEST_ID, bytes([b0, 0]))
+        return Frame(PYLONTECH_REQUEST_ID, _E_REQUEST(*astuple(message)))
     if isinstance(message, VictronBmsName):
         if message.part not in (1, 2):
             raise EncodeRangeError('sma.victron.bms_name.part', message.part, '1 or 2')
