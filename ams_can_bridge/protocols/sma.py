@@ -243,6 +243,7 @@ LAYOUTS = {
 }
 _D = {i: LAYOUTS[i].decoder() for i in (LIMITS_ID, SOC_ID, BATTERY_ID, ALARMS_ID, INFO_ID)}
 _E = {i: LAYOUTS[i].encoder(exact=False) for i in (LIMITS_ID, SOC_ID, BATTERY_ID, INFO_ID)}
+_E_ALARMS = LAYOUTS[ALARMS_ID].encoder()
 _ONLINE = 16 + SMA_CONDITIONS.index(ONLINE_CONDITION)  # SystemOnline among the pairs
 
 
@@ -359,15 +360,14 @@ class SmaCodec:
             raise EncodeRangeError(f'sma.warnings.{ONLINE_CONDITION}',
                                    message.warnings[ONLINE_CONDITION],
                                    'NOT_SUPPORTED (byte 7 bits 2-3 carry SmaAlarms.online)')
-        data = bytearray(8)
-        for kind, flags, first in (('alarms', message.alarms, 0),
-                                   ('warnings', message.warnings, 4)):
-            for k, name in enumerate(SMA_CONDITIONS):
+        pairs = []
+        for kind, flags in (('alarms', message.alarms), ('warnings', message.warnings)):
+            for name in SMA_CONDITIONS:
                 flag = flags.get(name, SmaFlag.NOT_SUPPORTED)
                 if flag not in (0, 1, 2):
                     raise EncodeRangeError(f'sma.{kind}.{name}', flag,
                                            'SmaFlag NOT_SUPPORTED, ACTIVE or OK')
-                data[first + (k >> 2)] |= int(flag) << ((k & 3) << 1)
-        if message.online is not None:
-            data[ONLINE_BYTE] |= (2 if message.online else 1) << ONLINE_SHIFT
-        return bytes(data)
+                pairs.append(int(flag))
+        if message.online is not None:  # byte 7 bits 2-3 (ONLINE_BYTE, ONLINE_SHIFT)
+            pairs[_ONLINE] = 2 if message.online else 1
+        return _E_ALARMS(*pairs)
