@@ -46,7 +46,7 @@ from ams_can_bridge.protocols.common import (
 from ams_can_bridge.protocols.layout import Layout, LITTLE, Signal
 from ams_can_bridge.protocols.sma_dialects import (
     ascii_text, decode_dialect, DIALECT_DECODERS, DIALECT_IDS, DIALECT_LAYOUTS, DialectReading,
-    encode_ascii, encode_dialect)
+    encode_ascii, encode_dialect, pad_unsent)
 
 LIMITS_ID = 0x351
 SOC_ID = 0x355
@@ -247,11 +247,6 @@ _E_ALARMS = LAYOUTS[ALARMS_ID].encoder()
 _ONLINE = 16 + SMA_CONDITIONS.index(ONLINE_CONDITION)  # SystemOnline among the pairs
 
 
-def _full(data: bytes, length: int) -> bytes:
-    """Pad a frame cut short with 0xFF: the fields not sent read as "not available"."""
-    return data if len(data) >= length else bytes(data) + b'\xff' * (length - len(data))
-
-
 @functools.cache
 def check_dbc() -> None:
     """Raise LayoutError unless msg_defs/sma.dbc has the bits of LAYOUTS and the dialects'."""
@@ -289,13 +284,13 @@ class SmaCodec:
 
     @staticmethod
     def _limits(data: bytes) -> SmaLimits:
-        charge_v, charge_a, discharge_a, discharge_v = _D[LIMITS_ID](_full(data, 8))
+        charge_v, charge_a, discharge_a, discharge_v = _D[LIMITS_ID](pad_unsent(data, 8))
         return SmaLimits(charge_v, charge_a, discharge_a,
                          discharge_v or None)  # 0 = no limit sent, not 0 V
 
     @staticmethod
     def _soc(data: bytes) -> SmaSoc:
-        soc = SmaSoc(*_D[SOC_ID](_full(data, 6)))
+        soc = SmaSoc(*_D[SOC_ID](pad_unsent(data, 6)))
         # A state of charge above 100 % is no reading: it would publish percentage > 1.
         for name, value in (('SoC', soc.soc_pct), ('high-resolution SoC', soc.soc_hires_pct)):
             if value is not None and value > 100:

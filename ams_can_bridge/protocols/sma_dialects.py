@@ -234,7 +234,7 @@ def _bms_name(aid: int, data: bytes) -> VictronBmsName:
 
 
 def _modules(aid: int, data: bytes) -> VictronModules:
-    return VictronModules(*_D[VICTRON_MODULES_ID](_full(data, 8)))
+    return VictronModules(*_D[VICTRON_MODULES_ID](pad_unsent(data, 8)))
 
 
 def _cell_extremes(aid: int, data: bytes) -> VictronCellExtremes:
@@ -255,7 +255,7 @@ def _cell_id(aid: int, data: bytes) -> VictronCellId:
 
 
 def _energy(aid: int, data: bytes) -> VictronEnergy:
-    return VictronEnergy(*_D[VICTRON_ENERGY_ID](_full(data, 8)))
+    return VictronEnergy(*_D[VICTRON_ENERGY_ID](pad_unsent(data, 8)))
 
 
 def _installed_capacity(aid: int, data: bytes) -> VictronInstalledCapacity:
@@ -340,7 +340,8 @@ _D_REQUEST = DIALECT_LAYOUTS[PYLONTECH_REQUEST_ID].decoder(into=PylontechRequest
 _E_REQUEST = DIALECT_LAYOUTS[PYLONTECH_REQUEST_ID].encoder()
 
 
-def _full(data: bytes, length: int) -> bytes:
+def pad_unsent(data: bytes, length: int) -> bytes:
+    """Pad a frame cut short with 0xFF: the fields not sent read as "not available"."""
     return data if len(data) >= length else bytes(data) + b'\xff' * (length - len(data))
 
 
