@@ -373,7 +373,7 @@ def check_config_value(name: str, value: Any, multiplier: int = 1) -> Any:
         if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) \
                 or len(value) != spec.length:
             raise EncodeRangeError(name, value, allowed)
-        cells = tuple(int(check_value(f'{name}[{i}]', v, spec.low, spec.high, spec.step))
+        cells = tuple(int(check_value(f'{name}[{i}]', v, 0, CELLS_MAX, 1))
                       for i, v in enumerate(value))
         for i, n in enumerate(cells):
             if 0 < n < CELLS_MIN:
