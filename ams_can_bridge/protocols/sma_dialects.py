@@ -336,6 +336,7 @@ _NUMBERS = (VICTRON_MODULES_ID, VICTRON_CELL_EXTREMES_ID, VICTRON_ENERGY_ID,
 _D = {i: DIALECT_LAYOUTS[i].decoder() for i in _NUMBERS}
 _D_RAW = DIALECT_LAYOUTS[VICTRON_CELL_EXTREMES_ID].decoder(raw=True)  # mV, K to compare
 _E = {i: DIALECT_LAYOUTS[i].encoder(exact=False) for i in _NUMBERS}
+_E_ALARMS = DIALECT_LAYOUTS[PYLONTECH_ALARMS_ID].encoder()  # alarms, warnings, module count
 _D_REQUEST = DIALECT_LAYOUTS[PYLONTECH_REQUEST_ID].decoder(into=PylontechRequest)
 _E_REQUEST = DIALECT_LAYOUTS[PYLONTECH_REQUEST_ID].encoder()
 
@@ -376,17 +377,14 @@ _ENCODED = {VictronModules: VICTRON_MODULES_ID, VictronCellExtremes: VICTRON_CEL
 def encode_dialect(message: DialectReading) -> Frame:
     """Encode a dialect message; EncodeRangeError names what the wire cannot carry."""
     if isinstance(message, PylontechAlarms):
-        data = bytearray(8)
-        for first, kind in ((0, 'alarms'), (2, 'warnings')):
-            active = _names(f'sma.pylontech.{kind}', getattr(message, kind))
-            for name, byte, bit in PYLONTECH_CONDITIONS:
-                if name in active:
-                    data[first + byte] |= 1 << bit
-        if message.module_count is not None:
-            data[4] = check_value('sma.pylontech.module_count', message.module_count, 0, 255,
-                                  integer=True)
-        return Frame(PYLONTECH_ALARMS_ID, bytes(data if message.module_count is not None
-                                                else data[:4]))
+        active = [_names(f'sma.pylontech.{kind}', getattr(message, kind))
+                  for kind in ('alarms', 'warnings')]
+        count = message.module_count
+        if count is not None:
+            count = check_value('sma.pylontech.module_count', count, 0, 255, integer=True)
+        data = _E_ALARMS(*(int(name in names) for names in active
+                           for name, _, _ in PYLONTECH_CONDITIONS), count or 0)
+        return Frame(PYLONTECH_ALARMS_ID, data if count is not None else data[:4])
     if isinstance(message, PylontechRequest):
         return Frame(PYLONTECH_REQUEST_ID, _E_REQUEST(*astuple(message)))
     if isinstance(message, VictronBmsName):
