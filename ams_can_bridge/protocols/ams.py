@@ -350,14 +350,20 @@ def _status_word(data: bytes) -> AmsStatusWord:
     if word is not None:
         return word
     *flags, banks, raw_state = _D_WORD(data)
-    state = _STATES.get(raw_state)
-    if state is None:
-        raise _Bad(f'unknown AMS state {raw_state} (known 0..9)')
+    state = _known(_STATES, raw_state, 'AMS state')
     if banks > MAX_BANKS:
         raise _Bad(f'status bank count {banks} (allowed 0..{MAX_BANKS})')
     word = AmsStatusWord(*flags, banks, state)
     _WORD_CACHE[key] = word  # bounded: at most 2**16 words
     return word
+
+
+def _known(members: dict[int, Any], raw: int, what: str) -> Any:
+    """Return the enum member of a raw value; _Bad for a value the vendor does not name."""
+    member = members.get(raw)
+    if member is None:
+        raise _Bad(f'unknown {what} {raw} (known {min(members)}..{max(members)})')
+    return member
 
 
 def _bank_group(bank: int, group: int, groups: int) -> None:
@@ -369,9 +375,7 @@ def _bank_group(bank: int, group: int, groups: int) -> None:
 
 def _dec_car_status(data: bytes) -> CarStatus:
     raw, banks, counter = _D[CAR_STATUS](data)
-    command = _COMMANDS.get(raw)
-    if command is None:
-        raise _Bad(f'unknown car command {raw} (known 0..6)')
+    command = _known(_COMMANDS, raw, 'car command')
     if not 1 <= banks <= MAX_BANKS:
         raise _Bad(f'car status bank count {banks} (allowed 1..{MAX_BANKS})')
     return CarStatus(command, banks, counter)
@@ -379,10 +383,7 @@ def _dec_car_status(data: bytes) -> CarStatus:
 
 def _dec_charger_commands(data: bytes) -> ChargerCommand:
     raw, tick = _D[CHARGER_COMMANDS](data)
-    start = _STARTS.get(raw)
-    if start is None:
-        raise _Bad(f'unknown charger start command {raw} (known 0..2)')
-    return ChargerCommand(start, tick)
+    return ChargerCommand(_known(_STARTS, raw, 'charger start command'), tick)
 
 
 def _series_decoder(offset: int, groups: int, cls: type) -> Callable[[bytes], Any]:
@@ -397,10 +398,7 @@ def _series_decoder(offset: int, groups: int, cls: type) -> Callable[[bytes], An
 
 def _dec_error(data: bytes) -> AmsErrorEvent:
     raw, tick = _D[ERROR](data)
-    error = _ERRORS.get(raw)
-    if error is None:
-        raise _Bad(f'unknown AMS error ID {raw} (known 1..23)')
-    return AmsErrorEvent(error, tick)
+    return AmsErrorEvent(_known(_ERRORS, raw, 'AMS error ID'), tick)
 
 
 def _dec_override_banks(data: bytes) -> OverrideBankCount:

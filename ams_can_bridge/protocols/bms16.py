@@ -215,6 +215,14 @@ _D_CELLS = tuple(layout.decoder() for layout in LAYOUTS[CELLS_1:CELLS_3 + 1])
 _NINTH = tuple(tuple(256 * (bits >> k & 1) for k in range(8)) for bits in range(256))
 
 
+def shunt_code(name: str, value: object) -> int:
+    """Return the wire code 0..3 of a shunt size (also the BMS16 standard form's slot 7)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) \
+            or value not in SHUNT_SIZES_A:
+        raise EncodeRangeError(name, value, '0 (no shunt), 100, 200 or 500 A')
+    return SHUNT_SIZES_A.index(value)
+
+
 def check_config_value(name: str, value: object) -> int:
     """
     Validate one configuration value (physical units) and return its wire byte.
@@ -224,13 +232,7 @@ def check_config_value(name: str, value: object) -> int:
     """
     spec = CONFIG_FIELD[name]
     if name == 'shunt_size_a':
-        allowed = '0 (no shunt), 100, 200 or 500 A'
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise EncodeRangeError(name, value, allowed)
-        for code, size in enumerate(SHUNT_SIZES_A):
-            if value == size:
-                return code
-        raise EncodeRangeError(name, value, allowed)
+        return shunt_code(name, value)
     value = check_value(name, value, spec.low, spec.high, spec.step, spec.unit)
     return round(value / _CONFIG_SCALE[name])
 

@@ -26,9 +26,13 @@ from typing import Any, Mapping
 from ams_can_bridge.errors import BadConfigBytes, ConfigError
 from ams_can_bridge.protocols.common import (
     check_dlc, ConfigField, EncodeRangeError, Frame, MalformedFrameError)
+from ams_can_bridge.protocols.bms16 import shunt_code, SHUNT_SIZES_A  # slot 7: code 0..3
 from ams_can_bridge.protocols.evms3 import (
     AcknowledgeError, BatteryCurrent, Bms12Cells, Evms3Codec, Evms3Error, Evms3State, LAYOUTS,
     PowerOff, ResetSoc, status_fault)
+from ams_can_bridge.protocols.evms3_config import (  # noqa: F401 (BALANCE_*: public here too)
+    BALANCE_DYNAMIC, BALANCE_FIELDS, BALANCE_MODES, BALANCE_OFF, check_field, pack_slots,
+    slot_field, SlotRow, unpack_slots)
 from ams_can_bridge.protocols.layout import check_value
 
 DEFAULT_BASE_ID = 30                  # Common.h CAN_BASE_ID
@@ -45,10 +49,6 @@ CELLS_PER_MODULE = 8                  # reply 1 and 2 of a BMS12 frame set: 4 + 
 CELL_FRAMES = {(0, 1): 0, (0, 2): 4, (1, 1): 8, (1, 2): 12}
 CELL_IDS = {BMS12_BASE_ID + 10 * m + t: first for (m, t), first in CELL_FRAMES.items()}
 CONFIG_GAP_S = 0.02                   # the Monitor waits 20 ms after each settings frame
-SHUNT_SIZES_A = (0, 100, 200, 500)    # slot 7 code 0..3 (the Monitor's "None", "100A", ...)
-BALANCE_DYNAMIC = 251
-BALANCE_OFF = 252
-BALANCE_MODES = ('static', 'dynamic', 'off')
 SLOTS = 32                            # setting bytes in IDs 32..35
 
 
@@ -97,10 +97,10 @@ class Bms16StdConfig:
     night_brightness: int
 
 
-# Byte slots with a linear meaning: name, type, slot, scale, offset, raw low, raw high, unit,
-# what. Ranges: the Monitor's minimums[] and bms16maximums[] (Common.h), scales from its
-# RenderSettings (capacity x5 Ah, currents x10 A, full voltage x1 V for a BMS16).
-_LINEAR = (
+# Byte slots with a linear meaning, in the slot table format of protocols.evms3_config. Ranges:
+# the Monitor's minimums[] and bms16maximums[] (Common.h), scales from its RenderSettings
+# (capacity x5 Ah, currents x10 A, full voltage x1 V for a BMS16).
+_LINEAR: tuple[SlotRow, ...] = (
     ('pack_capacity_ah', int, 0, 5, 0, 1, 250, 'Ah', 'pack capacity'),
     ('soc_warning_pct', int, 1, 1, 0, 0, 99, '%', 'SoC below which the BMS16 warns'),
     ('full_voltage_v', int, 2, 1, 0, 5, 70, 'V', 'pack voltage that counts as full'),
@@ -121,56 +121,21 @@ _LINEAR = (
 )
 _BOOLS = (('stationary_mode', 29, 'stationary (non-vehicle) mode'),
           ('reverse_current_display', 30, "the Monitor shows the current's sign reversed"))
-_SHUNT_SLOT, _BALANCE_SLOT = 7, 15
-
-
-def _phys(typ: type, scale: float, offset: float, raw: int) -> float:
-    return int(raw * scale + offset) if typ is int else round(raw * scale + offset, 6)
-
-
-def _build_fields() -> tuple[ConfigField, ...]:
-    by_name: dict[str, ConfigField] = {}
-    for name, typ, _, scale, offset, rlo, rhi, unit, what in _LINEAR:
-        low, high = _phys(typ, scale, offset, rlo), _phys(typ, scale, offset, rhi)
-        by_name[name] = ConfigField(name, typ, low, high, scale, unit,
-                                    f'{what} ({low:g}..{high:g} {unit})'.replace(' )', ')'))
-    by_name['shunt_size_a'] = ConfigField(
-        'shunt_size_a', int, 0, 500, None, 'A',
-        'current shunt size: 0 (no shunt), 100, 200 or 500 A (slot 7, SHUNT_SIZE)')
-    by_name['balance_mode'] = ConfigField(
-        'balance_mode', str, description='balancing: static (at balance_v), dynamic or off',
-        choices=BALANCE_MODES)
-    by_name['balance_v'] = ConfigField(
-        'balance_v', float, 2.0, 4.5, 0.01, 'V',
-        'static balance voltage (2.00..4.50 V), used only when balance_mode is static')
-    for name, _, what in _BOOLS:
-        by_name[name] = ConfigField(name, bool, description=what)
-    return tuple(by_name[name] for name in Bms16StdConfig.__dataclass_fields__)
-
-
-CONFIG_FIELDS: tuple[ConfigField, ...] = _build_fields()
+_SHUNT_SLOT = 7
+_FIELDS = {f.name: f for f in (*map(slot_field, _LINEAR), *BALANCE_FIELDS, *(
+    ConfigField(name, bool, description=what) for name, _, what in _BOOLS), ConfigField(
+    'shunt_size_a', int, 0, 500, None, 'A',
+    'current shunt size: 0 (no shunt), 100, 200 or 500 A (slot 7, SHUNT_SIZE)'))}
+CONFIG_FIELDS: tuple[ConfigField, ...] = tuple(
+    _FIELDS[name] for name in Bms16StdConfig.__dataclass_fields__)
 CONFIG_FIELD = {f.name: f for f in CONFIG_FIELDS}
 
 
 def check_config_value(name: str, value: Any) -> Any:
     """Validate one value (physical units) and return it normalized; EncodeRangeError if not."""
-    spec = CONFIG_FIELD.get(name)
-    if spec is None:
-        raise EncodeRangeError(name, value, 'one of ' + ', '.join(CONFIG_FIELD))
-    if spec.type is bool:
-        if isinstance(value, bool) or (isinstance(value, int) and value in (0, 1)):
-            return bool(value)
-        raise EncodeRangeError(name, value, 'true or false')
-    if spec.type is str:
-        if value not in spec.choices:
-            raise EncodeRangeError(name, value, 'one of ' + ', '.join(spec.choices))
-        return value
     if name == 'shunt_size_a':
-        if isinstance(value, bool) or value not in SHUNT_SIZES_A:
-            raise EncodeRangeError(name, value, '0 (no shunt), 100, 200 or 500 A')
-        return int(value)
-    value = check_value(name, value, spec.low, spec.high, spec.step, spec.unit)
-    return int(round(value)) if spec.type is int else round(float(value), 6)
+        return SHUNT_SIZES_A[shunt_code(name, value)]
+    return check_field(CONFIG_FIELD.get(name), name, value, CONFIG_FIELD)
 
 
 def config_from_mapping(values: Mapping[str, Any]) -> Bms16StdConfig:
@@ -186,17 +151,8 @@ def config_from_mapping(values: Mapping[str, Any]) -> Bms16StdConfig:
 def config_payloads(cfg: Bms16StdConfig) -> list[bytes]:
     """Return the payloads of IDs 32..35: 32 slots, the unused ones 0 (EncodeRangeError)."""
     slots = bytearray(SLOTS)
-    for name, _, slot, scale, offset, _, _, _, _ in _LINEAR:
-        value = check_config_value(name, getattr(cfg, name))
-        slots[slot] = int(round((value - offset) / scale))
-    slots[_SHUNT_SLOT] = SHUNT_SIZES_A.index(check_config_value('shunt_size_a',
-                                                                cfg.shunt_size_a))
-    mode = check_config_value('balance_mode', cfg.balance_mode)
-    if mode == 'static':
-        balance = check_config_value('balance_v', cfg.balance_v)
-        slots[_BALANCE_SLOT] = int(round((balance - 2.0) / 0.01))
-    else:
-        slots[_BALANCE_SLOT] = BALANCE_DYNAMIC if mode == 'dynamic' else BALANCE_OFF
+    pack_slots(_LINEAR, slots, cfg, check_config_value)
+    slots[_SHUNT_SLOT] = shunt_code('shunt_size_a', cfg.shunt_size_a)
     for name, slot, _ in _BOOLS:
         slots[slot] = int(check_config_value(name, getattr(cfg, name)))
     return [bytes(slots[8 * k:8 * k + 8]) for k in range(4)]
@@ -207,20 +163,10 @@ def decode_config(payloads: list[bytes]) -> dict[str, Any]:
     slots = b''.join(payloads)
     if len(slots) != SLOTS:
         raise BadConfigBytes(f'{len(slots)} setting bytes, expected {SLOTS}')
-    values: dict[str, Any] = {}
-    for name, typ, slot, scale, offset, rlo, rhi, _, _ in _LINEAR:
-        if not rlo <= slots[slot] <= rhi:
-            raise BadConfigBytes(f'{name} raw {slots[slot]} outside {rlo}..{rhi}')
-        values[name] = _phys(typ, scale, offset, slots[slot])
+    values = unpack_slots(_LINEAR, slots, 0, BadConfigBytes)
     if slots[_SHUNT_SLOT] >= len(SHUNT_SIZES_A):
         raise BadConfigBytes(f'shunt size code {slots[_SHUNT_SLOT]} outside 0..3')
     values['shunt_size_a'] = SHUNT_SIZES_A[slots[_SHUNT_SLOT]]
-    raw = slots[_BALANCE_SLOT]
-    if raw > BALANCE_OFF:
-        raise BadConfigBytes(f'balance voltage raw {raw} outside 0..252')
-    values['balance_mode'] = ('dynamic' if raw == BALANCE_DYNAMIC else
-                              'off' if raw == BALANCE_OFF else 'static')
-    values['balance_v'] = round(2.0 + raw * 0.01, 2) if raw <= 250 else None
     for name, slot, _ in _BOOLS:
         values[name] = bool(slots[slot])
     return values

@@ -146,6 +146,9 @@ _E_CELLS = LAYOUTS['BMS12_M0_Cells1to4'].encoder()
 # the EVMS3 and the Monitor skip 0.
 _D_TEMPS = LAYOUTS['BMS12_M0_Temperatures'].decoder()
 _E_TEMPS = LAYOUTS['BMS12_M0_Temperatures'].encoder()
+# IDs 36 and 56: a nibble per BMS12 module (the configuration table, protocols.evms3_config)
+_D_CELL_NUMBERS = config_layouts()[4].decoder()
+_E_CELL_NUMBERS = config_layouts()[4].encoder()
 
 
 @functools.cache
@@ -413,7 +416,7 @@ class Evms3Codec:
 
     def _decode_cell_numbers(self, aid: int, data: bytes) -> BmsCellNumbers:
         check_dlc(aid, data, 8)
-        cells = tuple((data[m >> 1] >> (4 * (m & 1))) & 0x0F for m in range(16))
+        cells = _D_CELL_NUMBERS(data)
         for m, n in enumerate(cells):
             if 0 < n < CELLS_MIN or n > CELLS_MAX:  # 13..15 overrun the firmware's arrays
                 raise MalformedFrameError(aid, data, f'module {m}: {n} cells (0 or '
@@ -479,8 +482,7 @@ class Evms3Codec:
             return self.config_frames(cfg)[msg.part - 1]
         if isinstance(msg, BmsCellNumbers):
             cells = check_config_value('cells_per_module', msg.cells_per_module)
-            return self._frame(CELL_NUMBERS, bytes(
-                cells[2 * n] | cells[2 * n + 1] << 4 for n in range(8)))
+            return self._frame(CELL_NUMBERS, _E_CELL_NUMBERS(*cells))
         if isinstance(msg, AcknowledgeError):
             _check_int('error', msg.error, 0, 16)
             return self._frame(ACK_ERROR, bytes([int(msg.error)]))

@@ -15,8 +15,8 @@ name here.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
-from typing import Any, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field, fields, replace
+from typing import Any, Callable, Iterable, Mapping, Sequence
 
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols.common import (
@@ -179,39 +179,41 @@ class ConfigReadback:
 
 
 # --- configuration table ----------------------------------------------------------------------
-# Plain byte fields: (name, type, packet 0..3, byte, scale, offset, raw low, raw high, unit, what)
-_LINEAR = (
-    ('pack_capacity_ah', int, 0, 0, 5, 0, 1, 250, 'Ah', 'pack capacity'),
-    ('soc_warning_pct', int, 0, 1, 1, 0, 0, 99, '%', 'state of charge warning level'),
-    ('full_voltage_v', int, 0, 2, 2, 0, 5, 251, 'V', 'pack voltage that counts as full'),
-    ('warn_current_a', int, 0, 3, 10, 0, 1, 121, 'A', 'overcurrent warning threshold'),
-    ('trip_current_a', int, 0, 4, 10, 0, 1, 121, 'A', 'overcurrent shutdown threshold'),
-    ('temp_warning_c', int, 0, 5, 1, 0, 0, 151, 'degC', 'EVMS temperature warning'),
-    ('min_aux_voltage_v', int, 0, 6, 1, 0, 8, 16, 'V', 'minimum 12 V (aux) voltage'),
-    ('min_isolation_pct', int, 0, 7, 1, 0, 0, 99, '%', 'minimum isolation integrity'),
-    ('tacho_ppr', int, 1, 0, 1, 0, 1, 6, '', 'tachometer pulses per revolution'),
-    ('fuel_gauge_full_pct', int, 1, 1, 1, 0, 0, 100, '%', 'fuel gauge output when full'),
-    ('fuel_gauge_empty_pct', int, 1, 2, 1, 0, 0, 100, '%', 'fuel gauge output when empty'),
-    ('temp_gauge_hot_pct', int, 1, 3, 1, 0, 0, 100, '%', 'temperature gauge output hot'),
-    ('temp_gauge_cold_pct', int, 1, 4, 1, 0, 0, 100, '%', 'temperature gauge output cold'),
-    ('bms_min_cell_v', float, 1, 5, 0.01, 1.5, 0, 250, 'V', 'BMS minimum cell voltage'),
-    ('bms_max_cell_v', float, 1, 6, 0.01, 2.0, 0, 250, 'V', 'BMS maximum cell voltage'),
-    ('bms_hysteresis_v', float, 2, 0, 0.01, 0, 0, 50, 'V', 'BMS hysteresis'),
-    ('bms_min_temp_c', int, 2, 1, 1, -40, 0, 141, 'degC', 'BMS minimum temperature'),
-    ('bms_max_temp_c', int, 2, 2, 1, -40, 0, 141, 'degC', 'BMS maximum temperature'),
-    ('sleep_delay_min', int, 2, 7, 1, 0, 1, 6, 'min', 'sleep delay'),
-    ('mpi_function', int, 3, 0, 1, 0, 0, 3, '', 'MPI function (EVMS3 manual order)'),
-    ('mpo1_function', int, 3, 1, 1, 0, 0, 6, '', 'MPO1 function (EVMS3 manual order)'),
-    ('mpo2_function', int, 3, 2, 1, 0, 0, 6, '', 'MPO2 function (EVMS3 manual order)'),
-    ('parallel_strings', int, 3, 3, 1, 0, 1, 20, '', 'parallel strings'),
-    ('night_brightness', int, 3, 7, 1, 0, 0, 10, '', 'Monitor night brightness, x 10 %'),
+# The setting slots of IDs 32..35 (byte 8 * packet + byte), one table format shared with the
+# BMS16 standard form (protocols.bms16_std), which gives several slots other meanings.
+# Linear slots: (name, type, slot, scale, offset, raw low, raw high, unit, what).
+SlotRow = tuple[str, type, int, float, float, int, int, str, str]
+_LINEAR: tuple[SlotRow, ...] = (
+    ('pack_capacity_ah', int, 0, 5, 0, 1, 250, 'Ah', 'pack capacity'),
+    ('soc_warning_pct', int, 1, 1, 0, 0, 99, '%', 'state of charge warning level'),
+    ('full_voltage_v', int, 2, 2, 0, 5, 251, 'V', 'pack voltage that counts as full'),
+    ('warn_current_a', int, 3, 10, 0, 1, 121, 'A', 'overcurrent warning threshold'),
+    ('trip_current_a', int, 4, 10, 0, 1, 121, 'A', 'overcurrent shutdown threshold'),
+    ('temp_warning_c', int, 5, 1, 0, 0, 151, 'degC', 'EVMS temperature warning'),
+    ('min_aux_voltage_v', int, 6, 1, 0, 8, 16, 'V', 'minimum 12 V (aux) voltage'),
+    ('min_isolation_pct', int, 7, 1, 0, 0, 99, '%', 'minimum isolation integrity'),
+    ('tacho_ppr', int, 8, 1, 0, 1, 6, '', 'tachometer pulses per revolution'),
+    ('fuel_gauge_full_pct', int, 9, 1, 0, 0, 100, '%', 'fuel gauge output when full'),
+    ('fuel_gauge_empty_pct', int, 10, 1, 0, 0, 100, '%', 'fuel gauge output when empty'),
+    ('temp_gauge_hot_pct', int, 11, 1, 0, 0, 100, '%', 'temperature gauge output hot'),
+    ('temp_gauge_cold_pct', int, 12, 1, 0, 0, 100, '%', 'temperature gauge output cold'),
+    ('bms_min_cell_v', float, 13, 0.01, 1.5, 0, 250, 'V', 'BMS minimum cell voltage'),
+    ('bms_max_cell_v', float, 14, 0.01, 2.0, 0, 250, 'V', 'BMS maximum cell voltage'),
+    ('bms_hysteresis_v', float, 16, 0.01, 0, 0, 50, 'V', 'BMS hysteresis'),
+    ('bms_min_temp_c', int, 17, 1, -40, 0, 141, 'degC', 'BMS minimum temperature'),
+    ('bms_max_temp_c', int, 18, 1, -40, 0, 141, 'degC', 'BMS maximum temperature'),
+    ('sleep_delay_min', int, 23, 1, 0, 1, 6, 'min', 'sleep delay'),
+    ('mpi_function', int, 24, 1, 0, 0, 3, '', 'MPI function (EVMS3 manual order)'),
+    ('mpo1_function', int, 25, 1, 0, 0, 6, '', 'MPO1 function (EVMS3 manual order)'),
+    ('mpo2_function', int, 26, 1, 0, 0, 6, '', 'MPO2 function (EVMS3 manual order)'),
+    ('parallel_strings', int, 27, 1, 0, 1, 20, '', 'parallel strings'),
+    ('night_brightness', int, 31, 1, 0, 0, 10, '', 'Monitor night brightness, x 10 %'),
 )
-_LINEAR_BY_NAME = {row[0]: row for row in _LINEAR}
-# 9-bit voltage (low byte + bit 7 of the current byte) and 7-bit current, packet 3 bytes 3..6
-_CHARGE = (('max_charge_voltage_v', 'max_charge_current_a', 3),
-           ('alt_charge_voltage_v', 'alt_charge_current_a', 5))
-_BOOLS = (('enable_precharge', 4), ('stationary_mode', 5),
-          ('reverse_current_display', 6))  # packet 4 (ID 35)
+BALANCE_SLOT = 15
+# 9-bit voltage (low byte + bit 7 of the current byte) and 7-bit current, slots 19..22
+_CHARGE = (('max_charge_voltage_v', 'max_charge_current_a', 19),
+           ('alt_charge_voltage_v', 'alt_charge_current_a', 21))
+_BOOLS = (('enable_precharge', 28), ('stationary_mode', 29), ('reverse_current_display', 30))
 BALANCE_MODES = ('static', 'dynamic', 'off')
 # The name msg_defs/evms3.dbc gives each setting byte of _LINEAR and _BOOLS.
 _DBC_NAMES = dict(zip(
@@ -235,47 +237,105 @@ def config_layouts() -> list[Layout]:
           offset: float = 0) -> Signal:
         return Signal(name, start, length, LITTLE, False, scale, offset)
     packets: list[list[Signal]] = [[] for _ in range(4)]
-    for name, _, packet, byte, scale, offset, *_ in _LINEAR:
-        packets[packet].append(u(_DBC_NAMES[name], 8 * byte, scale=scale, offset=offset))
+    for name, _, slot, scale, offset, *_ in _LINEAR:
+        packets[slot // 8].append(u(_DBC_NAMES[name], 8 * (slot % 8), scale=scale,
+                                    offset=offset))
     packets[1].append(u('BalanceVoltage', 56, scale=0.01, offset=2.0))
-    for (volt, _, byte), prefix in zip(_CHARGE, ('Max', 'Alt')):
-        packets[2] += [u(f'{prefix}ChargeVoltageLow', 8 * byte),
-                       u(f'{prefix}ChargeCurrent', 8 * byte + 8, 7),
-                       u(f'{prefix}ChargeVoltageBit8', 8 * byte + 15, 1, 256)]
-    packets[3] += [u(_DBC_NAMES[name], 8 * byte) for name, byte in _BOOLS]
+    for (_, _, slot), prefix in zip(_CHARGE, ('Max', 'Alt')):
+        packets[2] += [u(f'{prefix}ChargeVoltageLow', 8 * (slot % 8)),
+                       u(f'{prefix}ChargeCurrent', 8 * (slot % 8) + 8, 7),
+                       u(f'{prefix}ChargeVoltageBit8', 8 * (slot % 8) + 15, 1, 256)]
+    packets[3] += [u(_DBC_NAMES[name], 8 * (slot % 8)) for name, slot in _BOOLS]
     cells = [u(f'Module{m}Cells', 4 * m, 4) for m in range(BMS12_MAX_MODULES)]
     return [Layout(f'EVMS3_Config{k + 1}', 8, tuple(signals))
             for k, signals in enumerate(packets)] + [Layout('EVMS3_BmsCellNumbers', 8,
                                                             tuple(cells))]
 
 
-def _linear_field(row: tuple) -> ConfigField:
-    name, typ, _, _, scale, offset, rlo, rhi, unit, what = row
-    low, high = _phys(typ, scale, offset, rlo), _phys(typ, scale, offset, rhi)
-    text = f'{what} ({low:g}..{high:g} {unit})'.replace(' )', ')')
-    if name in SENTINELS:
-        value, word = SENTINELS[name]
-        text = text[:-1] + f'; {value} = {word})'
-    if name in _SCALED:  # declared wide enough for both builds; the device checks its own
-        high = _phys(typ, scale * 2, offset, rhi)
-        text = text[:-1] + '; x 2 with voltage_multiplier 2)'
-    return ConfigField(name, typ, low, high, scale, unit, text)
-
-
+# --- the slot codec, shared with protocols.bms16_std -------------------------------------------
 def _phys(typ: type, scale: float, offset: float, raw: int) -> float:
-    if typ is int:
-        return int(raw * scale + offset)
-    return round(raw * scale + offset, 6)
+    return int(raw * scale + offset) if typ is int else round(raw * scale + offset, 6)
+
+
+def slot_field(row: SlotRow) -> ConfigField:
+    """Return the ConfigField of a linear slot: its physical range, step and description."""
+    name, typ, _, scale, offset, rlo, rhi, unit, what = row
+    low, high = _phys(typ, scale, offset, rlo), _phys(typ, scale, offset, rhi)
+    return ConfigField(name, typ, low, high, scale, unit,
+                       f'{what} ({low:g}..{high:g} {unit})'.replace(' )', ')'))
+
+
+BALANCE_FIELDS = (
+    ConfigField('balance_v', float, 2.0, 4.5, 0.01, 'V',
+                'static balance voltage (2.00..4.50 V), used only when balance_mode is static'),
+    ConfigField('balance_mode', str, description='balancing: static (at balance_v), dynamic '
+                'or off', choices=BALANCE_MODES))
+
+
+def check_field(spec: ConfigField | None, name: str, value: Any,
+                known: Iterable[str]) -> Any:
+    """Validate a bool, choice or number setting; return it normalized (EncodeRangeError)."""
+    if spec is None:
+        raise EncodeRangeError(name, value, 'one of ' + ', '.join(known))
+    if spec.type is bool:
+        if isinstance(value, bool) or (isinstance(value, int) and value in (0, 1)):
+            return bool(value)
+        raise EncodeRangeError(name, value, 'true or false')
+    if spec.type is str:
+        if value not in spec.choices:
+            raise EncodeRangeError(name, value, 'one of ' + ', '.join(spec.choices))
+        return value
+    number = check_value(name, value, spec.low, spec.high, spec.step, spec.unit)
+    return int(round(number)) if spec.type is int else round(float(number), 6)
+
+
+def pack_slots(rows: Iterable[SlotRow], slots: bytearray, values: Any,
+               check: Callable[[str, Any], Any], multiplier: int = 1,
+               check_unused_balance: bool = False) -> None:
+    """Write the linear slots and then the balance byte of values (checked) into slots."""
+    for name, _, slot, scale, offset, *_ in rows:
+        value = check(name, getattr(values, name))
+        slots[slot] = round((value - offset) / (scale * (multiplier if name in _SCALED
+                                                         else 1)))
+    mode = check('balance_mode', values.balance_mode)
+    if mode == 'static' or (check_unused_balance and values.balance_v is not None):
+        balance = check('balance_v', values.balance_v)
+    slots[BALANCE_SLOT] = (BALANCE_DYNAMIC if mode == 'dynamic' else BALANCE_OFF
+                           if mode == 'off' else round((balance - 2.0) / 0.01))
+
+
+def unpack_slots(rows: Iterable[SlotRow], data: bytes, first: int,
+                 fail: Callable[[str], Exception], multiplier: int = 1) -> dict[str, Any]:
+    """Read the linear slots (and the balance byte) in data, slot first..; fail(why) if bad."""
+    values: dict[str, Any] = {}
+    for name, typ, slot, scale, offset, rlo, rhi, _, _ in rows:
+        if first <= slot < first + len(data):
+            raw = data[slot - first]
+            if not rlo <= raw <= rhi:
+                raise fail(f'{name} raw {raw} outside {rlo}..{rhi}')
+            values[name] = _phys(typ, scale * (multiplier if name in _SCALED else 1),
+                                 offset, raw)
+    if first <= BALANCE_SLOT < first + len(data):
+        raw = data[BALANCE_SLOT - first]
+        if raw > BALANCE_OFF:
+            raise fail(f'balance voltage raw {raw} outside 0..252')
+        values['balance_mode'] = ('dynamic' if raw == BALANCE_DYNAMIC else
+                                  'off' if raw == BALANCE_OFF else 'static')
+        values['balance_v'] = round(2.0 + raw * 0.01, 2) if raw <= 250 else None
+    return values
 
 
 def _build_fields() -> tuple[ConfigField, ...]:
-    by_name = {row[0]: _linear_field(row) for row in _LINEAR}
-    by_name['balance_v'] = ConfigField(
-        'balance_v', float, 2.0, 4.5, 0.01, 'V',
-        'static balance voltage (2.00..4.50 V), used only when balance_mode is static')
-    by_name['balance_mode'] = ConfigField(
-        'balance_mode', str, description='balancing: static (at balance_v), dynamic or off',
-        choices=BALANCE_MODES)
+    by_name = {f.name: f for f in BALANCE_FIELDS}
+    for row in _LINEAR:
+        spec = slot_field(row)
+        if row[0] in SENTINELS:
+            value, word = SENTINELS[row[0]]
+            spec = replace(spec, description=spec.description[:-1] + f'; {value} = {word})')
+        if row[0] in _SCALED:  # declared wide enough for both builds; the device checks its own
+            spec = replace(spec, high=_phys(row[1], row[3] * 2, row[4], row[6]),
+                           description=spec.description[:-1] + '; x 2 with voltage_multiplier 2)')
+        by_name[row[0]] = spec
     for volt, amp, _ in _CHARGE:
         kind = volt.split('_')[0]
         by_name[volt] = ConfigField(volt, int, 0, 1022, 1, 'V', f'{kind} charge voltage '
@@ -308,30 +368,20 @@ def check_config_value(name: str, value: Any, multiplier: int = 1) -> Any:
     is the EVMS build's PACK_VOLTAGE_MULTIPLIER (1 or 2): full and charge voltages scale.
     """
     spec = _FIELD_BY_NAME.get(name)
-    if spec is None:
-        raise EncodeRangeError(name, value, 'one of ' + ', '.join(_FIELD_BY_NAME))
-    if spec.type is bool:
-        if isinstance(value, bool) or (isinstance(value, int) and value in (0, 1)):
-            return bool(value)
-        raise EncodeRangeError(name, value, 'true or false')
-    if spec.type is str:
-        if value not in spec.choices:
-            raise EncodeRangeError(name, value, 'one of ' + ', '.join(spec.choices))
-        return value
-    if spec.type == 'int[]':
+    if spec is not None and spec.type == 'int[]':
         allowed = f'{spec.length} integers, each 0 or {CELLS_MIN}..{CELLS_MAX}'
         if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) \
                 or len(value) != spec.length:
             raise EncodeRangeError(name, value, allowed)
-        cells = tuple(int(_number(f'{name}[{i}]', v, spec)) for i, v in enumerate(value))
+        cells = tuple(int(check_value(f'{name}[{i}]', v, 0, CELLS_MAX, 1))
+                      for i, v in enumerate(value))
         for i, n in enumerate(cells):
             if 0 < n < CELLS_MIN:
                 raise EncodeRangeError(f'{name}[{i}]', n, f'0 or {CELLS_MIN}..{CELLS_MAX}')
         return cells
-    if name in _SCALED:
+    if spec is not None and name in _SCALED:
         spec = _scaled(spec, multiplier)
-    number = _number(name, value, spec)
-    return int(round(number)) if spec.type is int else round(float(number), 6)
+    return check_field(spec, name, value, _FIELD_BY_NAME)
 
 
 def _scaled(spec: ConfigField, multiplier: int) -> ConfigField:
@@ -345,60 +395,37 @@ def _scaled(spec: ConfigField, multiplier: int) -> ConfigField:
     return ConfigField(spec.name, spec.type, low, high, step, spec.unit)
 
 
-def _number(name: str, value: Any, spec: ConfigField) -> float:
-    return check_value(name, value, spec.low, spec.high, spec.step, spec.unit)
-
-
 def config_payloads(cfg: Evms3Config, multiplier: int = 1) -> list[bytearray]:
     """Return the payloads of IDs 32..35 (EncodeRangeError names the first bad value)."""
-    out = [bytearray(8) for _ in range(4)]
-    for name, _, packet, byte, scale, offset, _, _, _, _ in _LINEAR:
-        value = check_config_value(name, getattr(cfg, name), multiplier)
-        if name in _SCALED:
-            scale *= multiplier
-        out[packet][byte] = int(round((value - offset) / scale))
-    mode = check_config_value('balance_mode', cfg.balance_mode)
-    if mode == 'static' or cfg.balance_v is not None:
-        balance = check_config_value('balance_v', cfg.balance_v)
-    out[1][7] = (BALANCE_DYNAMIC if mode == 'dynamic' else BALANCE_OFF if mode == 'off'
-                 else int(round((balance - 2.0) / 0.01)))
-    for volt, amp, byte in _CHARGE:
-        v = check_config_value(volt, getattr(cfg, volt), multiplier) // multiplier
-        a = check_config_value(amp, getattr(cfg, amp))
-        out[2][byte] = v & 0xFF
-        out[2][byte + 1] = a | (v >> 8) << 7
-    for name, byte in _BOOLS:
-        out[3][byte] = int(check_config_value(name, getattr(cfg, name)))
-    return out
+    def check(name: str, value: Any) -> Any:
+        return check_config_value(name, value, multiplier)
+    slots = bytearray(32)
+    pack_slots(_LINEAR, slots, cfg, check, multiplier, check_unused_balance=True)
+    for volt, amp, slot in _CHARGE:
+        v = check(volt, getattr(cfg, volt)) // multiplier
+        slots[slot] = v & 0xFF
+        slots[slot + 1] = check_config_value(amp, getattr(cfg, amp)) | (v >> 8) << 7
+    for name, slot in _BOOLS:
+        slots[slot] = int(check_config_value(name, getattr(cfg, name)))
+    return [slots[8 * k:8 * k + 8] for k in range(4)]
 
 
 def decode_config_packet(packet: int, aid: int, data: bytes,
                          multiplier: int = 1) -> Evms3ConfigPart:
     """Decode packet 0..3 (the layout of 32..35); MalformedFrameError for a raw value."""
-    values: dict[str, Any] = {}
-    for name, typ, pk, byte, scale, offset, rlo, rhi, _, _ in _LINEAR:
-        if pk != packet:
-            continue
-        raw = data[byte]
-        if not rlo <= raw <= rhi:
-            raise MalformedFrameError(aid, data, f'{name} raw {raw} outside {rlo}..{rhi}')
-        values[name] = _phys(typ, scale * (multiplier if name in _SCALED else 1), offset, raw)
-    if packet == 1:
-        raw = data[7]
-        if raw > BALANCE_OFF:
-            raise MalformedFrameError(aid, data, f'balance voltage raw {raw} outside 0..252')
-        values['balance_mode'] = ('dynamic' if raw == BALANCE_DYNAMIC else
-                                  'off' if raw == BALANCE_OFF else 'static')
-        values['balance_v'] = round(2.0 + raw * 0.01, 2) if raw <= 250 else None
-    elif packet == 2:
-        for volt, amp, byte in _CHARGE:
+    def fail(why: str) -> Exception:
+        return MalformedFrameError(aid, data, why)
+    values = unpack_slots(_LINEAR, data, 8 * packet, fail, multiplier)
+    for volt, amp, slot in _CHARGE:
+        if slot // 8 == packet:
+            byte = slot % 8
             values[volt] = (data[byte] | (data[byte + 1] >> 7) << 8) * multiplier
             values[amp] = data[byte + 1] & 0x7F
-    elif packet == 3:
-        for name, byte in _BOOLS:
-            if data[byte] > 1:
-                raise MalformedFrameError(aid, data, f'{name} raw {data[byte]}, expected 0 or 1')
-            values[name] = bool(data[byte])
+    for name, slot in _BOOLS:
+        if slot // 8 == packet:
+            if data[slot % 8] > 1:
+                raise fail(f'{name} raw {data[slot % 8]}, expected 0 or 1')
+            values[name] = bool(data[slot % 8])
     return Evms3ConfigPart(packet + 1, values)
 
 

@@ -238,12 +238,6 @@ class Layout:
         return _compile(f'def decode(data{args}):\n    return {result}\n', self.name,
                         'decode', {'into': into, 'head': head, **tables})
 
-    def reader(self, name: str, raw: bool = False) -> Callable[[bytes], Any]:
-        """Return ``read(data) -> value`` of one signal (no tuple: the hottest paths)."""
-        signal = next(s for s in self.signals if s.name == name)
-        return _compile(f'def read(data):\n    return {self._physical(signal, raw)}\n',
-                        self.name, 'read')
-
     def replace(self, name: str, **changes: Any) -> Layout:
         """Return this layout with one signal changed (a variant the DBC cannot describe)."""
         return dataclasses.replace(self, signals=tuple(

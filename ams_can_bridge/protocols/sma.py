@@ -46,7 +46,7 @@ from ams_can_bridge.protocols.common import (
 from ams_can_bridge.protocols.layout import Layout, LITTLE, Signal
 from ams_can_bridge.protocols.sma_dialects import (
     ascii_text, decode_dialect, DIALECT_DECODERS, DIALECT_IDS, DIALECT_LAYOUTS, DialectReading,
-    encode_ascii, encode_dialect)
+    encode_ascii, encode_dialect, pad_unsent)
 
 LIMITS_ID = 0x351
 SOC_ID = 0x355
@@ -243,12 +243,8 @@ LAYOUTS = {
 }
 _D = {i: LAYOUTS[i].decoder() for i in (LIMITS_ID, SOC_ID, BATTERY_ID, ALARMS_ID, INFO_ID)}
 _E = {i: LAYOUTS[i].encoder(exact=False) for i in (LIMITS_ID, SOC_ID, BATTERY_ID, INFO_ID)}
+_E_ALARMS = LAYOUTS[ALARMS_ID].encoder()
 _ONLINE = 16 + SMA_CONDITIONS.index(ONLINE_CONDITION)  # SystemOnline among the pairs
-
-
-def _full(data: bytes, length: int) -> bytes:
-    """Pad a frame cut short with 0xFF: the fields not sent read as "not available"."""
-    return data if len(data) >= length else bytes(data) + b'\xff' * (length - len(data))
 
 
 @functools.cache
@@ -288,13 +284,13 @@ class SmaCodec:
 
     @staticmethod
     def _limits(data: bytes) -> SmaLimits:
-        charge_v, charge_a, discharge_a, discharge_v = _D[LIMITS_ID](_full(data, 8))
+        charge_v, charge_a, discharge_a, discharge_v = _D[LIMITS_ID](pad_unsent(data, 8))
         return SmaLimits(charge_v, charge_a, discharge_a,
                          discharge_v or None)  # 0 = no limit sent, not 0 V
 
     @staticmethod
     def _soc(data: bytes) -> SmaSoc:
-        soc = SmaSoc(*_D[SOC_ID](_full(data, 6)))
+        soc = SmaSoc(*_D[SOC_ID](pad_unsent(data, 6)))
         # A state of charge above 100 % is no reading: it would publish percentage > 1.
         for name, value in (('SoC', soc.soc_pct), ('high-resolution SoC', soc.soc_hires_pct)):
             if value is not None and value > 100:
@@ -359,15 +355,14 @@ class SmaCodec:
             raise EncodeRangeError(f'sma.warnings.{ONLINE_CONDITION}',
                                    message.warnings[ONLINE_CONDITION],
                                    'NOT_SUPPORTED (byte 7 bits 2-3 carry SmaAlarms.online)')
-        data = bytearray(8)
-        for kind, flags, first in (('alarms', message.alarms, 0),
-                                   ('warnings', message.warnings, 4)):
-            for k, name in enumerate(SMA_CONDITIONS):
+        pairs = []
+        for kind, flags in (('alarms', message.alarms), ('warnings', message.warnings)):
+            for name in SMA_CONDITIONS:
                 flag = flags.get(name, SmaFlag.NOT_SUPPORTED)
                 if flag not in (0, 1, 2):
                     raise EncodeRangeError(f'sma.{kind}.{name}', flag,
                                            'SmaFlag NOT_SUPPORTED, ACTIVE or OK')
-                data[first + (k >> 2)] |= int(flag) << ((k & 3) << 1)
-        if message.online is not None:
-            data[ONLINE_BYTE] |= (2 if message.online else 1) << ONLINE_SHIFT
-        return bytes(data)
+                pairs.append(int(flag))
+        if message.online is not None:  # byte 7 bits 2-3 (ONLINE_BYTE, ONLINE_SHIFT)
+            pairs[_ONLINE] = 2 if message.online else 1
+        return _E_ALARMS(*pairs)

@@ -37,7 +37,7 @@ Decisions:
 """
 from __future__ import annotations
 
-from dataclasses import astuple, dataclass
+from dataclasses import astuple, dataclass, fields
 from typing import Callable, Union
 
 from ams_can_bridge.protocols.common import (
@@ -226,12 +226,7 @@ def _pylontech_alarms(aid: int, data: bytes) -> PylontechAlarms:
 
 
 def _pylontech_request(aid: int, data: bytes) -> PylontechRequest:
-    b0 = data[0]
-    return PylontechRequest(bool(b0 >> CHARGE_ENABLE_BIT & 1),
-                            bool(b0 >> DISCHARGE_ENABLE_BIT & 1),
-                            bool(b0 >> REQUEST_CHARGE_IMMEDIATELY_BIT & 1),
-                            bool(b0 >> FORCE_CHARGE_REQUEST_II_BIT & 1),
-                            bool(b0 >> FULL_CHARGE_REQUEST_BIT & 1))
+    return _D_REQUEST(data)
 
 
 def _bms_name(aid: int, data: bytes) -> VictronBmsName:
@@ -239,7 +234,7 @@ def _bms_name(aid: int, data: bytes) -> VictronBmsName:
 
 
 def _modules(aid: int, data: bytes) -> VictronModules:
-    return VictronModules(*_D[VICTRON_MODULES_ID](_full(data, 8)))
+    return VictronModules(*_D[VICTRON_MODULES_ID](pad_unsent(data, 8)))
 
 
 def _cell_extremes(aid: int, data: bytes) -> VictronCellExtremes:
@@ -260,7 +255,7 @@ def _cell_id(aid: int, data: bytes) -> VictronCellId:
 
 
 def _energy(aid: int, data: bytes) -> VictronEnergy:
-    return VictronEnergy(*_D[VICTRON_ENERGY_ID](_full(data, 8)))
+    return VictronEnergy(*_D[VICTRON_ENERGY_ID](pad_unsent(data, 8)))
 
 
 def _installed_capacity(aid: int, data: bytes) -> VictronInstalledCapacity:
@@ -303,11 +298,13 @@ DIALECT_LAYOUTS = {
         _u(f'{kind}_{_PYLONTECH_DBC_NAMES[name]}', first + 8 * byte + bit, 1)
         for kind, first in (('Alarm', 0), ('Warning', 16))
         for name, byte, bit in PYLONTECH_CONDITIONS) + (_u('ModuleCount', 32, 8),)),
-    PYLONTECH_REQUEST_ID: Layout('Pylontech_Request', 2, tuple(_u(name, bit, 1) for name, bit in (
-        ('FullChargeRequest', FULL_CHARGE_REQUEST_BIT),
-        ('ForceChargeRequestII', FORCE_CHARGE_REQUEST_II_BIT),
-        ('RequestChargeImmediately', REQUEST_CHARGE_IMMEDIATELY_BIT),
-        ('DischargeEnable', DISCHARGE_ENABLE_BIT), ('ChargeEnable', CHARGE_ENABLE_BIT)))),
+    PYLONTECH_REQUEST_ID: Layout('Pylontech_Request', 2, tuple(  # in PylontechRequest's order
+        Signal(name, bit, 1, LITTLE, field=f'sma.pylontech.{field.name}', flag=True)
+        for (name, bit), field in zip((
+            ('ChargeEnable', CHARGE_ENABLE_BIT), ('DischargeEnable', DISCHARGE_ENABLE_BIT),
+            ('RequestChargeImmediately', REQUEST_CHARGE_IMMEDIATELY_BIT),
+            ('ForceChargeRequestII', FORCE_CHARGE_REQUEST_II_BIT),
+            ('FullChargeRequest', FULL_CHARGE_REQUEST_BIT)), fields(PylontechRequest)))),
     VICTRON_BMS_NAME1_ID: Layout('Victron_BmsName1', 8, (_u('BmsName1', 0, 64),)),
     VICTRON_BMS_NAME2_ID: Layout('Victron_BmsName2', 8, (_u('BmsName2', 0, 64),)),
     VICTRON_MODULES_ID: Layout('Victron_Modules', 8, tuple(
@@ -339,9 +336,13 @@ _NUMBERS = (VICTRON_MODULES_ID, VICTRON_CELL_EXTREMES_ID, VICTRON_ENERGY_ID,
 _D = {i: DIALECT_LAYOUTS[i].decoder() for i in _NUMBERS}
 _D_RAW = DIALECT_LAYOUTS[VICTRON_CELL_EXTREMES_ID].decoder(raw=True)  # mV, K to compare
 _E = {i: DIALECT_LAYOUTS[i].encoder(exact=False) for i in _NUMBERS}
+_E_ALARMS = DIALECT_LAYOUTS[PYLONTECH_ALARMS_ID].encoder()  # alarms, warnings, module count
+_D_REQUEST = DIALECT_LAYOUTS[PYLONTECH_REQUEST_ID].decoder(into=PylontechRequest)
+_E_REQUEST = DIALECT_LAYOUTS[PYLONTECH_REQUEST_ID].encoder()
 
 
-def _full(data: bytes, length: int) -> bytes:
+def pad_unsent(data: bytes, length: int) -> bytes:
+    """Pad a frame cut short with 0xFF: the fields not sent read as "not available"."""
     return data if len(data) >= length else bytes(data) + b'\xff' * (length - len(data))
 
 
@@ -376,24 +377,16 @@ _ENCODED = {VictronModules: VICTRON_MODULES_ID, VictronCellExtremes: VICTRON_CEL
 def encode_dialect(message: DialectReading) -> Frame:
     """Encode a dialect message; EncodeRangeError names what the wire cannot carry."""
     if isinstance(message, PylontechAlarms):
-        data = bytearray(8)
-        for first, kind in ((0, 'alarms'), (2, 'warnings')):
-            active = _names(f'sma.pylontech.{kind}', getattr(message, kind))
-            for name, byte, bit in PYLONTECH_CONDITIONS:
-                if name in active:
-                    data[first + byte] |= 1 << bit
-        if message.module_count is not None:
-            data[4] = check_value('sma.pylontech.module_count', message.module_count, 0, 255,
-                                  integer=True)
-        return Frame(PYLONTECH_ALARMS_ID, bytes(data if message.module_count is not None
-                                                else data[:4]))
+        active = [_names(f'sma.pylontech.{kind}', getattr(message, kind))
+                  for kind in ('alarms', 'warnings')]
+        count = message.module_count
+        if count is not None:
+            count = check_value('sma.pylontech.module_count', count, 0, 255, integer=True)
+        data = _E_ALARMS(*(int(name in names) for names in active
+                           for name, _, _ in PYLONTECH_CONDITIONS), count or 0)
+        return Frame(PYLONTECH_ALARMS_ID, data if count is not None else data[:4])
     if isinstance(message, PylontechRequest):
-        b0 = (message.charge_enable << CHARGE_ENABLE_BIT
-              | message.discharge_enable << DISCHARGE_ENABLE_BIT
-              | message.request_charge_immediately << REQUEST_CHARGE_IMMEDIATELY_BIT
-              | message.force_charge_request_ii << FORCE_CHARGE_REQUEST_II_BIT
-              | message.full_charge_request << FULL_CHARGE_REQUEST_BIT)
-        return Frame(PYLONTECH_REQUEST_ID, bytes([b0, 0]))
+        return Frame(PYLONTECH_REQUEST_ID, _E_REQUEST(*astuple(message)))
     if isinstance(message, VictronBmsName):
         if message.part not in (1, 2):
             raise EncodeRangeError('sma.victron.bms_name.part', message.part, '1 or 2')
