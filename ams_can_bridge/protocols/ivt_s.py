@@ -194,7 +194,6 @@ class IvtSCodec:
         self.arbitration_ids = frozenset(base_id + k for k in IvtMux)
         self.result_ids = {kind: base_id + kind for kind in IvtMux}
         layouts = LAYOUTS if byte_order == 'big' else LITTLE_LAYOUTS
-        # The value's bits are the same in every result: one generated reader serves all.
         # decode, generated with the value's bits inline (the bus thread's hottest call):
         # the instance attribute takes the place of the method above.
         self.decode = _DECODERS[byte_order].__get__(self)
