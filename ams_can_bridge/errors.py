@@ -136,7 +136,8 @@ class LogFileError(AmsCanBridgeError):
     """
     A CAN log that cannot be read at all: missing, unreadable, or a format python-can lacks.
 
-    Raised by ``offline/log_frames.py``; ``log2bag`` prints it and exits 2.
+    Raised by ``offline/log_frames.py`` (``log2bag`` prints it and exits 2) and by the
+    replay interface (``can_io/replay.py``), whose receive thread reports it as the bus error.
     """
 
 

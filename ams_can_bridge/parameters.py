@@ -12,7 +12,7 @@ import math
 from typing import Any, Iterable
 
 from ams_can_bridge.devices.base import ParamSpec
-from ams_can_bridge.errors import EncodeRangeError, ParamError
+from ams_can_bridge.errors import ConfigError, EncodeRangeError, ParamError
 from ams_can_bridge.protocols.common import ConfigField
 from ams_can_bridge.protocols.layout import check_value
 
@@ -175,8 +175,8 @@ def launch_parameters(params_file: str, commands_allowed: str = '',
     for name, value in (('commands_allowed', commands_allowed), ('autostart', autostart)):
         text = value.strip().lower()
         if text not in ('', 'true', 'false'):
-            raise ValueError(f'{name}:={value!r}: use true or false, or leave it out to keep '
-                             'the params file value')
+            raise ConfigError(f'{name}:={value!r}: use true or false, or leave it out to keep '
+                              'the params file value')
         if text:
             given[name] = text == 'true'
     if given:

@@ -10,7 +10,7 @@ import can
 
 from ams_can_bridge.can_io.config import (
     BusConfig, BusState, BusStatus, DOWN_STATES, RETRY_STATES, UP_STATES)
-from ams_can_bridge.errors import CanIoError, CanSendError
+from ams_can_bridge.errors import CanIoError, CanSendError, ConfigError
 from ams_can_bridge.can_io.replay import ReplayBus
 from ams_can_bridge.can_io.slcan import open_bulk_slcan
 from ams_can_bridge.protocols.common import Frame
@@ -109,8 +109,8 @@ class CanIo:
             try:
                 self._recorder = can.Logger(self.config.record)
             except Exception as exc:
-                raise ValueError(f'can.record = {self.config.record!r}: cannot record there: '
-                                 f'{exc}') from exc
+                raise ConfigError(f'can.record = {self.config.record!r}: cannot record there: '
+                                  f'{exc}') from exc
         self._stop.clear()
         self._set_state(BusState.CONNECTING, '')
         self._thread = threading.Thread(target=self._run, name='can_io-rx', daemon=True)

@@ -300,7 +300,7 @@ class BridgeNode(LifecycleNode):
         # install, and the error says so (test_sim_runner.py::test_registry_paths_all_import)
         cls = registry.load(path)
         if not (isinstance(cls, type) and issubclass(cls, Commander)):
-            raise TypeError(f'{path} is not a Commander (ams_can_bridge.ros.commander)')
+            raise ConfigError(f'{path} is not a Commander (ams_can_bridge.ros.commander)')
         self.commanders[name] = cls(self.gate, device, name, self)
 
     def _log_summary(self) -> None:

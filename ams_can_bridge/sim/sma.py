@@ -29,6 +29,7 @@ from __future__ import annotations
 import random
 from typing import Callable
 
+from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.sma import (
     SMA_CONDITIONS, SmaAlarms, SmaBattery, SmaBatteryInfo, SmaCodec, SmaFlag, SmaLimits,
@@ -61,8 +62,8 @@ def _names(value: object) -> set[str]:
     names = {value} if isinstance(value, str) else set(value)
     unknown = names - set(SMA_CONDITIONS)
     if unknown:
-        raise ValueError(f'unknown SMA condition(s) {sorted(unknown)}: use '
-                         + ', '.join(SMA_CONDITIONS))
+        raise ConfigError(f'unknown SMA condition(s) {sorted(unknown)}: use '
+                          + ', '.join(SMA_CONDITIONS))
     return names
 
 
@@ -80,13 +81,13 @@ class SmaSimulator(SimDevice):
                  soc_layout: str = 'sma') -> None:
         super().__init__(name)
         if dialect not in DIALECTS:
-            raise ValueError(f'SMA dialect {dialect!r}: use one of ' + ', '.join(DIALECTS))
+            raise ConfigError(f'SMA dialect {dialect!r}: use one of ' + ', '.join(DIALECTS))
         if soc_layout not in SOC_LAYOUTS:
-            raise ValueError(f'SMA 0x355 layout {soc_layout!r}: use one of '
-                             + ', '.join(SOC_LAYOUTS))
+            raise ConfigError(f'SMA 0x355 layout {soc_layout!r}: use one of '
+                              + ', '.join(SOC_LAYOUTS))
         self.soc_layout = soc_layout
         if not 1 <= len(bms_name) <= 16:
-            raise ValueError(f'bms_name {bms_name!r}: 1..16 ASCII characters (0x370 + 0x371)')
+            raise ConfigError(f'bms_name {bms_name!r}: 1..16 ASCII characters (0x370 + 0x371)')
         self.dialect = dialect
         self.bms_name = bms_name
         rng = random.Random(seed)
