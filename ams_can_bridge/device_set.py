@@ -17,8 +17,9 @@ import time
 from typing import Any, Callable, Collection, Iterable, Mapping
 
 from ams_can_bridge import registry
-from ams_can_bridge.devices.base import Device, device_params, ParamSpec
+from ams_can_bridge.devices.base import Device, device_params
 from ams_can_bridge.errors import ConfigError, ParamError
+from ams_can_bridge.parameters import ParamSpec
 from ams_can_bridge.protocols.sma import SMA_IDS
 
 Declare = Callable[[str, ParamSpec], Any]

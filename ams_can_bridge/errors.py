@@ -20,9 +20,8 @@ The hierarchy::
      +-- RefusedCommand                     a service call refused before any frame is sent
      +-- LogFileError                       a CAN log that cannot be read at all
 
-The older import places stay valid: ``protocols.common`` (ProtocolError,
-MalformedFrameError, EncodeRangeError), ``can_io`` (CanSendError) and
-``offline.log_frames`` (LogFileError) re-export these classes.
+``protocols.common`` imports ProtocolError, MalformedFrameError and EncodeRangeError for
+the protocol modules, which import them from there.
 
 No rclpy and no python-can here: protocol code imports this module.
 """

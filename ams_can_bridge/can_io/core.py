@@ -8,8 +8,9 @@ from typing import Callable
 
 import can
 
-from ams_can_bridge.can_io.config import (
-    BusConfig, BusState, BusStatus, DOWN_STATES, RETRY_STATES, UP_STATES)
+from ams_can_bridge.bus_state import (
+    BusState, BusStatus, DOWN_STATES, RETRY_STATES, UP_STATES)
+from ams_can_bridge.can_io.config import BusConfig
 from ams_can_bridge.errors import CanIoError, CanSendError, ConfigError
 from ams_can_bridge.can_io.replay import ReplayBus
 from ams_can_bridge.can_io.slcan import open_bulk_slcan

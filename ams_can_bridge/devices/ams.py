@@ -31,11 +31,12 @@ from typing import Any, Callable, Iterable, Mapping
 from ams_can_bridge.devices.ams_charger import ChargerRepeater
 from ams_can_bridge.devices.ams_master import AmsMaster, AmsView
 from ams_can_bridge.devices.base import (
-    BatteryReport, current_status, DiagnosticReport, Device, Level, ParamSpec,
-    PowerSupplyHealth, PowerSupplyStatus)
+    BatteryReport, current_status, DiagnosticReport, Device, Level, PowerSupplyHealth,
+    PowerSupplyStatus)
 from ams_can_bridge.devices.ams_values import diagnostic_values
 from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.timed import CounterHealth, TimedSpans, TimedStore
+from ams_can_bridge.parameters import ParamSpec
 from ams_can_bridge.protocols import ams as proto
 from ams_can_bridge.errors import ParamError, RefusedCommand
 from ams_can_bridge.protocols.ams import AmsCodec, AmsError, AmsState

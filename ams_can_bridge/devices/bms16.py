@@ -16,13 +16,12 @@ import time
 from typing import Any, Callable, Iterable, Mapping
 
 from ams_can_bridge.devices.base import (
-    BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, ParamSpec,
-    PowerSupplyHealth)
+    BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyHealth)
 from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
 from ams_can_bridge.devices.sma import sma_values
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
 from ams_can_bridge.errors import ParamError
-from ams_can_bridge.parameters import config_param_specs
+from ams_can_bridge.parameters import config_param_specs, ParamSpec
 from ams_can_bridge.protocols import bms16 as bms16_proto
 from ams_can_bridge.protocols.bms16 import (
     BMS16_WARNINGS, Bms16Cells, Bms16Codec, Bms16Config, Bms16Error, Bms16Status, CELL_FRAME_COUNT,

@@ -15,13 +15,12 @@ import time
 from typing import Any, Callable, Iterable, Mapping
 
 from ams_can_bridge.devices.base import (
-    BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, ParamSpec,
-    PowerSupplyStatus)
+    BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyStatus)
 from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
 from ams_can_bridge.devices.evms3 import error_health, error_text
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
 from ams_can_bridge.errors import RefusedCommand
-from ams_can_bridge.parameters import config_param_specs
+from ams_can_bridge.parameters import config_param_specs, ParamSpec
 from ams_can_bridge.protocols import bms16_std as proto
 from ams_can_bridge.protocols.bms16_std import (
     Bms16StdCodec, Bms16StdStatus, CELLS_PER_MODULE, CONFIG_GAP_S,

@@ -20,13 +20,14 @@ import time
 from typing import Any, Callable, Iterable, Mapping
 
 from ams_can_bridge.devices.base import (
-    BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, ParamSpec,
-    PowerSupplyHealth, PowerSupplyStatus)
+    BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyHealth,
+    PowerSupplyStatus)
 from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.dbc_mapping import (
     Array, Enum, load_plan, MappingError, Plan, Ref, Scalar)
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
 from ams_can_bridge.errors import ConfigError
+from ams_can_bridge.parameters import ParamSpec
 from ams_can_bridge.protocols.common import ProtocolError
 
 _LOG = logging.getLogger(__name__)

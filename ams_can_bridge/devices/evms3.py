@@ -23,14 +23,13 @@ import time
 from typing import Any, Callable, Iterable, Mapping
 
 from ams_can_bridge.devices.base import (
-    BatteryReport, current_status, DiagnosticReport, Device, Level, ParamSpec,
-    PowerSupplyStatus)
+    BatteryReport, current_status, DiagnosticReport, Device, Level, PowerSupplyStatus)
 from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
 from ams_can_bridge.devices.evms3_health import (  # noqa: F401 (error_* re-exported)
     error_health, error_text, STATIONARY_ACTIONS, WRITABLE_STATES)
 from ams_can_bridge.devices.evms3_readback import ConfigReader, ReadResult, Send
 from ams_can_bridge.devices.timed import NEVER, TimedSpans, TimedStore
-from ams_can_bridge.parameters import config_param_specs
+from ams_can_bridge.parameters import config_param_specs, ParamSpec
 from ams_can_bridge.protocols import evms3 as evms3_proto
 from ams_can_bridge.errors import ParamError, RefusedCommand
 from ams_can_bridge.protocols.common import Frame

@@ -30,11 +30,11 @@ import time
 from typing import Any, Callable, Hashable, Mapping
 
 from ams_can_bridge.devices.base import (
-    BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, ParamSpec,
-    PowerSupplyHealth)
+    BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyHealth)
 from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.sma_keepalive import InverterKeepalive, KEEPALIVE_PERIOD
 from ams_can_bridge.devices.timed import TimedStore
+from ams_can_bridge.parameters import ParamSpec
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.sma import (
     ALARMS_ID, BATTERY_ID, INFO_ID, LIMITS_ID, MANUFACTURER_ID, SmaAlarms, SmaBattery,

@@ -22,7 +22,7 @@ import time
 from typing import Callable, Protocol
 
 from ams_can_bridge import reports
-from ams_can_bridge.can_io.config import BusStatus
+from ams_can_bridge.bus_state import BusStatus
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.devices.base import BatteryReport, DiagnosticReport
 

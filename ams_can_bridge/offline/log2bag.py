@@ -29,12 +29,12 @@ import sys
 import time
 from typing import Any, Sequence, TextIO
 
-from ams_can_bridge.can_io.config import BusState, BusStatus
+from ams_can_bridge.bus_state import BusState, BusStatus
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.devices.base import BatteryReport
 from ams_can_bridge.engine.core import Arrays, Engine, Schedule, Statuses
-from ams_can_bridge.errors import ConfigError
-from ams_can_bridge.offline.log_frames import LogFileError, LogFrames
+from ams_can_bridge.errors import ConfigError, LogFileError
+from ams_can_bridge.offline.log_frames import LogFrames
 from ams_can_bridge.offline.params_file import FileParams, load_parameters
 from ams_can_bridge.parameters import BUS_PARAMS, NODE_PARAMS
 

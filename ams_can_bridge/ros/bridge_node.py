@@ -42,20 +42,20 @@ from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackRet
 from rclpy.parameter import Parameter
 
 from ams_can_bridge import registry
+from ams_can_bridge.bus_state import BusState, BusStatus
 from ams_can_bridge.can_io import BusConfig, CanIo, parse_options
-from ams_can_bridge.can_io.config import BusState, BusStatus
 from ams_can_bridge.can_io.core import STATE_CHANGE_FORMAT
 from ams_can_bridge.device_set import DeviceSet, unknown_parameter_errors
 from ams_can_bridge.devices.base import Device
 from ams_can_bridge.engine.core import Engine
 from ams_can_bridge.engine.gate import CommandGate
-from ams_can_bridge.errors import ConfigError
-from ams_can_bridge.parameters import AUTOSTART
+from ams_can_bridge.errors import ConfigError, ParamError
+from ams_can_bridge.parameters import AUTOSTART, BUS_PARAMS, NODE_PARAMS
 from ams_can_bridge.periodic import Periodic
 from ams_can_bridge.ros.bus_log import BusStateLog
 from ams_can_bridge.ros.commander import Commander
 from ams_can_bridge.ros.convert import format_ids, RosLogHandler
-from ams_can_bridge.ros.params import BUS_PARAMS, NODE_PARAMS, ParamError, ParamRegistry
+from ams_can_bridge.ros.params import ParamRegistry
 from ams_can_bridge.ros.sink import RosSink
 
 NODE_NAME = 'ams_can_bridge'
