@@ -55,7 +55,6 @@ NEVER = {
 }
 
 
-
 def layer_of(relative: PurePath) -> str:
     """Return the layer of a source file: its folder under the package, or its module name."""
     return relative.parts[0] if len(relative.parts) > 1 else relative.stem
