@@ -390,8 +390,8 @@ class AmsDevice(Device):
     def _error_text(self) -> str:
         return ', '.join(e.name for e in self._active_errors)
 
-    def _relays_text(self) -> str:
-        word = self._status.status
+    @staticmethod
+    def _relays_text(word: proto.AmsStatusWord) -> str:
         return ', '.join(f'{label} {"closed" if closed else "open"}' for label, closed in (
             ('AIR+', word.air_plus), ('AIR-', word.air_minus), ('precharge', word.precharge)))
 
@@ -431,7 +431,7 @@ class AmsDevice(Device):
         if status.soc_pct > 100:
             warnings.append(f'SOC {status.soc_pct} % out of range (shown as unknown)')
         level = Level.ERROR if errors else Level.WARN if warnings else Level.OK
-        message = '; '.join([f'{self.state.name}', self._relays_text()] + errors + warnings)
+        message = '; '.join([f'{self.state.name}', self._relays_text(word)] + errors + warnings)
         return DiagnosticReport(level, message, diagnostic_values(self) if with_values else {})
 
     def _fresh(self, kind: type) -> Any:

@@ -244,9 +244,11 @@ class AmsMaster:
                 if not self._alive(generation):
                     return
                 now = self._clock()
-                wait = self._schedule.due() - now
+                schedule = self._schedule
+                assert schedule is not None  # made by start() before the thread
+                wait = schedule.due() - now
                 if wait <= 0:
-                    self.stats.missed_slots += self._schedule.take(now)
+                    self.stats.missed_slots += schedule.take(now)
                     request = self._request
                     command = request.command if request else CarCommand.NO_COMMAND
                     bank_count, counter = self.bank_count, self.counter
@@ -280,6 +282,7 @@ class AmsMaster:
             if self._record:
                 self.stats.send_times.append(sent_at)
             if request is not None and not request.done and not request.cancelled:
+                assert view is not None  # taken in _run whenever a request was carried
                 if request.carried == 0:
                     request.first_counter = self.counter
                     request.status_seq_at_send = view.status_seq

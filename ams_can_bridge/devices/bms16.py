@@ -21,7 +21,7 @@ from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
 from ams_can_bridge.devices.sma import sma_values
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
 from ams_can_bridge.errors import ParamError
-from ams_can_bridge.parameters import config_param_specs, ParamSpec
+from ams_can_bridge.parameters import config_param_specs
 from ams_can_bridge.protocols import bms16 as bms16_proto
 from ams_can_bridge.protocols.bms16 import (
     BMS16_WARNINGS, Bms16Cells, Bms16Codec, Bms16Config, Bms16Error, Bms16Status, CELL_FRAME_COUNT,
@@ -29,7 +29,7 @@ from ams_can_bridge.protocols.bms16 import (
 from ams_can_bridge.protocols.common import Frame, MalformedFrameError
 from ams_can_bridge.protocols.sma import (
     SMA_IDS, SmaAlarms, SmaBattery, SmaBatteryInfo, SmaCodec, SmaLimits, SmaManufacturer,
-    SmaReading, SmaSoc)
+    SmaSoc)
 
 HEALTH = {
     Bms16Error.NONE: PowerSupplyHealth.GOOD,
@@ -70,7 +70,7 @@ class Bms16Device(Device):
     TYPE = 'bms16'
     BROADCAST_PERIOD = 0.25
     DEFAULT_BASE_ID = DEFAULT_BASE_ID
-    PARAMS: list[ParamSpec] = []
+    PARAMS = []
 
     COMMAND_PARAMS = config_param_specs(bms16_proto.CONFIG_FIELDS)
     CONFIG = ConfigFields(bms16_proto.CONFIG_FIELDS, bms16_proto.check_config_value)
@@ -84,7 +84,7 @@ class Bms16Device(Device):
         self.status: Bms16Status | None = None
         self.status_stamp = NAN
         self._cells = TimedSpans(CELL_FRAME_COUNT)  # one span per cell frame
-        self._sma: TimedStore[type, SmaReading] = TimedStore()
+        self._sma: TimedStore[type, Any] = TimedStore()  # by message type: any of them
 
     @property
     def error(self) -> Bms16Error:
@@ -140,7 +140,7 @@ class Bms16Device(Device):
         """Return the cell voltages (lock held), NaN where their frame is older than stale."""
         return self._cells.read(self.clock(), self.stale_timeout)
 
-    def _fresh_sma(self) -> dict[type, SmaReading]:
+    def _fresh_sma(self) -> dict[type, Any]:
         """Return the SMA readings (lock held) whose frame came within stale_timeout."""
         return self._sma.fresh(self.clock(), self.stale_timeout)
 

@@ -20,7 +20,7 @@ from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
 from ams_can_bridge.devices.evms3 import error_health, error_text
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
 from ams_can_bridge.errors import RefusedCommand
-from ams_can_bridge.parameters import config_param_specs, ParamSpec
+from ams_can_bridge.parameters import config_param_specs
 from ams_can_bridge.protocols import bms16_std as proto
 from ams_can_bridge.protocols.bms16_std import (
     Bms16StdCodec, Bms16StdStatus, CELLS_PER_MODULE, CONFIG_GAP_S,
@@ -41,7 +41,7 @@ class Bms16StdDevice(Device):
     ID_BITS = 29
     BROADCAST_PERIOD = 0.25  # the Monitor times out its core after 4 ticks of 4 Hz
     DEFAULT_BASE_ID = DEFAULT_BASE_ID
-    PARAMS: list[ParamSpec] = []
+    PARAMS = []
     COMMAND_PARAMS = config_param_specs(proto.CONFIG_FIELDS)
     CONFIG = ConfigFields(proto.CONFIG_FIELDS, proto.check_config_value)
     WRITE_HINT = 'set them all: the BMS16 has no read-back, a write overwrites every value'

@@ -123,9 +123,9 @@ class DbcDevice(Device):
             self.frames_received += 1
             if bad or flags:
                 self._check(compiled, arbitration_id, values, bad, flags)
-            if not compiled.compiled and key in self.groups:
+            old = None if compiled.compiled else self.groups.latest(key)
+            if old is not None:
                 # nested multiplexing: each frame carries one branch; keep the others' last
-                old = self.groups.latest(key)
                 values = tuple(o if v is None else v for v, o in zip(values, old))
             self.groups.put(key, values, now)
             if compiled.mux_index is not None:
@@ -185,7 +185,8 @@ class DbcDevice(Device):
             # the most recent of the branches the reference names, if fresh
             newest = max(((ref.message, mux) for mux in ref.mux), key=self.groups.seen,
                          default=None)
-            values = self.groups.get(newest, now, self._timeout(ref.message))
+            values = (None if newest is None
+                      else self.groups.get(newest, now, self._timeout(ref.message)))
         if values is None:
             return NAN
         value = values[ref.signal]

@@ -424,11 +424,11 @@ class Evms3Device(Device):
             if command is None and status is None:
                 continue
             key = f'charger {n} '
-            if now - command_seen <= self.charger_timeout:
+            if command is not None and now - command_seen <= self.charger_timeout:
                 values[key + 'target volts (V)'] = f'{command.target_voltage_v:.1f}'
                 values[key + 'target amps (A)'] = f'{command.current_limit_a:.1f}'
                 values[key + 'shutdown by BMS'] = 'yes' if command.stop else 'no'
-            if now - status_seen <= self.charger_timeout:
+            if status is not None and now - status_seen <= self.charger_timeout:
                 values[key + 'output volts (V)'] = f'{status.output_voltage_v:.1f}'
                 values[key + 'output amps (A)'] = f'{status.output_current_a:.1f}'
                 values[key + 'status'] = ', '.join(status.active_bits) or 'OK'

@@ -85,16 +85,17 @@ class ConfigReader:
         with self._cv:
             if self._waiting is not None:
                 return ReadResult(None, 'another read_config is waiting for the EVMS3')
-            self._waiting, self._malformed = {}, []
+            waiting: dict[int, ConfigReport] = {}
+            self._waiting, self._malformed = waiting, []
         try:
             ok, why = send(self._request)
             if not ok:
                 return ReadResult(None, f'ID 51 was not sent: {why}')
             deadline = time.monotonic() + timeout
             with self._cv:
-                self._cv.wait_for(lambda: len(self._waiting) == len(READBACK_IDS),
+                self._cv.wait_for(lambda: len(waiting) == len(READBACK_IDS),
                                   max(0.0, deadline - time.monotonic()))
-                got, malformed = dict(self._waiting), list(self._malformed)
+                got, malformed = dict(waiting), list(self._malformed)
         finally:
             with self._cv:
                 self._waiting = None

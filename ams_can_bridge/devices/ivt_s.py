@@ -306,6 +306,7 @@ class IvtSDevice(IvtSControl, Device):
                 values[f'{name} ({SI_UNIT[kind]})'] = 'not received'
                 continue
             r = self._results.latest(kind)
+            assert r is not None  # a track is made with its first result
             values[f'{name} ({SI_UNIT[kind]})'] = f'{r.value:g}'
             values[f'{name} raw ({RAW_UNIT[kind]})'] = str(r.raw)
             values[f'{name} counter'] = str(r.counter)

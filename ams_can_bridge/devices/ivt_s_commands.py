@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass
+from functools import partial
 import threading
 import time
 from typing import Callable, Iterable
@@ -283,6 +284,10 @@ def restart(link: CommandLink, send: Send, timeout: float) -> AliveAnswer:
                          'RESTART', timeout)  # type: ignore[return-value]
 
 
+def _is_reset_answer(item: int, answer: IvtAnswer) -> bool:
+    return isinstance(answer, ResetAnswer) and answer.item == item
+
+
 def reset_errors(link: CommandLink, send: Send, timeout: float) -> int:
     """Read the serial number (0x7B), then reset all measurement and system errors (0x30)."""
     serial = link.exchange(send, cmd.get_serial(), lambda a: isinstance(a, SerialAnswer),
@@ -290,6 +295,5 @@ def reset_errors(link: CommandLink, send: Send, timeout: float) -> int:
     for item, what in ((cmd.RESET_ALL_MEASUREMENT_ERRORS, 'reset all measurement errors'),
                        (cmd.RESET_ALL_SYSTEM_ERRORS, 'reset all system errors')):
         link.exchange(send, cmd.reset_errors(item, serial),
-                      lambda a, i=item: isinstance(a, ResetAnswer) and a.item == i,
-                      what, timeout)
+                      partial(_is_reset_answer, item), what, timeout)
     return serial

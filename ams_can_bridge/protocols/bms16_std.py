@@ -169,7 +169,8 @@ def check_config_value(name: str, value: Any) -> Any:
         if isinstance(value, bool) or value not in SHUNT_SIZES_A:
             raise EncodeRangeError(name, value, '0 (no shunt), 100, 200 or 500 A')
         return int(value)
-    value = check_value(name, value, spec.low, spec.high, spec.step, spec.unit)
+    value = check_value(name, value, spec.low, spec.high,  # type: ignore[arg-type]  # a range
+                        spec.step, spec.unit)
     return int(round(value)) if spec.type is int else round(float(value), 6)
 
 
@@ -179,7 +180,7 @@ def config_from_mapping(values: Mapping[str, Any]) -> Bms16StdConfig:
     missing = [n for n in names if values.get(n) is None and n != 'balance_v']
     if missing:
         raise EncodeRangeError(missing[0], None, 'a value (unset: ' + ', '.join(missing) + ')')
-    return Bms16StdConfig(**{n: None if values.get(n) is None
+    return Bms16StdConfig(**{n: None if values.get(n) is None  # type: ignore[arg-type]
                              else check_config_value(n, values[n]) for n in names})
 
 

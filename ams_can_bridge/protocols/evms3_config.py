@@ -110,7 +110,8 @@ class Evms3Config:
         missing = [n for n in names if n not in values and n != 'balance_v']
         if missing:
             raise EncodeRangeError(missing[0], None, 'a value (unset: ' + ', '.join(missing) + ')')
-        return cls(**{n: values.get(n) for n in names})
+        # every name but balance_v is set (checked above)
+        return cls(**{n: values.get(n) for n in names})  # type: ignore[arg-type]
 
 
 @dataclass(frozen=True)
@@ -346,7 +347,8 @@ def _scaled(spec: ConfigField, multiplier: int) -> ConfigField:
 
 
 def _number(name: str, value: Any, spec: ConfigField) -> float:
-    return check_value(name, value, spec.low, spec.high, spec.step, spec.unit)
+    return check_value(name, value, spec.low, spec.high,  # type: ignore[arg-type]  # a range
+                       spec.step, spec.unit)
 
 
 def config_payloads(cfg: Evms3Config, multiplier: int = 1) -> list[bytearray]:

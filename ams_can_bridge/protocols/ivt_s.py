@@ -197,7 +197,7 @@ class IvtSCodec:
         # The value's bits are the same in every result: one generated reader serves all.
         # decode, generated with the value's bits inline (the bus thread's hottest call):
         # the instance attribute takes the place of the method above.
-        self.decode = _DECODERS[byte_order].__get__(self)
+        self.decode = _DECODERS[byte_order].__get__(self)  # type: ignore[method-assign]
         self._encoders = {kind: layout.replace(
             f'IVT_Result_{DBC_NAME[kind]}', scale=1, unit=RAW_UNIT[kind]).encoder()
             for kind, layout in layouts.items()}  # the raw value, in the vendor unit

@@ -38,7 +38,7 @@ from ams_can_bridge.protocols.evms3 import (
     Evms3State, Evms3Status, PowerOff, RequestConfig, ResetSoc, SetState, ZeroCurrentSensor)
 from ams_can_bridge.protocols.tc_charger import ChargerCommand, ChargerStatus
 from ams_can_bridge.sim.base import Periodic, SimDevice
-from ams_can_bridge.sim.pack import Elapsed
+from ams_can_bridge.sim.pack import Elapsed, four
 from ams_can_bridge.sim.profiles import drive_current_a
 
 CELL_RESISTANCE_OHM = 0.0008
@@ -308,6 +308,7 @@ class Evms3Simulator(SimDevice):
         """Return the balance voltage the EVMS asks of every BMS12 module (None = off)."""
         cfg = self.ram_config
         if cfg is not None and cfg.balance_mode == 'static':
+            assert cfg.balance_v is not None  # a static balance mode has its voltage
             return int(round(cfg.balance_v * 1000))
         if self.state != Evms3State.CHARGING or (cfg is not None and cfg.balance_mode == 'off'):
             return None
@@ -322,7 +323,7 @@ class Evms3Simulator(SimDevice):
             frames.append(self.codec.encode(Bms12Request(m, balance)))
             for first in (0, 4, 8):
                 frames.append(self.codec.encode(
-                    Bms12Cells(m, first, tuple(padded[first:first + 4]))))
+                    Bms12Cells(m, first, four(padded[first:first + 4]))))
             frames.append(self.codec.encode(Bms12Temperatures(m, self.module_temps_c[m])))
         return frames
 

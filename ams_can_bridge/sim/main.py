@@ -133,9 +133,9 @@ def build_devices(types: Sequence[str], ams_banks: int | None = None,
                 if value is not None:
                     kwargs[key] = value
         elif kind == 'sma':
-            for key, value in (('dialect', sma_dialect), ('soc_layout', sma_soc_frame)):
-                if value is not None:
-                    kwargs[key] = value
+            for key, text in (('dialect', sma_dialect), ('soc_layout', sma_soc_frame)):
+                if text is not None:
+                    kwargs[key] = text
         elif kind == 'bms16' and 'sma' in types and _accepts(cls, 'send_sma'):
             # The BMS16 also speaks SMA (0x351...): two sources of one ID would clash.
             kwargs['send_sma'] = False
