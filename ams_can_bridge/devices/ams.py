@@ -40,6 +40,7 @@ from ams_can_bridge.parameters import ParamSpec
 from ams_can_bridge.protocols import ams as proto
 from ams_can_bridge.errors import ParamError, RefusedCommand
 from ams_can_bridge.protocols.ams import AmsCodec, AmsError, AmsState
+from ams_can_bridge.devices.ports import InfoLog, SendFrame
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.ivt_s import IvtMux
 
@@ -160,7 +161,7 @@ class AmsDevice(Device):
         self._discharge = _BankArray(proto.DISCHARGE_TEMPS_PER_GROUP, proto.TEMP_GROUPS)
 
     # --- the frames the command services send (built here, on the device's own codec) --------
-    def attach_master(self, send: Callable[[Frame], tuple[bool, str]]) -> AmsMaster:
+    def attach_master(self, send: SendFrame) -> AmsMaster:
         """
         Make this AMS's master (heartbeat, car commands; stopped) sending through ``send``.
 
@@ -172,8 +173,8 @@ class AmsDevice(Device):
                                 bank_count=self.bank_count)
         return self.master
 
-    def attach_charger(self, send: Callable[[Frame], tuple[bool, str]],
-                       tick: Callable[[], int], logger: Any) -> ChargerRepeater:
+    def attach_charger(self, send: SendFrame,
+                       tick: Callable[[], int], logger: InfoLog) -> ChargerRepeater:
         """Make this AMS's charger START repeater (disarmed) sending through ``send``."""
         self.charger = ChargerRepeater(self.charger_frame, send, tick, logger, self.name)
         return self.charger

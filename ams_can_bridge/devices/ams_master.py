@@ -41,6 +41,7 @@ from typing import Callable
 from ams_can_bridge.devices.ams_preconditions import precondition_refusal
 from ams_can_bridge.errors import ParamError
 from ams_can_bridge.protocols.ams import AmsState, CarCommand
+from ams_can_bridge.devices.ports import SendFrame
 from ams_can_bridge.protocols.common import Frame
 
 POLL_S = 0.005  # waiting calls re-check the AMS state this often (a few ms)
@@ -148,7 +149,7 @@ class AmsMaster:
     """Heartbeat thread + command requests; the ROS layer only wires services to it."""
 
     def __init__(self, encode: Callable[[int, int, int], Frame],
-                 send: Callable[[Frame], tuple[bool, str]],
+                 send: SendFrame,
                  view: Callable[[], AmsView], period: float = 0.05, bank_count: int = 1,
                  clock: Callable[[], float] = time.monotonic, record: bool = False) -> None:
         """

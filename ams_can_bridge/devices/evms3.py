@@ -27,7 +27,8 @@ from ams_can_bridge.devices.base import (
 from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
 from ams_can_bridge.devices.evms3_health import (  # noqa: F401 (error_* re-exported)
     error_health, error_text, STATIONARY_ACTIONS, WRITABLE_STATES)
-from ams_can_bridge.devices.evms3_readback import ConfigReader, ReadResult, Send
+from ams_can_bridge.devices.evms3_readback import ConfigReader, ReadResult
+from ams_can_bridge.devices.ports import SendFrame
 from ams_can_bridge.devices.timed import NEVER, TimedSpans, TimedStore
 from ams_can_bridge.parameters import config_param_specs, ParamSpec
 from ams_can_bridge.protocols import evms3 as evms3_proto
@@ -158,7 +159,7 @@ class Evms3Device(Device):
         status = self.status
         return None if status is None else status.state
 
-    def read_config(self, send: Send, timeout: float) -> ReadResult:
+    def read_config(self, send: SendFrame, timeout: float) -> ReadResult:
         """Send ID 51 through send(frame) -> (ok, why); wait up to timeout s for 52..56."""
         return self.reader.read(send, timeout)
 

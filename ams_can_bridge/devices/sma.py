@@ -35,6 +35,7 @@ from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.sma_keepalive import InverterKeepalive, KEEPALIVE_PERIOD
 from ams_can_bridge.devices.timed import TimedStore
 from ams_can_bridge.parameters import ParamSpec
+from ams_can_bridge.devices.ports import SendFrame
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.sma import (
     ALARMS_ID, BATTERY_ID, INFO_ID, LIMITS_ID, MANUFACTURER_ID, SmaAlarms, SmaBattery,
@@ -220,7 +221,7 @@ class SmaDevice(Device):
         """Build the inverter keep-alive 0x305 the bridge sends in the inverter's place."""
         return keepalive_frame()
 
-    def attach_keepalive(self, send: Callable[[Frame], tuple[bool, str]],
+    def attach_keepalive(self, send: SendFrame,
                          log: Callable[[str], None],
                          period: float = KEEPALIVE_PERIOD) -> InverterKeepalive:
         """
