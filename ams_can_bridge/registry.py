@@ -44,7 +44,7 @@ VARIANTS = {
     },
 }
 
-# ROS command services per device type (issue: commanding); only these types have any.
+# ROS command services per device type; only these types have any.
 COMMANDERS = {
     'ams': 'ams_can_bridge.ros.ams_commands:AmsCommands',
     'ivt_s': 'ams_can_bridge.ros.ivt_commands:IvtCommands',

@@ -304,7 +304,7 @@ class AmsDevice(Device):
                            error_seq=self.error_seq, errors=self._error_text(),
                            stale=self.is_stale())
 
-    # --- executor side (lock held) ---------------------------------------------------------
+    # --- reports: what the engine publishes (lock held) ------------------------------------
     def _max_cell_age(self) -> float:
         return CELL_STALE_FACTOR * self.stale_timeout
 

@@ -279,7 +279,7 @@ class Device:
         """Count frames taken (valid or not) and configuration changes: reports change then."""
         return self.frames_received + self.frames_malformed + self._config_changes
 
-    # --- executor side ----------------------------------------------------------------
+    # --- reports: what the engine publishes -------------------------------------------
     def is_stale(self) -> bool:
         """Tell whether no primary frame came within stale_timeout (or none ever)."""
         return self.last_seen is None or self.clock() - self.last_seen > self.stale_timeout

@@ -17,7 +17,7 @@ from typing import Any, Callable, Iterable, Mapping
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyStatus)
 from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
-from ams_can_bridge.devices.evms3 import error_health, error_text
+from ams_can_bridge.devices.evms3_health import error_health, error_text
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
 from ams_can_bridge.errors import RefusedCommand
 from ams_can_bridge.parameters import config_param_specs
@@ -135,7 +135,7 @@ class Bms16StdDevice(Device):
             return NAN
         return -current_a if current_a else 0.0
 
-    # --- executor side -----------------------------------------------------------------------
+    # --- reports: what the engine publishes --------------------------------------------------
     def _battery_report(self) -> BatteryReport:
         current = self._ros_current()
         capacity = self._capacity_ah()

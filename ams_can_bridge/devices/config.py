@@ -68,10 +68,6 @@ class DeviceConfig:
         return dataclasses.replace(
             self, **{field_name(k): self._normal(k, v) for k, v in changes.items()})
 
-    def as_values(self) -> dict[str, Any]:
-        """Return {parameter key: value} for every key."""
-        return {key: self.value(key) for key in self.KEYS}
-
 
 def make_config_class(type_name: str, specs: Iterable[Any]) -> type[DeviceConfig]:
     """Build the frozen configuration dataclass of a device type from its ParamSpecs."""

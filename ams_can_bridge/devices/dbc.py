@@ -170,7 +170,7 @@ class DbcDevice(Device):
                         NAN if values[i] is None else values[i] * factor + add
                         for i in signals[low:high]], now)
 
-    # --- executor side (lock held) ------------------------------------------------------------
+    # --- reports: what the engine publishes (lock held) ---------------------------------------
     def _timeout(self, message: int) -> float:
         return self.plan.timeouts.get(message, self.stale_timeout)
 

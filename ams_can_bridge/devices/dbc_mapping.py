@@ -15,7 +15,7 @@ from typing import Any
 
 import yaml
 
-from ams_can_bridge.devices.dbc_plan import (  # noqa: F401 (MappingError, Plan: re-exported)
+from ams_can_bridge.devices.dbc_plan import (
     Array, ARRAY_UNITS, CONDITIONS, CONVERSIONS, Enum, EnumRule, ENUMS, LevelRule, LEVELS,
     MappingError, Plan, REDUCERS, Ref, resolve_path, Scalar, SCALAR_UNITS, TOP_LEVEL,
     unit_text)

@@ -25,8 +25,8 @@ from typing import Any, Callable, Iterable, Mapping
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, Level, PowerSupplyStatus)
 from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
-from ams_can_bridge.devices.evms3_health import (  # noqa: F401 (error_* re-exported)
-    error_health, error_text, STATIONARY_ACTIONS, WRITABLE_STATES)
+from ams_can_bridge.devices.evms3_health import (
+    error_health, error_text, WRITABLE_STATES)
 from ams_can_bridge.devices.evms3_readback import ConfigReader, ReadResult
 from ams_can_bridge.devices.ports import SendFrame
 from ams_can_bridge.devices.timed import NEVER, TimedSpans, TimedStore
@@ -309,7 +309,7 @@ class Evms3Device(Device):
         return [m for m, module in enumerate(self._modules)
                 if now - module.last_seen() > self.module_timeout]
 
-    # --- executor side -----------------------------------------------------------------------
+    # --- reports: what the engine publishes --------------------------------------------------
     def _battery_report(self) -> BatteryReport:
         current = self._ros_current()
         capacity = self._capacity_ah()

@@ -239,7 +239,7 @@ class IvtSDevice(IvtSControl, Device):
     def _fresh_results(self) -> list[IvtResult]:
         return [r for r in map(self._fresh, sorted(self._tracks)) if r is not None]
 
-    # --- executor side ---------------------------------------------------------------------
+    # --- reports: what the engine publishes ------------------------------------------------
     def _battery_report(self) -> BatteryReport:
         current = self._current_a()
         results = self._fresh_results()
@@ -254,7 +254,7 @@ class IvtSDevice(IvtSControl, Device):
             voltage=self._valid(IvtMux.U1),
             current=current,
             # The As result counts since the sensor's last reset (negative after a drive):
-            # not the charge in the battery, which the IVT-S does not know (issue 17).
+            # not the charge in the battery, which the IVT-S does not know.
             charge=NAN,
             temperature=self._valid(IvtMux.T),
             power_supply_status=current_status(current),
