@@ -17,8 +17,9 @@ import time
 from typing import Any, Callable, Collection, Iterable, Mapping
 
 from ams_can_bridge import registry
-from ams_can_bridge.devices.base import Device, device_params, ParamSpec
+from ams_can_bridge.devices.base import Device, device_params
 from ams_can_bridge.errors import ConfigError, ParamError
+from ams_can_bridge.parameters import ParamSpec
 from ams_can_bridge.protocols.sma import SMA_IDS
 
 Declare = Callable[[str, ParamSpec], Any]
@@ -117,7 +118,7 @@ class DeviceSet:
                 if a.TYPE != b.TYPE:
                     shared = SHARED_IDS.get(a.TYPE, frozenset()) & SHARED_IDS.get(
                         b.TYPE, frozenset())
-                    common = {(i, e) for i, e in common if e or i not in shared}
+                    common = frozenset((i, e) for i, e in common if e or i not in shared)
                 if common:
                     problems.append(f'{name_a} ({a.TYPE}) and {name_b} ({b.TYPE}) both use '
                                     f'{format_ids(common)}')
@@ -209,7 +210,7 @@ def _unknown_message(key: str, prefix: str, rest: str, instances: Mapping[str, A
     return f'{key}: unknown parameter (the bridge does not declare it)' + _nearest(key, known)
 
 
-def format_ids(ids: Iterable[tuple[int, bool]]) -> str:
+def format_ids(ids: Collection[tuple[int, bool]]) -> str:
     """'0x300-0x301, 0x305' per width, runs of consecutive IDs collapsed; 29-bit marked."""
     parts = []
     for extended in (False, True):

@@ -20,9 +20,8 @@ The hierarchy::
      +-- RefusedCommand                     a service call refused before any frame is sent
      +-- LogFileError                       a CAN log that cannot be read at all
 
-The older import places stay valid: ``protocols.common`` (ProtocolError,
-MalformedFrameError, EncodeRangeError), ``can_io`` (CanSendError) and
-``offline.log_frames`` (LogFileError) re-export these classes.
+``protocols.common`` imports ProtocolError, MalformedFrameError and EncodeRangeError for
+the protocol modules, which import them from there.
 
 No rclpy and no python-can here: protocol code imports this module.
 """
@@ -136,7 +135,8 @@ class LogFileError(AmsCanBridgeError):
     """
     A CAN log that cannot be read at all: missing, unreadable, or a format python-can lacks.
 
-    Raised by ``offline/log_frames.py``; ``log2bag`` prints it and exits 2.
+    Raised by ``offline/log_frames.py`` (``log2bag`` prints it and exits 2) and by the
+    replay interface (``can_io/replay.py``), whose receive thread reports it as the bus error.
     """
 
 

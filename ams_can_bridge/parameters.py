@@ -8,15 +8,36 @@ same parameters file without ROS (``params_file.py``). Both check every value he
 from __future__ import annotations
 
 import array
+from dataclasses import dataclass
 import math
 from typing import Any, Iterable
 
-from ams_can_bridge.devices.base import ParamSpec
-from ams_can_bridge.errors import EncodeRangeError, ParamError
+from ams_can_bridge.errors import ConfigError, EncodeRangeError, ParamError
 from ams_can_bridge.protocols.common import ConfigField
 from ams_can_bridge.protocols.layout import check_value
 
 CONFIG_PREFIX = 'config.'
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """
+    One ROS parameter of a device instance, declared by the node as '<name>.<key>'.
+
+    type is one of bool, int, float, str, 'int[]', 'str[]'. default None = no default
+    (declared without a value; the device must cope with it unset). low/high/step give the
+    ROS range (FloatingPointRange/IntegerRange); choices restrict strings.
+    """
+
+    key: str
+    type: Any
+    default: Any
+    description: str
+    low: float | None = None
+    high: float | None = None
+    step: float | None = None
+    choices: tuple[str, ...] = ()
+    read_only: bool = True
 
 
 def spec_from_config_field(field: ConfigField, key_prefix: str = 'config.',
@@ -175,8 +196,8 @@ def launch_parameters(params_file: str, commands_allowed: str = '',
     for name, value in (('commands_allowed', commands_allowed), ('autostart', autostart)):
         text = value.strip().lower()
         if text not in ('', 'true', 'false'):
-            raise ValueError(f'{name}:={value!r}: use true or false, or leave it out to keep '
-                             'the params file value')
+            raise ConfigError(f'{name}:={value!r}: use true or false, or leave it out to keep '
+                              'the params file value')
         if text:
             given[name] = text == 'true'
     if given:

@@ -13,6 +13,8 @@ import threading
 import time
 from typing import Callable
 
+from ams_can_bridge.errors import ConfigError
+
 _ERROR_LOG_EVERY = 5.0  # s between log lines for a task that keeps failing
 
 
@@ -34,7 +36,7 @@ class Periodic:
     def every(self, period: float, callback: Callable[[], None]) -> None:
         """Call ``callback`` every ``period`` s, the first time one period after start."""
         if not period > 0:
-            raise ValueError(f'period {period!r}: must be > 0 s')
+            raise ConfigError(f'period {period!r}: must be > 0 s')
         self._tasks.append([0.0, float(period), callback, -_ERROR_LOG_EVERY])
 
     def start(self) -> None:

@@ -9,6 +9,8 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
+from ams_can_bridge.errors import ConfigError
+
 DEVICE_TYPES = ('ams', 'ivt_s', 'evms3', 'bms16', 'sma', 'dbc')
 
 DEVICES = {
@@ -42,7 +44,7 @@ VARIANTS = {
     },
 }
 
-# ROS command services per device type (issue: commanding); only these types have any.
+# ROS command services per device type; only these types have any.
 COMMANDERS = {
     'ams': 'ams_can_bridge.ros.ams_commands:AmsCommands',
     'ivt_s': 'ams_can_bridge.ros.ivt_commands:IvtCommands',
@@ -61,8 +63,8 @@ def load(path: str) -> Any:
 def device_class(device_type: str, variant: str | None = None) -> Any:
     """Return the Device subclass for a type (and variant), with a clear error if unknown."""
     if device_type not in DEVICES:
-        raise ValueError(f'unknown device type {device_type!r}: use one of '
-                         + ', '.join(DEVICE_TYPES))
+        raise ConfigError(f'unknown device type {device_type!r}: use one of '
+                          + ', '.join(DEVICE_TYPES))
     if variant is None:
         return load(DEVICES[device_type])
     return load(_variant(device_type, variant)[0])
@@ -78,6 +80,6 @@ def simulator_class(device_type: str, variant: str | None = None) -> Any:
 def _variant(device_type: str, variant: str) -> tuple[str, str]:
     variants = VARIANTS.get(device_type, {})
     if variant not in variants:
-        raise ValueError(f'{device_type} has no variant {variant!r}'
-                         + (': use one of ' + ', '.join(variants) if variants else ''))
+        raise ConfigError(f'{device_type} has no variant {variant!r}'
+                          + (': use one of ' + ', '.join(variants) if variants else ''))
     return variants[variant]

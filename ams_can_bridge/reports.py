@@ -10,7 +10,7 @@ from array import array
 import math
 from typing import Any, Iterable
 
-from ams_can_bridge.can_io.config import BusState
+from ams_can_bridge.bus_state import BusState
 from ams_can_bridge.devices.base import BatteryReport, DiagnosticReport, Level
 
 

@@ -16,7 +16,8 @@ import time
 
 import can
 
-from ams_can_bridge.can_io import BusConfig, BusState, CanIo
+from ams_can_bridge.bus_state import BusState
+from ams_can_bridge.can_io import BusConfig, CanIo
 
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 

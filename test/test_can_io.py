@@ -8,7 +8,9 @@ import uuid
 import can
 import pytest
 
-from ams_can_bridge.can_io import BusConfig, BusStatus, CanIo, CanSendError, parse_options
+from ams_can_bridge.bus_state import BusStatus
+from ams_can_bridge.can_io import BusConfig, CanIo, parse_options
+from ams_can_bridge.errors import CanSendError
 from ams_can_bridge.can_io.core import STATE_CHANGE_FORMAT
 from ams_can_bridge.protocols.common import Frame
 

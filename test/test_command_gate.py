@@ -13,7 +13,7 @@ import threading
 
 import pytest
 
-from ams_can_bridge.can_io.config import BusState, BusStatus
+from ams_can_bridge.bus_state import BusState, BusStatus
 from ams_can_bridge.engine.gate import BUS_WAIT_SLOTS, arming_refused, CommandGate
 from ams_can_bridge.errors import CanSendError
 from ams_can_bridge.protocols.common import Frame

@@ -38,10 +38,14 @@ def test_disabled_bridge_sends_nothing_and_refuses_every_service(rig_factory):
         assert not response.success, name
         assert 'commands_enabled' in response.message, (name, response.message)
         assert 'nothing was sent' in response.message
-    # listen for at least 2 s in all: not a single frame (no heartbeat, no command)
+    rig.capture.sync()  # a marker after the calls: every frame they sent is captured by now
+    assert rig.capture.since(0) == []
+    # The heartbeat is a thread of its own, which a marker cannot prove silent: listen for
+    # 2 s in all (20 heartbeat periods) for a frame it would send while disabled.
     remaining = 2.0 - (time.monotonic() - t0)
     if remaining > 0:
         time.sleep(remaining)
+    rig.capture.sync()
     assert rig.capture.since(0) == []
     assert rig.node.can_io.status().frames_out == 0
 

@@ -1,16 +1,18 @@
-"""Issue 21.7 in devices/: every deliberate raise is a package error, ValueError kept as base."""
+"""Every deliberate raise of the package is a package error, ValueError kept as its base."""
 import ast
 import builtins
 from pathlib import Path
 
 import pytest
 
-from ams_can_bridge import errors
+from ams_can_bridge import errors, registry
+from ams_can_bridge.can_io import BusConfig, parse_options, ReplayBus
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.devices.ams import AmsDevice
 from ams_can_bridge.devices.dbc_plan import MappingError
 from ams_can_bridge.devices.ivt_s import IvtSDevice
 from ams_can_bridge.devices.ivt_s_commands import NoAnswer
+from ams_can_bridge.sim.main import apply_faults
 
 PACKAGE = Path(__file__).resolve().parent.parent / 'ams_can_bridge'
 # An abstract method's marker is no error a user meets.
@@ -29,9 +31,30 @@ def _builtin_raises(path: Path) -> list[str]:
     return found
 
 
-def test_devices_raise_no_built_in_exception():
-    paths = sorted((PACKAGE / 'devices').glob('*.py')) + [PACKAGE / 'device_set.py']
+def test_the_package_raises_no_built_in_exception():
+    paths = sorted(PACKAGE.rglob('*.py'))
+    assert len(paths) > 30 and PACKAGE / 'devices' / 'base.py' in paths
     assert [r for p in paths for r in _builtin_raises(p)] == []
+
+
+def test_the_scan_sees_a_built_in_raise(tmp_path):
+    source = tmp_path / 'x.py'
+    source.write_text('def f(x):\n    if x:\n        raise ValueError(x)\n'
+                      '    raise KeyError\n    raise NotImplementedError\n')
+    assert sorted(_builtin_raises(source)) == ['x.py:3 raise ValueError', 'x.py:4 raise KeyError']
+
+
+def test_bus_sim_and_registry_errors_are_config_errors_and_still_value_errors(tmp_path):
+    with pytest.raises(errors.ConfigError, match='can.bitrate = -1'):
+        BusConfig(interface='virtual', bitrate=-1)
+    with pytest.raises(ValueError, match='is not a valid option name'):
+        parse_options(['1x=2'])
+    with pytest.raises(errors.ConfigError, match='unknown device type'):
+        registry.device_class('no_such_bms')
+    with pytest.raises(errors.ConfigError, match='no simulated device'):
+        apply_faults([], [('ams', 'silent', True)])
+    with pytest.raises(errors.LogFileError, match='does not exist'):
+        ReplayBus(str(tmp_path / 'missing.log'))
 
 
 def test_device_errors_are_package_errors_and_still_value_errors():

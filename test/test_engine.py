@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import threading
 
-from ams_can_bridge.can_io.config import BusState, BusStatus
+from ams_can_bridge.bus_state import BusState, BusStatus
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.engine.core import Engine, Schedule
 from ams_can_bridge.offline.params_file import FileParams

@@ -2,12 +2,13 @@
 The layering DESIGN.md draws, checked on the source: only ``ams_can_bridge/ros/`` imports rclpy.
 
 Protocols, devices, the bus layer, the simulators and log2bag must run (and be tested)
-without ROS; an rclpy import creeping into them would tie them to a ROS installation.
+without ROS; an rclpy import creeping into them would tie them to a ROS installation. Between
+the package's own layers, the pairs in ``NEVER`` must not import each other at all.
 """
 from __future__ import annotations
 
 import ast
-from pathlib import Path
+from pathlib import Path, PurePath
 
 PACKAGE = Path(__file__).resolve().parent.parent / 'ams_can_bridge'
 ROS_ONLY = ('rclpy', 'rcl_interfaces', 'sensor_msgs', 'diagnostic_msgs', 'std_msgs',
@@ -40,3 +41,73 @@ def test_the_check_sees_an_import_inside_a_function(tmp_path):
     source = tmp_path / 'x.py'
     source.write_text('def f():\n    from rclpy.node import Node\n    import std_msgs.msg\n')
     assert ros_imports(source) == ['rclpy.node', 'std_msgs.msg']
+
+
+# Layers that must never import another (DESIGN.md's layering): the protocols are the bottom
+# a device builds on, the parameters are read by devices, the devices know no engine or ROS,
+# the engine no ROS, and the bus layer carries frames without knowing what they mean.
+NEVER = {
+    'protocols': ('devices', 'engine', 'ros', 'can_io', 'offline', 'sim'),
+    'parameters': ('devices',),
+    'devices': ('ros', 'engine'),
+    'engine': ('ros',),
+    'can_io': ('devices', 'ros'),
+}
+
+
+def layer_of(relative: PurePath) -> str:
+    """Return the layer of a source file: its folder under the package, or its module name."""
+    return relative.parts[0] if len(relative.parts) > 1 else relative.stem
+
+
+def package_imports(source: str, relative: PurePath) -> list[str]:
+    """Return the layers of ams_can_bridge a source imports (absolute or relative imports)."""
+    found = []
+    folder = list(relative.parts[:-1])
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            modules = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:  # from . import x, from ..devices import y
+                base = '.'.join(['ams_can_bridge', *folder[:len(folder) + 1 - node.level]])
+            else:
+                base = ''
+            module = '.'.join(m for m in (base, node.module or '') if m)
+            # from ams_can_bridge import engine: the names are the modules
+            modules = ([module] if module.count('.') or not node.names
+                       else [f'{module}.{alias.name}' for alias in node.names])
+        else:
+            continue
+        found += [m.split('.')[1] for m in modules
+                  if m.split('.')[0] == 'ams_can_bridge' and '.' in m]
+    return found
+
+
+def forbidden_imports(source: str, relative: PurePath) -> list[str]:
+    """Return the never-pairs a source file breaks, as 'layer -> layer'."""
+    layer = layer_of(relative)
+    return sorted({f'{layer} -> {target}' for target in package_imports(source, relative)
+                   if target in NEVER.get(layer, ())})
+
+
+def test_no_layer_imports_a_layer_it_must_never_import():
+    sources = {p.relative_to(PACKAGE): p.read_text() for p in sorted(PACKAGE.rglob('*.py'))}
+    assert {layer_of(r) for r in sources} >= set(NEVER)
+    broken = {str(r): forbidden_imports(text, r) for r, text in sources.items()}
+    assert {r: pairs for r, pairs in broken.items() if pairs} == {}
+
+
+def test_the_check_sees_a_never_pair():
+    source = ('import ams_can_bridge.sim.pack\n'
+              'def f():\n    from ams_can_bridge.devices.base import Device\n'
+              '    from ..ros import convert\n    from ams_can_bridge import engine\n'
+              '    from ams_can_bridge.errors import ProtocolError\n'
+              '    from .common import Frame\n')
+    assert package_imports(source, PurePath('protocols/x.py')) == [
+        'sim', 'devices', 'ros', 'engine', 'errors', 'protocols']
+    assert forbidden_imports(source, PurePath('protocols/x.py')) == [
+        'protocols -> devices', 'protocols -> engine', 'protocols -> ros', 'protocols -> sim']
+    assert forbidden_imports('from ams_can_bridge.devices.base import Device\n',
+                             PurePath('parameters.py')) == ['parameters -> devices']
+    assert forbidden_imports('from ams_can_bridge.devices.base import Device\n',
+                             PurePath('ros/x.py')) == []

@@ -5,7 +5,8 @@ import uuid
 import can
 import pytest
 
-from ams_can_bridge.can_io import BusConfig, CanIo, CanSendError
+from ams_can_bridge.can_io import BusConfig, CanIo
+from ams_can_bridge.errors import CanSendError
 from ams_can_bridge.protocols.common import Frame
 from helpers import wait_for
 

@@ -5,10 +5,8 @@ CAN bus I/O: python-can bus lifecycle, replay of recordings, recording of the ra
 thread, reconnects alone after any failure, sends thread-safely and records both directions.
 No rclpy here: the ROS node drives this API.
 """
-from ams_can_bridge.can_io.config import BusConfig, BusStatus, CanSendError, parse_options
-from ams_can_bridge.can_io.config import BusState, STATES
+from ams_can_bridge.can_io.config import BusConfig, parse_options
 from ams_can_bridge.can_io.core import CanIo
 from ams_can_bridge.can_io.replay import ReplayBus
 
-__all__ = ['BusConfig', 'BusState', 'BusStatus', 'CanIo', 'CanSendError', 'ReplayBus', 'STATES',
-           'parse_options']
+__all__ = ['BusConfig', 'CanIo', 'ReplayBus', 'parse_options']

@@ -1,43 +1,14 @@
-"""Bus configuration, status snapshot and errors of the CAN I/O layer."""
+"""Bus configuration of the CAN I/O layer: the can.* parameters, checked before any open."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 import difflib
-import enum
 import inspect
 import os
 import re
 
-from ams_can_bridge.errors import CanSendError  # noqa: F401 (imported from here too)
+from ams_can_bridge.errors import ConfigError
 
-
-class BusState(enum.StrEnum):
-    """
-    The state of the bridge's CAN bus (the receive thread's view of it).
-
-    str-valued: logs, diagnostics and ``str(state)`` show the value ('bus-off'), as before
-    the Enum, and a state still compares equal to its text.
-    """
-
-    CONNECTING = 'connecting'            # first attempt to open the bus under way
-    CONNECTED = 'connected'
-    RECONNECTING = 'reconnecting'        # was up, lost, reopening
-    ERROR = 'error'                      # never came up, retrying
-    BUS_OFF = 'bus-off'
-    ERROR_PASSIVE = 'error-passive'      # still receives
-    REPLAY_FINISHED = 'replay finished'  # a replay reached the end of its file
-    STOPPED = 'stopped'
-
-
-# The tuple of every state, from before the Enum.
-STATES = tuple(BusState)
-# States in which the receive thread is still (re)opening the bus: it may come back alone.
-RETRY_STATES = frozenset({BusState.CONNECTING, BusState.RECONNECTING, BusState.ERROR,
-                          BusState.BUS_OFF})
-# States in which the bus is down and being reopened (an outage is being timed).
-DOWN_STATES = frozenset({BusState.RECONNECTING, BusState.ERROR, BusState.BUS_OFF})
-# States in which frames flow.
-UP_STATES = frozenset({BusState.CONNECTED, BusState.ERROR_PASSIVE})
 
 # python-can options the bridge sets unless can.options gives them. slcan: python-can reads
 # the serial port with a 1 ms timeout by default, so an idle bus costs ~1000 wake-ups a
@@ -87,18 +58,18 @@ def parse_options(entries: list[str] | tuple[str, ...] | None) -> dict[str, obje
 
     Values that are obviously numbers or booleans become int/float/bool ('0x10' -> 16,
     '0.5' -> 0.5, 'true' -> True, 'none' -> None); anything else stays a string.
-    Raises ValueError naming the entry when it has no '=' or an empty key.
+    Raises ConfigError naming the entry when it has no '=' or an empty key.
     """
     options: dict[str, object] = {}
     for entry in entries or ():
         if not isinstance(entry, str) or '=' not in entry:
-            raise ValueError(
+            raise ConfigError(
                 f'can.options entry {entry!r} is not of the form key=value '
                 "(e.g. 'sleep_after_open=0' or 'receive_own_messages=false')")
         key, _, value = entry.partition('=')
         key = key.strip()
         if not key or not key.isidentifier():
-            raise ValueError(
+            raise ConfigError(
                 f'can.options entry {entry!r}: {key!r} is not a valid option name '
                 '(a python-can keyword argument such as tty_baudrate)')
         options[key] = _convert(value)
@@ -135,20 +106,20 @@ class BusConfig:
         if isinstance(self.options, (list, tuple)):  # the ROS string-array form
             self.options = parse_options(self.options)
         if not self.interface:
-            raise ValueError("can.interface is empty: use e.g. 'socketcan', 'slcan', 'virtual'")
+            raise ConfigError("can.interface is empty: use e.g. 'socketcan', 'slcan', 'virtual'")
         if self.bitrate < 0:
-            raise ValueError(f'can.bitrate = {self.bitrate}: must be >= 0 (0 = leave as is)')
+            raise ConfigError(f'can.bitrate = {self.bitrate}: must be >= 0 (0 = leave as is)')
         if not self.reconnect_period > 0:
-            raise ValueError(f'can.reconnect_period = {self.reconnect_period}: must be > 0 s')
+            raise ConfigError(f'can.reconnect_period = {self.reconnect_period}: must be > 0 s')
         if not self.replay_rate >= 0:
-            raise ValueError(f'can.replay_rate = {self.replay_rate}: must be >= 0 '
-                             '(1.0 = real time, 0 = as fast as possible)')
+            raise ConfigError(f'can.replay_rate = {self.replay_rate}: must be >= 0 '
+                              '(1.0 = real time, 0 = as fast as possible)')
 
     def check(self) -> list[str]:
         """
         Check what can never work, before any attempt to open the bus; return warnings.
 
-        Raises ValueError naming the setting for an interface python-can does not know, an
+        Raises ConfigError naming the setting for an interface python-can does not know, an
         slcan bitrate the adapter protocol has no command for, an option the interface's
         class cannot take (it has no ``**kwargs``: python-can would raise on every attempt),
         and a replay file that does not exist. Those would otherwise be retried forever,
@@ -158,21 +129,21 @@ class BusConfig:
         import can.interfaces  # python-can's list of interfaces, plugins included
         if self.interface in OWN_INTERFACES:
             if not os.path.isfile(self.channel):
-                raise ValueError(f'can.channel = {self.channel!r}: no such log file to replay '
-                                 '(can.interface is replay: can.channel names the log)')
+                raise ConfigError(f'can.channel = {self.channel!r}: no such log file to replay '
+                                  '(can.interface is replay: can.channel names the log)')
             ignored = sorted(self.options) + (['can.bitrate'] if self.bitrate else [])
             return [f'replay ignores {", ".join(ignored)}'] if ignored else []
         valid = sorted(set(can.interfaces.VALID_INTERFACES) | set(OWN_INTERFACES))
         if self.interface not in valid:
             near = difflib.get_close_matches(self.interface, valid, n=1)
             hint = f'; did you mean {near[0]!r}?' if near else ''
-            raise ValueError(f'can.interface = {self.interface!r} is not a python-can '
-                             f'interface{hint} (known: {", ".join(valid)})')
+            raise ConfigError(f'can.interface = {self.interface!r} is not a python-can '
+                              f'interface{hint} (known: {", ".join(valid)})')
         if self.interface == 'slcan' and self.bitrate:
             from can.interfaces.slcan import slcanBus
             rates = sorted(getattr(slcanBus, '_BITRATES', {}) or ())
             if rates and self.bitrate not in rates:
-                raise ValueError(
+                raise ConfigError(
                     f'can.bitrate = {self.bitrate}: an slcan adapter has no command for it; '
                     f'use one of {", ".join(str(r) for r in rates)} (or 0 = leave it as is)')
         return self._check_options()
@@ -208,7 +179,7 @@ class BusConfig:
         text = (f'can.options {", ".join(unknown)}: not an argument of python-can\'s '
                 f'{bus_class.__name__} (interface {self.interface}; it names {takes}){hint}')
         if not open_ended:
-            raise ValueError(text)
+            raise ConfigError(text)
         return [text + '; python-can may ignore it without a word']
 
     def bus_kwargs(self) -> dict[str, object]:
@@ -225,26 +196,3 @@ class BusConfig:
     def hardware_id(self) -> str:
         """'<interface>:<channel>', as the diagnostics report it."""
         return f'{self.interface}:{self.channel}'
-
-
-@dataclass(frozen=True)
-class BusStatus:
-    """A snapshot of the bus state and counters (cheap to take, safe to keep)."""
-
-    state: BusState
-    reason: str
-    frames_in: int
-    frames_out: int
-    frames_dropped_tx: int
-    error_frames: int
-    reconnects: int
-    hardware_id: str
-    callback_errors: int = 0
-    frames_unreadable: int = 0         # messages the driver could not parse
-    down_for: float | None = None      # s the bus has been down (None while it is up)
-    last_outage: float | None = None   # s the last outage lasted, once the bus is back
-
-    @property
-    def connected(self) -> bool:
-        """Tell whether frames flow (connected, or error-passive which still receives)."""
-        return self.state in UP_STATES

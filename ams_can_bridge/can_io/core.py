@@ -8,9 +8,10 @@ from typing import Callable
 
 import can
 
-from ams_can_bridge.can_io.config import (
-    BusConfig, BusState, BusStatus, DOWN_STATES, RETRY_STATES, UP_STATES)
-from ams_can_bridge.errors import CanIoError, CanSendError
+from ams_can_bridge.bus_state import (
+    BusState, BusStatus, DOWN_STATES, RETRY_STATES, UP_STATES)
+from ams_can_bridge.can_io.config import BusConfig
+from ams_can_bridge.errors import CanIoError, CanSendError, ConfigError
 from ams_can_bridge.can_io.replay import ReplayBus
 from ams_can_bridge.can_io.slcan import open_bulk_slcan
 from ams_can_bridge.protocols.common import Frame
@@ -109,8 +110,8 @@ class CanIo:
             try:
                 self._recorder = can.Logger(self.config.record)
             except Exception as exc:
-                raise ValueError(f'can.record = {self.config.record!r}: cannot record there: '
-                                 f'{exc}') from exc
+                raise ConfigError(f'can.record = {self.config.record!r}: cannot record there: '
+                                  f'{exc}') from exc
         self._stop.clear()
         self._set_state(BusState.CONNECTING, '')
         self._thread = threading.Thread(target=self._run, name='can_io-rx', daemon=True)
@@ -243,7 +244,9 @@ class CanIo:
         elif cfg.interface == 'slcan':  # opened exclusively; read in blocks unless told
             bus = open_bulk_slcan(cfg.channel, cfg.slcan_bulk_read, **cfg.bus_kwargs())
         else:
-            bus = can.Bus(interface=cfg.interface, channel=cfg.channel, **cfg.bus_kwargs())
+            # the options are whatever the interface takes (checked by BusConfig.check)
+            bus = can.Bus(interface=cfg.interface, channel=cfg.channel,
+                          **cfg.bus_kwargs())  # type: ignore[arg-type]
             if self._filters and type(bus)._apply_filters is not can.BusABC._apply_filters:
                 # Only where the driver filters in hardware/kernel: elsewhere python-can
                 # would loop over the filter list per frame, slower than our set lookup.
@@ -287,8 +290,9 @@ class CanIo:
         wall = time.time
         filtering = self._filters is not None
         std_ids, ext_ids = self._std_ids, self._ext_ids
-        poll_state = (not isinstance(bus, ReplayBus)
-                      and type(bus).state is not can.BusABC.state)
+        # the bus whose driver reports its state (None: it cannot tell, or a replay)
+        polled = (bus if not isinstance(bus, ReplayBus)
+                  and type(bus).state is not can.BusABC.state else None)
         replay = bus if isinstance(bus, ReplayBus) else None
         decode_errors = self.config.interface in _SOCKETCAN_ERRORS
         bus_time = replay is not None or self.config.use_bus_time
@@ -329,8 +333,8 @@ class CanIo:
                 return
             if now >= next_poll:
                 next_poll = now + _STATE_POLL
-                if poll_state:
-                    self._poll_state(bus)
+                if polled is not None:
+                    self._poll_state(polled)
 
     def _poll_state(self, bus: can.BusABC) -> None:
         try:

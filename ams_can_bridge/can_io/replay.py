@@ -7,6 +7,8 @@ from typing import Iterator
 
 import can
 
+from ams_can_bridge.errors import ConfigError, LogFileError
+
 
 def open_log(path: str) -> can.io.generic.MessageReader:
     """
@@ -33,11 +35,11 @@ class ReplayBus:
 
     def __init__(self, path: str, rate: float = 1.0) -> None:
         if not path:
-            raise ValueError('replay: can.channel must name the log file to play')
+            raise ConfigError('replay: can.channel must name the log file to play')
         if not os.path.isfile(path):
-            raise FileNotFoundError(f'replay: log file {path!r} does not exist')
+            raise LogFileError(f'replay: log file {path!r} does not exist')
         if not os.access(path, os.R_OK):
-            raise PermissionError(f'replay: log file {path!r} is not readable')
+            raise LogFileError(f'replay: log file {path!r} is not readable')
         self.path = path
         self.rate = rate
         # LogReader picks the format from the extension and raises ValueError for others.

@@ -124,7 +124,7 @@ class BulkReadSlcanBus(slcanBus):
         """
         self._lock_fd = lock_serial_port(str(channel))
         try:
-            super().__init__(channel, *args, **kwargs)
+            super().__init__(channel, *args, **kwargs)  # type: ignore[arg-type]  # passed on
         except BaseException:
             self._unlock()
             raise

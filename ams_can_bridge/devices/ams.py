@@ -31,14 +31,16 @@ from typing import Any, Callable, Iterable, Mapping
 from ams_can_bridge.devices.ams_charger import ChargerRepeater
 from ams_can_bridge.devices.ams_master import AmsMaster, AmsView
 from ams_can_bridge.devices.base import (
-    BatteryReport, current_status, DiagnosticReport, Device, Level, ParamSpec,
-    PowerSupplyHealth, PowerSupplyStatus)
+    BatteryReport, current_status, DiagnosticReport, Device, Level, PowerSupplyHealth,
+    PowerSupplyStatus)
 from ams_can_bridge.devices.ams_values import diagnostic_values
 from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.timed import CounterHealth, TimedSpans, TimedStore
+from ams_can_bridge.parameters import ParamSpec
 from ams_can_bridge.protocols import ams as proto
 from ams_can_bridge.errors import ParamError, RefusedCommand
 from ams_can_bridge.protocols.ams import AmsCodec, AmsError, AmsState
+from ams_can_bridge.devices.ports import InfoLog, SendFrame
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.ivt_s import IvtMux
 
@@ -159,7 +161,7 @@ class AmsDevice(Device):
         self._discharge = _BankArray(proto.DISCHARGE_TEMPS_PER_GROUP, proto.TEMP_GROUPS)
 
     # --- the frames the command services send (built here, on the device's own codec) --------
-    def attach_master(self, send: Callable[[Frame], tuple[bool, str]]) -> AmsMaster:
+    def attach_master(self, send: SendFrame) -> AmsMaster:
         """
         Make this AMS's master (heartbeat, car commands; stopped) sending through ``send``.
 
@@ -171,8 +173,8 @@ class AmsDevice(Device):
                                 bank_count=self.bank_count)
         return self.master
 
-    def attach_charger(self, send: Callable[[Frame], tuple[bool, str]],
-                       tick: Callable[[], int], logger: Any) -> ChargerRepeater:
+    def attach_charger(self, send: SendFrame,
+                       tick: Callable[[], int], logger: InfoLog) -> ChargerRepeater:
         """Make this AMS's charger START repeater (disarmed) sending through ``send``."""
         self.charger = ChargerRepeater(self.charger_frame, send, tick, logger, self.name)
         return self.charger
@@ -302,7 +304,7 @@ class AmsDevice(Device):
                            error_seq=self.error_seq, errors=self._error_text(),
                            stale=self.is_stale())
 
-    # --- executor side (lock held) ---------------------------------------------------------
+    # --- reports: what the engine publishes (lock held) ------------------------------------
     def _max_cell_age(self) -> float:
         return CELL_STALE_FACTOR * self.stale_timeout
 
@@ -389,8 +391,8 @@ class AmsDevice(Device):
     def _error_text(self) -> str:
         return ', '.join(e.name for e in self._active_errors)
 
-    def _relays_text(self) -> str:
-        word = self._status.status
+    @staticmethod
+    def _relays_text(word: proto.AmsStatusWord) -> str:
         return ', '.join(f'{label} {"closed" if closed else "open"}' for label, closed in (
             ('AIR+', word.air_plus), ('AIR-', word.air_minus), ('precharge', word.precharge)))
 
@@ -430,7 +432,7 @@ class AmsDevice(Device):
         if status.soc_pct > 100:
             warnings.append(f'SOC {status.soc_pct} % out of range (shown as unknown)')
         level = Level.ERROR if errors else Level.WARN if warnings else Level.OK
-        message = '; '.join([f'{self.state.name}', self._relays_text()] + errors + warnings)
+        message = '; '.join([f'{self.state.name}', self._relays_text(word)] + errors + warnings)
         return DiagnosticReport(level, message, diagnostic_values(self) if with_values else {})
 
     def _fresh(self, kind: type) -> Any:

@@ -20,10 +20,11 @@ from __future__ import annotations
 
 import threading
 import time
-from typing import Any, Callable
+from typing import Callable
 
 from ams_can_bridge.devices.ams_master import HeartbeatSchedule
 from ams_can_bridge.protocols.ams import ChargerStart
+from ams_can_bridge.devices.ports import InfoLog, SendFrame
 from ams_can_bridge.protocols.common import Frame
 
 CHARGER_COMMAND_PERIOD = 0.1  # s, seed 003 "Charger commands ... Periodically: 100ms"
@@ -33,8 +34,8 @@ class ChargerRepeater:
     """Repeats the charger START every 100 ms while a charging request is active and armed."""
 
     def __init__(self, build: Callable[[ChargerStart, int], Frame],
-                 send: Callable[[Frame], tuple[bool, str]], tick: Callable[[], int],
-                 logger: Any, name: str = 'ams', period: float = CHARGER_COMMAND_PERIOD,
+                 send: SendFrame, tick: Callable[[], int],
+                 logger: InfoLog, name: str = 'ams', period: float = CHARGER_COMMAND_PERIOD,
                  clock: Callable[[], float] = time.monotonic) -> None:
         """
         Wire the repeater: build(start, tick) makes the 0x010 frame, send(frame) -> (ok, msg).

@@ -41,6 +41,7 @@ from typing import Callable
 from ams_can_bridge.devices.ams_preconditions import precondition_refusal
 from ams_can_bridge.errors import ParamError
 from ams_can_bridge.protocols.ams import AmsState, CarCommand
+from ams_can_bridge.devices.ports import SendFrame
 from ams_can_bridge.protocols.common import Frame
 
 POLL_S = 0.005  # waiting calls re-check the AMS state this often (a few ms)
@@ -148,7 +149,7 @@ class AmsMaster:
     """Heartbeat thread + command requests; the ROS layer only wires services to it."""
 
     def __init__(self, encode: Callable[[int, int, int], Frame],
-                 send: Callable[[Frame], tuple[bool, str]],
+                 send: SendFrame,
                  view: Callable[[], AmsView], period: float = 0.05, bank_count: int = 1,
                  clock: Callable[[], float] = time.monotonic, record: bool = False) -> None:
         """
@@ -244,9 +245,11 @@ class AmsMaster:
                 if not self._alive(generation):
                     return
                 now = self._clock()
-                wait = self._schedule.due() - now
+                schedule = self._schedule
+                assert schedule is not None  # made by start() before the thread
+                wait = schedule.due() - now
                 if wait <= 0:
-                    self.stats.missed_slots += self._schedule.take(now)
+                    self.stats.missed_slots += schedule.take(now)
                     request = self._request
                     command = request.command if request else CarCommand.NO_COMMAND
                     bank_count, counter = self.bank_count, self.counter
@@ -280,6 +283,7 @@ class AmsMaster:
             if self._record:
                 self.stats.send_times.append(sent_at)
             if request is not None and not request.done and not request.cancelled:
+                assert view is not None  # taken in _run whenever a request was carried
                 if request.carried == 0:
                     request.first_counter = self.counter
                     request.status_seq_at_send = view.status_seq

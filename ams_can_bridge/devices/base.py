@@ -17,6 +17,7 @@ from typing import Any, Callable, ClassVar, Iterable, Mapping
 
 from ams_can_bridge.devices.config import DeviceConfig, make_config_class
 from ams_can_bridge.errors import ParamError, ProtocolError
+from ams_can_bridge.parameters import ParamSpec
 
 NAN = math.nan
 
@@ -95,27 +96,6 @@ class DiagnosticReport:
     level: Level
     message: str
     values: dict[str, str] = field(default_factory=dict)
-
-
-@dataclass(frozen=True)
-class ParamSpec:
-    """
-    One ROS parameter of a device instance, declared by the node as '<name>.<key>'.
-
-    type is one of bool, int, float, str, 'int[]', 'str[]'. default None = no default
-    (declared without a value; the device must cope with it unset). low/high/step give the
-    ROS range (FloatingPointRange/IntegerRange); choices restrict strings.
-    """
-
-    key: str
-    type: Any
-    default: Any
-    description: str
-    low: float | None = None
-    high: float | None = None
-    step: float | None = None
-    choices: tuple[str, ...] = ()
-    read_only: bool = True
 
 
 def device_params(device_cls: type['Device']) -> list[ParamSpec]:
@@ -299,7 +279,7 @@ class Device:
         """Count frames taken (valid or not) and configuration changes: reports change then."""
         return self.frames_received + self.frames_malformed + self._config_changes
 
-    # --- executor side ----------------------------------------------------------------
+    # --- reports: what the engine publishes -------------------------------------------
     def is_stale(self) -> bool:
         """Tell whether no primary frame came within stale_timeout (or none ever)."""
         return self.last_seen is None or self.clock() - self.last_seen > self.stale_timeout

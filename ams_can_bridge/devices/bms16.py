@@ -16,8 +16,7 @@ import time
 from typing import Any, Callable, Iterable, Mapping
 
 from ams_can_bridge.devices.base import (
-    BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, ParamSpec,
-    PowerSupplyHealth)
+    BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyHealth)
 from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
 from ams_can_bridge.devices.sma import sma_values
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
@@ -30,7 +29,7 @@ from ams_can_bridge.protocols.bms16 import (
 from ams_can_bridge.protocols.common import Frame, MalformedFrameError
 from ams_can_bridge.protocols.sma import (
     SMA_IDS, SmaAlarms, SmaBattery, SmaBatteryInfo, SmaCodec, SmaLimits, SmaManufacturer,
-    SmaReading, SmaSoc)
+    SmaSoc)
 
 HEALTH = {
     Bms16Error.NONE: PowerSupplyHealth.GOOD,
@@ -71,7 +70,7 @@ class Bms16Device(Device):
     TYPE = 'bms16'
     BROADCAST_PERIOD = 0.25
     DEFAULT_BASE_ID = DEFAULT_BASE_ID
-    PARAMS: list[ParamSpec] = []
+    PARAMS = []
 
     COMMAND_PARAMS = config_param_specs(bms16_proto.CONFIG_FIELDS)
     CONFIG = ConfigFields(bms16_proto.CONFIG_FIELDS, bms16_proto.check_config_value)
@@ -85,7 +84,7 @@ class Bms16Device(Device):
         self.status: Bms16Status | None = None
         self.status_stamp = NAN
         self._cells = TimedSpans(CELL_FRAME_COUNT)  # one span per cell frame
-        self._sma: TimedStore[type, SmaReading] = TimedStore()
+        self._sma: TimedStore[type, Any] = TimedStore()  # by message type: any of them
 
     @property
     def error(self) -> Bms16Error:
@@ -141,7 +140,7 @@ class Bms16Device(Device):
         """Return the cell voltages (lock held), NaN where their frame is older than stale."""
         return self._cells.read(self.clock(), self.stale_timeout)
 
-    def _fresh_sma(self) -> dict[type, SmaReading]:
+    def _fresh_sma(self) -> dict[type, Any]:
         """Return the SMA readings (lock held) whose frame came within stale_timeout."""
         return self._sma.fresh(self.clock(), self.stale_timeout)
 

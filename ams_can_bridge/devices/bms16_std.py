@@ -15,10 +15,9 @@ import time
 from typing import Any, Callable, Iterable, Mapping
 
 from ams_can_bridge.devices.base import (
-    BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, ParamSpec,
-    PowerSupplyStatus)
+    BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyStatus)
 from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
-from ams_can_bridge.devices.evms3 import error_health, error_text
+from ams_can_bridge.devices.evms3_health import error_health, error_text
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
 from ams_can_bridge.errors import RefusedCommand
 from ams_can_bridge.parameters import config_param_specs
@@ -42,7 +41,7 @@ class Bms16StdDevice(Device):
     ID_BITS = 29
     BROADCAST_PERIOD = 0.25  # the Monitor times out its core after 4 ticks of 4 Hz
     DEFAULT_BASE_ID = DEFAULT_BASE_ID
-    PARAMS: list[ParamSpec] = []
+    PARAMS = []
     COMMAND_PARAMS = config_param_specs(proto.CONFIG_FIELDS)
     CONFIG = ConfigFields(proto.CONFIG_FIELDS, proto.check_config_value)
     WRITE_HINT = 'set them all: the BMS16 has no read-back, a write overwrites every value'
@@ -136,7 +135,7 @@ class Bms16StdDevice(Device):
             return NAN
         return -current_a if current_a else 0.0
 
-    # --- executor side -----------------------------------------------------------------------
+    # --- reports: what the engine publishes --------------------------------------------------
     def _battery_report(self) -> BatteryReport:
         current = self._ros_current()
         capacity = self._capacity_ah()

@@ -14,7 +14,7 @@ Fields are named as the parameter keys with dots as underscores
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Callable, ClassVar, Iterable, Mapping
+from typing import Any, Callable, ClassVar, Iterable, Mapping, TYPE_CHECKING
 
 from ams_can_bridge.errors import ParamError, RefusedCommand
 from ams_can_bridge.protocols.common import EncodeRangeError
@@ -54,6 +54,12 @@ class DeviceConfig:
         """Return the value of a parameter key."""
         return getattr(self, field_name(key))
 
+    if TYPE_CHECKING:
+        # The fields are made per device type from its ParamSpecs (make_config_class): the
+        # type checker cannot see them, so an attribute read is typed as the value it holds.
+        def __getattr__(self, name: str) -> Any:
+            """Return a generated field (for the type checker only)."""
+
     def replace(self, changes: Mapping[str, Any]) -> DeviceConfig:
         """Return a new configuration with these {parameter key: value} changes."""
         unknown = set(changes) - set(self.KEYS)
@@ -61,10 +67,6 @@ class DeviceConfig:
             raise ParamError('unknown parameter(s): ' + ', '.join(sorted(unknown)))
         return dataclasses.replace(
             self, **{field_name(k): self._normal(k, v) for k, v in changes.items()})
-
-    def as_values(self) -> dict[str, Any]:
-        """Return {parameter key: value} for every key."""
-        return {key: self.value(key) for key in self.KEYS}
 
 
 def make_config_class(type_name: str, specs: Iterable[Any]) -> type[DeviceConfig]:

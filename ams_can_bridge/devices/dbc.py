@@ -20,13 +20,14 @@ import time
 from typing import Any, Callable, Iterable, Mapping
 
 from ams_can_bridge.devices.base import (
-    BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, ParamSpec,
-    PowerSupplyHealth, PowerSupplyStatus)
+    BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyHealth,
+    PowerSupplyStatus)
 from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.dbc_mapping import (
     Array, Enum, load_plan, MappingError, Plan, Ref, Scalar)
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
 from ams_can_bridge.errors import ConfigError
+from ams_can_bridge.parameters import ParamSpec
 from ams_can_bridge.protocols.common import ProtocolError
 
 _LOG = logging.getLogger(__name__)
@@ -122,9 +123,9 @@ class DbcDevice(Device):
             self.frames_received += 1
             if bad or flags:
                 self._check(compiled, arbitration_id, values, bad, flags)
-            if not compiled.compiled and key in self.groups:
+            old = None if compiled.compiled else self.groups.latest(key)
+            if old is not None:
                 # nested multiplexing: each frame carries one branch; keep the others' last
-                old = self.groups.latest(key)
                 values = tuple(o if v is None else v for v, o in zip(values, old))
             self.groups.put(key, values, now)
             if compiled.mux_index is not None:
@@ -169,7 +170,7 @@ class DbcDevice(Device):
                         NAN if values[i] is None else values[i] * factor + add
                         for i in signals[low:high]], now)
 
-    # --- executor side (lock held) ------------------------------------------------------------
+    # --- reports: what the engine publishes (lock held) ---------------------------------------
     def _timeout(self, message: int) -> float:
         return self.plan.timeouts.get(message, self.stale_timeout)
 
@@ -184,7 +185,8 @@ class DbcDevice(Device):
             # the most recent of the branches the reference names, if fresh
             newest = max(((ref.message, mux) for mux in ref.mux), key=self.groups.seen,
                          default=None)
-            values = self.groups.get(newest, now, self._timeout(ref.message))
+            values = (None if newest is None
+                      else self.groups.get(newest, now, self._timeout(ref.message)))
         if values is None:
             return NAN
         value = values[ref.signal]

@@ -15,7 +15,7 @@ from typing import Any
 
 import yaml
 
-from ams_can_bridge.devices.dbc_plan import (  # noqa: F401 (MappingError, Plan: re-exported)
+from ams_can_bridge.devices.dbc_plan import (
     Array, ARRAY_UNITS, CONDITIONS, CONVERSIONS, Enum, EnumRule, ENUMS, LevelRule, LEVELS,
     MappingError, Plan, REDUCERS, Ref, resolve_path, Scalar, SCALAR_UNITS, TOP_LEVEL,
     unit_text)
@@ -131,16 +131,16 @@ class _Builder:
             if ref is None:
                 continue
             info = self.messages[ref.message].signals[ref.signal]
-            table = {}
+            table: dict[float, int] = {}
             table_spec = item.get('map') or {}
             if not isinstance(table_spec, dict):
                 self.problems.append(f'{here}.map: write {{value or value name: NAME}}')
                 continue
             for raw_key, name in table_spec.items():
-                value = self.signal_value(info, raw_key, f'{here}.map')
+                raw = self.signal_value(info, raw_key, f'{here}.map')
                 target = self.enum_value(enum_cls, name, f'{here}.map')
-                if value is not None and target is not None:
-                    table[value] = target
+                if raw is not None and target is not None:
+                    table[raw] = target
             otherwise = item.get('otherwise')
             if otherwise is not None:
                 otherwise = self.enum_value(enum_cls, otherwise, f'{here}.otherwise')
@@ -186,8 +186,8 @@ class _Builder:
         if 'position' in spec:
             return self._slot_array(spec, where, wanted)
         if 'signals' in spec:
-            names = list(spec['signals'] or [])
-            invalid_names: list[Any] = [None] * len(names)
+            names: list[Any] | None = list(spec['signals'] or [])
+            invalid_names: list[Any] | None = [None] * len(spec['signals'] or [])
         else:
             count, first = spec.get('count'), spec.get('first', 0)
             if not isinstance(count, int) or isinstance(count, bool) or not 1 <= count <= 1024:
@@ -197,8 +197,8 @@ class _Builder:
             names = self._expand(spec.get('signal'), count, first, where)
             invalid_names = (self._expand(spec['invalid'], count, first, where + '.invalid')
                              if spec.get('invalid') else [None] * count)
-            if names is None or invalid_names is None:
-                return None
+        if names is None or invalid_names is None:
+            return None
         refs, invalid = [], []
         before = len(self.problems)
         for name, flag in zip(names, invalid_names):
@@ -241,9 +241,10 @@ class _Builder:
         names = self._expand(spec.get('signal'), per_frame, spec.get('first', 0), where)
         if names is None:
             return None
-        refs = [self.ref(n, where, wanted, spec.get('scale'), spec.get('offset'))
-                for n in names]
-        if any(r is None for r in refs):
+        found = [self.ref(n, where, wanted, spec.get('scale'), spec.get('offset'))
+                 for n in names]
+        refs = [r for r in found if r is not None]
+        if len(refs) != len(found):
             return None
         message = refs[0].message
         if any(r.message != message for r in refs):
@@ -272,7 +273,7 @@ class _Builder:
 
     # --- diagnostics -----------------------------------------------------------------------
     def levels(self, specs: Any) -> list[LevelRule]:
-        rules = []
+        rules: list[LevelRule] = []
         if not isinstance(specs, list):
             self.problems.append('diagnostics.levels: write a list of '
                                  '{signal, below|above|equal|not_equal, level, message}')
@@ -355,6 +356,7 @@ def build_plan(db: Any, mapping: Any) -> Plan:
     if not isinstance(state, dict):
         b.problems.append('battery_state: write {field: source}')
         state = {}
+    result: Scalar | Enum | Array | None
     for key, spec in state.items():
         where = f'battery_state.{key}'
         if key in SCALAR_UNITS:
@@ -393,6 +395,7 @@ def build_plan(db: Any, mapping: Any) -> Plan:
             timeouts[m] = float(seconds)
     if b.problems:
         raise MappingError('\n'.join(b.problems))
+    assert primary is not None  # unset or unknown, it is one of the problems
     if diagnostics.get('values', 'all') in (None, 'all'):
         values = [ref for m in range(len(b.messages)) for ref in b._all_of(m)]
     return Plan(messages=b.messages, primary=primary, levels=levels, values=values,

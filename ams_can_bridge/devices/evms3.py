@@ -23,14 +23,14 @@ import time
 from typing import Any, Callable, Iterable, Mapping
 
 from ams_can_bridge.devices.base import (
-    BatteryReport, current_status, DiagnosticReport, Device, Level, ParamSpec,
-    PowerSupplyStatus)
+    BatteryReport, current_status, DiagnosticReport, Device, Level, PowerSupplyStatus)
 from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
-from ams_can_bridge.devices.evms3_health import (  # noqa: F401 (error_* re-exported)
-    error_health, error_text, STATIONARY_ACTIONS, WRITABLE_STATES)
-from ams_can_bridge.devices.evms3_readback import ConfigReader, ReadResult, Send
+from ams_can_bridge.devices.evms3_health import (
+    error_health, error_text, WRITABLE_STATES)
+from ams_can_bridge.devices.evms3_readback import ConfigReader, ReadResult
+from ams_can_bridge.devices.ports import SendFrame
 from ams_can_bridge.devices.timed import NEVER, TimedSpans, TimedStore
-from ams_can_bridge.parameters import config_param_specs
+from ams_can_bridge.parameters import config_param_specs, ParamSpec
 from ams_can_bridge.protocols import evms3 as evms3_proto
 from ams_can_bridge.errors import ParamError, RefusedCommand
 from ams_can_bridge.protocols.common import Frame
@@ -159,7 +159,7 @@ class Evms3Device(Device):
         status = self.status
         return None if status is None else status.state
 
-    def read_config(self, send: Send, timeout: float) -> ReadResult:
+    def read_config(self, send: SendFrame, timeout: float) -> ReadResult:
         """Send ID 51 through send(frame) -> (ok, why); wait up to timeout s for 52..56."""
         return self.reader.read(send, timeout)
 
@@ -309,7 +309,7 @@ class Evms3Device(Device):
         return [m for m, module in enumerate(self._modules)
                 if now - module.last_seen() > self.module_timeout]
 
-    # --- executor side -----------------------------------------------------------------------
+    # --- reports: what the engine publishes --------------------------------------------------
     def _battery_report(self) -> BatteryReport:
         current = self._ros_current()
         capacity = self._capacity_ah()
@@ -425,11 +425,11 @@ class Evms3Device(Device):
             if command is None and status is None:
                 continue
             key = f'charger {n} '
-            if now - command_seen <= self.charger_timeout:
+            if command is not None and now - command_seen <= self.charger_timeout:
                 values[key + 'target volts (V)'] = f'{command.target_voltage_v:.1f}'
                 values[key + 'target amps (A)'] = f'{command.current_limit_a:.1f}'
                 values[key + 'shutdown by BMS'] = 'yes' if command.stop else 'no'
-            if now - status_seen <= self.charger_timeout:
+            if status is not None and now - status_seen <= self.charger_timeout:
                 values[key + 'output volts (V)'] = f'{status.output_voltage_v:.1f}'
                 values[key + 'output amps (A)'] = f'{status.output_current_a:.1f}'
                 values[key + 'status'] = ', '.join(status.active_bits) or 'OK'

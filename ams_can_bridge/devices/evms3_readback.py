@@ -14,8 +14,9 @@ from __future__ import annotations
 import threading
 import time
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
+from ams_can_bridge.devices.ports import SendFrame
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import (
     CONFIG_FIELDS, ConfigReadback, ConfigReport, READBACK_IDS, READBACK_NAMES)
@@ -23,8 +24,6 @@ from ams_can_bridge.protocols.evms3_config import sentinel_text
 
 ANSWER_WINDOW = 1.0  # s: the EVMS sends the five packets of one answer back to back
 _UNITS = {f.name: f.unit for f in CONFIG_FIELDS}
-
-Send = Callable[[Frame], 'tuple[bool, str]']
 
 
 @dataclass(frozen=True)
@@ -75,7 +74,7 @@ class ConfigReader:
             self._malformed.append(reason)
 
     # --- service thread (device lock NOT held) ----------------------------------------------
-    def read(self, send: Send, timeout: float) -> ReadResult:
+    def read(self, send: SendFrame, timeout: float) -> ReadResult:
         """
         Send ID 51 through ``send`` and wait up to timeout s for 52..56.
 
@@ -85,16 +84,17 @@ class ConfigReader:
         with self._cv:
             if self._waiting is not None:
                 return ReadResult(None, 'another read_config is waiting for the EVMS3')
-            self._waiting, self._malformed = {}, []
+            waiting: dict[int, ConfigReport] = {}
+            self._waiting, self._malformed = waiting, []
         try:
             ok, why = send(self._request)
             if not ok:
                 return ReadResult(None, f'ID 51 was not sent: {why}')
             deadline = time.monotonic() + timeout
             with self._cv:
-                self._cv.wait_for(lambda: len(self._waiting) == len(READBACK_IDS),
+                self._cv.wait_for(lambda: len(waiting) == len(READBACK_IDS),
                                   max(0.0, deadline - time.monotonic()))
-                got, malformed = dict(self._waiting), list(self._malformed)
+                got, malformed = dict(waiting), list(self._malformed)
         finally:
             with self._cv:
                 self._waiting = None

@@ -27,13 +27,13 @@ import time
 from typing import Any, Callable, Mapping
 
 from ams_can_bridge.devices.base import (
-    BatteryReport, current_status, DiagnosticReport, Device, Level, ParamSpec,
-    PowerSupplyHealth)
+    BatteryReport, current_status, DiagnosticReport, Device, Level, PowerSupplyHealth)
 from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.ivt_s_commands import CommandLink
 from ams_can_bridge.devices.ivt_s_control import CYCLE_KEYS, IvtSControl
 from ams_can_bridge.devices.timed import CounterHealth, TimedStore
 from ams_can_bridge.errors import ParamError
+from ams_can_bridge.parameters import ParamSpec
 from ams_can_bridge.protocols.common import ProtocolError
 from ams_can_bridge.protocols.ivt_s import (
     BYTE_ORDERS, COMMAND_ID, DBC_NAME, DEFAULT_BASE_ID, IvtMux, IvtResult, IvtSCodec,
@@ -253,7 +253,7 @@ class IvtSDevice(IvtSControl, Device):
     def _fresh_results(self) -> list[IvtResult]:
         return [r for r in map(self._fresh, sorted(self._tracks)) if r is not None]
 
-    # --- executor side ---------------------------------------------------------------------
+    # --- reports: what the engine publishes ------------------------------------------------
     def _battery_report(self) -> BatteryReport:
         current = self._current_a()
         results = self._fresh_results()
@@ -268,7 +268,7 @@ class IvtSDevice(IvtSControl, Device):
             voltage=self._valid(IvtMux.U1),
             current=current,
             # The As result counts since the sensor's last reset (negative after a drive):
-            # not the charge in the battery, which the IVT-S does not know (issue 17).
+            # not the charge in the battery, which the IVT-S does not know.
             charge=NAN,
             temperature=self._valid(IvtMux.T),
             power_supply_status=current_status(current),
@@ -320,6 +320,7 @@ class IvtSDevice(IvtSControl, Device):
                 values[f'{name} ({SI_UNIT[kind]})'] = 'not received'
                 continue
             r = self._results.latest(kind)
+            assert r is not None  # a track is made with its first result
             values[f'{name} ({SI_UNIT[kind]})'] = f'{r.value:g}'
             values[f'{name} raw ({RAW_UNIT[kind]})'] = str(r.raw)
             values[f'{name} counter'] = str(r.counter)

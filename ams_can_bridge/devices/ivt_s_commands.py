@@ -10,11 +10,13 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass
+from functools import partial
 import threading
 import time
 from typing import Callable, Iterable
 
 from ams_can_bridge.errors import AmsCanBridgeError
+from ams_can_bridge.devices.ports import SendFrame
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.ivt_s import DBC_NAME, IvtMux
 from ams_can_bridge.protocols import ivt_s_commands as cmd
@@ -22,7 +24,6 @@ from ams_can_bridge.protocols.ivt_s_commands import (
     AliveAnswer, ErrorAnswer, IvtAnswer, ModeAnswer, OtherAnswer, ResetAnswer, ResultConfig,
     SerialAnswer, StoreAnswer, TriggerMode, WrongCommand)
 
-Send = Callable[[Frame], 'tuple[bool, str]']
 # The results whose sign follows the current's direction (discharge_positive applies).
 DIRECTIONAL = (IvtMux.I, IvtMux.W, IvtMux.AS, IvtMux.WH)
 # s: at least this long for the STORE answer (sectioncritical/ivts waits 2 s after STORE,
@@ -179,7 +180,7 @@ class CommandLink:
         with self._cv:
             self.read_back, self.read_at = read, now
 
-    def exchange(self, send: Send, frame: Frame, match: Callable[[IvtAnswer], bool],
+    def exchange(self, send: SendFrame, frame: Frame, match: Callable[[IvtAnswer], bool],
                  what: str, timeout: float) -> IvtAnswer:
         """Send one command and return its answer; NoAnswer saying why not."""
         if frame.arbitration_id != self.command_id:
@@ -217,7 +218,7 @@ def is_config(kind: IvtMux) -> Callable[[IvtAnswer], bool]:
     return lambda answer: isinstance(answer, ResultConfig) and answer.kind == kind
 
 
-def read_config(link: CommandLink, send: Send, timeout: float, now: float) -> ReadBack:
+def read_config(link: CommandLink, send: SendFrame, timeout: float, now: float) -> ReadBack:
     """Ask for the mode (0x74) and each result's configuration (0x60..0x67)."""
     mode = link.exchange(send, cmd.get_mode(), is_mode, 'GET_MODE', timeout)
     configs = {}
@@ -229,7 +230,7 @@ def read_config(link: CommandLink, send: Send, timeout: float, now: float) -> Re
     return read
 
 
-def write_config(link: CommandLink, send: Send, wanted: list[ResultConfig],
+def write_config(link: CommandLink, send: SendFrame, wanted: list[ResultConfig],
                  timeout: float) -> list[str]:
     """
     Stop, write each result (0x2n), store (0x32), run: return the steps done.
@@ -273,26 +274,29 @@ def write_config(link: CommandLink, send: Send, wanted: list[ResultConfig],
         raise NoAnswer(f'{exc}; done before: {", ".join(done) or "nothing"}') from None
 
 
-def set_running(link: CommandLink, send: Send, running: bool, timeout: float) -> ModeAnswer:
+def set_running(link: CommandLink, send: SendFrame, running: bool, timeout: float) -> ModeAnswer:
     """Run or stop now (0x34, after power-up RUN as before); return the sensor's answer."""
     answer = link.exchange(send, cmd.set_mode(running), is_mode,
                            'run' if running else 'stop', timeout)
     return answer  # type: ignore[return-value]
 
 
-def restart(link: CommandLink, send: Send, timeout: float) -> AliveAnswer:
+def restart(link: CommandLink, send: SendFrame, timeout: float) -> AliveAnswer:
     """Restart (0x3F) and wait for the alive message (0xBF)."""
     return link.exchange(send, cmd.restart(), lambda a: isinstance(a, AliveAnswer),
                          'RESTART', timeout)  # type: ignore[return-value]
 
 
-def reset_errors(link: CommandLink, send: Send, timeout: float) -> int:
+def _is_reset_answer(item: int, answer: IvtAnswer) -> bool:
+    return isinstance(answer, ResetAnswer) and answer.item == item
+
+
+def reset_errors(link: CommandLink, send: SendFrame, timeout: float) -> int:
     """Read the serial number (0x7B), then reset all measurement and system errors (0x30)."""
     serial = link.exchange(send, cmd.get_serial(), lambda a: isinstance(a, SerialAnswer),
                            'GET_SERIAL_NR', timeout).serial  # type: ignore[union-attr]
     for item, what in ((cmd.RESET_ALL_MEASUREMENT_ERRORS, 'reset all measurement errors'),
                        (cmd.RESET_ALL_SYSTEM_ERRORS, 'reset all system errors')):
         link.exchange(send, cmd.reset_errors(item, serial),
-                      lambda a, i=item: isinstance(a, ResetAnswer) and a.item == i,
-                      what, timeout)
+                      partial(_is_reset_answer, item), what, timeout)
     return serial

@@ -7,11 +7,13 @@ services in ros/ivt_commands.py call these methods with a ``send`` that applies 
 """
 from __future__ import annotations
 
+import threading
 from typing import Any, Callable, Iterable
 
 from ams_can_bridge.devices import ivt_s_commands as seq
 from ams_can_bridge.devices.config import DeviceConfig
-from ams_can_bridge.devices.ivt_s_commands import config_problems, NoAnswer, Send
+from ams_can_bridge.devices.ivt_s_commands import config_problems, NoAnswer
+from ams_can_bridge.devices.ports import SendFrame
 from ams_can_bridge.errors import RefusedCommand
 from ams_can_bridge.protocols.ivt_s import DBC_NAME, IvtMux
 from ams_can_bridge.protocols.ivt_s_commands import CYCLE_MAX_MS, ResultConfig, TriggerMode
@@ -34,8 +36,8 @@ class IvtSControl:
     """read_config, write_config, set_running, restart, reset_errors of one IVT-S."""
 
     name: str
-    config: Any
-    lock: Any
+    config: DeviceConfig
+    lock: threading.Lock
     link: seq.CommandLink
     byte_order: str
     discharge_positive: bool
@@ -135,7 +137,7 @@ class IvtSControl:
         finally:
             self.link.end()
 
-    def read_config(self, send: Send) -> tuple[bool, str]:
+    def read_config(self, send: SendFrame) -> tuple[bool, str]:
         """Read mode and configuration; (False, why) on no answer or a mismatch."""
         problems: list[str] = []
 
@@ -148,7 +150,7 @@ class IvtSControl:
         ok, message = self._run('read the configuration', body)
         return ok and not problems, message
 
-    def write_config(self, send: Send) -> tuple[bool, str]:
+    def write_config(self, send: SendFrame) -> tuple[bool, str]:
         """Stop, write, store, run, read back and compare; refuse unset values first."""
         try:
             wanted = self.wanted_configs()
@@ -165,7 +167,7 @@ class IvtSControl:
             return f'write_config: {", ".join(steps)}; read back: {read.summary()}'
         return self._run('write the configuration', body)
 
-    def set_running(self, send: Send, running: bool) -> tuple[bool, str]:
+    def set_running(self, send: SendFrame, running: bool) -> tuple[bool, str]:
         """Run or stop the sensor now (0x34); the answer says the mode it reports."""
         what = 'run' if running else 'stop'
 
@@ -177,7 +179,7 @@ class IvtSControl:
             return f'set_running: the sensor reports {"RUN" if mode.running else "STOP"}'
         return self._run(what, body)
 
-    def restart(self, send: Send) -> tuple[bool, str]:
+    def restart(self, send: SendFrame) -> tuple[bool, str]:
         """Restart the sensor (0x3F) and wait for its alive message (0xBF)."""
         def body() -> str:
             alive = seq.restart(self.link, send, self._timeout_s())
@@ -185,7 +187,7 @@ class IvtSControl:
                    'start from 0'
         return self._run('restart', body)
 
-    def reset_errors(self, send: Send) -> tuple[bool, str]:
+    def reset_errors(self, send: SendFrame) -> tuple[bool, str]:
         """Reset all measurement and system errors (0x30, with the serial number)."""
         def body() -> str:
             serial = seq.reset_errors(self.link, send, self._timeout_s())

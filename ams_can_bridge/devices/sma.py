@@ -30,15 +30,16 @@ import time
 from typing import Any, Callable, Hashable, Mapping
 
 from ams_can_bridge.devices.base import (
-    BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, ParamSpec,
-    PowerSupplyHealth)
+    BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyHealth)
 from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.sma_keepalive import InverterKeepalive, KEEPALIVE_PERIOD
 from ams_can_bridge.devices.timed import TimedStore
+from ams_can_bridge.parameters import ParamSpec
+from ams_can_bridge.devices.ports import SendFrame
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.sma import (
     ALARMS_ID, BATTERY_ID, INFO_ID, LIMITS_ID, MANUFACTURER_ID, SmaAlarms, SmaBattery,
-    SmaBatteryInfo, SmaCodec, SmaLimits, SmaManufacturer, SmaReading, SmaSoc, SOC_ID)
+    SmaBatteryInfo, SmaCodec, SmaLimits, SmaManufacturer, SmaSoc, SOC_ID)
 from ams_can_bridge.protocols.sma_dialects import (
     CELL_ID_KINDS, PYLONTECH_ALARMS_ID, PYLONTECH_CONDITION_NAMES, PYLONTECH_REQUEST_ID,
     PylontechAlarms, PylontechRequest, VICTRON_BMS_NAME1_ID, VICTRON_CELL_EXTREMES_ID,
@@ -85,7 +86,8 @@ def group_key(reading: Any) -> Hashable:
         return (VictronBmsName, reading.part)
     if isinstance(reading, VictronCellId):
         return (VictronCellId, reading.kind)
-    return type(reading)
+    # a class is hashable; mypy checks type[...] against Hashable's __hash__ too strictly
+    return type(reading)  # type: ignore[return-value]
 
 
 def _fmt(value: float | int | None, unit: str = '') -> str:
@@ -150,8 +152,13 @@ _FIELDS: tuple[tuple[Hashable, tuple[tuple[str, str, Callable[[Any], str]], ...]
 )
 
 
-def sma_values(readings: Mapping[Hashable, SmaReading], prefix: str = '') -> dict[str, str]:
-    """Diagnostic values of every SMA message in readings (keyed by ``group_key``)."""
+def sma_values(readings: Mapping[Any, Any], prefix: str = '') -> dict[str, str]:
+    """
+    Diagnostic values of every SMA message in readings (keyed by ``group_key``).
+
+    The readings are of every message type at once: the key (the type) tells which, so the
+    values are typed Any here.
+    """
     values: dict[str, str] = {}
     for key, fields in _FIELDS:
         reading = readings.get(key)
@@ -193,7 +200,7 @@ class SmaDevice(Device):
     # timeout of 5 periods (5 s) must not flap on a 1 Hz sender.
     BROADCAST_PERIOD = 1.0
     DEFAULT_BASE_ID = None
-    PARAMS: list[ParamSpec] = []
+    PARAMS = []
     COMMAND_PARAMS = [
         ParamSpec('inverter_keepalive', bool, False,
                   'send the inverter keep-alive 0x305 (8 zero bytes) every '
@@ -205,7 +212,7 @@ class SmaDevice(Device):
                  clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__(name, config, clock)
         self.codec = SmaCodec()
-        self.readings: TimedStore[Hashable, SmaReading] = TimedStore()  # by group key
+        self.readings: TimedStore[Hashable, Any] = TimedStore()  # by group_key: its type
         self.battery_stamp = NAN
         self.keepalive: InverterKeepalive | None = None  # made by attach_keepalive()
 
@@ -214,7 +221,7 @@ class SmaDevice(Device):
         """Build the inverter keep-alive 0x305 the bridge sends in the inverter's place."""
         return keepalive_frame()
 
-    def attach_keepalive(self, send: Callable[[Frame], tuple[bool, str]],
+    def attach_keepalive(self, send: SendFrame,
                          log: Callable[[str], None],
                          period: float = KEEPALIVE_PERIOD) -> InverterKeepalive:
         """

@@ -18,6 +18,7 @@ import threading
 import time
 from typing import Callable
 
+from ams_can_bridge.devices.ports import SendFrame
 from ams_can_bridge.protocols.common import Frame
 
 KEEPALIVE_PERIOD = 1.0  # s: "Inverter reply every second" (Pylontech CAN protocol)
@@ -26,7 +27,7 @@ KEEPALIVE_PERIOD = 1.0  # s: "Inverter reply every second" (Pylontech CAN protoc
 class InverterKeepalive:
     """0x305 every period while armed and enabled; the frame comes from the device."""
 
-    def __init__(self, build: Callable[[], Frame], send: Callable[[Frame], tuple[bool, str]],
+    def __init__(self, build: Callable[[], Frame], send: SendFrame,
                  log: Callable[[str], None], name: str = 'sma',
                  period: float = KEEPALIVE_PERIOD) -> None:
         """build() makes the frame, send(frame) -> (ok, message), log(line) reports."""

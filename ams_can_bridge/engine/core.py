@@ -19,10 +19,10 @@ import logging
 import math
 import threading
 import time
-from typing import Callable, Protocol
+from typing import Any, Callable, Protocol
 
 from ams_can_bridge import reports
-from ams_can_bridge.can_io.config import BusStatus
+from ams_can_bridge.bus_state import BusStatus
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.devices.base import BatteryReport, DiagnosticReport
 
@@ -235,7 +235,8 @@ class Schedule:
     def __init__(self, tasks: list[tuple[float, Callable[[], None]]],
                  set_now: Callable[[float], None]) -> None:
         """Take (period, call) pairs; ``set_now`` moves the engine's clock before each call."""
-        self.tasks = [[math.nan, period, call] for period, call in tasks]
+        # [next run, period, call]: a list, moved in place
+        self.tasks: list[list[Any]] = [[math.nan, period, call] for period, call in tasks]
         self.set_now = set_now
         self.started = False
 

@@ -25,7 +25,7 @@ import time
 from contextlib import AbstractContextManager, contextmanager
 from typing import Callable, Iterator, Protocol
 
-from ams_can_bridge.can_io.config import BusStatus, RETRY_STATES
+from ams_can_bridge.bus_state import BusStatus, RETRY_STATES
 from ams_can_bridge.errors import CanSendError
 from ams_can_bridge.protocols.common import Frame
 

@@ -6,7 +6,7 @@ rosbags Jazzy type store defines them, and serialized to CDR as rclpy would.
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from rosbags.rosbag2 import StoragePlugin, Writer
@@ -19,7 +19,7 @@ STORAGES = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}
 BATTERY_STATE = 'sensor_msgs/msg/BatteryState'
 MULTI_ARRAY = 'std_msgs/msg/Float32MultiArray'
 DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
-BAG_VERSION = 9  # rosbag2 metadata of Jazzy
+BAG_VERSION: Literal[9] = 9  # rosbag2 metadata of Jazzy
 
 
 class BagOut:

@@ -27,16 +27,19 @@ import os
 import shutil
 import sys
 import time
-from typing import Any, Sequence, TextIO
+from typing import Sequence, TextIO, TYPE_CHECKING
 
-from ams_can_bridge.can_io.config import BusState, BusStatus
+from ams_can_bridge.bus_state import BusState, BusStatus
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.devices.base import BatteryReport
 from ams_can_bridge.engine.core import Arrays, Engine, Schedule, Statuses
-from ams_can_bridge.errors import ConfigError
-from ams_can_bridge.offline.log_frames import LogFileError, LogFrames
+from ams_can_bridge.errors import ConfigError, LogFileError
+from ams_can_bridge.offline.log_frames import LogFrames
 from ams_can_bridge.offline.params_file import FileParams, load_parameters
 from ams_can_bridge.parameters import BUS_PARAMS, NODE_PARAMS
+
+if TYPE_CHECKING:  # rosbags is imported only when a bag is written
+    from ams_can_bridge.offline.bag import BagOut
 
 NODE_NAME = 'ams_can_bridge'  # the bridge's default node name: its entry in params files
 PROGRESS_PERIOD = 0.2  # s between progress-bar redraws
@@ -48,7 +51,7 @@ ROSBAGS_MISSING = (
     'it: package.xml declares its rosdep key python3-rosbags-pip)')
 
 
-def bag_class() -> Any:
+def bag_class() -> type[BagOut]:
     """Return BagOut, or raise ConfigError saying how to install rosbags when it is missing."""
     try:
         from ams_can_bridge.offline.bag import BagOut
@@ -95,21 +98,21 @@ class BagSink:
 
     def __init__(self, hardware_id: str) -> None:
         """Write nothing until ``bag`` is set and ``enabled`` is true."""
-        self.bag: Any = None
+        self.bag: BagOut | None = None
         self.hardware_id = hardware_id
         self.enabled = False
 
     def battery(self, name: str, frame_id: str, report: BatteryReport, arrays: Arrays,
                 stamp: float) -> None:
         """Write a BatteryState and its arrays, header stamp and bag time = stamp."""
-        if self.enabled:
+        if self.enabled and self.bag is not None:
             self.bag.battery_state(f'/{name}/battery_state', report, frame_id, stamp)
             for suffix, (rows, cols, data) in arrays.items():
                 self.bag.multi_array(f'/{name}/{suffix}', rows, cols, data, stamp)
 
     def diagnostics(self, statuses: Statuses, stamp: float) -> None:
         """Write one /diagnostics at stamp."""
-        if self.enabled:
+        if self.enabled and self.bag is not None:
             self.bag.diagnostics(statuses, self.hardware_id, stamp)
 
     def clock(self, stamp: float) -> None:
@@ -119,7 +122,7 @@ class BagSink:
 class Converter:
     """Feed frames to the engine on the log's time; the bag sink writes what it emits."""
 
-    def __init__(self, parameters: dict, bag: Any, hardware_id: str,
+    def __init__(self, parameters: dict, bag: BagOut | None, hardware_id: str,
                  node_name: str = NODE_NAME) -> None:
         """
         Build the devices from flat parameter values; raise ConfigError naming bad ones.
@@ -149,12 +152,12 @@ class Converter:
                                  self._set_now)
 
     @property
-    def bag(self) -> Any:
+    def bag(self) -> BagOut | None:
         """Return the bag written to (None: nothing is written)."""
         return self.sink.bag
 
     @bag.setter
-    def bag(self, bag: Any) -> None:
+    def bag(self, bag: BagOut | None) -> None:
         self.sink.bag = bag
 
     def _set_now(self, now: float) -> None:
@@ -240,7 +243,7 @@ def check_output(output: str) -> None:
                           f'{parent!r} (choose another output)')
 
 
-def open_bag(output: str, storage: str) -> Any:
+def open_bag(output: str, storage: str) -> BagOut:
     """Create the bag; raise ConfigError (one line, nothing left behind) when it fails."""
     cls = bag_class()
     try:
@@ -304,7 +307,7 @@ def convert(log: str, output: str, parameters: dict, storage: str = 'mcap',
     return summary
 
 
-def _convert(log: str, frames: LogFrames, converter: Converter, bag: Any,
+def _convert(log: str, frames: LogFrames, converter: Converter, bag: BagOut,
              start: float | None, end: float | None,
              progress_stream: TextIO | None) -> Summary:
     summary = Summary()

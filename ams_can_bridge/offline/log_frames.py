@@ -122,7 +122,8 @@ class LogFrames:
         self.truncated = ''  # why the log looks cut short ('' = it ends as it should)
         self.cut_line: str | None = None
         if isinstance(self.reader, _RESUMABLE) and hasattr(self.reader, 'file'):
-            self.reader.file = _CompleteLines(self.reader.file, self)
+            # a duck-typed text file: python-can reads it line by line only
+            self.reader.file = _CompleteLines(self.reader.file, self)  # type: ignore[assignment]
         self._trc_filter: _CountTrcErrors | None = None
         if isinstance(self.reader, can.TRCReader):
             self._trc_filter = _CountTrcErrors(self)
@@ -160,7 +161,7 @@ class LogFrames:
                     self.stopped = f'stopped at a bad entry ({self.last_bad})'
                     return
                 if isinstance(self.reader, _NEEDS_HEADER_LINE):
-                    self.reader.file = _Lines(['\n'], self.reader.file)
+                    self.reader.file = _Lines(['\n'], self.reader.file)  # type: ignore[assignment]
                 messages = iter(self.reader)
                 continue
             yield msg

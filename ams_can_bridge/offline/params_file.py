@@ -15,9 +15,8 @@ from typing import Any
 import yaml
 
 from ams_can_bridge.device_set import unknown_parameter_errors
-from ams_can_bridge.devices.base import ParamSpec
 from ams_can_bridge.errors import ConfigError, ParamError
-from ams_can_bridge.parameters import coerce, raise_param_errors
+from ams_can_bridge.parameters import coerce, ParamSpec, raise_param_errors
 
 WILDCARDS = ('/**', '**')
 

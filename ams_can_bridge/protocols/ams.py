@@ -289,9 +289,9 @@ def _series(prefix: str, count: int, field: str, **kwargs: Any) -> tuple[Signal,
                  for k in range(count))
 
 
-_VOLTS = dict(scale=CELL_VOLT_STEP, high=5.1, unit='V')
-_AMPS = dict(scale=CURRENT_STEP, high=25.5, unit='A')
-_TEMPS = dict(signed=True, unit='degC')
+_VOLTS: dict[str, Any] = dict(scale=CELL_VOLT_STEP, high=5.1, unit='V')
+_AMPS: dict[str, Any] = dict(scale=CURRENT_STEP, high=25.5, unit='A')
+_TEMPS: dict[str, Any] = dict(signed=True, unit='degC')
 LAYOUTS: dict[int, Layout] = {offset: Layout(_DBC_NAMES[offset], length, signals) for
                               offset, length, signals in (
     (STATUS, 7, _WORD + (
@@ -353,7 +353,7 @@ def _status_word(data: bytes) -> AmsStatusWord:
     state = _known(_STATES, raw_state, 'AMS state')
     if banks > MAX_BANKS:
         raise _Bad(f'status bank count {banks} (allowed 0..{MAX_BANKS})')
-    word = AmsStatusWord(*flags, banks, state)
+    word = AmsStatusWord(*flags, banks, state)  # type: ignore[call-arg]  # one flag per field
     _WORD_CACHE[key] = word  # bounded: at most 2**16 words
     return word
 

@@ -233,8 +233,9 @@ def check_config_value(name: str, value: object) -> int:
     spec = CONFIG_FIELD[name]
     if name == 'shunt_size_a':
         return shunt_code(name, value)
-    value = check_value(name, value, spec.low, spec.high, spec.step, spec.unit)
-    return round(value / _CONFIG_SCALE[name])
+    value = check_value(name, value, spec.low, spec.high,  # type: ignore[arg-type]  # a range
+                        spec.step, spec.unit)
+    return round(value / _CONFIG_SCALE[name])  # type: ignore[operator]  # a number
 
 
 def _config_value(name: str, raw: int) -> float | int:
@@ -254,7 +255,7 @@ def _checked_config_value(name: str, raw: int, arbitration_id: int, data: bytes)
     """
     spec = CONFIG_FIELD[name]
     value = _config_value(name, raw)
-    if not spec.low <= value <= spec.high:
+    if not spec.low <= value <= spec.high:  # type: ignore[operator]  # numbers have a range
         raise MalformedFrameError(arbitration_id, data,
                                   f'{name} {value:g}, allowed {spec.low:g}..{spec.high:g}')
     return value
@@ -321,16 +322,18 @@ class Bms16Codec:
 
     @staticmethod
     def _config1(arbitration_id: int, offset: int, data: bytes) -> Bms16ConfigPart1:
-        return Bms16ConfigPart1(*(_checked_config_value(n, raw, arbitration_id, data)
-                                  for n, raw in zip(_PART1, data)))
+        return Bms16ConfigPart1(*(  # type: ignore[arg-type]
+            _checked_config_value(n, raw, arbitration_id, data)
+            for n, raw in zip(_PART1, data)))
 
     @staticmethod
     def _config2(arbitration_id: int, offset: int, data: bytes) -> Bms16ConfigPart2:
         if data[3] >= len(SHUNT_SIZES_A):
             raise MalformedFrameError(arbitration_id, data,
                                       f'shunt size code {data[3]}, known codes are 0..3')
-        return Bms16ConfigPart2(*(_checked_config_value(n, raw, arbitration_id, data)
-                                  for n, raw in zip(_PART2[:3], data)),
+        return Bms16ConfigPart2(*(  # type: ignore[arg-type, call-arg]
+            _checked_config_value(n, raw, arbitration_id, data)
+            for n, raw in zip(_PART2[:3], data)),
                                 SHUNT_SIZES_A[data[3]])
 
     @staticmethod

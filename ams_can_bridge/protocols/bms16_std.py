@@ -144,7 +144,7 @@ def config_from_mapping(values: Mapping[str, Any]) -> Bms16StdConfig:
     missing = [n for n in names if values.get(n) is None and n != 'balance_v']
     if missing:
         raise EncodeRangeError(missing[0], None, 'a value (unset: ' + ', '.join(missing) + ')')
-    return Bms16StdConfig(**{n: None if values.get(n) is None
+    return Bms16StdConfig(**{n: None if values.get(n) is None  # type: ignore[arg-type]
                              else check_config_value(n, values[n]) for n in names})
 
 

@@ -91,4 +91,5 @@ def msg_defs_dir() -> Path:
 @functools.cache
 def load_dbc(name: str) -> Database:
     """Load msg_defs/<name>.dbc once per process, strictly (overlapping signals fail)."""
-    return cantools.database.load_file(str(msg_defs_dir() / f'{name}.dbc'), strict=True)
+    return cantools.database.load_file(  # type: ignore[return-value]  # a .dbc: a CAN database
+        str(msg_defs_dir() / f'{name}.dbc'), strict=True)

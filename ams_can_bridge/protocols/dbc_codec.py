@@ -81,7 +81,7 @@ class _UnknownMux(Exception):
 
 def load(path: str) -> Database:
     """Load a DBC file strictly (cantools raises on overlapping or out-of-frame signals)."""
-    return cantools.database.load_file(path, strict=True)
+    return cantools.database.load_file(path, strict=True)  # type: ignore[return-value]  # CAN
 
 
 def closest(name: str, names: Sequence[str], n: int = 3) -> str:
@@ -172,7 +172,9 @@ def _cantools_decoder(message: Message, infos: tuple[SignalInfo, ...]) -> Callab
 
     def decode(data: bytes) -> tuple[tuple, tuple[int, ...]]:
         try:
-            decoded = message.decode(bytes(data[:message.length]), decode_choices=False)
+            # a plain message (not a container): a dict of numbers, choices not decoded
+            decoded: dict[str, Any] = message.decode(  # type: ignore[assignment]
+                bytes(data[:message.length]), decode_choices=False)
         except Exception as exc:  # cantools' own errors (unknown multiplexer id, ...)
             raise _UnknownMux(str(exc)) from None
         values, bad = [], []

@@ -110,7 +110,8 @@ class Evms3Config:
         missing = [n for n in names if n not in values and n != 'balance_v']
         if missing:
             raise EncodeRangeError(missing[0], None, 'a value (unset: ' + ', '.join(missing) + ')')
-        return cls(**{n: values.get(n) for n in names})
+        # every name but balance_v is set (checked above)
+        return cls(**{n: values.get(n) for n in names})  # type: ignore[arg-type]
 
 
 @dataclass(frozen=True)
@@ -285,7 +286,8 @@ def check_field(spec: ConfigField | None, name: str, value: Any,
         if value not in spec.choices:
             raise EncodeRangeError(name, value, 'one of ' + ', '.join(spec.choices))
         return value
-    number = check_value(name, value, spec.low, spec.high, spec.step, spec.unit)
+    number = check_value(name, value, spec.low, spec.high,  # type: ignore[arg-type]  # a range
+                         spec.step, spec.unit)
     return int(round(number)) if spec.type is int else round(float(number), 6)
 
 

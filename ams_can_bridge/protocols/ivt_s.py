@@ -192,11 +192,10 @@ class IvtSCodec:
         self.base_id = base_id
         self.byte_order = byte_order
         self.arbitration_ids = frozenset(base_id + k for k in IvtMux)
-        self.result_ids = {kind: base_id + kind for kind in IvtMux}
         layouts = LAYOUTS if byte_order == 'big' else LITTLE_LAYOUTS
         # decode, generated with the value's bits inline (the bus thread's hottest call):
         # the instance attribute takes the place of the method above.
-        self.decode = _DECODERS[byte_order].__get__(self)
+        self.decode = _DECODERS[byte_order].__get__(self)  # type: ignore[method-assign]
         self._encoders = {kind: layout.replace(
             f'IVT_Result_{DBC_NAME[kind]}', scale=1, unit=RAW_UNIT[kind]).encoder()
             for kind, layout in layouts.items()}  # the raw value, in the vendor unit
@@ -208,11 +207,6 @@ class IvtSCodec:
              'measurement_error': bool(b & MEASUREMENT_ERROR_BIT),
              'system_error': bool(b & SYSTEM_ERROR_BIT)} for b in range(256)])
             for kind in IvtMux}
-
-    def kind_of(self, arbitration_id: int) -> IvtMux | None:
-        """Which result an ID carries (None for IDs that are not ours)."""
-        entry = self._by_id.get(arbitration_id)
-        return entry[0] if entry else None
 
     def decode(self, arbitration_id: int, data: bytes) -> IvtResult:
         """Decode one result frame; MalformedFrameError for a wrong ID, DLC or MuxID."""

@@ -140,8 +140,9 @@ class TcChargerCodec:
             return ChargerCommand(COMMAND_IDS.index(arbitration_id) + 1, volts, amps, bool(stop))
         if arbitration_id in STATUS_IDS:
             check_dlc(arbitration_id, data, DLC_RANGE)
-            return ChargerStatus(STATUS_IDS.index(arbitration_id) + 1, *_D_OUTPUT(data),
-                                 data[4], data[5] if len(data) > 5 else None)
+            return ChargerStatus(  # type: ignore[call-arg]
+                STATUS_IDS.index(arbitration_id) + 1, *_D_OUTPUT(data),
+                data[4], data[5] if len(data) > 5 else None)
         raise MalformedFrameError(arbitration_id, data, 'not a TC charger ID')
 
     def encode(self, message: ChargerReading) -> Frame:

@@ -38,7 +38,7 @@ CAR_COMMANDS = {
 }
 
 
-class AmsCommands(Commander):
+class AmsCommands(Commander[AmsDevice]):
     """Car-command and charger-role services of one AMS instance."""
 
     def __init__(self, gate: CommandPort, device: AmsDevice, name: str,

@@ -42,20 +42,20 @@ from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackRet
 from rclpy.parameter import Parameter
 
 from ams_can_bridge import registry
+from ams_can_bridge.bus_state import BusState, BusStatus
 from ams_can_bridge.can_io import BusConfig, CanIo, parse_options
-from ams_can_bridge.can_io.config import BusState, BusStatus
 from ams_can_bridge.can_io.core import STATE_CHANGE_FORMAT
 from ams_can_bridge.device_set import DeviceSet, unknown_parameter_errors
 from ams_can_bridge.devices.base import Device
 from ams_can_bridge.engine.core import Engine
 from ams_can_bridge.engine.gate import CommandGate
-from ams_can_bridge.errors import ConfigError
-from ams_can_bridge.parameters import AUTOSTART
+from ams_can_bridge.errors import ConfigError, ParamError
+from ams_can_bridge.parameters import AUTOSTART, BUS_PARAMS, NODE_PARAMS
 from ams_can_bridge.periodic import Periodic
 from ams_can_bridge.ros.bus_log import BusStateLog
 from ams_can_bridge.ros.commander import Commander
 from ams_can_bridge.ros.convert import format_ids, RosLogHandler
-from ams_can_bridge.ros.params import BUS_PARAMS, NODE_PARAMS, ParamError, ParamRegistry
+from ams_can_bridge.ros.params import ParamRegistry
 from ams_can_bridge.ros.sink import RosSink
 
 NODE_NAME = 'ams_can_bridge'
@@ -75,6 +75,7 @@ class BridgeNode(LifecycleNode):
         self.commanders: dict[str, Commander] = {}
         self.gate: CommandGate | None = None  # made in _configure (the bus parameters)
         self.can_io: CanIo | None = None
+        self.sink: RosSink | None = None  # made in _configure (the devices' topics)
         self._ready = False
         self._replaying = False
         self._active = False
@@ -120,7 +121,8 @@ class BridgeNode(LifecycleNode):
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Publish (telemetry, stale messages, diagnostics); commands follow the gate."""
-        self.sink.enabled = True
+        if self.sink is not None:  # made by the configure this transition follows
+            self.sink.enabled = True
         self._active = True
         self.periodic.start()
         if self._armed_at_launch:  # commands_enabled: true at launch applies when active
@@ -134,7 +136,8 @@ class BridgeNode(LifecycleNode):
         if self.commands_enabled:
             self.set_parameters([Parameter('commands_enabled', value=False)])
         self.periodic.stop()
-        self.sink.enabled = False
+        if self.sink is not None:
+            self.sink.enabled = False
         self.get_logger().info('inactive: decoding, publishing nothing, sending nothing')
         return TransitionCallbackReturn.SUCCESS
 
@@ -171,6 +174,7 @@ class BridgeNode(LifecycleNode):
             self.params.errors = []  # a later configure judges the values afresh
             raise ConfigError(str(exc)) from None
         self._ready = True
+        assert self.can_io is not None  # opened by _configure above
         self.can_io.start()
         self._log_summary()
 
@@ -264,17 +268,17 @@ class BridgeNode(LifecycleNode):
         self.gate.attach_bus(self.can_io)
 
     def _make_publishers(self) -> None:
-        self.sink = RosSink(self, {name: list(device.extra_arrays())
-                                   for name, device in self.devices.items()},
-                            self.hardware_id, self._replay_clock,
-                            alive=lambda: self._ready and self.context.ok())
+        self.sink = sink = RosSink(self, {name: list(device.extra_arrays())
+                                          for name, device in self.devices.items()},
+                                   self.hardware_id, self._replay_clock,
+                                   alive=lambda: self._ready and self.context.ok())
         self._closed_status = BusStatus(
             state=BusState.STOPPED, reason='', frames_in=0, frames_out=0, frames_dropped_tx=0,
             error_frames=0, reconnects=0, hardware_id=self.hardware_id)
         engine_logger = self._stdlib_logger('engine')
         engine_logger.setLevel(logging.DEBUG)  # the rclpy logger decides what is shown
         self.engine = Engine(
-            self.device_set, self.sink, status_prefix=self.status_prefix(),
+            self.device_set, sink, status_prefix=self.status_prefix(),
             interface=self.bus_config.interface, bus_status=self._bus_status, now=self._now,
             bus_values=self._bus_values, on_bus_status=self._bus_log.update,
             logger=engine_logger)
@@ -300,7 +304,8 @@ class BridgeNode(LifecycleNode):
         # install, and the error says so (test_sim_runner.py::test_registry_paths_all_import)
         cls = registry.load(path)
         if not (isinstance(cls, type) and issubclass(cls, Commander)):
-            raise TypeError(f'{path} is not a Commander (ams_can_bridge.ros.commander)')
+            raise ConfigError(f'{path} is not a Commander (ams_can_bridge.ros.commander)')
+        assert self.gate is not None  # made in _configure, before the devices' commanders
         self.commanders[name] = cls(self.gate, device, name, self)
 
     def _log_summary(self) -> None:
@@ -389,7 +394,9 @@ class BridgeNode(LifecycleNode):
 
         def logged(request: Any, response: Any) -> Any:
             try:
-                with self.gate.calling(srv_name):
+                gate = self.gate
+                assert gate is not None  # made in _configure, before any commander
+                with gate.calling(srv_name):
                     response = callback(request, response)
             except Exception as exc:  # a bug, not a refusal: say so, keep the traceback
                 self.get_logger().error(f'{srv_name}: internal error:\n'
@@ -411,6 +418,7 @@ class BridgeNode(LifecycleNode):
             reason = self.params.validate(param)
             if (reason is None and self._ready and param.name == 'commands_enabled'
                     and param.value is True):
+                assert self.gate is not None  # _ready: configured
                 reason = self.gate.arming_reason(True)
                 if reason:
                     self.get_logger().warning(f'refused: {reason}')
@@ -444,6 +452,7 @@ class BridgeNode(LifecycleNode):
             # Who: ROS 2 hands the node the new value, never the caller (the parameter
             # event names this node); only SROS2 decides who may make this call at all.
             # The gate tells the commanders (its listeners) before it returns.
+            assert self.gate is not None  # declared by _configure with the gate
             refused = self.gate.set_enabled(
                 bool(changed['commands_enabled']),
                 how='set at run time through the parameter services; the caller is not known '

@@ -9,7 +9,7 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from ams_can_bridge.can_io.config import BusState, UP_STATES
+from ams_can_bridge.bus_state import BusState, UP_STATES
 
 
 class BusStateLog:

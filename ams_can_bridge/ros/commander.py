@@ -14,8 +14,9 @@ device's current configuration when a call comes.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import Any, Callable, Protocol
+from typing import Any, Callable, Generic, Protocol, TypeVar
 
+from ams_can_bridge.devices.base import Device
 from ams_can_bridge.engine.gate import CommandPort
 
 
@@ -42,10 +43,14 @@ class ServiceHost(Protocol):
         """Set parameters all or none (the EVMS3 read-back)."""
 
 
-class Commander(ABC):
+DeviceT = TypeVar('DeviceT', bound=Device)
+
+
+class Commander(ABC, Generic[DeviceT]):
     """The command services of one device instance (``<name>/...``)."""
 
-    def __init__(self, gate: CommandPort, device: Any, name: str, host: ServiceHost) -> None:
+    def __init__(self, gate: CommandPort, device: DeviceT, name: str,
+                 host: ServiceHost) -> None:
         """Keep the gate, the device and the host; follow commands_enabled from now on."""
         self.gate = gate
         self.device = device

@@ -18,7 +18,6 @@ from std_msgs.msg import Float32MultiArray, MultiArrayDimension, MultiArrayLayou
 
 from ams_can_bridge import reports
 from ams_can_bridge.devices.base import BatteryReport, DiagnosticReport
-from ams_can_bridge.reports import bus_report  # noqa: F401 (re-exported)
 
 
 def stamp_msg(stamp: float) -> Time:

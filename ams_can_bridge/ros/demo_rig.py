@@ -8,6 +8,7 @@ or the bridge object directly: the numbers took the same path as for any ROS sub
 """
 from __future__ import annotations
 
+from functools import partial
 import os
 import threading
 from typing import Any
@@ -132,7 +133,7 @@ class DemoMonitor(Node):
         for name in DEVICES:
             self.create_subscription(
                 BatteryState, f'{name}/battery_state',
-                lambda msg, name=name: self._on_battery(name, msg), 10)
+                partial(self._on_battery, name), 10)
         self.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics, 10)
 
     def _on_battery(self, name: str, msg: BatteryState) -> None:

@@ -95,10 +95,10 @@ class DiagnosticsEncoder:
                 if known is None or known[0] != value:
                     known = (value, _pair(key, value))
                     pairs[(name, key)] = known
-                pad = _PADS[-pos & 3]
-                body.append(pad)
+                padding = _PADS[-pos & 3]
+                body.append(padding)
                 body.append(known[1])
-                pos += len(pad) + len(known[1])
+                pos += len(padding) + len(known[1])
         return self._header + b''.join(body)
 
     def check(self) -> bool:

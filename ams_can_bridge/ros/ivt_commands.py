@@ -22,7 +22,7 @@ from ams_can_bridge.ros.commander import Commander, ServiceHost
 START_CHECK_POLL = 0.05  # s between looks for "heard and commands enabled"
 
 
-class IvtCommands(Commander):
+class IvtCommands(Commander[IvtSDevice]):
     """The command services of one IVT-S instance."""
 
     def __init__(self, gate: CommandPort, device: IvtSDevice, name: str,

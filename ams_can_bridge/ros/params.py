@@ -17,11 +17,8 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 import yaml
 
-from ams_can_bridge.devices.base import ParamSpec
-from ams_can_bridge.errors import ParamError  # noqa: F401 (re-exported)
-from ams_can_bridge.parameters import (  # noqa: F401 (re-exported: the node's names)
-    allowed_text, BUS_PARAMS, coerce, format_number, NODE_PARAMS, raise_param_errors,
-    spec_from_config_field)
+from ams_can_bridge.errors import ParamError
+from ams_can_bridge.parameters import allowed_text, coerce, ParamSpec, raise_param_errors
 
 _STATIC_TYPES = {
     bool: Parameter.Type.BOOL,

@@ -13,7 +13,7 @@ from ams_can_bridge.engine.gate import CommandPort
 from ams_can_bridge.ros.commander import Commander, ServiceHost
 
 
-class SmaCommands(Commander):
+class SmaCommands(Commander[SmaDevice]):
     """The keep-alive of one SMA instance, armed by commands_enabled."""
 
     def __init__(self, gate: CommandPort, device: SmaDevice, name: str,

@@ -26,7 +26,7 @@ from ams_can_bridge.devices.evms3 import Evms3Device
 from ams_can_bridge.engine.gate import CommandPort
 from ams_can_bridge.errors import RefusedCommand
 from ams_can_bridge.protocols.common import EncodeRangeError, Frame
-from ams_can_bridge.ros.commander import Commander, ServiceHost
+from ams_can_bridge.ros.commander import Commander, DeviceT, ServiceHost
 
 
 def frame_text(frame: Frame) -> str:
@@ -35,7 +35,7 @@ def frame_text(frame: Frame) -> str:
     return f'ID {frame.arbitration_id} (0x{frame.arbitration_id:X}) [{data}]'
 
 
-class _ZevaCommands(Commander):
+class _ZevaCommands(Commander[DeviceT]):
     """Shared plumbing: the gate, all-or-nothing frame sequences, services."""
 
     def destroy(self) -> None:
@@ -86,7 +86,7 @@ class _ZevaCommands(Commander):
         time.sleep(seconds)
 
 
-class Evms3Commands(_ZevaCommands):
+class Evms3Commands(_ZevaCommands[Evms3Device]):
     """
     EVMS3: read_config (51 -> 52..56), write_config (36, 32..35), set_setup_mode (31), ...
 
@@ -130,15 +130,16 @@ class Evms3Commands(_ZevaCommands):
             return False, f'{self.name}: {self.gate.refusal("read the configuration")}'
         # the gate waits for the bus outside its batch lock, then sends ID 51 under it
         result = self.device.read_config(self.gate.transmit, float(config.read_timeout or 2.0))
-        if not result.ok:
+        readback = result.readback
+        if readback is None or not result.ok:
             return False, f'{self.name}: read_config failed: {result.error}; nothing was set'
-        values = result.readback.parameter_values()
+        values = readback.parameter_values()
         outcome = self.host.set_parameters_atomically([
             Parameter(f'{self.name}.config.{key}', value=value) for key, value in values.items()])
         if not outcome.successful:
             return False, (f'{self.name}: read_config: the EVMS3 answered, but its values '
                            f'cannot be set: {outcome.reason}; nothing was set')
-        return True, (f'{self.name}: read_config: {result.readback.summary()}; set '
+        return True, (f'{self.name}: read_config: {readback.summary()}; set '
                       f'{len(values)} parameters {self.name}.config.*')
 
     def _set_setup_mode(self, request: Any, response: Any) -> Any:
@@ -149,7 +150,7 @@ class Evms3Commands(_ZevaCommands):
         return response
 
 
-class Bms16Commands(_ZevaCommands):
+class Bms16Commands(_ZevaCommands[Bms16Device | Bms16StdDevice]):
     """
     BMS16: write_config, acknowledge_error, reset_soc, power_off.
 

@@ -42,6 +42,7 @@ import math
 import random
 from typing import Callable
 
+from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols import ams as proto
 from ams_can_bridge.protocols.ams import (
     AmsChargerStatus, AmsCodec, AmsError, AmsErrorEvent, AmsState, AmsStatus, AmsStatusWord,
@@ -89,7 +90,7 @@ class AmsSimulator(SimDevice):
                  charger_timeout: float | None = None, pad: bool = False) -> None:
         super().__init__(name)
         if not 1 <= bank_count <= proto.MAX_BANKS:
-            raise ValueError(f'bank_count = {bank_count}: allowed 1..{proto.MAX_BANKS}')
+            raise ConfigError(f'bank_count = {bank_count}: allowed 1..{proto.MAX_BANKS}')
         self.codec = AmsCodec(base_id)
         self.bank_count = int(bank_count)
         self.current_fn = current_fn or drive_current_a
@@ -242,8 +243,8 @@ class AmsSimulator(SimDevice):
         if code is not None and code != self._injected:
             self._injected = code
             if code not in proto._ERRORS:
-                raise ValueError(f'faults.error_code = {code!r}: not an AMS error ID '
-                                 f'(1..{len(AmsError)})')
+                raise ConfigError(f'faults.error_code = {code!r}: not an AMS error ID '
+                                  f'(1..{len(AmsError)})')
             self._error(AmsError(code), now)
         self._injected = code
         limit = None

@@ -8,6 +8,7 @@ under ``SimRunner`` in ``simulator``, ``demo`` and the benchmarks.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 from ams_can_bridge.protocols.common import Frame
 
@@ -21,7 +22,7 @@ class Faults:
     error_code: int | None = None  # report this vendor error code
     cell_drift_v: float = 0.0     # added to one cell (index drift_cell) over time
     drift_cell: int = 0
-    extra: dict[str, object] = field(default_factory=dict)
+    extra: dict[str, Any] = field(default_factory=dict)
 
 
 class SimDevice:

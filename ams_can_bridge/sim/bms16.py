@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import bisect
 import random
-from typing import Callable
+from typing import Any, Callable
 
 from ams_can_bridge.protocols.bms16 import (
     AcknowledgeError, Bms16Cells, Bms16Codec, Bms16ConfigPart1, Bms16ConfigPart2, Bms16Error,
@@ -40,6 +40,7 @@ def lfp_cell_ocv(soc_pct: float) -> float:
 
 def _clamped(name: str, value: float) -> float:
     spec = CONFIG_FIELD[name]
+    assert spec.low is not None and spec.high is not None  # every BMS16 setting has a range
     return min(spec.high, max(spec.low, value))
 
 
@@ -157,7 +158,8 @@ class Bms16Simulator(SimDevice):
         """Read a configuration frame with a value out of range as the unit does (to clamp)."""
         offset = arbitration_id - self.codec.base_id
         if offset == CONFIG_1 and len(data) == 8:
-            return Bms16ConfigPart1(**unchecked_config_values(data, 1))
+            part1: dict[str, Any] = unchecked_config_values(data, 1)
+            return Bms16ConfigPart1(**part1)
         if offset == CONFIG_2 and len(data) == 4 and data[3] < len(SHUNT_SIZES_A):
             return Bms16ConfigPart2(**unchecked_config_values(data, 2),
                                     shunt_size_a=SHUNT_SIZES_A[data[3]])
@@ -173,15 +175,17 @@ class Bms16Simulator(SimDevice):
         except MalformedFrameError:
             # the real unit clamps a configuration value out of range; it ignores any other
             # frame it cannot read (a wrong length, an unknown shunt code)
-            message = self._clamped_config(frame.arbitration_id, data)
-            if message is None:
+            clamped = self._clamped_config(frame.arbitration_id, data)
+            if clamped is None:
                 return
+            message = clamped
         except ProtocolError:
             return
         if isinstance(message, Bms16ConfigPart1):
-            self.config1 = Bms16ConfigPart1(**{
+            values: dict[str, Any] = {
                 name: (int if name == 'cells' else float)(_clamped(name, value))
-                for name, value in vars(message).items()})
+                for name, value in vars(message).items()}
+            self.config1 = Bms16ConfigPart1(**values)
             self.cells = self.config1.cells
             self.capacity_ah = self.config1.pack_capacity_ah
         elif isinstance(message, Bms16ConfigPart2):

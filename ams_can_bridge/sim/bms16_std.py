@@ -21,7 +21,7 @@ from ams_can_bridge.protocols.evms3 import (
     BatteryCurrent, Bms12Cells, Evms3Error, Evms3State)
 from ams_can_bridge.sim.base import Periodic, SimDevice
 from ams_can_bridge.sim.bms16 import CELL_RESISTANCE_OHM, lfp_cell_ocv
-from ams_can_bridge.sim.pack import Elapsed, integrate_soc, thermal_lag
+from ams_can_bridge.sim.pack import Elapsed, four, integrate_soc, thermal_lag
 from ams_can_bridge.sim.profiles import drive_current_a
 
 
@@ -95,7 +95,7 @@ class Bms16StdSimulator(SimDevice):
         for (module, reply), first in CELL_FRAMES.items():
             if first < self.cells:  # module 1 sends only when cells 9.. exist
                 frames.append(self.codec.encode(Bms12Cells(
-                    module, 4 * (reply - 1), tuple(volts[first:first + 4]))))
+                    module, 4 * (reply - 1), four(volts[first:first + 4]))))
         if self.shunt:
             frames.append(self.codec.encode(BatteryCurrent(round(self.current_a, 3))))
         return frames

@@ -89,10 +89,10 @@ class DbcSimulator(SimDevice):
                 good = [v for v, target in rule.table.items() if target in wanted]
                 roles.setdefault((rule.ref.message, rule.ref.signal),
                                  ('value', good[0] if good else None))
-        for rule in plan.levels:
-            info = plan.messages[rule.ref.message].signals[rule.ref.signal]
-            roles.setdefault((rule.ref.message, rule.ref.signal),
-                             ('value', self._quiet(rule.condition, rule.threshold, info)))
+        for level in plan.levels:
+            info = plan.messages[level.ref.message].signals[level.ref.signal]
+            roles.setdefault((level.ref.message, level.ref.signal),
+                             ('value', self._quiet(level.condition, level.threshold, info)))
         return roles
 
     def _quiet(self, condition: str, threshold: float,

@@ -30,6 +30,7 @@ import random
 from dataclasses import asdict
 from typing import Any, Callable, Sequence
 
+from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols.common import Frame, ProtocolError
 from ams_can_bridge.protocols.evms3 import (
     AcknowledgeError, BatteryCurrent, Bms12Cells, Bms12Request, Bms12Temperatures,
@@ -37,7 +38,7 @@ from ams_can_bridge.protocols.evms3 import (
     Evms3State, Evms3Status, PowerOff, RequestConfig, ResetSoc, SetState, ZeroCurrentSensor)
 from ams_can_bridge.protocols.tc_charger import ChargerCommand, ChargerStatus
 from ams_can_bridge.sim.base import Periodic, SimDevice
-from ams_can_bridge.sim.pack import Elapsed
+from ams_can_bridge.sim.pack import Elapsed, four
 from ams_can_bridge.sim.profiles import drive_current_a
 
 CELL_RESISTANCE_OHM = 0.0008
@@ -83,13 +84,13 @@ class Evms3Simulator(SimDevice):
                  state: Evms3State = Evms3State.RUNNING) -> None:
         super().__init__(name)
         if not 0 <= chargers <= 3:
-            raise ValueError(f'chargers {chargers}: allowed 0..3 (TC chargers 1..3)')
+            raise ConfigError(f'chargers {chargers}: allowed 0..3 (TC chargers 1..3)')
         if not 0 <= bms12_modules <= 16:
-            raise ValueError(f'bms12_modules {bms12_modules}: allowed 0..16')
+            raise ConfigError(f'bms12_modules {bms12_modules}: allowed 0..16')
         counts = ([cells_per_module] * bms12_modules if isinstance(cells_per_module, int)
                   else list(cells_per_module)[:bms12_modules])
         if len(counts) != bms12_modules or any(not 0 <= n <= 12 for n in counts):
-            raise ValueError(f'cells_per_module {cells_per_module!r}: 0..12 per module')
+            raise ConfigError(f'cells_per_module {cells_per_module!r}: 0..12 per module')
         self.codec = Evms3Codec(base_id, bms12_modules=bms12_modules, extended_id=extended_id)
         self.chargers = chargers
         self.charge_after_s = charge_after_s
@@ -307,6 +308,7 @@ class Evms3Simulator(SimDevice):
         """Return the balance voltage the EVMS asks of every BMS12 module (None = off)."""
         cfg = self.ram_config
         if cfg is not None and cfg.balance_mode == 'static':
+            assert cfg.balance_v is not None  # a static balance mode has its voltage
             return int(round(cfg.balance_v * 1000))
         if self.state != Evms3State.CHARGING or (cfg is not None and cfg.balance_mode == 'off'):
             return None
@@ -321,7 +323,7 @@ class Evms3Simulator(SimDevice):
             frames.append(self.codec.encode(Bms12Request(m, balance)))
             for first in (0, 4, 8):
                 frames.append(self.codec.encode(
-                    Bms12Cells(m, first, tuple(padded[first:first + 4]))))
+                    Bms12Cells(m, first, four(padded[first:first + 4]))))
             frames.append(self.codec.encode(Bms12Temperatures(m, self.module_temps_c[m])))
         return frames
 

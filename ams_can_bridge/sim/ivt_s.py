@@ -17,7 +17,7 @@ Any other command is answered "wrong command" (0xFF).
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable
+from typing import Any, Callable
 
 from ams_can_bridge.protocols import ivt_s_commands as cmd
 from ams_can_bridge.protocols.common import Frame, ProtocolError
@@ -229,7 +229,7 @@ class IvtSSimulator(SimDevice):
         self._restart_until = now + RESTART_S
         self._answer(AliveAnswer(COMMAND_ID, self.serial), self._restart_until)
 
-    def misconfigure(self, **changes: object) -> None:
+    def misconfigure(self, **changes: Any) -> None:
         """Change every result's configuration in place (a sensor set up by another tool)."""
         self.configs = {k: dataclasses.replace(c, **changes) for k, c in self.configs.items()}
         self.stored = dict(self.configs)

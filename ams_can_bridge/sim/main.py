@@ -12,6 +12,7 @@ from typing import Any, Sequence
 
 from ams_can_bridge import registry
 from ams_can_bridge.can_io import parse_options
+from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.sim.base import SimDevice
 from ams_can_bridge.sim.runner import open_bus, SimRunner
 
@@ -132,9 +133,9 @@ def build_devices(types: Sequence[str], ams_banks: int | None = None,
                 if value is not None:
                     kwargs[key] = value
         elif kind == 'sma':
-            for key, value in (('dialect', sma_dialect), ('soc_layout', sma_soc_frame)):
-                if value is not None:
-                    kwargs[key] = value
+            for key, text in (('dialect', sma_dialect), ('soc_layout', sma_soc_frame)):
+                if text is not None:
+                    kwargs[key] = text
         elif kind == 'bms16' and 'sma' in types and _accepts(cls, 'send_sma'):
             # The BMS16 also speaks SMA (0x351...): two sources of one ID would clash.
             kwargs['send_sma'] = False
@@ -172,18 +173,18 @@ _EXTRA_FAULTS = {'ams': ('stuck_counter', 'imd_error'),
 
 
 def apply_faults(devices: Sequence[SimDevice], faults: Sequence[tuple[str, str, Any]]) -> None:
-    """Set fault switches; raise ValueError naming an unknown device or fault."""
+    """Set fault switches; raise ConfigError naming an unknown device or fault."""
     by_name = {d.name: d for d in devices}
     for name, kind, value in faults:
         if name not in by_name:
-            raise ValueError(f'--fault {name}:{kind}: no simulated device {name!r} '
-                             f'(running: {", ".join(by_name)})')
+            raise ConfigError(f'--fault {name}:{kind}: no simulated device {name!r} '
+                              f'(running: {", ".join(by_name)})')
         target = _FAULT_FIELDS.get(kind)
         device = by_name[name]
         extra = getattr(device, 'EXTRA_FAULTS', _EXTRA_FAULTS.get(device.TYPE, ()))
         if target is None and kind not in extra:
-            raise ValueError(f'--fault {name}:{kind}: no such fault of {name}; use one of '
-                             + ', '.join(sorted(set(_FAULT_FIELDS) | set(extra))))
+            raise ConfigError(f'--fault {name}:{kind}: no such fault of {name}; use one of '
+                              + ', '.join(sorted(set(_FAULT_FIELDS) | set(extra))))
         if target is None:
             device.faults.extra[kind] = value
         else:
@@ -219,7 +220,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         options = parse_options(args.option)
         if bool(args.dbc) != bool(args.mapping):
-            raise ValueError('--dbc and --mapping go together')
+            raise ConfigError('--dbc and --mapping go together')
         devices = build_devices(selected_types(args), args.ams_banks, args.bms12_modules,
                                 args.ivt_byte_order, args.sma_dialect,
                                 args.evms3_charge_after, args.evms3_chargers,

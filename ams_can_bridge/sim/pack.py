@@ -7,6 +7,8 @@ helpers only hold the arithmetic, written once, in the order the simulators alwa
 """
 from __future__ import annotations
 
+from typing import Sequence
+
 THERMAL_TAU_S = 60.0  # s: time constant of the first-order temperature lag
 
 
@@ -43,3 +45,9 @@ def thermal_lag(temperature_c: float, target_c: float, dt: float,
                 tau_s: float = THERMAL_TAU_S) -> float:
     """Move temperature_c towards target_c over dt s (first-order lag, time constant tau_s)."""
     return temperature_c + (target_c - temperature_c) * min(1.0, dt / tau_s)
+
+
+def four(values: Sequence[float]) -> tuple[float, float, float, float]:
+    """Return the four cell voltages of one BMS12 cell frame (a slice of a padded list)."""
+    first, second, third, fourth = values
+    return first, second, third, fourth

@@ -8,6 +8,7 @@ from typing import Any, Sequence
 
 import can
 
+from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.sim.base import SimDevice
 
@@ -37,7 +38,7 @@ class SimRunner:
                  tick_period: float = 0.002,
                  logger: logging.Logger | None = None) -> None:
         if not tick_period > 0:
-            raise ValueError(f'tick_period = {tick_period}: must be > 0 s')
+            raise ConfigError(f'tick_period = {tick_period}: must be > 0 s')
         self.bus = bus
         self.devices = list(devices)
         self.tick_period = tick_period

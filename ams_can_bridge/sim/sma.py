@@ -27,13 +27,14 @@ conditions outside ``PYLONTECH_CONDITION_NAMES``: those are not sent in that dia
 from __future__ import annotations
 
 import random
-from typing import Callable
+from typing import Any, Callable
 
+from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.sma import (
     SMA_CONDITIONS, SmaAlarms, SmaBattery, SmaBatteryInfo, SmaCodec, SmaFlag, SmaLimits,
     SOC_LAYOUTS,
-    SmaManufacturer, SmaSoc)
+    SmaManufacturer, SmaReading, SmaSoc)
 from ams_can_bridge.protocols.sma_dialects import (
     CELL_ID_KINDS, KELVIN_OFFSET, PYLONTECH_CONDITION_NAMES, PylontechAlarms, PylontechRequest,
     VictronBmsName, VictronCellExtremes, VictronCellId, VictronModules)
@@ -55,14 +56,14 @@ FULL_PCT = 99.5  # charge enable goes off above this SoC (0x35C)
 EMPTY_PCT = 5.0  # discharge enable goes off below it, and the BMS asks for charge
 
 
-def _names(value: object) -> set[str]:
+def _names(value: Any) -> set[str]:
     if not value:
         return set()
     names = {value} if isinstance(value, str) else set(value)
     unknown = names - set(SMA_CONDITIONS)
     if unknown:
-        raise ValueError(f'unknown SMA condition(s) {sorted(unknown)}: use '
-                         + ', '.join(SMA_CONDITIONS))
+        raise ConfigError(f'unknown SMA condition(s) {sorted(unknown)}: use '
+                          + ', '.join(SMA_CONDITIONS))
     return names
 
 
@@ -80,13 +81,13 @@ class SmaSimulator(SimDevice):
                  soc_layout: str = 'sma') -> None:
         super().__init__(name)
         if dialect not in DIALECTS:
-            raise ValueError(f'SMA dialect {dialect!r}: use one of ' + ', '.join(DIALECTS))
+            raise ConfigError(f'SMA dialect {dialect!r}: use one of ' + ', '.join(DIALECTS))
         if soc_layout not in SOC_LAYOUTS:
-            raise ValueError(f'SMA 0x355 layout {soc_layout!r}: use one of '
-                             + ', '.join(SOC_LAYOUTS))
+            raise ConfigError(f'SMA 0x355 layout {soc_layout!r}: use one of '
+                              + ', '.join(SOC_LAYOUTS))
         self.soc_layout = soc_layout
         if not 1 <= len(bms_name) <= 16:
-            raise ValueError(f'bms_name {bms_name!r}: 1..16 ASCII characters (0x370 + 0x371)')
+            raise ConfigError(f'bms_name {bms_name!r}: 1..16 ASCII characters (0x370 + 0x371)')
         self.dialect = dialect
         self.bms_name = bms_name
         rng = random.Random(seed)
@@ -143,7 +144,7 @@ class SmaSimulator(SimDevice):
             self.soc_pct > EMPTY_PCT and 'low_voltage' not in active,
             self.soc_pct <= EMPTY_PCT)
 
-    def victron_messages(self) -> list[object]:
+    def victron_messages(self) -> list[SmaReading]:
         """0x372..0x377 now: module counts, min/max cell voltage and temperature, cell ids."""
         cells = self.cell_voltages()
         low, high = cells.index(min(cells)), cells.index(max(cells))
@@ -170,7 +171,7 @@ class SmaSimulator(SimDevice):
     def tick(self, now: float) -> list[Frame]:
         """Advance the pack to ``now`` and return the frames due."""
         self._step(now)
-        messages: list[object] = []
+        messages: list[SmaReading] = []
         if self._periodic.due(now):
             messages += [
                 SmaLimits(CELLS * 3.45, round(0.5 * self.capacity_ah, 1),
