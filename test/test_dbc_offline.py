@@ -50,13 +50,24 @@ def test_log2bag_writes_one_batterystate_per_primary_frame_with_the_devices_valu
 def test_replay_publishes_the_reference(rig_factory, tmp_path):
     log = _log(tmp_path)
     want = [values for _, values in device_reference(log, ['dbc'], PARAMS)['dbc']]
-    with can.LogReader(log) as reader:
+    # A lead-in: one frame no device takes (0x7FF; the DBC's IDs are 0x220..0x250), 1 s
+    # before the first, played in real time, so the test's subscription is matched (DDS
+    # discovery) before the first BatteryState is published; otherwise it can be lost.
+    led = str(tmp_path / 'led.log')
+    with can.LogReader(log) as reader, can.Logger(led) as writer:
+        for k, msg in enumerate(reader):
+            if k == 0:
+                writer.on_message_received(can.Message(
+                    timestamp=msg.timestamp - 1.0, arbitration_id=0x7FF, data=b'',
+                    is_extended_id=False))
+            writer.on_message_received(msg)
+    with can.LogReader(led) as reader:
         frames = sum(1 for _ in reader)
     rig = rig_factory({'devices': ['dbc'], **PARAMS, 'can.interface': 'replay',
-                       'can.channel': log, 'can.replay_rate': 0.0},
+                       'can.channel': led, 'can.replay_rate': 1.0},
                       topics=battery_topics(['dbc']), depth=10000, wait_connected=False)
     try:
-        rig.wait(lambda: rig.bus_values().get('state') == 'replay finished', 30.0,
+        rig.wait(lambda: rig.bus_values().get('state') == 'replay finished', 30.0 + SECONDS,
                  'the replay to finish')
         deadline = time.monotonic() + 20.0
         while rig.present_count('dbc/battery_state') < len(want):

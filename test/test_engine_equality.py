@@ -39,6 +39,8 @@ SECONDS = 6.0
 GAP = (1.5, 4.5)  # s after the start: nothing on the bus
 STALE_S = 1.5
 STALE = 3  # diagnostic level
+LEAD_IN = 2.0  # s of silence before the first device frame (see gap_log)
+LEAD_IN_ID = 0x7FF  # no device of the test takes it
 
 
 def parameters() -> dict:
@@ -55,6 +57,12 @@ def gap_log(tmp_path_factory) -> str:
     write_log(full, list(build_simulators(2, DEVICES).values()), SECONDS, START)
     path = str(folder / 'gap.log')
     with can.LogReader(full) as reader, can.Logger(path) as writer:
+        # A lead-in: one frame no device takes, LEAD_IN s before the first device frame, so
+        # the test's subscriptions are matched (DDS discovery) before a real-time replay
+        # publishes its first message; otherwise that message can be lost to the test.
+        writer.on_message_received(can.Message(timestamp=START - LEAD_IN,
+                                               arbitration_id=LEAD_IN_ID, data=b'',
+                                               is_extended_id=False))
         for msg in reader:
             if not GAP[0] <= msg.timestamp - START < GAP[1]:
                 writer.on_message_received(msg)
@@ -126,7 +134,7 @@ def test_the_running_bridge_and_log2bag_emit_the_same_messages(gap_log, rig_fact
     def finished() -> bool:
         return any(kv.key == 'replay' and kv.value == 'finished'
                    for m in live.messages('/diagnostics') for s in m.status for kv in s.values)
-    live.wait(finished, SECONDS + 30.0, 'the replay to finish and be reported')
+    live.wait(finished, LEAD_IN + SECONDS + 30.0, 'the replay to finish and be reported')
 
     for name in DEVICES:
         def tokens(source: dict, prefix: str) -> list:
