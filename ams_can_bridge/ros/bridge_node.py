@@ -175,6 +175,10 @@ class BridgeNode(LifecycleNode):
             raise ConfigError(str(exc)) from None
         self._ready = True
         assert self.can_io is not None  # opened by _configure above
+        if self.autostart and self.sink is not None:
+            # configure and activate are one step here: a frame that arrives between them
+            # (a replay plays at once) is published, not lost to the inactive state
+            self.sink.enabled = True
         self.can_io.start()
         self._log_summary()
 
