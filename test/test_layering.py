@@ -1,5 +1,7 @@
 """
-The layering DESIGN.md draws, checked on the source: only ``ams_can_bridge/ros/`` imports rclpy.
+The layering of the README's Architecture and Layout sections, checked on the source.
+
+Only ``ams_can_bridge/ros/`` imports rclpy.
 
 Protocols, devices, the bus layer, the simulators and log2bag must run (and be tested)
 without ROS; an rclpy import creeping into them would tie them to a ROS installation. Between
@@ -43,7 +45,7 @@ def test_the_check_sees_an_import_inside_a_function(tmp_path):
     assert ros_imports(source) == ['rclpy.node', 'std_msgs.msg']
 
 
-# Layers that must never import another (DESIGN.md's layering): the protocols are the bottom
+# Layers that must never import another (the README's Layout): the protocols are the bottom
 # a device builds on, the parameters are read by devices, the devices know no engine or ROS,
 # the engine no ROS, and the bus layer carries frames without knowing what they mean.
 NEVER = {
