@@ -49,6 +49,15 @@ def sma_empty(frame: Frame) -> Frame:
     return Frame(frame.arbitration_id, b'', frame.is_extended_id)
 
 
+def pack_cells(sim: Any) -> list[float]:
+    """Cell voltages (V, unclamped) of a BMS16 simulator: OCV, IR drop, offsets, drift fault."""
+    base = lfp_cell_ocv(sim.soc_pct) - sim.current_a * CELL_RESISTANCE_OHM
+    volts = [base + sim.cell_offsets_v[k] for k in range(sim.cells)]
+    if 0 <= sim.faults.drift_cell < sim.cells:
+        volts[sim.faults.drift_cell] += sim.faults.cell_drift_v
+    return volts
+
+
 class Bms16Simulator(SimDevice):
     """A BMS16 on a LiFePO4 pack; current_fn(now) -> A, positive = discharge."""
 
@@ -84,11 +93,7 @@ class Bms16Simulator(SimDevice):
 
     def cell_voltages(self) -> list[float]:
         """Present cell voltages (V) of the configured number of cells."""
-        base = lfp_cell_ocv(self.soc_pct) - self.current_a * CELL_RESISTANCE_OHM
-        volts = [base + self.cell_offsets_v[k] for k in range(self.cells)]
-        if 0 <= self.faults.drift_cell < self.cells:
-            volts[self.faults.drift_cell] += self.faults.cell_drift_v
-        return [min(5.11, max(0.0, v)) for v in volts]
+        return [min(5.11, max(0.0, v)) for v in pack_cells(self)]
 
     def error(self) -> Bms16Error:
         """Return the error reported: the injected one, else low SoC against its warning."""

@@ -20,7 +20,7 @@ from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import (
     BatteryCurrent, Bms12Cells, Evms3Error, Evms3State)
 from ams_can_bridge.sim.base import Periodic, SimDevice
-from ams_can_bridge.sim.bms16 import CELL_RESISTANCE_OHM, lfp_cell_ocv
+from ams_can_bridge.sim.bms16 import pack_cells
 from ams_can_bridge.sim.pack import Elapsed, four, integrate_soc, thermal_lag
 from ams_can_bridge.sim.profiles import drive_current_a
 
@@ -58,11 +58,7 @@ class Bms16StdSimulator(SimDevice):
 
     def cell_voltages(self) -> list[float]:
         """Present cell voltages (V) of the configured number of cells."""
-        base = lfp_cell_ocv(self.soc_pct) - self.current_a * CELL_RESISTANCE_OHM
-        volts = [base + self.cell_offsets_v[k] for k in range(self.cells)]
-        if 0 <= self.faults.drift_cell < self.cells:
-            volts[self.faults.drift_cell] += self.faults.cell_drift_v
-        return [round(min(65.535, max(0.0, v)), 3) for v in volts]
+        return [round(min(65.535, max(0.0, v)), 3) for v in pack_cells(self)]
 
     def error(self) -> Evms3Error:
         """Return the error reported: the injected one, else low SoC against its warning."""
