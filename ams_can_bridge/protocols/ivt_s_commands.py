@@ -7,14 +7,21 @@ Multi-byte fields are big-endian whatever the result byte order is set to (the D
 Motorola signals). Only what the public sources confirm is encoded here; the other
 commands of the DBC (CAN IDs, thresholds, triggers, log data) are not used by the bridge,
 and answers to them decode as ``OtherAnswer``.
+
+Each message is a layout table (protocols/layout.py) with the vendor DBC's start bits. As
+msg_defs/ivt_s.dbc has 0x411 / 0x511 only as a mux byte and opaque data, the tables are
+checked against golden frames typed by hand from the sources, not against a DBC.
 """
 from __future__ import annotations
 
-import enum
+import dataclasses
 from dataclasses import dataclass
+import enum
+from typing import Any, Callable
 
-from ams_can_bridge.protocols.common import EncodeRangeError, Frame, MalformedFrameError
+from ams_can_bridge.protocols.common import Frame, MalformedFrameError
 from ams_can_bridge.protocols.ivt_s import COMMAND_ID, IvtMux, RESPONSE_ID
+from ams_can_bridge.protocols.layout import Layout, Signal
 
 DLC = 8
 
@@ -46,12 +53,6 @@ RESP_WRONG_COMMAND = 0xFF
 RESET_ALL_MEASUREMENT_ERRORS = 0x0000
 RESET_ALL_SYSTEM_ERRORS = 0x0100
 
-# Configuration byte 1 (DBC: TriggerMode 9|2 = bits 1..0, Endianess 14|1 = bit 6,
-# Sign 15|1 = bit 7). Bits 5..4 are not in the DBC: written 0, as ivts (flags=0) and
-# Stm32-vcu (0x42) do.
-MODE_MASK = 0x03
-ENDIANESS_BIT = 0x40  # 1 = little-endian (Stm32-vcu writes 0x42 and decodes LE)
-SIGN_BIT = 0x80
 CYCLE_MAX_MS = 0xFFFF
 
 
@@ -174,99 +175,133 @@ IvtAnswer = (ResultConfig | ModeAnswer | StoreAnswer | AliveAnswer | SerialAnswe
              | ResetAnswer | ErrorAnswer | WrongCommand | OtherAnswer)
 
 
-def _frame(*data: int) -> Frame:
-    return Frame(COMMAND_ID, bytes(data) + bytes(DLC - len(data)), False)
+# --- the layouts (vendor DBC IVT-S_12082020.dbc: start|length, Motorola) ------------------
+def _layout(name: str, *signals: Signal) -> Layout:
+    """One 0x411 / 0x511 message: the mux byte 0 (IVT_ID_Cmd / IVT_ID_Response 7|8) first."""
+    return Layout(name, DLC, (Signal('IVT_ID', 7, 8, field='IVT-S mux ID'),) + signals)
 
 
-def _u32(value: int, what: str) -> bytes:
-    if not 0 <= value <= 0xFFFFFFFF:
-        raise EncodeRangeError(what, value, '0..0xFFFFFFFF')
-    return value.to_bytes(4, 'big')
+# 0x2n / 0xAn (_2n_Conf_*, _An_Resp_*), in the order of ResultConfig. Byte 1 bits 5..4 are
+# not in the DBC: written 0, as ivts (flags=0) and Stm32-vcu (0x42) do. Endianess 1 =
+# little-endian (Stm32-vcu writes 0x42 and decodes LE).
+CONFIG = _layout('Conf_Result', Signal('Conf_TriggerMode', 9, 2, high=2, lookup=tuple(
+    TriggerMode), field='IVT-S trigger mode'),  # 3 is not defined: malformed
+    Signal('Conf_CycleTime', 23, 16, unit='ms', field='IVT-S cycle time'),
+    Signal('Conf_Endianess', 14, 1, flag=True, field='little_endian'),
+    Signal('Conf_Sign', 15, 1, flag=True, field='sign_inverted'))
+EMPTY = _layout('Dummy')  # get, store, restart: the DBC's *_dummy byte is 0
+MODE = _layout('Mode', Signal('Actual_Mode', 8, 1, flag=True, field='running'),
+               Signal('Startup_Mode', 16, 1, flag=True, field='startup_running'))
+RESET = _layout('Reset', Signal('Reset_Item', 15, 16, field='IVT-S reset item'),
+                Signal('Reset_Device_SN', 31, 32, field='IVT-S serial number'))
+ALIVE = _layout('Restart_Alive', Signal('Restart_Alive_Cmd_ID', 15, 16, field='command_id'),
+                Signal('Restart_Alive_SN', 31, 32, field='IVT-S serial number'))
+SERIAL = _layout('Serien_Nr', Signal('Resp_Serien_Nr', 15, 32, field='IVT-S serial number'))
+ERROR = _layout('Error', Signal('Error_Item', 15, 8, field='item'),
+                Signal('Error_Count_Mask', 23, 16, field='count_mask'))
+WRONG = _layout('Wrong_Command', Signal('Wrong_Command', 15, 8, field='command'))
+
+# Answer mux ID -> (reading, layout, the reading's first fields that the mux ID itself says:
+# the result of 0xAn, system or measurement of 0x81 / 0x80); the other fields follow the
+# mux byte in the layout's order.
+_ANSWERS: dict[int, tuple[type, Layout, tuple]] = {
+    **{RESP_CONFIG_RESULT + kind: (ResultConfig, CONFIG, (kind,)) for kind in IvtMux},
+    RESP_MEAS_ERROR: (ErrorAnswer, ERROR, (False,)),
+    RESP_SYSTEM_ERROR: (ErrorAnswer, ERROR, (True,)),
+    RESP_MODE: (ModeAnswer, MODE, ()),
+    RESP_STORE: (StoreAnswer, EMPTY, ()),
+    RESP_ALIVE: (AliveAnswer, ALIVE, ()),
+    RESP_SERIAL_NR: (SerialAnswer, SERIAL, ()),
+    RESP_RESET_ERR_LOG: (ResetAnswer, RESET, ()),
+    RESP_WRONG_COMMAND: (WrongCommand, WRONG, ()),
+}
+
+
+def _reading(reading: type, known: tuple) -> Callable[..., Any]:
+    return lambda _mux, *values: reading(*known, *values)
+
+
+_DECODE = {mux: layout.decoder(into=_reading(reading, known))
+           for mux, (reading, layout, known) in _ANSWERS.items()}
+_ENCODE = {mux: layout.encoder() for mux, (_, layout, _) in _ANSWERS.items()}
+_MUX = {(reading, known): mux for mux, (reading, _, known) in _ANSWERS.items()}
+_KNOWN = {reading: len(known) for reading, _, known in _ANSWERS.values()}
+_E_CONFIG = {kind: CONFIG.replace('Conf_CycleTime', field=f'IVT-S {kind.name} cycle time')
+             .encoder() for kind in IvtMux}  # the error names the result
+_TRIGGER_MODE = CONFIG.decoder('Conf_TriggerMode', raw=True)  # for the error message
+_E_EMPTY, _E_MODE, _E_RESET = EMPTY.encoder(), MODE.encoder(), RESET.encoder()
+
+
+def _command(data: bytes) -> Frame:
+    return Frame(COMMAND_ID, data, False)
 
 
 # --- commands ---------------------------------------------------------------------------
 def set_config(config: ResultConfig) -> Frame:
     """0x2n: a result's trigger mode, byte order, sign and cycle time (stop mode only)."""
-    if not 0 <= config.cycle_ms <= CYCLE_MAX_MS:
-        raise EncodeRangeError(f'IVT-S {IvtMux(config.kind).name} cycle time',
-                               config.cycle_ms, f'0..{CYCLE_MAX_MS} ms')
-    flags = (int(TriggerMode(config.mode)) | (ENDIANESS_BIT if config.little_endian else 0)
-             | (SIGN_BIT if config.sign_inverted else 0))
-    return _frame(SET_CONFIG_RESULT + int(config.kind), flags, config.cycle_ms >> 8,
-                  config.cycle_ms & 0xFF)
+    return _command(_E_CONFIG[config.kind](
+        SET_CONFIG_RESULT + config.kind, config.mode, config.cycle_ms, config.little_endian,
+        config.sign_inverted))
 
 
 def get_config(kind: IvtMux) -> Frame:
     """0x6n: ask for a result's configuration (answer 0xAn)."""
-    return _frame(GET_CONFIG_RESULT + int(kind))
+    return _command(_E_EMPTY(GET_CONFIG_RESULT + IvtMux(kind)))
 
 
 def set_mode(running: bool, startup_running: bool = True) -> Frame:
     """0x34: run or stop now; bytes 2 = the mode after power-up (kept RUN by default)."""
-    return _frame(SET_MODE, int(bool(running)), int(bool(startup_running)))
+    return _command(_E_MODE(SET_MODE, running, startup_running))
 
 
 def get_mode() -> Frame:
     """0x74: ask for the mode (answer 0xB4)."""
-    return _frame(GET_MODE)
+    return _command(_E_EMPTY(GET_MODE))
 
 
 def store() -> Frame:
     """0x32: store the configuration in the sensor's non-volatile memory (answer 0xB2)."""
-    return _frame(STORE)
+    return _command(_E_EMPTY(STORE))
 
 
 def restart() -> Frame:
     """0x3F: restart the sensor (it sends 0xBF when alive again)."""
-    return _frame(RESTART)
+    return _command(_E_EMPTY(RESTART))
 
 
 def get_serial() -> Frame:
     """0x7B: ask for the serial number (answer 0xBB)."""
-    return _frame(GET_SERIAL_NR)
+    return _command(_E_EMPTY(GET_SERIAL_NR))
 
 
 def reset_errors(item: int, serial: int) -> Frame:
     """0x30: reset an error/log item (16 bit) of the sensor with this serial number."""
-    if not 0 <= item <= 0xFFFF:
-        raise EncodeRangeError('IVT-S reset item', item, '0..0xFFFF')
-    return Frame(COMMAND_ID, bytes([RESET_ERR_LOG]) + item.to_bytes(2, 'big')
-                 + _u32(serial, 'IVT-S serial number') + b'\x00', False)
+    return _command(_E_RESET(RESET_ERR_LOG, item, serial))
 
 
 # --- answers ----------------------------------------------------------------------------
+def _decoded(decode: Callable[[bytes], Any], arbitration_id: int, data: bytes) -> Any:
+    try:
+        return decode(data)
+    except IndexError:  # past the end of the trigger modes: 3 is not defined
+        mode = _TRIGGER_MODE(data)[0]
+        raise MalformedFrameError(arbitration_id, data,
+                                  f'trigger mode {mode} (allowed 0..2)') from None
+
+
 def decode_answer(data: bytes) -> IvtAnswer:
     """Decode one 0x511 frame; MalformedFrameError for a wrong DLC or impossible value."""
     if len(data) != DLC:
         raise MalformedFrameError(RESPONSE_ID, data, f'DLC {len(data)}, expected {DLC}')
-    mux = data[0]
-    if RESP_CONFIG_RESULT <= mux <= RESP_CONFIG_RESULT + 7:
-        return decode_config(RESPONSE_ID, data)
-    if mux == RESP_MODE:
-        return ModeAnswer(bool(data[1] & 1), bool(data[2] & 1))
-    if mux == RESP_STORE:
-        return StoreAnswer()
-    if mux == RESP_ALIVE:
-        return AliveAnswer(int.from_bytes(data[1:3], 'big'), int.from_bytes(data[3:7], 'big'))
-    if mux == RESP_SERIAL_NR:
-        return SerialAnswer(int.from_bytes(data[1:5], 'big'))
-    if mux == RESP_RESET_ERR_LOG:
-        return ResetAnswer(int.from_bytes(data[1:3], 'big'), int.from_bytes(data[3:7], 'big'))
-    if mux in (RESP_MEAS_ERROR, RESP_SYSTEM_ERROR):
-        return ErrorAnswer(mux == RESP_SYSTEM_ERROR, data[1], int.from_bytes(data[2:4], 'big'))
-    if mux == RESP_WRONG_COMMAND:
-        return WrongCommand(data[1])
-    return OtherAnswer(mux, bytes(data))
+    decode = _DECODE.get(data[0])
+    if decode is None:
+        return OtherAnswer(data[0], bytes(data))
+    return _decoded(decode, RESPONSE_ID, data)
 
 
 def decode_config(arbitration_id: int, data: bytes) -> ResultConfig:
     """Decode the configuration layout of 0x2n (command) / 0xAn (answer)."""
-    mode = data[1] & MODE_MASK
-    if mode > TriggerMode.CYCLIC:  # 3 is not defined
-        raise MalformedFrameError(arbitration_id, data, f'trigger mode {mode} (allowed 0..2)')
-    return ResultConfig(IvtMux(data[0] & 0x07), TriggerMode(mode),
-                        int.from_bytes(data[2:4], 'big'), bool(data[1] & ENDIANESS_BIT),
-                        bool(data[1] & SIGN_BIT))
+    return _decoded(_DECODE[RESP_CONFIG_RESULT + (data[0] & 0x07)], arbitration_id, data)
 
 
 def decode_command(data: bytes) -> tuple[int, bytes]:
@@ -278,26 +313,11 @@ def decode_command(data: bytes) -> tuple[int, bytes]:
 
 def encode_answer(answer: IvtAnswer) -> Frame:
     """Build a 0x511 frame (the simulator's side)."""
-    if isinstance(answer, ResultConfig):
-        command = set_config(answer)
-        data = bytes([RESP_CONFIG_RESULT + int(answer.kind)]) + command.data[1:]
-    elif isinstance(answer, ModeAnswer):
-        data = bytes([RESP_MODE, int(answer.running), int(answer.startup_running)])
-    elif isinstance(answer, StoreAnswer):
-        data = bytes([RESP_STORE])
-    elif isinstance(answer, AliveAnswer):
-        data = (bytes([RESP_ALIVE]) + answer.command_id.to_bytes(2, 'big')
-                + _u32(answer.serial, 'IVT-S serial number'))
-    elif isinstance(answer, SerialAnswer):
-        data = bytes([RESP_SERIAL_NR]) + _u32(answer.serial, 'IVT-S serial number')
-    elif isinstance(answer, ResetAnswer):
-        data = (bytes([RESP_RESET_ERR_LOG]) + answer.item.to_bytes(2, 'big')
-                + _u32(answer.serial, 'IVT-S serial number'))
-    elif isinstance(answer, ErrorAnswer):
-        data = (bytes([RESP_SYSTEM_ERROR if answer.system else RESP_MEAS_ERROR, answer.item])
-                + answer.count_mask.to_bytes(2, 'big'))
-    elif isinstance(answer, WrongCommand):
-        data = bytes([RESP_WRONG_COMMAND, answer.command])
+    if isinstance(answer, OtherAnswer):
+        data = answer.data + bytes(DLC - len(answer.data))
     else:
-        data = answer.data
-    return Frame(RESPONSE_ID, data + bytes(DLC - len(data)), False)
+        values = [getattr(answer, f.name) for f in dataclasses.fields(answer)]
+        known = _KNOWN[type(answer)]  # the first fields, carried in the mux ID
+        mux = _MUX[type(answer), tuple(values[:known])]
+        data = _ENCODE[mux](mux, *values[known:])
+    return Frame(RESPONSE_ID, data, False)
