@@ -24,7 +24,7 @@ import cantools
 from cantools.database.can import Database, Message
 
 from ams_can_bridge.protocols.common import MalformedFrameError
-from ams_can_bridge.protocols.layout import Layout
+from ams_can_bridge.protocols.layout import compile_function, Layout, tolerance
 
 NAN = math.nan
 
@@ -67,16 +67,7 @@ class CompiledMessage:
         if len(data) < self.length:
             raise MalformedFrameError(self.frame_id, data,
                                       f'{self.name}: DLC {len(data)}, expected {self.length}')
-        try:
-            return self.decode_values(data)
-        except _UnknownMux as exc:
-            raise MalformedFrameError(self.frame_id, data,
-                                      f'{self.name}: multiplexer value {exc} not in the DBC'
-                                      ) from None
-
-
-class _UnknownMux(Exception):
-    """Internal: the multiplexer value of a frame has no branch in the DBC."""
+        return self.decode_values(data)
 
 
 def load(path: str) -> Database:
@@ -101,21 +92,19 @@ def _info(message: Message) -> tuple[SignalInfo, ...]:
         is_multiplexer=bool(s.is_multiplexer)) for s in message.signals)
 
 
-def _scaled(expr: str, info: SignalInfo, layout: Layout, i: int) -> str:
-    if info.scale == 1 and info.offset == 0:
-        return expr
-    return layout.scaled_expression(layout.signals[i], expr)  # raw * scale + offset
-
-
-def _range_check(index: int, info: SignalInfo, var: str) -> list[str]:
+def _limits(info: SignalInfo) -> tuple[float, float] | None:
+    """Return the DBC's [min|max] widened by layout.tolerance (None: no range stated)."""
     if info.minimum is None and info.maximum is None:
-        return []
-    low = -math.inf if info.minimum is None else float(info.minimum)
-    high = math.inf if info.maximum is None else float(info.maximum)
-    # a hair of tolerance: 0.1 * 51 is 5.1000000000000005 for a DBC maximum of 5.1
-    tol = 1e-9 * max(1.0, abs(low), abs(high))
-    return [f'    if not {low - tol!r} <= {var} <= {high + tol!r}:',
-            f'        {var} = NAN; bad.append({index})']
+        return None
+    ends = [float(e) for e in (info.minimum, info.maximum) if e is not None]
+    tol = tolerance(min(ends), max(ends))  # 0.1 * 51 is 5.1000000000000005 for a max of 5.1
+    return (-math.inf if info.minimum is None else info.minimum - tol,
+            math.inf if info.maximum is None else info.maximum + tol)
+
+
+def _malformed(message: Message, data: bytes, mux: object) -> MalformedFrameError:
+    return MalformedFrameError(message.frame_id, data,
+                               f'{message.name}: multiplexer value {mux} not in the DBC')
 
 
 def _generate(message: Message, infos: tuple[SignalInfo, ...]) -> Callable | None:
@@ -126,49 +115,45 @@ def _generate(message: Message, infos: tuple[SignalInfo, ...]) -> Callable | Non
     muxes = [i for i, s in enumerate(signals) if s.is_multiplexer]
     if len(muxes) > 1 or any(s.is_multiplexer and s.multiplexer_ids for s in signals):
         return None  # nested multiplexing
-    # The bits as protocols/layout.py reads them (data[k], shifts and masks).
+    # The bits and scaling as protocols/layout.py reads them (data[k], shifts and masks).
     layout = Layout.from_dbc(message)
-    raw = [layout.raw_expression(s) for s in layout.signals]
+    scope: dict[str, Any] = {'NAN': NAN, 'inf': math.inf, 'malformed': _malformed,
+                             'message': message}
     lines = ['def decode(data):', '    bad = []']
-    names = [f'v{i}' for i in range(len(signals))]
-    if muxes:
-        m = muxes[0]
-        lines.append(f'    mux = {raw[m]}')
-        lines.append(f'    v{m} = {_scaled("mux", infos[m], layout, m)}')
-        lines += _range_check(m, infos[m], f'v{m}')
+
+    def value(i: int, indent: str) -> None:
+        s = layout.signals[i]
+        lines.append(f'{indent}v{i} = {layout.value_expression(s)}')
+        low, high = _limits(infos[i]) or (-math.inf, math.inf)
+        carried = sorted(r * s.scale + s.offset for r in s.raw_range())
+        if not low <= carried[0] <= carried[1] <= high:  # else the bits cannot leave it
+            lines.extend([f'{indent}if not {low!r} <= v{i} <= {high!r}:',  # constants inline
+                          f'{indent}    v{i} = NAN; bad.append({i})'])
     branches: dict[int, list[int]] = {}
-    plain = []
     for i, info in enumerate(infos):
-        if muxes and i == muxes[0]:
-            continue
-        if info.mux_ids:
-            for mux_id in info.mux_ids:
-                branches.setdefault(mux_id, []).append(i)
-        else:
-            plain.append(i)
-    for i in plain:
-        lines.append(f'    v{i} = {_scaled(raw[i], infos[i], layout, i)}')
-        lines += _range_check(i, infos[i], f'v{i}')
+        for mux_id in info.mux_ids or ():
+            branches.setdefault(mux_id, []).append(i)
+        if not info.mux_ids:  # in every frame (the multiplexer too)
+            value(i, '    ')
+    if muxes:
+        lines.append(f'    mux = {layout.raw_expression(layout.signals[muxes[0]])}')
     if branches:
         muxed = sorted({i for members in branches.values() for i in members})
         lines.append('    ' + ' = '.join(f'v{i}' for i in muxed) + ' = None')
-        keyword = 'if'
-        for mux_id, members in sorted(branches.items()):
-            lines.append(f'    {keyword} mux == {mux_id}:')
-            keyword = 'elif'
+        for n, (mux_id, members) in enumerate(sorted(branches.items())):
+            lines.append(f'    {"elif" if n else "if"} mux == {mux_id}:')
             for i in members:
-                lines.append(f'        v{i} = {_scaled(raw[i], infos[i], layout, i)}')
-                lines += ['    ' + text for text in _range_check(i, infos[i], f'v{i}')]
-        lines += ['    else:', '        raise _UnknownMux(mux)']
-    lines.append(f'    return ({", ".join(names)}{"," if len(names) == 1 else ""}), bad')
-    scope: dict[str, Any] = {'NAN': NAN, '_UnknownMux': _UnknownMux}
-    exec(compile('\n'.join(lines), f'<dbc {message.name}>', 'exec'), scope)  # noqa: S102
-    return scope['decode']
+                value(i, '        ')
+        lines += ['    else:', '        raise malformed(message, data, mux)']
+    names = ', '.join(f'v{i}' for i in range(len(signals)))
+    lines.append(f'    return ({names},), bad')
+    return compile_function('\n'.join(lines) + '\n', f'dbc {message.name}', 'decode', scope)
 
 
 def _cantools_decoder(message: Message, infos: tuple[SignalInfo, ...]) -> Callable:
     """Decode through cantools (the slow path), into the same tuple and range report."""
     names = [s.name for s in message.signals]
+    limits = [_limits(info) for info in infos]
 
     def decode(data: bytes) -> tuple[tuple, tuple[int, ...]]:
         try:
@@ -176,15 +161,13 @@ def _cantools_decoder(message: Message, infos: tuple[SignalInfo, ...]) -> Callab
             decoded: dict[str, Any] = message.decode(  # type: ignore[assignment]
                 bytes(data[:message.length]), decode_choices=False)
         except Exception as exc:  # cantools' own errors (unknown multiplexer id, ...)
-            raise _UnknownMux(str(exc)) from None
+            raise _malformed(message, data, exc) from None
         values, bad = [], []
         for i, name in enumerate(names):
             value = decoded.get(name)
             if value is not None:
                 value = float(value)
-                info = infos[i]
-                if (info.minimum is not None and value < info.minimum) or (
-                        info.maximum is not None and value > info.maximum):
+                if limits[i] is not None and not limits[i][0] <= value <= limits[i][1]:
                     value = NAN
                     bad.append(i)
             values.append(value)

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass
+import functools
 from typing import Any
 
 from ams_can_bridge.errors import ConfigError
@@ -118,10 +119,10 @@ def _layout(kind: IvtMux) -> Layout:
     return Layout(f'IVT_Msg_Result_{name}', DLC, (
         Signal(f'IVT_ID_Result_{name}', 7, 8, BIG, field='IVT-S MuxID'),
         Signal(f'IVT_MsgCount_Result_{name}', 11, 4, BIG, field='IVT-S counter'),
-        Signal(f'{result}_OCS', 12, 1, BIG, field='ocs'),
-        Signal(f'{result}_Result_Error', 13, 1, BIG, field='result_error'),
-        Signal(f'{result}_Measurement_Error', 14, 1, BIG, field='measurement_error'),
-        Signal(f'{result}_System_Error', 15, 1, BIG, field='system_error'),
+        Signal(f'{result}_OCS', 12, 1, BIG, field='ocs', flag=True),
+        Signal(f'{result}_Result_Error', 13, 1, BIG, field='result_error', flag=True),
+        Signal(f'{result}_Measurement_Error', 14, 1, BIG, field='measurement_error', flag=True),
+        Signal(f'{result}_System_Error', 15, 1, BIG, field='system_error', flag=True),
         Signal(result, 23, 32, BIG, True, 1 / DIVISOR[kind] if kind == IvtMux.T else 1,
                unit=SI_UNIT[kind] if kind == IvtMux.T else RAW_UNIT[kind],
                field=f'IVT-S {kind.name} raw value')))  # the DBC scales only T
@@ -131,8 +132,12 @@ LAYOUTS = {kind: _layout(kind) for kind in IvtMux}
 # The sensor can be set to send the value little-endian (its byte 2 first).
 LITTLE_LAYOUTS = {kind: layout.replace(f'IVT_Result_{DBC_NAME[kind]}', start=16,
                                        byte_order=LITTLE) for kind, layout in LAYOUTS.items()}
+# Byte 1 -> the reading's counter and status bits, decoded once per value by the table.
+_BYTE1_FIELDS = ('counter', 'ocs', 'result_error', 'measurement_error', 'system_error')
+_BYTE1 = LAYOUTS[IvtMux.I].decoder(*(s.name for s in LAYOUTS[IvtMux.I].signals[1:6]))
 
 
+@functools.cache
 def _check_dbc() -> None:
     """Fail loudly (LayoutError) if msg_defs/ivt_s.dbc no longer has the bits of LAYOUTS."""
     db = load_dbc('ivt_s')
@@ -177,7 +182,6 @@ class IvtSCodec:
     """
 
     is_extended_id = False
-    _dbc_checked = False
 
     def __init__(self, base_id: int = DEFAULT_BASE_ID, byte_order: str = 'big') -> None:
         if byte_order not in BYTE_ORDERS:
@@ -186,9 +190,7 @@ class IvtSCodec:
         if not 0 <= base_id <= 0x7FF - 7:
             raise ConfigError(f'IVT-S base_id = {base_id!r} (0x{base_id:X}): allowed '
                               f'0..0x{0x7FF - 7:X} (11-bit IDs, 8 results from base_id)')
-        if not IvtSCodec._dbc_checked:
-            _check_dbc()
-            IvtSCodec._dbc_checked = True
+        _check_dbc()  # once
         self.base_id = base_id
         self.byte_order = byte_order
         self.arbitration_ids = frozenset(base_id + k for k in IvtMux)
@@ -202,11 +204,8 @@ class IvtSCodec:
         # ID -> (kind, divisor, fields by byte 1): one dict lookup finds everything decode
         # needs; the per-byte-1 field dicts (kind, counter, status bits) are precomputed.
         self._by_id = {base_id + kind: (kind, DIVISOR[kind], [
-            {'kind': kind, 'counter': b & 0x0F, 'ocs': bool(b & OCS_BIT),
-             'result_error': bool(b & RESULT_ERROR_BIT),
-             'measurement_error': bool(b & MEASUREMENT_ERROR_BIT),
-             'system_error': bool(b & SYSTEM_ERROR_BIT)} for b in range(256)])
-            for kind in IvtMux}
+            {'kind': kind, **dict(zip(_BYTE1_FIELDS, _BYTE1(bytes((kind, b)))))}
+            for b in range(256)]) for kind in IvtMux}
 
     def decode(self, arbitration_id: int, data: bytes) -> IvtResult:
         """Decode one result frame; MalformedFrameError for a wrong ID, DLC or MuxID."""
@@ -230,7 +229,6 @@ class IvtSCodec:
     def encode(self, result: IvtResult) -> Frame:
         """Build the frame of one result (the simulator's side of the codec)."""
         kind = IvtMux(result.kind)
-        data = self._encoders[kind](int(kind), result.counter, int(result.ocs),
-                                    int(result.result_error), int(result.measurement_error),
-                                    int(result.system_error), result.raw)
+        data = self._encoders[kind](int(kind), result.counter, result.ocs, result.result_error,
+                                    result.measurement_error, result.system_error, result.raw)
         return Frame(self.base_id + kind, data, False)

@@ -51,7 +51,7 @@ def check_value(field: str, value: Any, low: float, high: float, step: float | N
     if value != value:  # NaN
         raise EncodeRangeError(field, value, allowed)
     if not low <= value <= high:
-        tol = 1e-9 * (step or (1 if integer else max(1.0, abs(low), abs(high))))
+        tol = tolerance(low, high, step, integer)
         if low - tol <= value < low:
             value = low
         elif high < value <= high + tol:
@@ -67,6 +67,17 @@ def check_value(field: str, value: Any, low: float, high: float, step: float | N
             raise EncodeRangeError(field, value, allowed)
         return int(value)
     return value
+
+
+def tolerance(low: float, high: float, step: float | None = None,
+              integer: bool = False) -> float:
+    """
+    Return the float noise check_value forgives at the ends of low..high.
+
+    A billionth of the step, else of the range's larger end (at least 1): the one rule for
+    every range check of the package, also where a generated decoder compares inline.
+    """
+    return 1e-9 * (step or (1 if integer else max(1.0, abs(low), abs(high))))
 
 
 def check_flag(field: str, value: Any) -> int:
@@ -202,6 +213,10 @@ class Layout:
             return f'{name}[{raw}]'
         return self.scaled_expression(s, raw)
 
+    def value_expression(self, s: Signal) -> str:
+        """Return the expression of a signal's value as decoder() computes it (no tables)."""
+        return self._physical(s)
+
     def scaled_expression(self, s: Signal, raw: str) -> str:
         """Return the physical value of a raw expression (divide: as the vendor computes it)."""
         divisor = 1 / s.scale
@@ -280,6 +295,12 @@ class Layout:
                   f"    hi = (n >> {8 * self.length}).to_bytes({self.length}, 'big')",
                   '    return bytes(a | b for a, b in zip(lo, hi))']
         return _compile('\n'.join(lines) + '\n', self.name, 'encode', scope)
+
+
+def compile_function(source: str, name: str, function: str,
+                     scope: dict[str, Any] | None = None) -> Callable:
+    """Compile generated code beside a table's own (a protocol's per-ID fast path)."""
+    return _compile(source, name, function, scope)
 
 
 def _compile(source: str, name: str, function: str,
