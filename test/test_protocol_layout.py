@@ -7,7 +7,8 @@ from ams_can_bridge.errors import EncodeRangeError, LayoutError
 from ams_can_bridge.protocols import evms3 as evms3_protocol
 from ams_can_bridge.protocols.common import load_dbc, msg_defs_dir
 from ams_can_bridge.protocols.evms3 import Evms3Codec
-from ams_can_bridge.protocols.layout import check_value, Layout
+from ams_can_bridge.protocols.layout import (
+    check_value, compile_function, Layout, LITTLE, Signal, tolerance)
 
 MESSAGES = [(name, m) for name in ('ams', 'bms16', 'evms3', 'ivt_s', 'sma')
             for m in load_dbc(name).messages
@@ -63,6 +64,25 @@ def test_check_value_takes_float_noise_at_the_ends_and_whole_floats():
     assert check_value('v', 255 * 0.02, 0, 5.1, 0.02) == 5.1
     assert check_value('n', 3.0, 0, 5, integer=True) == 3
     assert isinstance(check_value('n', 3.0, 0, 5, integer=True), int)
+
+
+def test_tolerance_is_the_float_noise_check_value_forgives():
+    assert tolerance(0, 5.1, 0.02) == pytest.approx(2e-11)  # a billionth of the step
+    assert tolerance(-400, 100) == pytest.approx(4e-7)  # of the larger end without one
+    assert tolerance(0, 0.5) == pytest.approx(1e-9)  # at least a billionth of 1
+    assert check_value('v', 100 + 3e-7, -400, 100) == 100
+    with pytest.raises(EncodeRangeError):
+        check_value('v', 100 + 5e-7, -400, 100)
+
+
+def test_value_expression_compiled_beside_the_table_equals_its_decoder():
+    layout = Layout('M', 2, (Signal('a', 0, 12, LITTLE, scale=0.5, offset=-10),
+                             Signal('f', 15, 1, LITTLE, flag=True)))
+    body = ', '.join(layout.value_expression(s) for s in layout.signals)
+    both = compile_function(f'def f(data):\n    return ({body},)\n', 'M', 'f')
+    for data in (b'\x00\x00', b'\xff\x8f', b'\x34\x02', b'\x01\x80'):
+        assert both(data) == layout.decoder()(data)
+    assert both(b'\x34\x82') == (0x234 * 0.5 - 10, True)
 
 
 @pytest.mark.parametrize('module,dbc,old,new,message', [

@@ -24,15 +24,16 @@ one signal changed).
 """
 from __future__ import annotations
 
-import enum
+import dataclasses
 from dataclasses import dataclass
+import enum
 import functools
 from typing import Any
 
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols.common import (
     EncodeRangeError, Frame, load_dbc, MalformedFrameError)
-from ams_can_bridge.protocols.layout import BIG, Layout, LITTLE, Signal
+from ams_can_bridge.protocols.layout import BIG, compile_function, Layout, LITTLE, Signal
 
 COMMAND_ID = 0x411
 RESPONSE_ID = 0x511
@@ -69,11 +70,6 @@ SI_UNIT = {IvtMux.I: 'A', IvtMux.U1: 'V', IvtMux.U2: 'V', IvtMux.U3: 'V',
 DBC_NAME = {IvtMux.I: 'I', IvtMux.U1: 'U1', IvtMux.U2: 'U2', IvtMux.U3: 'U3',
             IvtMux.T: 'T', IvtMux.W: 'W', IvtMux.AS: 'As', IvtMux.WH: 'Wh'}
 
-OCS_BIT = 0x10
-RESULT_ERROR_BIT = 0x20
-MEASUREMENT_ERROR_BIT = 0x40
-SYSTEM_ERROR_BIT = 0x80
-
 
 @dataclass(frozen=True)
 class IvtResult:
@@ -107,10 +103,9 @@ class IvtResult:
 
     @property
     def status_bits(self) -> int:
-        """Byte 1 bits 7..4 as sent (OCS = 0x10 .. system error = 0x80)."""
-        return ((OCS_BIT if self.ocs else 0) | (RESULT_ERROR_BIT if self.result_error else 0)
-                | (MEASUREMENT_ERROR_BIT if self.measurement_error else 0)
-                | (SYSTEM_ERROR_BIT if self.system_error else 0))
+        """Byte 1 bits 7..4 as sent (OCS = 0x10 .. system error = 0x80), placed by the table."""
+        return _BYTE1_ENCODE(0, 0, self.ocs, self.result_error, self.measurement_error,
+                             self.system_error)[1]
 
 
 def _layout(kind: IvtMux) -> Layout:
@@ -135,6 +130,8 @@ LITTLE_LAYOUTS = {kind: layout.replace(f'IVT_Result_{DBC_NAME[kind]}', start=16,
 # Byte 1 -> the reading's counter and status bits, decoded once per value by the table.
 _BYTE1_FIELDS = ('counter', 'ocs', 'result_error', 'measurement_error', 'system_error')
 _BYTE1 = LAYOUTS[IvtMux.I].decoder(*(s.name for s in LAYOUTS[IvtMux.I].signals[1:6]))
+_BYTE1_ENCODE = dataclasses.replace(LAYOUTS[IvtMux.I], signals=LAYOUTS[IvtMux.I].signals[:6]
+                                    ).encoder()  # MuxID and byte 1
 
 
 @functools.cache
@@ -164,10 +161,8 @@ _DECODE_SOURCE = '''def decode(self, arbitration_id, data):
 
 
 def _decoder(layout: Layout) -> Any:
-    scope = {'new': _new, 'IvtResult': IvtResult}
     source = _DECODE_SOURCE.format(dlc=DLC, raw=layout.raw_expression(layout.signals[-1]))
-    exec(compile(source, f'<layout {layout.name}>', 'exec'), scope)  # noqa: S102
-    return scope['decode']
+    return compile_function(source, layout.name, 'decode', {'new': _new, 'IvtResult': IvtResult})
 
 
 _DECODERS = {'big': _decoder(LAYOUTS[IvtMux.I]), 'little': _decoder(LITTLE_LAYOUTS[IvtMux.I])}
