@@ -92,12 +92,10 @@ def _info(message: Message) -> tuple[SignalInfo, ...]:
         is_multiplexer=bool(s.is_multiplexer)) for s in message.signals)
 
 
-def _limits(info: SignalInfo) -> tuple[float, float] | None:
-    """Return the DBC's [min|max] widened by layout.tolerance (None: no range stated)."""
-    if info.minimum is None and info.maximum is None:
-        return None
+def _limits(info: SignalInfo) -> tuple[float, float]:
+    """Return the DBC's [min|max] widened by layout.tolerance (inf where not stated)."""
     ends = [float(e) for e in (info.minimum, info.maximum) if e is not None]
-    tol = tolerance(min(ends), max(ends))  # 0.1 * 51 is 5.1000000000000005 for a max of 5.1
+    tol = tolerance(min(ends, default=0), max(ends, default=0))  # 0.1 * 51 for a max of 5.1
     return (-math.inf if info.minimum is None else info.minimum - tol,
             math.inf if info.maximum is None else info.maximum + tol)
 
@@ -124,7 +122,7 @@ def _generate(message: Message, infos: tuple[SignalInfo, ...]) -> Callable | Non
     def value(i: int, indent: str) -> None:
         s = layout.signals[i]
         lines.append(f'{indent}v{i} = {layout.value_expression(s)}')
-        low, high = _limits(infos[i]) or (-math.inf, math.inf)
+        low, high = _limits(infos[i])
         carried = sorted(r * s.scale + s.offset for r in s.raw_range())
         if not low <= carried[0] <= carried[1] <= high:  # else the bits cannot leave it
             lines.extend([f'{indent}if not {low!r} <= v{i} <= {high!r}:',  # constants inline
@@ -167,7 +165,7 @@ def _cantools_decoder(message: Message, infos: tuple[SignalInfo, ...]) -> Callab
             value = decoded.get(name)
             if value is not None:
                 value = float(value)
-                if limits[i] is not None and not limits[i][0] <= value <= limits[i][1]:
+                if not limits[i][0] <= value <= limits[i][1]:
                     value = NAN
                     bad.append(i)
             values.append(value)

@@ -24,7 +24,6 @@ one signal changed).
 """
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 import enum
 import functools
@@ -104,8 +103,8 @@ class IvtResult:
     @property
     def status_bits(self) -> int:
         """Byte 1 bits 7..4 as sent (OCS = 0x10 .. system error = 0x80), placed by the table."""
-        return _BYTE1_ENCODE(0, 0, self.ocs, self.result_error, self.measurement_error,
-                             self.system_error)[1]
+        return _ENCODE_I(0, 0, self.ocs, self.result_error, self.measurement_error,
+                         self.system_error, 0)[1]
 
 
 def _layout(kind: IvtMux) -> Layout:
@@ -130,8 +129,7 @@ LITTLE_LAYOUTS = {kind: layout.replace(f'IVT_Result_{DBC_NAME[kind]}', start=16,
 # Byte 1 -> the reading's counter and status bits, decoded once per value by the table.
 _BYTE1_FIELDS = ('counter', 'ocs', 'result_error', 'measurement_error', 'system_error')
 _BYTE1 = LAYOUTS[IvtMux.I].decoder(*(s.name for s in LAYOUTS[IvtMux.I].signals[1:6]))
-_BYTE1_ENCODE = dataclasses.replace(LAYOUTS[IvtMux.I], signals=LAYOUTS[IvtMux.I].signals[:6]
-                                    ).encoder()  # MuxID and byte 1
+_ENCODE_I = LAYOUTS[IvtMux.I].encoder()
 
 
 @functools.cache

@@ -244,6 +244,21 @@ def set_config(config: ResultConfig) -> Frame:
         config.sign_inverted))
 
 
+def _empty(mux: int, doc: str) -> Callable[[], Frame]:
+    """Return a command that is its mux ID alone (the DBC's *_dummy byte and the rest 0)."""
+    def command() -> Frame:
+        return _command(_E_EMPTY(mux))
+    command.__doc__ = doc
+    return command
+
+
+get_mode = _empty(GET_MODE, '0x74: ask for the mode (answer 0xB4).')
+store = _empty(STORE, "0x32: store the configuration in the sensor's non-volatile memory "
+               '(answer 0xB2).')
+restart = _empty(RESTART, '0x3F: restart the sensor (it sends 0xBF when alive again).')
+get_serial = _empty(GET_SERIAL_NR, '0x7B: ask for the serial number (answer 0xBB).')
+
+
 def get_config(kind: IvtMux) -> Frame:
     """0x6n: ask for a result's configuration (answer 0xAn)."""
     return _command(_E_EMPTY(GET_CONFIG_RESULT + IvtMux(kind)))
@@ -252,26 +267,6 @@ def get_config(kind: IvtMux) -> Frame:
 def set_mode(running: bool, startup_running: bool = True) -> Frame:
     """0x34: run or stop now; bytes 2 = the mode after power-up (kept RUN by default)."""
     return _command(_E_MODE(SET_MODE, running, startup_running))
-
-
-def get_mode() -> Frame:
-    """0x74: ask for the mode (answer 0xB4)."""
-    return _command(_E_EMPTY(GET_MODE))
-
-
-def store() -> Frame:
-    """0x32: store the configuration in the sensor's non-volatile memory (answer 0xB2)."""
-    return _command(_E_EMPTY(STORE))
-
-
-def restart() -> Frame:
-    """0x3F: restart the sensor (it sends 0xBF when alive again)."""
-    return _command(_E_EMPTY(RESTART))
-
-
-def get_serial() -> Frame:
-    """0x7B: ask for the serial number (answer 0xBB)."""
-    return _command(_E_EMPTY(GET_SERIAL_NR))
 
 
 def reset_errors(item: int, serial: int) -> Frame:
