@@ -94,8 +94,9 @@ def _info(message: Message) -> tuple[SignalInfo, ...]:
 
 def _limits(info: SignalInfo) -> tuple[float, float]:
     """Return the DBC's [min|max] widened by layout.tolerance (inf where not stated)."""
+    # float noise: 0.1 * 51 is 5.1000000000000005, still inside a DBC range [0|5.1]
     ends = [float(e) for e in (info.minimum, info.maximum) if e is not None]
-    tol = tolerance(min(ends, default=0), max(ends, default=0))  # 0.1 * 51 for a max of 5.1
+    tol = tolerance(min(ends, default=0), max(ends, default=0))
     return (-math.inf if info.minimum is None else info.minimum - tol,
             math.inf if info.maximum is None else info.maximum + tol)
 

@@ -184,8 +184,10 @@ def _layout(name: str, *signals: Signal) -> Layout:
 # 0x2n / 0xAn (_2n_Conf_*, _An_Resp_*), in the order of ResultConfig. Byte 1 bits 5..4 are
 # not in the DBC: written 0, as ivts (flags=0) and Stm32-vcu (0x42) do. Endianess 1 =
 # little-endian (Stm32-vcu writes 0x42 and decodes LE).
-CONFIG = _layout('Conf_Result', Signal('Conf_TriggerMode', 9, 2, high=2, lookup=tuple(
-    TriggerMode), field='IVT-S trigger mode'),  # 3 is not defined: malformed
+CONFIG = _layout(
+    'Conf_Result',
+    Signal('Conf_TriggerMode', 9, 2, high=2, lookup=tuple(TriggerMode),
+           field='IVT-S trigger mode'),  # 3 is not defined: malformed
     Signal('Conf_CycleTime', 23, 16, unit='ms', field='IVT-S cycle time'),
     Signal('Conf_Endianess', 14, 1, flag=True, field='little_endian'),
     Signal('Conf_Sign', 15, 1, flag=True, field='sign_inverted'))
