@@ -5,10 +5,10 @@ Ten 11-bit messages at ``base_id + offset`` (default base 0x300). The field layo
 ``LAYOUTS`` (protocols/layout.py tables): encoders and decoders are generated from it, it is
 checked against the installed ``msg_defs/ams.dbc`` when the first codec is built and
 against cantools in the tests. The module
-adds what a DBC cannot say (valid bank/group IDs, known enum values, DLC checks: a frame
-padded beyond its layout up to 8 bytes is accepted, a shorter one is malformed; typed
-readings) and checks every value before it is encoded, so a bad command fails loudly
-instead of being clamped.
+adds what a DBC cannot say (valid bank/group IDs and known enum values as checks of the table
+rows; DLC checks: a frame padded beyond its layout up to 8 bytes is accepted, a shorter one is
+malformed; typed readings) and checks every value before it is encoded, so a bad command
+fails loudly instead of being clamped.
 Readings are frozen dataclasses; enums carry the vendor's names.
 """
 from __future__ import annotations
@@ -243,14 +243,6 @@ _STATUS_BITS = (('AIR_Plus', 'air_plus'), ('AIR_Minus', 'air_minus'),
                 ('Precharge_Relay', 'precharge'), ('Warn_Volt', 'warn_volt'),
                 ('Warn_Temp', 'warn_temp'), ('HVDC_Interlock', 'hvdc_interlock'),
                 ('IMD_Error', 'imd_error'), ('AMS_Error', 'ams_error'))
-_DBC_NAMES = {
-    STATUS: 'AMS_Status', CHARGER_STATUS: 'AMS_Status_Charger', CAR_STATUS: 'CAR_Status',
-    CHARGER_COMMANDS: 'CHARGER_Commands', CELL_VOLTAGES: 'AMS_Cell_Voltages',
-    CELL_TEMPERATURES: 'AMS_Cell_Temperatures',
-    DISCHARGE_TEMPERATURES: 'AMS_Discharge_Temperatures', ERROR: 'AMS_Error',
-    OVERRIDE_CHARGE_CURRENT: 'CHARGER_Override_Charge_Current',
-    OVERRIDE_BANK_COUNT: 'CHARGER_Override_Bank_Count',
-}
 # offset -> its reading; the two status frames start with the status word, the series frames
 # end with one tuple of values after bank and group.
 READINGS: dict[int, type] = {
@@ -292,51 +284,48 @@ def _series(prefix: str, count: int, field: str, **kwargs: Any) -> tuple[Signal,
                  for k in range(count))
 
 
-def _flag(name: str, start: int, field: str) -> Signal:
-    return Signal(name, start, 1, field=field, flag=True)
-
-
 _VOLTS: dict[str, Any] = dict(scale=CELL_VOLT_STEP, high=5.1, unit='V')
 _AMPS: dict[str, Any] = dict(scale=CURRENT_STEP, high=25.5, unit='A')
 _TEMPS: dict[str, Any] = dict(signed=True, unit='degC')
 _BANKS: dict[str, Any] = dict(low=1, high=MAX_BANKS, field='bank_count')
-LAYOUTS: dict[int, Layout] = {offset: Layout(_DBC_NAMES[offset], length, signals) for
-                              offset, length, signals in (
-    (STATUS, 7, _WORD + (
+# offset -> the message as msg_defs/ams.dbc names it, its length and signals
+LAYOUTS: dict[int, Layout] = {offset: Layout(name, length, signals) for
+                              offset, name, length, signals in (
+    (STATUS, 'AMS_Status', 7, _WORD + (
         Signal('Volt_min', 23, 8, field='volt_min_v', **_VOLTS),
         Signal('Temp_max', 31, 8, unit='degC', field='temp_max_c'),
         Signal('SOC', 39, 8, high=100, unit='%', field='soc_pct'),
         Signal('Counter', 47, 8, field='counter'),
-        _flag('Relay_Error_AIR_Minus', 48, 'relay_error_air_minus'),
-        _flag('Relay_Error_AIR_Plus', 49, 'relay_error_air_plus'),
-        _flag('Relay_Error_Precharge', 50, 'relay_error_precharge'))),
-    (CHARGER_STATUS, 5, _WORD + (
+        Signal('Relay_Error_AIR_Minus', 48, 1, field='relay_error_air_minus', flag=True),
+        Signal('Relay_Error_AIR_Plus', 49, 1, field='relay_error_air_plus', flag=True),
+        Signal('Relay_Error_Precharge', 50, 1, field='relay_error_precharge', flag=True))),
+    (CHARGER_STATUS, 'AMS_Status_Charger', 5, _WORD + (
         Signal('SOC', 23, 8, high=100, unit='%', field='soc_pct'),
         Signal('Charger_Current', 31, 8, field='charger_current_a', **_AMPS),
-        _flag('Turn_On_Charger', 32, 'charger_on'))),
-    (CAR_STATUS, 2, (
+        Signal('Turn_On_Charger', 32, 1, field='charger_on', flag=True))),
+    (CAR_STATUS, 'CAR_Status', 2, (
         Signal('CMD', 3, 4, field='command', lookup=tuple(CarCommand),
                check='unknown car command' + _UNKNOWN),
         Signal('Bank_Count', 7, 4, **_BANKS, check='car status bank count' + _ALLOWED),
         Signal('Counter', 15, 8, field='counter'))),
-    (CHARGER_COMMANDS, 3, (
+    (CHARGER_COMMANDS, 'CHARGER_Commands', 3, (
         Signal('Start', 1, 2, field='start', lookup=tuple(ChargerStart),
                check='unknown charger start command' + _UNKNOWN),
         Signal('Time_Tick', 15, 16, field='time_tick'))),
-    (CELL_VOLTAGES, 8, _bank_group_signals(CELL_GROUPS)
+    (CELL_VOLTAGES, 'AMS_Cell_Voltages', 8, _bank_group_signals(CELL_GROUPS)
      + _series('Cell_Voltage', CELLS_PER_GROUP, 'voltages_v', **_VOLTS)),
-    (CELL_TEMPERATURES, 6, _bank_group_signals(TEMP_GROUPS)
+    (CELL_TEMPERATURES, 'AMS_Cell_Temperatures', 6, _bank_group_signals(TEMP_GROUPS)
      + _series('Cell_Temperature', TEMPS_PER_GROUP, 'temperatures_c', **_TEMPS)),
-    (DISCHARGE_TEMPERATURES, 8, _bank_group_signals(TEMP_GROUPS)
+    (DISCHARGE_TEMPERATURES, 'AMS_Discharge_Temperatures', 8, _bank_group_signals(TEMP_GROUPS)
      + _series('Discharge_Temperature', DISCHARGE_TEMPS_PER_GROUP, 'temperatures_c',
                **_TEMPS)),
-    (ERROR, 3, (  # error IDs count from 1
+    (ERROR, 'AMS_Error', 3, (  # error IDs count from 1
         Signal('AMS_Error_ID', 7, 8, field='error', lookup=(None, *AmsError),
                check='unknown AMS error ID' + _UNKNOWN),
         Signal('AMS_Time_Tick', 15, 16, field='time_tick'))),
-    (OVERRIDE_CHARGE_CURRENT, 1, (
+    (OVERRIDE_CHARGE_CURRENT, 'CHARGER_Override_Charge_Current', 1, (
         Signal('Charge_Current', 7, 8, field='current_a', **_AMPS),)),
-    (OVERRIDE_BANK_COUNT, 1, (
+    (OVERRIDE_BANK_COUNT, 'CHARGER_Override_Bank_Count', 1, (
         Signal('Bank_Count', 7, 8, **_BANKS, check='override bank count' + _ALLOWED),)),
 )}
 
@@ -344,9 +333,8 @@ LAYOUTS: dict[int, Layout] = {offset: Layout(_DBC_NAMES[offset], length, signals
 def _check_dbc() -> None:
     """Fail loudly (LayoutError) if msg_defs/ams.dbc no longer has the layout of LAYOUTS."""
     db = load_dbc('ams')
-    for offset, layout in LAYOUTS.items():
-        layout.check_dbc(db.get_message_by_name(_DBC_NAMES[offset]), 'msg_defs/ams.dbc',
-                         'AMS')
+    for layout in LAYOUTS.values():
+        layout.check_dbc(db.get_message_by_name(layout.name), 'msg_defs/ams.dbc', 'AMS')
 
 
 # --- decoding: generated from the table, checks included -------------------------------------
