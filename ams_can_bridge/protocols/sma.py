@@ -298,7 +298,7 @@ _DECODERS: dict[int, tuple[tuple[int, ...], int, Callable[[bytes], SmaReading]]]
        for frame_id, (_, dlcs) in _NUMBERS.items()},
     **{frame_id: (_TEXT_DLC, 0, _text_decoder(reading, tuple(lead)))
        for frame_id, (_, reading, *lead) in _TEXTS.items()},
-    LIMITS_ID: ((6, 7, 8), 8, _limits), ALARMS_ID: (_TEXT_DLC, 8, _alarms),
+    LIMITS_ID: (_NUMBERS[LIMITS_ID][1], 8, _limits), ALARMS_ID: (_TEXT_DLC, 8, _alarms),
     **{frame_id: (dlcs, 0, decode) for frame_id, (dlcs, decode) in DIALECT_DECODERS.items()},
 }
 
