@@ -43,10 +43,11 @@ from typing import Any, Callable, Union
 
 from ams_can_bridge.protocols.common import (
     check_dlc, EncodeRangeError, Frame, load_dbc, MalformedFrameError)
-from ams_can_bridge.protocols.layout import BadValue, Layout, LITTLE, Signal
+from ams_can_bridge.protocols.layout import BadValue, Layout
 from ams_can_bridge.protocols.sma_dialects import (
     ascii_text, DIALECT_DECODERS, DIALECT_IDS, DIALECT_LAYOUTS, DIALECT_NUMBERS, DIALECT_TEXTS,
-    DialectReading, encode_ascii, encode_pylontech_alarms, pad_unsent, PylontechAlarms)
+    DialectReading, encode_ascii, encode_pylontech_alarms, pad_unsent, PylontechAlarms,
+    sma_field)
 
 LIMITS_ID = 0x351
 SOC_ID = 0x355
@@ -198,50 +199,43 @@ ABSOLUTE_ZERO_C = -273.15
 # A row's check is a value no BMS may send: the frame is malformed (docs/protocols.md
 # section 5): a state of charge above 100 % (it would publish percentage > 1), a temperature
 # below absolute zero.
-def _s(name: str, start: int, length: int = 16, scale: float = 1, signed: bool = False,
-       unit: str = '', field: str = '', low: float | None = None, high: float | None = None,
-       check: str = '', lookup: tuple | None = None) -> Signal:
-    marker = (INVALID_S16 if signed else INVALID_U16) if field else None
-    return Signal(name, start, length, LITTLE, signed, scale, 0, low, high, unit,
-                  f'sma.{field}', invalid=marker, lookup=lookup, check=check)
-
-
 def _camel(name: str) -> str:
     return ''.join(part.capitalize() for part in name.split('_'))
 
 
 LAYOUTS = {
     LIMITS_ID: Layout('SMA_Limits', 8, (
-        _s('ChargeVoltageLimit', 0, scale=0.1, unit='V', field='charge_voltage_v'),
-        _s('ChargeCurrentLimit', 16, scale=0.1, signed=True, unit='A',
-           field='charge_current_a'),
-        _s('DischargeCurrentLimit', 32, scale=0.1, signed=True, unit='A',
-           field='discharge_current_a'),
-        _s('DischargeVoltageLimit', 48, scale=0.1, unit='V', field='discharge_voltage_v')),
+        sma_field('ChargeVoltageLimit', 0, scale=0.1, unit='V', field='charge_voltage_v'),
+        sma_field('ChargeCurrentLimit', 16, scale=0.1, signed=True, unit='A',
+                  field='charge_current_a'),
+        sma_field('DischargeCurrentLimit', 32, scale=0.1, signed=True, unit='A',
+                  field='discharge_current_a'),
+        sma_field('DischargeVoltageLimit', 48, scale=0.1, unit='V', field='discharge_voltage_v')),
         divide=True),
     SOC_ID: Layout('SMA_SoC', 6, (
-        _s('SoC', 0, unit='%', field='soc_pct', high=100,
-           check='SoC {value} % is above {high:g} %'),
-        _s('SoH', 16, unit='%', field='soh_pct', high=100),
-        _s('SoCHighRes', 32, scale=0.01, unit='%', field='soc_hires_pct', high=100,
-           check='high-resolution SoC {value:g} % is above {high:g} %')),
+        sma_field('SoC', 0, unit='%', field='soc_pct', high=100,
+                  check='SoC {value} % is above {high:g} %'),
+        sma_field('SoH', 16, unit='%', field='soh_pct', high=100),
+        sma_field('SoCHighRes', 32, scale=0.01, unit='%', field='soc_hires_pct', high=100,
+                  check='high-resolution SoC {value:g} % is above {high:g} %')),
         divide=True),
     BATTERY_ID: Layout('SMA_Battery', 6, (
-        _s('Voltage', 0, scale=0.01, signed=True, unit='V', field='voltage_v'),
-        _s('Current', 16, scale=0.1, signed=True, unit='A', field='current_a'),
-        _s('Temperature', 32, scale=0.1, signed=True, unit='degC', field='temperature_c',
-           low=ABSOLUTE_ZERO_C, check='temperature {value:g} degC is below absolute zero')),
+        sma_field('Voltage', 0, scale=0.01, signed=True, unit='V', field='voltage_v'),
+        sma_field('Current', 16, scale=0.1, signed=True, unit='A', field='current_a'),
+        sma_field('Temperature', 32, scale=0.1, signed=True, unit='degC', field='temperature_c',
+                  low=ABSOLUTE_ZERO_C, check='temperature {value:g} degC is below absolute zero')),
         divide=True),
     ALARMS_ID: Layout('SMA_AlarmsWarnings', 8, tuple(
-        _s('SystemOnline', first + 2 * k, 2, lookup=ONLINE_CODES)
+        sma_field('SystemOnline', first + 2 * k, 2, lookup=ONLINE_CODES)
         if (kind, name) == ('Warning', ONLINE_CONDITION) else
-        _s(f'{kind}_{_camel(name)}', first + 2 * k, 2, lookup=_FLAGS)
+        sma_field(f'{kind}_{_camel(name)}', first + 2 * k, 2, lookup=_FLAGS)
         for kind, first in (('Alarm', 0), ('Warning', 32))
         for k, name in enumerate(SMA_CONDITIONS))),
-    MANUFACTURER_ID: Layout('SMA_Manufacturer', 8, (_s('Manufacturer', 0, 64),)),
+    MANUFACTURER_ID: Layout('SMA_Manufacturer', 8, (sma_field('Manufacturer', 0, 64),)),
     INFO_ID: Layout('SMA_BatteryInfo', 6, (
-        _s('BatteryType', 0, field='battery_type'), _s('BmsVersion', 16, field='bms_version'),
-        _s('Capacity', 32, unit='Ah', field='capacity_ah'))),
+        sma_field('BatteryType', 0, field='battery_type'),
+        sma_field('BmsVersion', 16, field='bms_version'),
+        sma_field('Capacity', 32, unit='Ah', field='capacity_ah'))),
 }
 _ONLINE = 16 + SMA_CONDITIONS.index(ONLINE_CONDITION)  # SystemOnline among the pairs
 

@@ -38,7 +38,7 @@ Decisions:
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from typing import Callable, Union
+from typing import Any, Callable, Union
 
 from ams_can_bridge.protocols.common import EncodeRangeError, Frame
 from ams_can_bridge.protocols.layout import BadValue, check_value, Layout, LITTLE, Signal
@@ -208,46 +208,53 @@ def encode_ascii(field: str, text: str) -> bytes:
 
 
 # --- the wire layout of the dialects' frames (checked against msg_defs/sma.dbc by sma.py) ---
-def _u(name: str, start: int, length: int, scale: float = 1, unit: str = '', field: str = '',
-       high: float | None = None, check: str = '') -> Signal:
-    """Return a field; one with a name to send has the family's "not available" marker."""
-    marker = (1 << length) - 1 if field else None  # all ones
-    return Signal(name, start, length, LITTLE, False, scale, 0, None, high, unit,
-                  f'sma.victron.{field}', invalid=marker, check=check)
+def sma_field(name: str, start: int, length: int = 16, scale: float = 1, signed: bool = False,
+              unit: str = '', field: str = '', **rules: Any) -> Signal:
+    """
+    Return a little-endian field of the SMA family (rules: low, high, check, lookup).
+
+    A field with a name to send has the family's "not available" marker: all ones (0x8000
+    signed), None both ways; errors name it 'sma.<field>'.
+    """
+    marker = (-(1 << length - 1) if signed else (1 << length) - 1) if field else None
+    return Signal(name, start, length, LITTLE, signed, scale, 0, unit=unit,
+                  field=f'sma.{field}', invalid=marker, **rules)
 
 
 _TOO_HOT = 'cell temperature {value} K is above {high:g} K'
 DIALECT_LAYOUTS = {
     PYLONTECH_ALARMS_ID: Layout('Pylontech_AlarmsWarnings', 8, tuple(
-        _u(f'{kind}_{dbc_name}', first + 8 * byte + bit, 1)
+        sma_field(f'{kind}_{dbc_name}', first + 8 * byte + bit, 1)
         for kind, first in (('Alarm', 0), ('Warning', 16))
-        for _, dbc_name, byte, bit in PYLONTECH_CONDITIONS) + (_u('ModuleCount', 32, 8),)),
+        for _, dbc_name, byte, bit in PYLONTECH_CONDITIONS)
+        + (sma_field('ModuleCount', 32, 8),)),
     PYLONTECH_REQUEST_ID: Layout('Pylontech_Request', 2, tuple(
         Signal(name, bit, 1, LITTLE, field=f'sma.pylontech.{field.name}', flag=True)
         for (name, bit), field in zip(PYLONTECH_REQUEST_BITS, fields(PylontechRequest)))),
-    VICTRON_BMS_NAME1_ID: Layout('Victron_BmsName1', 8, (_u('BmsName1', 0, 64),)),
-    VICTRON_BMS_NAME2_ID: Layout('Victron_BmsName2', 8, (_u('BmsName2', 0, 64),)),
+    VICTRON_BMS_NAME1_ID: Layout('Victron_BmsName1', 8, (sma_field('BmsName1', 0, 64),)),
+    VICTRON_BMS_NAME2_ID: Layout('Victron_BmsName2', 8, (sma_field('BmsName2', 0, 64),)),
     VICTRON_MODULES_ID: Layout('Victron_Modules', 8, tuple(
-        _u(f'NumberOfModules{name}', 16 * k, 16, field=f'modules_{field}')
+        sma_field(f'NumberOfModules{name}', 16 * k, field=f'victron.modules_{field}')
         for k, (name, field) in enumerate((
             ('Ok', 'ok'), ('BlockingCharge', 'blocking_charge'),
             ('BlockingDischarge', 'blocking_discharge'), ('Offline', 'offline'))))),
     VICTRON_CELL_EXTREMES_ID: Layout('Victron_CellExtremes', 8, (
-        _u('MinCellVoltage', 0, 16, 0.001, 'V', 'min_cell_v'),
-        _u('MaxCellVoltage', 16, 16, 0.001, 'V', 'max_cell_v'),
-        _u('LowestCellTemperature', 32, 16, 1, 'K', 'min_temperature_k', MAX_TEMPERATURE_K,
-           _TOO_HOT),
-        _u('HighestCellTemperature', 48, 16, 1, 'K', 'max_temperature_k', MAX_TEMPERATURE_K,
-           _TOO_HOT)), divide=True),
+        sma_field('MinCellVoltage', 0, 16, 0.001, unit='V', field='victron.min_cell_v'),
+        sma_field('MaxCellVoltage', 16, 16, 0.001, unit='V', field='victron.max_cell_v'),
+        sma_field('LowestCellTemperature', 32, unit='K', field='victron.min_temperature_k',
+                  high=MAX_TEMPERATURE_K, check=_TOO_HOT),
+        sma_field('HighestCellTemperature', 48, unit='K', field='victron.max_temperature_k',
+                  high=MAX_TEMPERATURE_K, check=_TOO_HOT)), divide=True),
     **{VICTRON_MIN_VOLTAGE_CELL_ID + k: Layout(f'Victron_{name}CellId', 8, (
-        _u(f'{name}CellId', 0, 64),)) for k, name in enumerate(
+        sma_field(f'{name}CellId', 0, 64),)) for k, name in enumerate(
             ('MinVoltage', 'MaxVoltage', 'MinTemperature', 'MaxTemperature'))},
     VICTRON_ENERGY_ID: Layout('Victron_Energy', 8, (
-        _u('ChargedEnergy', 0, 32, 0.1, 'kWh', 'charged_kwh'),
-        _u('DischargedEnergy', 32, 32, 0.1, 'kWh', 'discharged_kwh')), divide=True),
+        sma_field('ChargedEnergy', 0, 32, 0.1, unit='kWh', field='victron.charged_kwh'),
+        sma_field('DischargedEnergy', 32, 32, 0.1, unit='kWh',
+                  field='victron.discharged_kwh')), divide=True),
     VICTRON_INSTALLED_CAPACITY_ID: Layout('Victron_InstalledCapacity', 2, (
-        _u('InstalledCapacity', 0, 16, 1, 'Ah', 'installed_capacity_ah'),)),
-    VICTRON_PRODUCT_NAME_ID: Layout('Victron_ProductName', 8, (_u('ProductName', 0, 64),)),
+        sma_field('InstalledCapacity', 0, unit='Ah', field='victron.installed_capacity_ah'),)),
+    VICTRON_PRODUCT_NAME_ID: Layout('Victron_ProductName', 8, (sma_field('ProductName', 0, 64),)),
 }
 
 
