@@ -27,7 +27,7 @@ from typing import Union
 
 from ams_can_bridge.protocols.common import (
     check_dlc, EncodeRangeError, Frame, MalformedFrameError)
-from ams_can_bridge.protocols.layout import BadValue, check_value, Layout, LITTLE, Signal
+from ams_can_bridge.protocols.layout import BadValue, Layout, LITTLE, Signal
 
 TC_CHARGER1_RX_ID = 0x1806E5F4
 TC_CHARGER1_TX_ID = 0x18FF50E5
@@ -110,9 +110,13 @@ LAYOUTS = {
 }
 _D_COMMAND = LAYOUTS['TC_Charger1_Command'].decoder()
 _E_COMMAND = LAYOUTS['TC_Charger1_Command'].encoder()
-_D_OUTPUT = LAYOUTS['TC_Charger1_Status'].decoder('OutputVoltage', 'OutputCurrent')
-_E_OUTPUT = Layout('TC output', 4, LAYOUTS['TC_Charger1_Status'].signals[:2],
-                   divide=True).encoder()
+# ChargerStatus as the wire carries it: the DBC's output voltage and current, then the
+# status byte and the temperature, both raw.
+_STATUS = Layout('TC status', 6, LAYOUTS['TC_Charger1_Status'].signals[:2] + (
+    Signal('Status', 32, 8, LITTLE, field='status'),
+    Signal('Temperature', 40, 8, LITTLE, field='temperature_raw')), divide=True)
+_D_STATUS = _STATUS.decoder()
+_E_STATUS = _STATUS.encoder()
 
 
 def _check_charger(charger: object) -> int:
@@ -137,9 +141,10 @@ class TcChargerCodec:
                 raise MalformedFrameError(arbitration_id, data, str(exc)) from None
         if arbitration_id in STATUS_IDS:
             check_dlc(arbitration_id, data, DLC_RANGE)
-            return ChargerStatus(  # type: ignore[call-arg]
-                STATUS_IDS.index(arbitration_id) + 1, *_D_OUTPUT(data),
-                data[4], data[5] if len(data) > 5 else None)
+            charger = STATUS_IDS.index(arbitration_id) + 1
+            if len(data) == 5:  # no temperature sent
+                return ChargerStatus(charger, *_D_STATUS(bytes(data) + b'\x00')[:3])
+            return ChargerStatus(charger, *_D_STATUS(data))
         raise MalformedFrameError(arbitration_id, data, 'not a TC charger ID')
 
     def encode(self, message: ChargerReading) -> Frame:
@@ -150,12 +155,9 @@ class TcChargerCodec:
                               1 if message.stop else 0)
             return Frame(COMMAND_IDS[charger - 1], data, True)
         if isinstance(message, ChargerStatus):
-            check_value('status', message.status, 0, 255, integer=True)
-            temperature = message.temperature_raw
-            if temperature is not None:
-                check_value('temperature_raw', temperature, 0, 255, integer=True)
-            data = (_E_OUTPUT(message.output_voltage_v, message.output_current_a)
-                    + bytes([message.status, temperature or 0, 0, 0]))
-            return Frame(STATUS_IDS[charger - 1], data if temperature is not None
-                         else data[:5], True)
+            temperature = message.temperature_raw  # None: not sent, DLC 5
+            data = _E_STATUS(message.output_voltage_v, message.output_current_a, message.status,
+                             0 if temperature is None else temperature)
+            return Frame(STATUS_IDS[charger - 1], data[:5] if temperature is None
+                         else data + bytes(2), True)
         raise EncodeRangeError('message', message, 'a TC charger message')
