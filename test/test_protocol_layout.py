@@ -1,4 +1,6 @@
 """protocols/layout.py: generated decoders and encoders equal cantools; one validator."""
+import enum
+
 import cantools
 import pytest
 from hypothesis import given, settings, strategies as st
@@ -8,7 +10,7 @@ from ams_can_bridge.protocols import evms3 as evms3_protocol
 from ams_can_bridge.protocols.common import load_dbc, msg_defs_dir
 from ams_can_bridge.protocols.evms3 import Evms3Codec
 from ams_can_bridge.protocols.layout import (
-    check_value, compile_function, Layout, LITTLE, Signal, tolerance)
+    BadValue, check_value, compile_function, Layout, LITTLE, Signal, tolerance)
 
 MESSAGES = [(name, m) for name in ('ams', 'bms16', 'evms3', 'ivt_s', 'sma')
             for m in load_dbc(name).messages
@@ -117,3 +119,50 @@ def test_each_codec_checks_its_whole_table_against_its_dbc(monkeypatch, module, 
     finally:
         if hasattr(check, 'cache_clear'):
             check.cache_clear()
+
+
+# --- a row's check: the rules of a protocol beside its bits (decode refuses, encode too) -------
+class _Mode(enum.IntEnum):
+    OFF = 1
+    ON = 2
+
+
+CHECKED = Layout('Checked', 4, (
+    Signal('Mode', 0, 4, LITTLE, field='mode', lookup=(None, *_Mode),
+           check='unknown mode {value} (known {low}..{high})'),
+    Signal('Count', 4, 4, LITTLE, low=1, high=5, field='count',
+           check='count {value} (allowed {low:g}..{high:g})'),
+    Signal('Temp', 8, 16, LITTLE, True, 0.1, low=-273.2, field='temp', invalid=-0x8000,
+           check='{value:g} degC is below {low:g} degC'),
+    Signal('Cell1', 24, 4, LITTLE), Signal('Cell2', 28, 4, LITTLE)), divide=True)
+
+
+def test_a_checked_row_decodes_what_the_protocol_allows():
+    decode = CHECKED.decoder(tail=2)
+    assert decode(bytes([0x31, 0x00, 0x80, 0x21])) == (_Mode.OFF, 3, None, (1, 2))
+    assert decode(bytes([0x52, 0x55, 0xF5, 0x00])) == (_Mode.ON, 5, -273.1, (0, 0))
+
+
+@pytest.mark.parametrize('data,message', [
+    ('30 00 00 00', 'unknown mode 0 (known 1..2)'),  # no member for 0
+    ('3F 00 00 00', 'unknown mode 15 (known 1..2)'),  # past the lookup's end
+    ('01 00 00 00', 'count 0 (allowed 1..5)'),
+    ('61 00 00 00', 'count 6 (allowed 1..5)'),
+    ('11 53 F5 00', '-273.3 degC is below -273.2 degC'),  # on the raw integer: -2733
+])
+def test_a_checked_row_refuses_what_the_protocol_does_not_allow(data, message):
+    with pytest.raises(BadValue) as info:
+        CHECKED.decoder()(bytes.fromhex(data))
+    assert str(info.value) == message
+
+
+def test_a_checked_lookup_encodes_only_its_members():
+    encode = CHECKED.encoder()
+    assert encode(_Mode.ON, 1, None, 0, 0) == bytes([0x12, 0x00, 0x80, 0x00])
+    assert encode(1, 1, 0, 0, 0) == bytes([0x11, 0, 0, 0])  # the member's int value
+    for value in (3, 0, True, 1.0, 'ON'):
+        with pytest.raises(EncodeRangeError) as info:
+            encode(value, 1, 0, 0, 0)
+        assert info.value.field == 'mode' and info.value.allowed == 'a _Mode value (OFF=1, ON=2)'
+    with pytest.raises(EncodeRangeError, match='count'):
+        encode(_Mode.ON, 6, 0, 0, 0)

@@ -77,6 +77,20 @@ def test_encoder_refuses_what_the_wire_cannot_carry():
         CODEC.encode(ChargerCommand(1, 100.0, 0.05, False))
 
 
+def test_status_byte_and_temperature_are_checked_before_sending():
+    for message, field in ((ChargerStatus(1, 100.0, 1.0, 256), 'status'),
+                           (ChargerStatus(1, 100.0, 1.0, 3, 300), 'temperature_raw'),
+                           (ChargerStatus(1, 100.0, 1.0, 3, 2.5), 'temperature_raw')):
+        with pytest.raises(EncodeRangeError) as info:
+            CODEC.encode(message)
+        assert info.value.field == field and info.value.allowed == '0..255, a whole number'
+    # no temperature: DLC 5 (100.0 V = 1000 = 0x03E8, 1.0 A = 10 = 0x000A, status 3)
+    assert CODEC.encode(ChargerStatus(3, 100.0, 1.0, 3)) == Frame(
+        0x18FF50E8, bytes([0x03, 0xE8, 0x00, 0x0A, 0x03]), True)
+    assert CODEC.decode(0x18FF50E8, bytes([0x03, 0xE8, 0x00, 0x0A, 0x03])) == ChargerStatus(
+        3, 100.0, 1.0, 3)
+
+
 def test_dbc_agrees_with_the_golden_frames():
     db = cantools.database.load_file(str(msg_defs_dir() / 'evms3.dbc'), strict=True)
     command = db.get_message_by_frame_id(0x1806E5F4, force_extended_id=True)

@@ -5,20 +5,20 @@ Ten 11-bit messages at ``base_id + offset`` (default base 0x300). The field layo
 ``LAYOUTS`` (protocols/layout.py tables): encoders and decoders are generated from it, it is
 checked against the installed ``msg_defs/ams.dbc`` when the first codec is built and
 against cantools in the tests. The module
-adds what a DBC cannot say (valid bank/group IDs, known enum values, DLC checks: a frame
-padded beyond its layout up to 8 bytes is accepted, a shorter one is malformed; typed
-readings) and checks every value before it is encoded, so a bad command fails loudly
-instead of being clamped.
+adds what a DBC cannot say (valid bank/group IDs and known enum values as checks of the table
+rows; DLC checks: a frame padded beyond its layout up to 8 bytes is accepted, a shorter one is
+malformed; typed readings) and checks every value before it is encoded, so a bad command
+fails loudly instead of being clamped.
 Readings are frozen dataclasses; enums carry the vendor's names.
 """
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass
-from typing import Any, Callable, Sequence, Union
+from dataclasses import dataclass, fields
+from typing import Any, Callable, Union
 
 from ams_can_bridge.protocols.common import EncodeRangeError, Frame, load_dbc, MalformedFrameError
-from ams_can_bridge.protocols.layout import BIG, Layout, Signal
+from ams_can_bridge.protocols.layout import BadValue, Layout, Signal
 
 DEFAULT_BASE_ID = 0x300
 
@@ -239,106 +239,108 @@ AmsMessage = Union[AmsStatus, AmsChargerStatus, CarStatus, ChargerCommand, CellV
                    CellTemperatures, DischargeTemperatures, AmsErrorEvent,
                    OverrideChargeCurrent, OverrideBankCount]
 
-# Value -> enum member, so decoding is a dict lookup (None = unknown value = malformed).
-_STATES = {int(m): m for m in AmsState}
-_COMMANDS = {int(m): m for m in CarCommand}
-_ERRORS = {int(m): m for m in AmsError}
-_STARTS = {int(m): m for m in ChargerStart}
-
 _STATUS_BITS = (('AIR_Plus', 'air_plus'), ('AIR_Minus', 'air_minus'),
                 ('Precharge_Relay', 'precharge'), ('Warn_Volt', 'warn_volt'),
                 ('Warn_Temp', 'warn_temp'), ('HVDC_Interlock', 'hvdc_interlock'),
                 ('IMD_Error', 'imd_error'), ('AMS_Error', 'ams_error'))
-_DBC_NAMES = {
-    STATUS: 'AMS_Status', CHARGER_STATUS: 'AMS_Status_Charger', CAR_STATUS: 'CAR_Status',
-    CHARGER_COMMANDS: 'CHARGER_Commands', CELL_VOLTAGES: 'AMS_Cell_Voltages',
-    CELL_TEMPERATURES: 'AMS_Cell_Temperatures',
-    DISCHARGE_TEMPERATURES: 'AMS_Discharge_Temperatures', ERROR: 'AMS_Error',
-    OVERRIDE_CHARGE_CURRENT: 'CHARGER_Override_Charge_Current',
-    OVERRIDE_BANK_COUNT: 'CHARGER_Override_Bank_Count',
+# offset -> its reading; the two status frames start with the status word, the series frames
+# end with one tuple of values after bank and group.
+READINGS: dict[int, type] = {
+    STATUS: AmsStatus, CHARGER_STATUS: AmsChargerStatus, CAR_STATUS: CarStatus,
+    CHARGER_COMMANDS: ChargerCommand, CELL_VOLTAGES: CellVoltages,
+    CELL_TEMPERATURES: CellTemperatures, DISCHARGE_TEMPERATURES: DischargeTemperatures,
+    ERROR: AmsErrorEvent, OVERRIDE_CHARGE_CURRENT: OverrideChargeCurrent,
+    OVERRIDE_BANK_COUNT: OverrideBankCount,
 }
-
-
-class _Bad(Exception):
-    """Internal: a decoded value is impossible (becomes MalformedFrameError with the data)."""
+_WORD_FRAMES = (STATUS, CHARGER_STATUS)
+_SERIES = (CELL_VOLTAGES, CELL_TEMPERATURES, DISCHARGE_TEMPERATURES)
 
 
 # --- the wire layout: one table, checked against msg_defs/ams.dbc ----------------------------
-# Every AMS signal is big-endian with offset 0. The ranges are what the encoder accepts (the
-# DBC cannot say that a status word counts 0..5 banks and the car status 1..5); the decoders
-# are generated from the same rows, and the DBC must have the same bits at the first codec.
-def _s(name: str, start: int, length: int, scale: float = 1, signed: bool = False,
-       low: float | None = None, high: float | None = None, unit: str = '',
-       field: str = '') -> Signal:
-    return Signal(name, start, length, BIG, signed, scale, 0, low, high, unit, field,
-                  flag=length == 1)
-
-
-_WORD = tuple(_s(dbc, 7 - bit, 1, field=attr) for bit, (dbc, attr) in enumerate(_STATUS_BITS)
-              ) + (_s('Bank_Count', 15, 3, high=MAX_BANKS, field='bank_count'),
-                   _s('AMS_State', 12, 5, field='state'))
+# Every AMS signal is big-endian with offset 0. The ranges are what the encoder accepts and,
+# where a row has a check, what a decoded frame may carry (the DBC cannot say that a status
+# word counts 0..5 banks and the car status 1..5, nor which enum values exist); decoders and
+# encoders are generated from the same rows, and the DBC must have the same bits at the
+# first codec. A value outside a check makes the frame malformed with the check's text.
+_ALLOWED = ' {value} (allowed {low:g}..{high:g})'
+_UNKNOWN = ' {value} (known {low}..{high})'
+_WORD = tuple(Signal(dbc, 7 - bit, 1, field=attr, flag=True)
+              for bit, (dbc, attr) in enumerate(_STATUS_BITS)) + (
+    Signal('Bank_Count', 15, 3, high=MAX_BANKS, field='bank_count',
+           check='status bank count' + _ALLOWED),
+    Signal('AMS_State', 12, 5, field='state', lookup=tuple(AmsState),
+           check='unknown AMS state' + _UNKNOWN))
 
 
 def _bank_group_signals(groups: int) -> tuple[Signal, ...]:
-    return (_s('Bank_ID', 7, 3, low=1, high=MAX_BANKS, field='bank'),
-            _s('Group_ID', 2, 3, high=groups - 1, field='group'))
+    return (Signal('Bank_ID', 7, 3, low=1, high=MAX_BANKS, field='bank',
+                   check='bank ID' + _ALLOWED),
+            Signal('Group_ID', 2, 3, high=groups - 1, field='group',
+                   check='group ID' + _ALLOWED))
 
 
 def _series(prefix: str, count: int, field: str, **kwargs: Any) -> tuple[Signal, ...]:
-    return tuple(_s(f'{prefix}_{k + 1}', 15 + 8 * k, 8, field=f'{field}[{k}]', **kwargs)
+    return tuple(Signal(f'{prefix}_{k + 1}', 15 + 8 * k, 8, field=f'{field}[{k}]', **kwargs)
                  for k in range(count))
 
 
 _VOLTS: dict[str, Any] = dict(scale=CELL_VOLT_STEP, high=5.1, unit='V')
 _AMPS: dict[str, Any] = dict(scale=CURRENT_STEP, high=25.5, unit='A')
 _TEMPS: dict[str, Any] = dict(signed=True, unit='degC')
-LAYOUTS: dict[int, Layout] = {offset: Layout(_DBC_NAMES[offset], length, signals) for
-                              offset, length, signals in (
-    (STATUS, 7, _WORD + (
-        _s('Volt_min', 23, 8, field='volt_min_v', **_VOLTS),
-        _s('Temp_max', 31, 8, unit='degC', field='temp_max_c'),
-        _s('SOC', 39, 8, high=100, unit='%', field='soc_pct'),
-        _s('Counter', 47, 8, field='counter'),
-        _s('Relay_Error_AIR_Minus', 48, 1, field='relay_error_air_minus'),
-        _s('Relay_Error_AIR_Plus', 49, 1, field='relay_error_air_plus'),
-        _s('Relay_Error_Precharge', 50, 1, field='relay_error_precharge'))),
-    (CHARGER_STATUS, 5, _WORD + (
-        _s('SOC', 23, 8, high=100, unit='%', field='soc_pct'),
-        _s('Charger_Current', 31, 8, field='charger_current_a', **_AMPS),
-        _s('Turn_On_Charger', 32, 1, field='charger_on'))),
-    (CAR_STATUS, 2, (_s('CMD', 3, 4, field='command'),
-                     _s('Bank_Count', 7, 4, low=1, high=MAX_BANKS, field='bank_count'),
-                     _s('Counter', 15, 8, field='counter'))),
-    (CHARGER_COMMANDS, 3, (_s('Start', 1, 2, field='start'),
-                           _s('Time_Tick', 15, 16, field='time_tick'))),
-    (CELL_VOLTAGES, 8, _bank_group_signals(CELL_GROUPS)
+_BANKS: dict[str, Any] = dict(low=1, high=MAX_BANKS, field='bank_count')
+# offset -> the message as msg_defs/ams.dbc names it, its length and signals
+LAYOUTS: dict[int, Layout] = {offset: Layout(name, length, signals) for
+                              offset, name, length, signals in (
+    (STATUS, 'AMS_Status', 7, _WORD + (
+        Signal('Volt_min', 23, 8, field='volt_min_v', **_VOLTS),
+        Signal('Temp_max', 31, 8, unit='degC', field='temp_max_c'),
+        Signal('SOC', 39, 8, high=100, unit='%', field='soc_pct'),
+        Signal('Counter', 47, 8, field='counter'),
+        Signal('Relay_Error_AIR_Minus', 48, 1, field='relay_error_air_minus', flag=True),
+        Signal('Relay_Error_AIR_Plus', 49, 1, field='relay_error_air_plus', flag=True),
+        Signal('Relay_Error_Precharge', 50, 1, field='relay_error_precharge', flag=True))),
+    (CHARGER_STATUS, 'AMS_Status_Charger', 5, _WORD + (
+        Signal('SOC', 23, 8, high=100, unit='%', field='soc_pct'),
+        Signal('Charger_Current', 31, 8, field='charger_current_a', **_AMPS),
+        Signal('Turn_On_Charger', 32, 1, field='charger_on', flag=True))),
+    (CAR_STATUS, 'CAR_Status', 2, (
+        Signal('CMD', 3, 4, field='command', lookup=tuple(CarCommand),
+               check='unknown car command' + _UNKNOWN),
+        Signal('Bank_Count', 7, 4, **_BANKS, check='car status bank count' + _ALLOWED),
+        Signal('Counter', 15, 8, field='counter'))),
+    (CHARGER_COMMANDS, 'CHARGER_Commands', 3, (
+        Signal('Start', 1, 2, field='start', lookup=tuple(ChargerStart),
+               check='unknown charger start command' + _UNKNOWN),
+        Signal('Time_Tick', 15, 16, field='time_tick'))),
+    (CELL_VOLTAGES, 'AMS_Cell_Voltages', 8, _bank_group_signals(CELL_GROUPS)
      + _series('Cell_Voltage', CELLS_PER_GROUP, 'voltages_v', **_VOLTS)),
-    (CELL_TEMPERATURES, 6, _bank_group_signals(TEMP_GROUPS)
+    (CELL_TEMPERATURES, 'AMS_Cell_Temperatures', 6, _bank_group_signals(TEMP_GROUPS)
      + _series('Cell_Temperature', TEMPS_PER_GROUP, 'temperatures_c', **_TEMPS)),
-    (DISCHARGE_TEMPERATURES, 8, _bank_group_signals(TEMP_GROUPS)
+    (DISCHARGE_TEMPERATURES, 'AMS_Discharge_Temperatures', 8, _bank_group_signals(TEMP_GROUPS)
      + _series('Discharge_Temperature', DISCHARGE_TEMPS_PER_GROUP, 'temperatures_c',
                **_TEMPS)),
-    (ERROR, 3, (_s('AMS_Error_ID', 7, 8, field='error'),
-                _s('AMS_Time_Tick', 15, 16, field='time_tick'))),
-    (OVERRIDE_CHARGE_CURRENT, 1, (_s('Charge_Current', 7, 8, field='current_a', **_AMPS),)),
-    (OVERRIDE_BANK_COUNT, 1, (_s('Bank_Count', 7, 8, low=1, high=MAX_BANKS,
-                                 field='bank_count'),)),
+    (ERROR, 'AMS_Error', 3, (  # error IDs count from 1
+        Signal('AMS_Error_ID', 7, 8, field='error', lookup=(None, *AmsError),
+               check='unknown AMS error ID' + _UNKNOWN),
+        Signal('AMS_Time_Tick', 15, 16, field='time_tick'))),
+    (OVERRIDE_CHARGE_CURRENT, 'CHARGER_Override_Charge_Current', 1, (
+        Signal('Charge_Current', 7, 8, field='current_a', **_AMPS),)),
+    (OVERRIDE_BANK_COUNT, 'CHARGER_Override_Bank_Count', 1, (
+        Signal('Bank_Count', 7, 8, **_BANKS, check='override bank count' + _ALLOWED),)),
 )}
 
 
 def _check_dbc() -> None:
     """Fail loudly (LayoutError) if msg_defs/ams.dbc no longer has the layout of LAYOUTS."""
     db = load_dbc('ams')
-    for offset, layout in LAYOUTS.items():
-        layout.check_dbc(db.get_message_by_name(_DBC_NAMES[offset]), 'msg_defs/ams.dbc',
-                         'AMS')
+    for layout in LAYOUTS.values():
+        layout.check_dbc(db.get_message_by_name(layout.name), 'msg_defs/ams.dbc', 'AMS')
 
 
-# --- decoding: the generated decoders plus what the DBC cannot say ---------------------------
+# --- decoding: generated from the table, checks included -------------------------------------
 # The bus thread decodes every AMS frame (about 60/s with 5 banks); the generated code reads
 # the bytes as hand code would (about 1 us a frame; cantools took 4-13 us).
-_D = {offset: layout.decoder() for offset, layout in LAYOUTS.items()}
-_D_WORD = LAYOUTS[STATUS].decoder(*(s.name for s in _WORD))
+_D_WORD = LAYOUTS[STATUS].decoder(*(s.name for s in _WORD), into=AmsStatusWord)
 # Status words seen so far, by the two bytes that carry them: a car sends a handful of
 # distinct words, and building a frozen dataclass costs more than decoding the rest.
 _WORD_CACHE: dict[int, AmsStatusWord] = {}
@@ -347,130 +349,41 @@ _WORD_CACHE: dict[int, AmsStatusWord] = {}
 def _status_word(data: bytes) -> AmsStatusWord:
     key = data[0] << 8 | data[1]  # bytes or bytearray (python-can gives the latter)
     word = _WORD_CACHE.get(key)
-    if word is not None:
-        return word
-    *flags, banks, raw_state = _D_WORD(data)
-    state = _known(_STATES, raw_state, 'AMS state')
-    if banks > MAX_BANKS:
-        raise _Bad(f'status bank count {banks} (allowed 0..{MAX_BANKS})')
-    word = AmsStatusWord(*flags, banks, state)  # type: ignore[call-arg]  # one flag per field
-    _WORD_CACHE[key] = word  # bounded: at most 2**16 words
+    if word is None:  # BadValue for a word the AMS cannot send: never cached
+        word = _WORD_CACHE[key] = _D_WORD(data)  # bounded: at most 2**16 words
     return word
 
 
-def _known(members: dict[int, Any], raw: int, what: str) -> Any:
-    """Return the enum member of a raw value; _Bad for a value the vendor does not name."""
-    member = members.get(raw)
-    if member is None:
-        raise _Bad(f'unknown {what} {raw} (known {min(members)}..{max(members)})')
-    return member
+def _decoder(offset: int, reading: type) -> Callable[[bytes], Any]:
+    layout = LAYOUTS[offset]
+    if offset in _WORD_FRAMES:
+        return layout.decoder(*(s.name for s in layout.signals[len(_WORD):]), into=reading,
+                              head=_status_word)
+    return layout.decoder(into=reading, tail=len(layout.signals) - 2 if offset in _SERIES else 0)
 
 
-def _bank_group(bank: int, group: int, groups: int) -> None:
-    if not 1 <= bank <= MAX_BANKS:
-        raise _Bad(f'bank ID {bank} (allowed 1..{MAX_BANKS})')
-    if group >= groups:
-        raise _Bad(f'group ID {group} (allowed 0..{groups - 1})')
+_DECODERS = {offset: _decoder(offset, reading) for offset, reading in READINGS.items()}
 
 
-def _dec_car_status(data: bytes) -> CarStatus:
-    raw, banks, counter = _D[CAR_STATUS](data)
-    command = _known(_COMMANDS, raw, 'car command')
-    if not 1 <= banks <= MAX_BANKS:
-        raise _Bad(f'car status bank count {banks} (allowed 1..{MAX_BANKS})')
-    return CarStatus(command, banks, counter)
+# --- encoding: the generated encoder checks every value (enum members, ranges, steps) --------
+def _values(offset: int, message: Any) -> list[Any]:
+    """Return a reading's values in its layout's order (status word and series spread out)."""
+    values = [getattr(message, f.name) for f in fields(message)]
+    if offset in _WORD_FRAMES:
+        word = values.pop(0)
+        if not isinstance(word, AmsStatusWord):
+            raise EncodeRangeError('status', word, 'an AmsStatusWord')
+        values[:0] = [getattr(word, f.name) for f in fields(word)]
+    elif offset in _SERIES:
+        series, count = values.pop(), len(LAYOUTS[offset].signals) - 2
+        if not isinstance(series, (tuple, list)) or len(series) != count:
+            raise EncodeRangeError(fields(message)[-1].name, series, f'exactly {count} values')
+        values += series
+    return values
 
 
-def _dec_charger_commands(data: bytes) -> ChargerCommand:
-    raw, tick = _D[CHARGER_COMMANDS](data)
-    return ChargerCommand(_known(_STARTS, raw, 'charger start command'), tick)
-
-
-def _series_decoder(offset: int, groups: int, cls: type) -> Callable[[bytes], Any]:
-    decode = _D[offset]
-
-    def build(data: bytes) -> Any:
-        bank, group, *values = decode(data)
-        _bank_group(bank, group, groups)
-        return cls(bank, group, tuple(values))
-    return build
-
-
-def _dec_error(data: bytes) -> AmsErrorEvent:
-    raw, tick = _D[ERROR](data)
-    return AmsErrorEvent(_known(_ERRORS, raw, 'AMS error ID'), tick)
-
-
-def _dec_override_banks(data: bytes) -> OverrideBankCount:
-    banks, = _D[OVERRIDE_BANK_COUNT](data)
-    if not 1 <= banks <= MAX_BANKS:
-        raise _Bad(f'override bank count {banks} (allowed 1..{MAX_BANKS})')
-    return OverrideBankCount(banks)
-
-
-_DECODERS: dict[int, Callable[[bytes], Any]] = {
-    STATUS: LAYOUTS[STATUS].decoder(
-        'Volt_min', 'Temp_max', 'SOC', 'Counter', 'Relay_Error_AIR_Minus',
-        'Relay_Error_AIR_Plus', 'Relay_Error_Precharge', into=AmsStatus, head=_status_word),
-    CHARGER_STATUS: LAYOUTS[CHARGER_STATUS].decoder(
-        'SOC', 'Charger_Current', 'Turn_On_Charger', into=AmsChargerStatus, head=_status_word),
-    CAR_STATUS: _dec_car_status,
-    CHARGER_COMMANDS: _dec_charger_commands,
-    CELL_VOLTAGES: _series_decoder(CELL_VOLTAGES, CELL_GROUPS, CellVoltages),
-    CELL_TEMPERATURES: _series_decoder(CELL_TEMPERATURES, TEMP_GROUPS, CellTemperatures),
-    DISCHARGE_TEMPERATURES: _series_decoder(DISCHARGE_TEMPERATURES, TEMP_GROUPS,
-                                            DischargeTemperatures),
-    ERROR: _dec_error,
-    OVERRIDE_CHARGE_CURRENT: LAYOUTS[OVERRIDE_CHARGE_CURRENT].decoder(
-        into=OverrideChargeCurrent),
-    OVERRIDE_BANK_COUNT: _dec_override_banks,
-}
-
-
-# --- encoding: what the DBC cannot say, then the generated encoder checks every value --------
-def _member(field: str, value: Any, enum_cls: type[enum.IntEnum]) -> int:
-    values = {int(m) for m in enum_cls}
-    if isinstance(value, bool) or not isinstance(value, int) or int(value) not in values:
-        names = ', '.join(f'{m.name}={int(m)}' for m in enum_cls)
-        raise EncodeRangeError(field, value, f'a {enum_cls.__name__} value ({names})')
-    return int(value)
-
-
-def _values(field: str, values: Any, count: int) -> tuple:
-    if not isinstance(values, (tuple, list)) or len(values) != count:
-        raise EncodeRangeError(field, values, f'exactly {count} values')
-    return tuple(values)
-
-
-def _word(word: AmsStatusWord) -> list[Any]:
-    if not isinstance(word, AmsStatusWord):
-        raise EncodeRangeError('status', word, 'an AmsStatusWord')
-    return [getattr(word, attr) for _, attr in _STATUS_BITS] + [
-        word.bank_count, _member('state', word.state, AmsState)]
-
-
-# reading type -> (offset, its values in the layout's signal order)
-_ENCODERS: dict[type, tuple[int, Callable[[Any], Sequence[Any]]]] = {
-    AmsStatus: (STATUS, lambda m: _word(m.status) + [
-        m.volt_min_v, m.temp_max_c, m.soc_pct, m.counter, m.relay_error_air_minus,
-        m.relay_error_air_plus, m.relay_error_precharge]),
-    AmsChargerStatus: (CHARGER_STATUS, lambda m: _word(m.status) + [
-        m.soc_pct, m.charger_current_a, m.charger_on]),
-    CarStatus: (CAR_STATUS, lambda m: (
-        _member('command', m.command, CarCommand), m.bank_count, m.counter)),
-    ChargerCommand: (CHARGER_COMMANDS, lambda m: (
-        _member('start', m.start, ChargerStart), m.time_tick)),
-    CellVoltages: (CELL_VOLTAGES, lambda m: (m.bank, m.group) + _values(
-        'voltages_v', m.voltages_v, CELLS_PER_GROUP)),
-    CellTemperatures: (CELL_TEMPERATURES, lambda m: (m.bank, m.group) + _values(
-        'temperatures_c', m.temperatures_c, TEMPS_PER_GROUP)),
-    DischargeTemperatures: (DISCHARGE_TEMPERATURES, lambda m: (m.bank, m.group) + _values(
-        'temperatures_c', m.temperatures_c, DISCHARGE_TEMPS_PER_GROUP)),
-    AmsErrorEvent: (ERROR, lambda m: (_member('error', m.error, AmsError), m.time_tick)),
-    OverrideChargeCurrent: (OVERRIDE_CHARGE_CURRENT, lambda m: (m.current_a,)),
-    OverrideBankCount: (OVERRIDE_BANK_COUNT, lambda m: (m.bank_count,)),
-}
 _ENCODE = {offset: layout.encoder() for offset, layout in LAYOUTS.items()}
+_OFFSET_OF = {reading: offset for offset, reading in READINGS.items()}
 
 
 class AmsCodec:
@@ -493,9 +406,6 @@ class AmsCodec:
         self._decode_table: dict[int, tuple[int, Callable[[bytes], Any]]] = {
             base_id + offset: (LAYOUTS[offset].length, _DECODERS[offset])
             for offset in OFFSETS}
-        self._encode_table: dict[type, tuple[int, Callable, Callable]] = {
-            cls: (base_id + offset, _ENCODE[offset], values)
-            for cls, (offset, values) in _ENCODERS.items()}
         self.arbitration_ids = frozenset(self._decode_table)
 
     def id_of(self, offset: int) -> int:
@@ -518,14 +428,13 @@ class AmsCodec:
                                       f'DLC {len(data)}, expected {length}..{MAX_DLC}')
         try:
             return build(data)
-        except _Bad as exc:
+        except BadValue as exc:
             raise MalformedFrameError(arbitration_id, data, str(exc)) from None
 
     def encode(self, message: AmsMessage) -> Frame:
         """Encode one message; EncodeRangeError names the field and its allowed range."""
-        entry = self._encode_table.get(type(message))
-        if entry is None:
+        offset = _OFFSET_OF.get(type(message))
+        if offset is None:
             raise EncodeRangeError('message', message,
-                                   'one of ' + ', '.join(c.__name__ for c in _ENCODERS))
-        arbitration_id, encode, values = entry
-        return Frame(arbitration_id, encode(*values(message)), False)
+                                   'one of ' + ', '.join(c.__name__ for c in _OFFSET_OF))
+        return Frame(self.base_id + offset, _ENCODE[offset](*_values(offset, message)), False)

@@ -8,8 +8,9 @@ in Python or read from a DBC message (:meth:`Layout.from_dbc`). From that table 
 * ``decoder()``: one generated function ``data -> tuple`` (or straight into a reading) of
   the physical values, with no loop and no call per signal: each signal reads its bytes
   ``data[k]`` with shifts and masks, a scaled byte is a table lookup, "not available" raw
-  values (``invalid``) become None, enum codes come from a ``lookup`` column. The bus thread
-  runs it for every frame.
+  values (``invalid``) become None, enum codes come from a ``lookup`` column, and a signal
+  with a ``check`` refuses a value the protocol does not allow (:class:`BadValue`). The bus
+  thread runs it for every frame.
 * ``encoder()``: one generated function ``(*values) -> bytes`` that validates every value with
   :func:`check_value` (range and step of its signal) before packing it.
 * ``check_dbc(message)``: raises :class:`LayoutError` at the first codec if the installed DBC
@@ -22,10 +23,12 @@ step validator of the package (the encoders here, the protocol modules, ``parame
 from __future__ import annotations
 
 import dataclasses
+import functools
+import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from ams_can_bridge.errors import EncodeRangeError, LayoutError
+from ams_can_bridge.errors import EncodeRangeError, LayoutError, ProtocolError
 
 BIG = 'big_endian'
 LITTLE = 'little_endian'
@@ -87,6 +90,35 @@ def check_flag(field: str, value: Any) -> int:
     return int(value)
 
 
+class BadValue(ProtocolError):
+    """
+    A decoded value a signal's ``check`` refuses (its message is the check's text).
+
+    The decoder knows only the bytes: the codec catches it and raises MalformedFrameError
+    with the frame's ID and this message.
+    """
+
+
+class _Known(dict):
+    """Raw value -> enum member of a checked lookup; an unknown raw value is a BadValue."""
+
+    def __init__(self, s: Signal) -> None:
+        super().__init__((raw, m) for raw, m in enumerate(s.lookup or ()) if m is not None)
+        self.check = s.check
+        self.raws = {m: raw for raw, m in self.items()}
+
+    def __missing__(self, raw: int) -> Any:
+        raise BadValue(self.check.format(value=raw, low=min(self), high=max(self)))
+
+    def encode(self, field: str, value: Any) -> int:
+        """Return the raw value of a member (or of its int); EncodeRangeError else."""
+        if isinstance(value, int) and not isinstance(value, bool) and value in self.raws:
+            return self.raws[value]
+        names = ', '.join(f'{getattr(m, "name", m)}={raw}' for raw, m in self.items())
+        raise EncodeRangeError(field, value,
+                               f'a {type(next(iter(self.values()))).__name__} value ({names})')
+
+
 @dataclass(frozen=True)
 class Signal:
     """One signal of a message, as a DBC ``SG_`` line states it."""
@@ -106,6 +138,12 @@ class Signal:
     invalid: int | None = None  # raw value meaning "not available": None both ways
     # decode only: raw value -> reading value (an enum member, None); IndexError past its end
     lookup: tuple | None = None
+    # A rule of the protocol (not of the bits): decoding refuses a value outside low..high,
+    # or with a lookup a raw value without a member, raising BadValue with this text
+    # formatted with value, low and high ('bank ID {value} (allowed {low}..{high})'; for a
+    # lookup low..high are the known raw values). With a lookup, encoding then takes only a
+    # member (or its int value).
+    check: str = ''
 
     def raw_range(self) -> tuple[int, int]:
         """Return the raw values the bits carry, without the "not available" marker."""
@@ -119,6 +157,11 @@ class Signal:
         ends = sorted((lo_raw * self.scale + self.offset, hi_raw * self.scale + self.offset))
         return (ends[0] if self.low is None else self.low,
                 ends[1] if self.high is None else self.high)
+
+    def raw_limits(self) -> tuple[int, int]:
+        """Return the raw values whose physical value lies in bounds() (a check's range)."""
+        ends = sorted((b - self.offset) / self.scale for b in self.bounds())
+        return math.ceil(ends[0] - 1e-9), math.floor(ends[1] + 1e-9)
 
     def lsb(self, length: int) -> int:
         """Return the bit of its LSB in the frame read as one integer in its byte order."""
@@ -188,15 +231,25 @@ class Layout:
         return expr
 
     def _physical(self, s: Signal, raw_only: bool = False,
-                  tables: dict[str, tuple] | None = None) -> str:
+                  tables: dict[str, Any] | None = None) -> str:
         raw = self.raw_expression(s)
         if s.flag and not raw_only:
             return f'({raw}) != 0'
         if s.lookup is not None and not raw_only and tables is not None:
             name = f'T{len(tables)}'
-            tables[name] = s.lookup
+            tables[name] = _Known(s) if s.check else s.lookup
             return f'{name}[{raw}]'
         plain = raw_only or (s.scale == 1 and s.offset == 0)
+        if s.check and tables is not None:
+            # The range test is on the raw integer (exact); the message shows the value.
+            var, name = f'r_{s.start}_{s.length}', f'B{len(tables)}'
+            tables[name] = functools.partial(self._refuse, s, self._scale_function(s))
+            lo, hi = s.raw_limits()
+            value = var if plain else self.scaled_expression(s, var)
+            if s.invalid is not None:
+                return (f'(None if ({var} := {raw}) == {s.invalid} else {value} '
+                        f'if {lo} <= {var} <= {hi} else {name}({var}))')
+            return f'({value} if {lo} <= ({var} := {raw}) <= {hi} else {name}({var}))'
         if s.invalid is not None:
             var = f'r_{s.start}_{s.length}'
             value = var if plain else self.scaled_expression(s, var)
@@ -206,8 +259,7 @@ class Layout:
         if tables is not None and s.length <= 8 and not s.signed:
             # A byte or less: look the scaled value up (no float built per frame), each
             # entry computed by the very expression used otherwise.
-            scale = _compile(f'def f(r):\n    return {self.scaled_expression(s, "r")}\n',
-                             self.name, 'f')
+            scale = self._scale_function(s)
             name = f'T{len(tables)}'
             tables[name] = tuple(scale(r) for r in range(1 << s.length))
             return f'{name}[{raw}]'
@@ -216,6 +268,15 @@ class Layout:
     def value_expression(self, s: Signal) -> str:
         """Return the expression of a signal's value as decoder() computes it (no tables)."""
         return self._physical(s)
+
+    def _scale_function(self, s: Signal) -> Callable[[int], Any]:
+        return _compile(f'def f(r):\n    return {self.scaled_expression(s, "r")}\n',
+                        self.name, 'f')
+
+    @staticmethod
+    def _refuse(s: Signal, scale: Callable[[int], Any], raw: int) -> Any:
+        low, high = s.bounds()
+        raise BadValue(s.check.format(value=scale(raw), low=low, high=high))
 
     def scaled_expression(self, s: Signal, raw: str) -> str:
         """Return the physical value of a raw expression (divide: as the vendor computes it)."""
@@ -232,7 +293,8 @@ class Layout:
         return scaled if s.offset == 0 else f'{scaled} + {s.offset!r}'
 
     def decoder(self, *names: str, raw: bool = False, into: Callable | None = None,
-                head: Callable | None = None, pack: int = 0) -> Callable[..., Any]:
+                head: Callable | None = None, pack: int = 0,
+                tail: int = 0) -> Callable[..., Any]:
         """
         Return ``decode(data)``: the physical (or raw) values of names (default all).
 
@@ -240,11 +302,15 @@ class Layout:
         (a part decoded elsewhere first, as a cached status word): one call per frame.
         pack=n: ``decode(data, a1..an)`` returns ``into(a1..an, (values...))``, values as one
         tuple after n arguments of the caller (as a module and a first cell).
+        tail=n: the last n values as one tuple (a series of cells after their bank and group).
         """
         by_name = {s.name: s for s in self.signals}
         signals = [by_name[n] for n in names] if names else self.signals
-        tables: dict[str, tuple] = {}
-        body = ', '.join(self._physical(s, raw, tables) for s in signals)
+        tables: dict[str, Any] = {}
+        values = [self._physical(s, raw, tables) for s in signals]
+        if tail:
+            values[-tail:] = [f'({", ".join(values[-tail:])},)']
+        body = ', '.join(values)
         args = ''.join(f', a{k}' for k in range(pack))
         if pack:
             body = f'{args[2:]}, ({body},)'
@@ -276,6 +342,9 @@ class Layout:
             checked = f'check({s.field or s.name!r}, v{i}, *S{i})'
             if s.flag:  # 0/1 or a bool; 2 or 'yes' is refused
                 checked = f'flag({s.field or s.name!r}, v{i})'
+            if s.check and s.lookup is not None:  # a member of the lookup, nothing else
+                scope[f'S{i}'] = _Known(s)
+                checked = f'S{i}.encode({s.field or s.name!r}, v{i})'
             raw = checked if integer else f'round(({checked} - {s.offset!r}) / {s.scale!r})'
             if not exact and s.scale == 1 and s.offset == 0:
                 raw = f'round({checked})'

@@ -38,15 +38,16 @@ from __future__ import annotations
 
 import enum
 import functools
-from dataclasses import astuple, dataclass, field
-from typing import Callable, Union
+from dataclasses import astuple, dataclass, field, fields, replace
+from typing import Any, Callable, Union
 
 from ams_can_bridge.protocols.common import (
     check_dlc, EncodeRangeError, Frame, load_dbc, MalformedFrameError)
-from ams_can_bridge.protocols.layout import Layout, LITTLE, Signal
+from ams_can_bridge.protocols.layout import BadValue, Layout
 from ams_can_bridge.protocols.sma_dialects import (
-    ascii_text, decode_dialect, DIALECT_DECODERS, DIALECT_IDS, DIALECT_LAYOUTS, DialectReading,
-    encode_ascii, encode_dialect, pad_unsent)
+    ascii_text, DIALECT_DECODERS, DIALECT_IDS, DIALECT_LAYOUTS, DIALECT_NUMBERS, DIALECT_TEXTS,
+    DialectReading, encode_ascii, encode_pylontech_alarms, pad_unsent, PylontechAlarms,
+    sma_field)
 
 LIMITS_ID = 0x351
 SOC_ID = 0x355
@@ -60,16 +61,10 @@ INVALID_U16 = 0xFFFF
 # %: the high-resolution SoC counts only within this of the integer SoC (section 5).
 HIRES_AGREEMENT_PCT = 1.0
 # 0x35A byte 7 bits 2-3: Victron's system status (2 = online, 1 = offline), not a warning.
-ONLINE_BYTE = 7
-ONLINE_SHIFT = 2
-ONLINE_CODES = {2: True, 1: False}
+ONLINE_CODES = (None, False, True, None)  # pair value -> online
 # 0x355 as BMS families send it: 'sma' SoC, SoH, high-resolution SoC (6 bytes); 'byd' SoC,
 # SoH and zeros (8 bytes, BYD LVS); 'diybms' the SoC alone (DLC 2).
 SOC_LAYOUTS = ('sma', 'byd', 'diybms')
-DLC_RANGE = {
-    LIMITS_ID: (6, 7, 8), SOC_ID: (2, 4, 5, 6, 7, 8), BATTERY_ID: (6, 7, 8),
-    ALARMS_ID: tuple(range(1, 9)), MANUFACTURER_ID: tuple(range(1, 9)), INFO_ID: (6, 7, 8),
-}
 
 
 class SmaFlag(enum.IntEnum):
@@ -201,49 +196,47 @@ ABSOLUTE_ZERO_C = -273.15
 # --- the wire layout, one table checked against msg_defs/sma.dbc ------------------------------
 # "Not available" is 0xFFFF (unsigned) or 0x8000 (signed); a frame cut short (DLC range) is
 # padded with 0xFF first, so the fields not sent read as not available. divide: 1234 -> 12.34.
-def _s(name: str, start: int, length: int = 16, scale: float = 1, signed: bool = False,
-       unit: str = '', field: str = '', high: float | None = None) -> Signal:
-    marker = (-0x8000 if signed else 0xFFFF) if field else None
-    return Signal(name, start, length, LITTLE, signed, scale, 0, None, high, unit,
-                  f'sma.{field}', invalid=marker)
-
-
+# A row's check is a value no BMS may send: the frame is malformed (docs/protocols.md
+# section 5): a state of charge above 100 % (it would publish percentage > 1), a temperature
+# below absolute zero.
 def _camel(name: str) -> str:
     return ''.join(part.capitalize() for part in name.split('_'))
 
 
 LAYOUTS = {
     LIMITS_ID: Layout('SMA_Limits', 8, (
-        _s('ChargeVoltageLimit', 0, scale=0.1, unit='V', field='charge_voltage_v'),
-        _s('ChargeCurrentLimit', 16, scale=0.1, signed=True, unit='A',
-           field='charge_current_a'),
-        _s('DischargeCurrentLimit', 32, scale=0.1, signed=True, unit='A',
-           field='discharge_current_a'),
-        _s('DischargeVoltageLimit', 48, scale=0.1, unit='V', field='discharge_voltage_v')),
+        sma_field('ChargeVoltageLimit', 0, scale=0.1, unit='V', field='charge_voltage_v'),
+        sma_field('ChargeCurrentLimit', 16, scale=0.1, signed=True, unit='A',
+                  field='charge_current_a'),
+        sma_field('DischargeCurrentLimit', 32, scale=0.1, signed=True, unit='A',
+                  field='discharge_current_a'),
+        sma_field('DischargeVoltageLimit', 48, scale=0.1, unit='V', field='discharge_voltage_v')),
         divide=True),
     SOC_ID: Layout('SMA_SoC', 6, (
-        _s('SoC', 0, unit='%', field='soc_pct', high=100),
-        _s('SoH', 16, unit='%', field='soh_pct', high=100),
-        _s('SoCHighRes', 32, scale=0.01, unit='%', field='soc_hires_pct', high=100)),
+        sma_field('SoC', 0, unit='%', field='soc_pct', high=100,
+                  check='SoC {value} % is above {high:g} %'),
+        sma_field('SoH', 16, unit='%', field='soh_pct', high=100),
+        sma_field('SoCHighRes', 32, scale=0.01, unit='%', field='soc_hires_pct', high=100,
+                  check='high-resolution SoC {value:g} % is above {high:g} %')),
         divide=True),
     BATTERY_ID: Layout('SMA_Battery', 6, (
-        _s('Voltage', 0, scale=0.01, signed=True, unit='V', field='voltage_v'),
-        _s('Current', 16, scale=0.1, signed=True, unit='A', field='current_a'),
-        _s('Temperature', 32, scale=0.1, signed=True, unit='degC', field='temperature_c')),
+        sma_field('Voltage', 0, scale=0.01, signed=True, unit='V', field='voltage_v'),
+        sma_field('Current', 16, scale=0.1, signed=True, unit='A', field='current_a'),
+        sma_field('Temperature', 32, scale=0.1, signed=True, unit='degC', field='temperature_c',
+                  low=ABSOLUTE_ZERO_C, check='temperature {value:g} degC is below absolute zero')),
         divide=True),
     ALARMS_ID: Layout('SMA_AlarmsWarnings', 8, tuple(
-        _s('SystemOnline' if (kind, name) == ('Warning', ONLINE_CONDITION)
-           else f'{kind}_{_camel(name)}', first + 2 * k, 2)
+        sma_field('SystemOnline', first + 2 * k, 2, lookup=ONLINE_CODES)
+        if (kind, name) == ('Warning', ONLINE_CONDITION) else
+        sma_field(f'{kind}_{_camel(name)}', first + 2 * k, 2, lookup=_FLAGS)
         for kind, first in (('Alarm', 0), ('Warning', 32))
         for k, name in enumerate(SMA_CONDITIONS))),
-    MANUFACTURER_ID: Layout('SMA_Manufacturer', 8, (_s('Manufacturer', 0, 64),)),
+    MANUFACTURER_ID: Layout('SMA_Manufacturer', 8, (sma_field('Manufacturer', 0, 64),)),
     INFO_ID: Layout('SMA_BatteryInfo', 6, (
-        _s('BatteryType', 0, field='battery_type'), _s('BmsVersion', 16, field='bms_version'),
-        _s('Capacity', 32, unit='Ah', field='capacity_ah'))),
+        sma_field('BatteryType', 0, field='battery_type'),
+        sma_field('BmsVersion', 16, field='bms_version'),
+        sma_field('Capacity', 32, unit='Ah', field='capacity_ah'))),
 }
-_D = {i: LAYOUTS[i].decoder() for i in (LIMITS_ID, SOC_ID, BATTERY_ID, ALARMS_ID, INFO_ID)}
-_E = {i: LAYOUTS[i].encoder(exact=False) for i in (LIMITS_ID, SOC_ID, BATTERY_ID, INFO_ID)}
-_E_ALARMS = LAYOUTS[ALARMS_ID].encoder()
 _ONLINE = 16 + SMA_CONDITIONS.index(ONLINE_CONDITION)  # SystemOnline among the pairs
 
 
@@ -255,114 +248,138 @@ def check_dbc() -> None:
         layout.check_dbc(db.get_message_by_frame_id(frame_id), 'msg_defs/sma.dbc', 'SMA')
 
 
-_ENCODED = {SmaLimits: LIMITS_ID, SmaSoc: SOC_ID, SmaBattery: BATTERY_ID, SmaBatteryInfo: INFO_ID}
+# --- how each frame is decoded and built: the SMA tables, then the dialects' -----------------
+# Frames of numbers: ID -> (reading, accepted DLCs); the SoC as diyBMS sends it alone (DLC
+# 2), DLC 3 would split the SoH.
+_NUMBERS = {
+    LIMITS_ID: (SmaLimits, (6, 7, 8)), SOC_ID: (SmaSoc, (2, 4, 5, 6, 7, 8)),
+    BATTERY_ID: (SmaBattery, (6, 7, 8)), INFO_ID: (SmaBatteryInfo, (6, 7, 8)),
+    **DIALECT_NUMBERS}
+_TEXTS = {MANUFACTURER_ID: ('sma.manufacturer', SmaManufacturer), **DIALECT_TEXTS}
+_LAYOUTS = {**LAYOUTS, **DIALECT_LAYOUTS}
+_D = {frame_id: _LAYOUTS[frame_id].decoder(into=reading)
+      for frame_id, (reading, _) in _NUMBERS.items()}
+
+
+def _limits(data: bytes) -> SmaLimits:
+    limits = _D[LIMITS_ID](data)
+    if limits.discharge_voltage_v == 0:  # no limit sent, not 0 V
+        return replace(limits, discharge_voltage_v=None)
+    return limits
+
+
+def _alarms(data: bytes) -> SmaAlarms:
+    pairs = _D_ALARMS(data)  # flags; padded with 0xFF: the pairs not sent are NOT_SUPPORTED
+    # Built complete here, so skip __post_init__'s normalising (hot path).
+    alarms = object.__new__(SmaAlarms)
+    object.__setattr__(alarms, 'alarms', dict(zip(SMA_CONDITIONS, pairs)))
+    warnings = dict(zip(SMA_CONDITIONS, pairs[16:]))
+    warnings[ONLINE_CONDITION] = SmaFlag.NOT_SUPPORTED  # that pair is the online status
+    object.__setattr__(alarms, 'warnings', warnings)
+    object.__setattr__(alarms, 'online', pairs[_ONLINE])
+    return alarms
+
+
+def _text_decoder(reading: type, lead: tuple) -> Callable[[bytes], SmaReading]:
+    return lambda data: reading(*lead, ascii_text(data))
+
+
+_D_ALARMS = LAYOUTS[ALARMS_ID].decoder()
+_TEXT_DLC = tuple(range(1, 9))
+# ID -> (accepted DLCs, length a frame cut short is padded to, decoder)
+_DECODERS: dict[int, tuple[tuple[int, ...], int, Callable[[bytes], SmaReading]]] = {
+    **{frame_id: (dlcs, _LAYOUTS[frame_id].length, _D[frame_id])
+       for frame_id, (_, dlcs) in _NUMBERS.items()},
+    **{frame_id: (_TEXT_DLC, 0, _text_decoder(reading, tuple(lead)))
+       for frame_id, (_, reading, *lead) in _TEXTS.items()},
+    LIMITS_ID: (_NUMBERS[LIMITS_ID][1], 8, _limits), ALARMS_ID: (_TEXT_DLC, 8, _alarms),
+    **{frame_id: (dlcs, 0, decode) for frame_id, (dlcs, decode) in DIALECT_DECODERS.items()},
+}
+
+
+def _encode_flags(message: SmaAlarms) -> Frame:
+    if message.warnings.get(ONLINE_CONDITION, SmaFlag.NOT_SUPPORTED) != 0:
+        raise EncodeRangeError(f'sma.warnings.{ONLINE_CONDITION}',
+                               message.warnings[ONLINE_CONDITION],
+                               'NOT_SUPPORTED (byte 7 bits 2-3 carry SmaAlarms.online)')
+    pairs = []
+    for kind, flags in (('alarms', message.alarms), ('warnings', message.warnings)):
+        for name in SMA_CONDITIONS:
+            flag = flags.get(name, SmaFlag.NOT_SUPPORTED)
+            if flag not in (0, 1, 2):
+                raise EncodeRangeError(f'sma.{kind}.{name}', flag,
+                                       'SmaFlag NOT_SUPPORTED, ACTIVE or OK')
+            pairs.append(int(flag))
+    if message.online is not None:  # byte 7 bits 2-3
+        pairs[_ONLINE] = ONLINE_CODES.index(message.online)
+    return Frame(ALARMS_ID, _E_ALARMS(*pairs))
+
+
+def _numbers_encoder(frame_id: int) -> Callable[[SmaReading], Frame]:
+    encode = _LAYOUTS[frame_id].encoder(exact=False)  # telemetry: rounded to the step
+    return lambda message: Frame(frame_id, encode(*astuple(message)))
+
+
+# (reading, its values before the text) -> (ID, field name)
+_TEXT_IDS = {(reading, *lead): (frame_id, field)
+             for frame_id, (field, reading, *lead) in _TEXTS.items()}
+
+
+def _encode_text(message: SmaReading) -> Frame:
+    *lead, text = astuple(message)
+    found = _TEXT_IDS.get((type(message), *lead))
+    if found is None:  # a BMS name part or cell id kind no frame carries
+        known = [(key[1], field) for key, (_, field) in _TEXT_IDS.items()
+                 if key[0] is type(message)]
+        raise EncodeRangeError(f'{known[0][1]}.{fields(message)[0].name}', lead[0],
+                               'one of ' + ', '.join(str(value) for value, _ in known))
+    frame_id, field = found
+    return Frame(frame_id, encode_ascii(field, text))
+
+
+_E_ALARMS = LAYOUTS[ALARMS_ID].encoder()
+# reading -> its encoder (SoC: always 6 bytes, 0xFFFF = no high-resolution SoC, as the DBC)
+_ENCODERS: dict[type, Callable[[Any], Frame]] = {
+    **{reading: _numbers_encoder(frame_id) for frame_id, (reading, _) in _NUMBERS.items()},
+    **{reading: _encode_text for _, reading, *_ in _TEXTS.values()},
+    SmaAlarms: _encode_flags, PylontechAlarms: encode_pylontech_alarms,
+}
 
 
 class SmaCodec:
-    """Decode and encode the SMA BMS frames 0x351..0x35F and the dialects' 0x359..0x377."""
+    """Decode and encode the SMA BMS frames 0x351..0x35F and the dialects' 0x359..0x382."""
 
     is_extended_id = False
     arbitration_ids = SMA_IDS | DIALECT_IDS
 
     def __init__(self) -> None:
         check_dbc()
-        self._decoders: dict[int, Callable[[bytes], SmaReading]] = {
-            LIMITS_ID: self._limits, SOC_ID: self._soc, BATTERY_ID: self._battery,
-            ALARMS_ID: self._alarms, MANUFACTURER_ID: self._manufacturer, INFO_ID: self._info,
-        }
 
-    # --- decode ---------------------------------------------------------------------
     def decode(self, arbitration_id: int, data: bytes) -> SmaReading:
-        """Decode one frame; MalformedFrameError for an unknown ID or a DLC out of range."""
-        decoder = self._decoders.get(arbitration_id)
-        if decoder is None:
-            if arbitration_id in DIALECT_DECODERS:
-                return decode_dialect(arbitration_id, data)
+        """Decode one frame; MalformedFrameError for an unknown ID, a DLC or value out of range."""
+        entry = _DECODERS.get(arbitration_id)
+        if entry is None:
             raise MalformedFrameError(arbitration_id, data, 'not an SMA BMS ID')
-        check_dlc(arbitration_id, data, DLC_RANGE[arbitration_id])
-        return decoder(data)
+        dlcs, length, decode = entry
+        if len(data) not in dlcs:
+            check_dlc(arbitration_id, data, dlcs)
+        try:
+            return decode(data if len(data) >= length else pad_unsent(data, length))
+        except BadValue as exc:
+            raise MalformedFrameError(arbitration_id, data, str(exc)) from None
 
-    @staticmethod
-    def _limits(data: bytes) -> SmaLimits:
-        charge_v, charge_a, discharge_a, discharge_v = _D[LIMITS_ID](pad_unsent(data, 8))
-        return SmaLimits(charge_v, charge_a, discharge_a,
-                         discharge_v or None)  # 0 = no limit sent, not 0 V
-
-    @staticmethod
-    def _soc(data: bytes) -> SmaSoc:
-        soc = SmaSoc(*_D[SOC_ID](pad_unsent(data, 6)))
-        # A state of charge above 100 % is no reading: it would publish percentage > 1.
-        for name, value in (('SoC', soc.soc_pct), ('high-resolution SoC', soc.soc_hires_pct)):
-            if value is not None and value > 100:
-                raise MalformedFrameError(SOC_ID, data, f'{name} {value:g} % is above 100 %')
-        return soc
-
-    @staticmethod
-    def _battery(data: bytes) -> SmaBattery:
-        battery = SmaBattery(*_D[BATTERY_ID](data))
-        if battery.temperature_c is not None and battery.temperature_c < ABSOLUTE_ZERO_C:
-            raise MalformedFrameError(BATTERY_ID, data, f'temperature {battery.temperature_c:g} '
-                                      'degC is below absolute zero')
-        return battery
-
-    @staticmethod
-    def _alarms(data: bytes) -> SmaAlarms:
-        pairs = _D[ALARMS_ID](data + bytes(8 - len(data)))  # not sent: not supported
-        # Built complete here, so skip __post_init__'s normalising (hot path).
-        alarms = object.__new__(SmaAlarms)
-        flags = [_FLAGS[pair] for pair in pairs]
-        object.__setattr__(alarms, 'alarms', dict(zip(SMA_CONDITIONS, flags)))
-        warnings = dict(zip(SMA_CONDITIONS, flags[16:]))
-        warnings[ONLINE_CONDITION] = SmaFlag.NOT_SUPPORTED  # that pair is the online status
-        object.__setattr__(alarms, 'warnings', warnings)
-        object.__setattr__(alarms, 'online', ONLINE_CODES.get(pairs[_ONLINE]))
-        return alarms
-
-    @staticmethod
-    def _manufacturer(data: bytes) -> SmaManufacturer:
-        return SmaManufacturer(ascii_text(data))
-
-    @staticmethod
-    def _info(data: bytes) -> SmaBatteryInfo:
-        return SmaBatteryInfo(*_D[INFO_ID](data))
-
-    # --- encode ---------------------------------------------------------------------
     def encode_soc(self, message: SmaSoc, layout: str = 'sma') -> Frame:
         """0x355 laid out as a BMS family sends it (SOC_LAYOUTS; the simulator's variants)."""
         if layout == 'sma':
             return self.encode(message)
         if layout not in SOC_LAYOUTS:
             raise EncodeRangeError('sma.soc_layout', layout, 'one of ' + ', '.join(SOC_LAYOUTS))
-        if layout == 'diybms':
-            return Frame(SOC_ID, _E[SOC_ID](message.soc_pct, None, None)[:2])
-        return Frame(SOC_ID, _E[SOC_ID](message.soc_pct, message.soh_pct, None)[:4] + bytes(4))
+        data = self.encode(SmaSoc(message.soc_pct, message.soh_pct, None)).data
+        return Frame(SOC_ID, data[:2] if layout == 'diybms' else data[:4] + bytes(4))
 
     def encode(self, message: SmaReading) -> Frame:
         """Encode any SMA message (None fields as invalid markers); EncodeRangeError else."""
-        # SoC: always 6 bytes (0xFFFF = no high-resolution SoC), the layout of the DBC.
-        for cls, frame_id in _ENCODED.items():
-            if isinstance(message, cls):
-                return Frame(frame_id, _E[frame_id](*astuple(message)))
-        if isinstance(message, SmaAlarms):
-            return Frame(ALARMS_ID, self._encode_flags(message))
-        if isinstance(message, SmaManufacturer):
-            return Frame(MANUFACTURER_ID, encode_ascii('sma.manufacturer', message.name))
-        return encode_dialect(message)  # type: ignore[arg-type]  # the SMA types are done
-
-    @staticmethod
-    def _encode_flags(message: SmaAlarms) -> bytes:
-        if message.warnings.get(ONLINE_CONDITION, SmaFlag.NOT_SUPPORTED) != 0:
-            raise EncodeRangeError(f'sma.warnings.{ONLINE_CONDITION}',
-                                   message.warnings[ONLINE_CONDITION],
-                                   'NOT_SUPPORTED (byte 7 bits 2-3 carry SmaAlarms.online)')
-        pairs = []
-        for kind, flags in (('alarms', message.alarms), ('warnings', message.warnings)):
-            for name in SMA_CONDITIONS:
-                flag = flags.get(name, SmaFlag.NOT_SUPPORTED)
-                if flag not in (0, 1, 2):
-                    raise EncodeRangeError(f'sma.{kind}.{name}', flag,
-                                           'SmaFlag NOT_SUPPORTED, ACTIVE or OK')
-                pairs.append(int(flag))
-        if message.online is not None:  # byte 7 bits 2-3 (ONLINE_BYTE, ONLINE_SHIFT)
-            pairs[_ONLINE] = 2 if message.online else 1
-        return _E_ALARMS(*pairs)
+        encode = _ENCODERS.get(type(message))
+        if encode is None:
+            raise EncodeRangeError('message', message, 'an SMA, Pylontech or Victron message')
+        return encode(message)

@@ -37,12 +37,11 @@ Decisions:
 """
 from __future__ import annotations
 
-from dataclasses import astuple, dataclass, fields
-from typing import Callable, Union
+from dataclasses import dataclass, fields
+from typing import Any, Callable, Union
 
-from ams_can_bridge.protocols.common import (
-    check_dlc, EncodeRangeError, Frame, MalformedFrameError)
-from ams_can_bridge.protocols.layout import check_value, Layout, LITTLE, Signal
+from ams_can_bridge.protocols.common import EncodeRangeError, Frame
+from ams_can_bridge.protocols.layout import BadValue, check_value, Layout, LITTLE, Signal
 
 # Pylontech
 PYLONTECH_KEEPALIVE_ID = 0x305  # inverter -> BMS, "every second", 8 zero bytes
@@ -65,33 +64,24 @@ PYLONTECH_IDS = frozenset({PYLONTECH_ALARMS_ID, PYLONTECH_REQUEST_ID})
 VICTRON_IDS = frozenset(range(VICTRON_BMS_NAME1_ID, VICTRON_INSTALLED_CAPACITY_ID + 1)) | {
     VICTRON_PRODUCT_NAME_ID}
 DIALECT_IDS = PYLONTECH_IDS | VICTRON_IDS
-_ASCII_DLC = tuple(range(1, 9))
-DIALECT_DLC = {
-    PYLONTECH_ALARMS_ID: (4, 5, 6, 7, 8), PYLONTECH_REQUEST_ID: _ASCII_DLC,
-    VICTRON_BMS_NAME1_ID: _ASCII_DLC, VICTRON_BMS_NAME2_ID: _ASCII_DLC,
-    VICTRON_MODULES_ID: (2, 4, 6, 8), VICTRON_CELL_EXTREMES_ID: (8,),
-    VICTRON_ENERGY_ID: tuple(range(4, 9)), VICTRON_INSTALLED_CAPACITY_ID: tuple(range(2, 9)),
-    VICTRON_PRODUCT_NAME_ID: _ASCII_DLC,
-    VICTRON_MIN_VOLTAGE_CELL_ID: _ASCII_DLC, VICTRON_MAX_VOLTAGE_CELL_ID: _ASCII_DLC,
-    VICTRON_MIN_TEMPERATURE_CELL_ID: _ASCII_DLC, VICTRON_MAX_TEMPERATURE_CELL_ID: _ASCII_DLC,
-}
-INVALID_U16 = 0xFFFF
-INVALID_U32 = 0xFFFFFFFF
 KELVIN_OFFSET = 273.15
 MAX_TEMPERATURE_K = 3549
 
-# 0x359: condition -> (byte of the alarm, bit); the warning is the same bit two bytes on.
+# 0x359: condition (SMA name, as msg_defs/sma.dbc names it) -> byte of the alarm, bit; the
+# warning is the same bit two bytes on.
 PYLONTECH_CONDITIONS = (
-    ('high_voltage', 0, 1), ('low_voltage', 0, 2), ('high_temperature', 0, 3),
-    ('low_temperature', 0, 4), ('high_discharge_current', 0, 7),
-    ('high_charge_current', 1, 0), ('bms_internal', 1, 3),
+    ('high_voltage', 'OverVoltage', 0, 1), ('low_voltage', 'UnderVoltage', 0, 2),
+    ('high_temperature', 'OverTemperature', 0, 3),
+    ('low_temperature', 'UnderTemperature', 0, 4),
+    ('high_discharge_current', 'DischargeOverCurrent', 0, 7),
+    ('high_charge_current', 'ChargeOverCurrent', 1, 0), ('bms_internal', 'BmsInternal', 1, 3),
 )
-PYLONTECH_CONDITION_NAMES = tuple(name for name, _, _ in PYLONTECH_CONDITIONS)
-CHARGE_ENABLE_BIT = 7
-DISCHARGE_ENABLE_BIT = 6
-REQUEST_CHARGE_IMMEDIATELY_BIT = 5  # Pylontech: "force charge request I"
-FORCE_CHARGE_REQUEST_II_BIT = 4
-FULL_CHARGE_REQUEST_BIT = 3
+PYLONTECH_CONDITION_NAMES = tuple(name for name, *_ in PYLONTECH_CONDITIONS)
+# 0x35C byte 0, in PylontechRequest's order: the DBC's name and the bit.
+PYLONTECH_REQUEST_BITS = (
+    ('ChargeEnable', 7), ('DischargeEnable', 6),
+    ('RequestChargeImmediately', 5),  # Pylontech: "force charge request I"
+    ('ForceChargeRequestII', 4), ('FullChargeRequest', 3))
 # 0x374..0x377 in ID order
 CELL_ID_KINDS = ('min_voltage', 'max_voltage', 'min_temperature', 'max_temperature')
 
@@ -217,142 +207,109 @@ def encode_ascii(field: str, text: str) -> bytes:
     return text.encode('ascii').ljust(8, b'\x00')
 
 
-# --- decode ------------------------------------------------------------------------------------
-def _pylontech_alarms(aid: int, data: bytes) -> PylontechAlarms:
-    alarms = frozenset(n for n, byte, bit in PYLONTECH_CONDITIONS if data[byte] >> bit & 1)
-    warnings = frozenset(n for n, byte, bit in PYLONTECH_CONDITIONS
-                         if data[byte + 2] >> bit & 1)
-    return PylontechAlarms(alarms, warnings, data[4] if len(data) > 4 else None)
-
-
-def _pylontech_request(aid: int, data: bytes) -> PylontechRequest:
-    return _D_REQUEST(data)
-
-
-def _bms_name(aid: int, data: bytes) -> VictronBmsName:
-    return VictronBmsName(aid - VICTRON_BMS_NAME1_ID + 1, ascii_text(data))
-
-
-def _modules(aid: int, data: bytes) -> VictronModules:
-    return VictronModules(*_D[VICTRON_MODULES_ID](pad_unsent(data, 8)))
-
-
-def _cell_extremes(aid: int, data: bytes) -> VictronCellExtremes:
-    vmin, vmax, tmin, tmax = _D_RAW(data)
-    if vmin is not None and vmax is not None and vmin > vmax:
-        raise MalformedFrameError(aid, data, f'min cell {vmin} mV above max cell {vmax} mV')
-    if tmin is not None and tmax is not None and tmin > tmax:
-        raise MalformedFrameError(aid, data, f'min cell temperature {tmin} K above max {tmax} K')
-    for kelvin in (tmin, tmax):
-        if kelvin is not None and kelvin > MAX_TEMPERATURE_K:
-            raise MalformedFrameError(aid, data, f'cell temperature {kelvin} K is above '
-                                      f'{MAX_TEMPERATURE_K} K')
-    return VictronCellExtremes(*_D[VICTRON_CELL_EXTREMES_ID](data))
-
-
-def _cell_id(aid: int, data: bytes) -> VictronCellId:
-    return VictronCellId(CELL_ID_KINDS[aid - VICTRON_MIN_VOLTAGE_CELL_ID], ascii_text(data))
-
-
-def _energy(aid: int, data: bytes) -> VictronEnergy:
-    return VictronEnergy(*_D[VICTRON_ENERGY_ID](pad_unsent(data, 8)))
-
-
-def _installed_capacity(aid: int, data: bytes) -> VictronInstalledCapacity:
-    return VictronInstalledCapacity(*_D[VICTRON_INSTALLED_CAPACITY_ID](data))
-
-
-def _product_name(aid: int, data: bytes) -> VictronProductName:
-    return VictronProductName(ascii_text(data))
-
-
-DIALECT_DECODERS: dict[int, Callable[[int, bytes], DialectReading]] = {
-    PYLONTECH_ALARMS_ID: _pylontech_alarms, PYLONTECH_REQUEST_ID: _pylontech_request,
-    VICTRON_BMS_NAME1_ID: _bms_name, VICTRON_BMS_NAME2_ID: _bms_name,
-    VICTRON_MODULES_ID: _modules, VICTRON_CELL_EXTREMES_ID: _cell_extremes,
-    **{i: _cell_id for i in range(VICTRON_MIN_VOLTAGE_CELL_ID,
-                                  VICTRON_MAX_TEMPERATURE_CELL_ID + 1)},
-    VICTRON_ENERGY_ID: _energy, VICTRON_INSTALLED_CAPACITY_ID: _installed_capacity,
-    VICTRON_PRODUCT_NAME_ID: _product_name,
-}
-
-
 # --- the wire layout of the dialects' frames (checked against msg_defs/sma.dbc by sma.py) ---
-_PYLONTECH_DBC_NAMES = {
-    'high_voltage': 'OverVoltage', 'low_voltage': 'UnderVoltage',
-    'high_temperature': 'OverTemperature', 'low_temperature': 'UnderTemperature',
-    'high_discharge_current': 'DischargeOverCurrent',
-    'high_charge_current': 'ChargeOverCurrent', 'bms_internal': 'BmsInternal'}
+def sma_field(name: str, start: int, length: int = 16, scale: float = 1, signed: bool = False,
+              unit: str = '', field: str = '', **rules: Any) -> Signal:
+    """
+    Return a little-endian field of the SMA family (rules: low, high, check, lookup).
+
+    A field with a name to send has the family's "not available" marker: all ones (0x8000
+    signed), None both ways; errors name it 'sma.<field>'.
+    """
+    marker = (-(1 << length - 1) if signed else (1 << length) - 1) if field else None
+    return Signal(name, start, length, LITTLE, signed, scale, 0, unit=unit,
+                  field=f'sma.{field}', invalid=marker, **rules)
 
 
-def _u(name: str, start: int, length: int, scale: float = 1, unit: str = '', field: str = '',
-       high: float | None = None) -> Signal:
-    """Return a field; one with a name to send has the family's "not available" marker."""
-    marker = (1 << length) - 1 if field else None  # all ones
-    return Signal(name, start, length, LITTLE, False, scale, 0, None, high, unit,
-                  f'sma.victron.{field}', invalid=marker)
-
-
+_TOO_HOT = 'cell temperature {value} K is above {high:g} K'
 DIALECT_LAYOUTS = {
     PYLONTECH_ALARMS_ID: Layout('Pylontech_AlarmsWarnings', 8, tuple(
-        _u(f'{kind}_{_PYLONTECH_DBC_NAMES[name]}', first + 8 * byte + bit, 1)
+        sma_field(f'{kind}_{dbc_name}', first + 8 * byte + bit, 1)
         for kind, first in (('Alarm', 0), ('Warning', 16))
-        for name, byte, bit in PYLONTECH_CONDITIONS) + (_u('ModuleCount', 32, 8),)),
-    PYLONTECH_REQUEST_ID: Layout('Pylontech_Request', 2, tuple(  # in PylontechRequest's order
+        for _, dbc_name, byte, bit in PYLONTECH_CONDITIONS)
+        + (sma_field('ModuleCount', 32, 8),)),
+    PYLONTECH_REQUEST_ID: Layout('Pylontech_Request', 2, tuple(
         Signal(name, bit, 1, LITTLE, field=f'sma.pylontech.{field.name}', flag=True)
-        for (name, bit), field in zip((
-            ('ChargeEnable', CHARGE_ENABLE_BIT), ('DischargeEnable', DISCHARGE_ENABLE_BIT),
-            ('RequestChargeImmediately', REQUEST_CHARGE_IMMEDIATELY_BIT),
-            ('ForceChargeRequestII', FORCE_CHARGE_REQUEST_II_BIT),
-            ('FullChargeRequest', FULL_CHARGE_REQUEST_BIT)), fields(PylontechRequest)))),
-    VICTRON_BMS_NAME1_ID: Layout('Victron_BmsName1', 8, (_u('BmsName1', 0, 64),)),
-    VICTRON_BMS_NAME2_ID: Layout('Victron_BmsName2', 8, (_u('BmsName2', 0, 64),)),
+        for (name, bit), field in zip(PYLONTECH_REQUEST_BITS, fields(PylontechRequest)))),
+    VICTRON_BMS_NAME1_ID: Layout('Victron_BmsName1', 8, (sma_field('BmsName1', 0, 64),)),
+    VICTRON_BMS_NAME2_ID: Layout('Victron_BmsName2', 8, (sma_field('BmsName2', 0, 64),)),
     VICTRON_MODULES_ID: Layout('Victron_Modules', 8, tuple(
-        _u(f'NumberOfModules{name}', 16 * k, 16, field=f'modules_{field}')
+        sma_field(f'NumberOfModules{name}', 16 * k, field=f'victron.modules_{field}')
         for k, (name, field) in enumerate((
             ('Ok', 'ok'), ('BlockingCharge', 'blocking_charge'),
             ('BlockingDischarge', 'blocking_discharge'), ('Offline', 'offline'))))),
     VICTRON_CELL_EXTREMES_ID: Layout('Victron_CellExtremes', 8, (
-        _u('MinCellVoltage', 0, 16, 0.001, 'V', 'min_cell_v'),
-        _u('MaxCellVoltage', 16, 16, 0.001, 'V', 'max_cell_v'),
-        _u('LowestCellTemperature', 32, 16, 1, 'K', 'min_temperature_k', MAX_TEMPERATURE_K),
-        _u('HighestCellTemperature', 48, 16, 1, 'K', 'max_temperature_k', MAX_TEMPERATURE_K)),
-        divide=True),
+        sma_field('MinCellVoltage', 0, 16, 0.001, unit='V', field='victron.min_cell_v'),
+        sma_field('MaxCellVoltage', 16, 16, 0.001, unit='V', field='victron.max_cell_v'),
+        sma_field('LowestCellTemperature', 32, unit='K', field='victron.min_temperature_k',
+                  high=MAX_TEMPERATURE_K, check=_TOO_HOT),
+        sma_field('HighestCellTemperature', 48, unit='K', field='victron.max_temperature_k',
+                  high=MAX_TEMPERATURE_K, check=_TOO_HOT)), divide=True),
     **{VICTRON_MIN_VOLTAGE_CELL_ID + k: Layout(f'Victron_{name}CellId', 8, (
-        _u(f'{name}CellId', 0, 64),)) for k, name in enumerate(
+        sma_field(f'{name}CellId', 0, 64),)) for k, name in enumerate(
             ('MinVoltage', 'MaxVoltage', 'MinTemperature', 'MaxTemperature'))},
     VICTRON_ENERGY_ID: Layout('Victron_Energy', 8, (
-        _u('ChargedEnergy', 0, 32, 0.1, 'kWh', 'charged_kwh'),
-        _u('DischargedEnergy', 32, 32, 0.1, 'kWh', 'discharged_kwh')), divide=True),
+        sma_field('ChargedEnergy', 0, 32, 0.1, unit='kWh', field='victron.charged_kwh'),
+        sma_field('DischargedEnergy', 32, 32, 0.1, unit='kWh',
+                  field='victron.discharged_kwh')), divide=True),
     VICTRON_INSTALLED_CAPACITY_ID: Layout('Victron_InstalledCapacity', 2, (
-        _u('InstalledCapacity', 0, 16, 1, 'Ah', 'installed_capacity_ah'),)),
-    VICTRON_PRODUCT_NAME_ID: Layout('Victron_ProductName', 8, (_u('ProductName', 0, 64),)),
+        sma_field('InstalledCapacity', 0, unit='Ah', field='victron.installed_capacity_ah'),)),
+    VICTRON_PRODUCT_NAME_ID: Layout('Victron_ProductName', 8, (sma_field('ProductName', 0, 64),)),
 }
 
-# Victron frames with numbers: decoded and built by code generated from the table. Cut short
-# (DLC range), the fields not sent read as not available (padded with 0xFF).
-_NUMBERS = (VICTRON_MODULES_ID, VICTRON_CELL_EXTREMES_ID, VICTRON_ENERGY_ID,
-            VICTRON_INSTALLED_CAPACITY_ID)
-_D = {i: DIALECT_LAYOUTS[i].decoder() for i in _NUMBERS}
-_D_RAW = DIALECT_LAYOUTS[VICTRON_CELL_EXTREMES_ID].decoder(raw=True)  # mV, K to compare
-_E = {i: DIALECT_LAYOUTS[i].encoder(exact=False) for i in _NUMBERS}
-_E_ALARMS = DIALECT_LAYOUTS[PYLONTECH_ALARMS_ID].encoder()  # alarms, warnings, module count
-_D_REQUEST = DIALECT_LAYOUTS[PYLONTECH_REQUEST_ID].decoder(into=PylontechRequest)
-_E_REQUEST = DIALECT_LAYOUTS[PYLONTECH_REQUEST_ID].encoder()
+
+# --- how each frame is decoded and built (SmaCodec runs these tables) ------------------------
+# Frames of numbers, decoded and built by code generated from the table: ID -> (reading,
+# accepted DLCs); a frame cut short is padded with 0xFF, so the fields not sent read as not
+# available.
+DIALECT_NUMBERS: dict[int, tuple[type, tuple[int, ...]]] = {
+    PYLONTECH_REQUEST_ID: (PylontechRequest, tuple(range(1, 9))),
+    VICTRON_MODULES_ID: (VictronModules, (2, 4, 6, 8)),  # odd: would split a count
+    VICTRON_CELL_EXTREMES_ID: (VictronCellExtremes, (8,)),
+    VICTRON_ENERGY_ID: (VictronEnergy, tuple(range(4, 9))),
+    VICTRON_INSTALLED_CAPACITY_ID: (VictronInstalledCapacity, tuple(range(2, 9))),
+}
+# Frames of ASCII text (DLC 1..8): ID -> (field name, reading, its values before the text).
+DIALECT_TEXTS: dict[int, tuple] = {
+    VICTRON_BMS_NAME1_ID: ('sma.victron.bms_name', VictronBmsName, 1),
+    VICTRON_BMS_NAME2_ID: ('sma.victron.bms_name', VictronBmsName, 2),
+    **{VICTRON_MIN_VOLTAGE_CELL_ID + k: ('sma.victron.cell_id', VictronCellId, kind)
+       for k, kind in enumerate(CELL_ID_KINDS)},
+    VICTRON_PRODUCT_NAME_ID: ('sma.victron.product_name', VictronProductName),
+}
+
+
+def _pylontech_alarms(data: bytes) -> PylontechAlarms:
+    *flags, count = _D_ALARMS(pad_unsent(data, 8))
+    return PylontechAlarms(
+        frozenset(n for n, on in zip(PYLONTECH_CONDITION_NAMES, flags) if on),
+        frozenset(n for n, on in zip(PYLONTECH_CONDITION_NAMES, flags[7:]) if on),
+        count if len(data) > 4 else None)  # DLC 4: the module count is not sent
+
+
+def _cell_extremes(data: bytes) -> VictronCellExtremes:
+    vmin, vmax, tmin, tmax = _D_RAW(data)  # mV and K, to compare as the BMS sent them
+    if vmin is not None and vmax is not None and vmin > vmax:
+        raise BadValue(f'min cell {vmin} mV above max cell {vmax} mV')
+    if tmin is not None and tmax is not None and tmin > tmax:
+        raise BadValue(f'min cell temperature {tmin} K above max {tmax} K')
+    return _D_EXTREMES(data)
+
+
+_D_ALARMS = DIALECT_LAYOUTS[PYLONTECH_ALARMS_ID].decoder()
+_D_RAW = DIALECT_LAYOUTS[VICTRON_CELL_EXTREMES_ID].decoder(raw=True)
+_D_EXTREMES = DIALECT_LAYOUTS[VICTRON_CELL_EXTREMES_ID].decoder(into=VictronCellExtremes)
+# Frames decoded by hand (rules a DBC cannot say): ID -> (accepted DLCs, decoder); the
+# decoder gets the frame as sent.
+DIALECT_DECODERS: dict[int, tuple[tuple[int, ...], Callable[[bytes], DialectReading]]] = {
+    PYLONTECH_ALARMS_ID: (tuple(range(4, 9)), _pylontech_alarms),
+    VICTRON_CELL_EXTREMES_ID: ((8,), _cell_extremes),
+}
 
 
 def pad_unsent(data: bytes, length: int) -> bytes:
     """Pad a frame cut short with 0xFF: the fields not sent read as "not available"."""
     return data if len(data) >= length else bytes(data) + b'\xff' * (length - len(data))
-
-
-def decode_dialect(arbitration_id: int, data: bytes) -> DialectReading:
-    """Decode one dialect frame; MalformedFrameError for a DLC or value out of range."""
-    decoder = DIALECT_DECODERS.get(arbitration_id)
-    if decoder is None:
-        raise MalformedFrameError(arbitration_id, data, 'not a Pylontech / Victron ID')
-    check_dlc(arbitration_id, data, DIALECT_DLC[arbitration_id])
-    return decoder(arbitration_id, data)
 
 
 # --- encode (simulator, tests; the bridge's keep-alive) ---------------------------------------
@@ -361,47 +318,19 @@ def keepalive_frame() -> Frame:
     return Frame(PYLONTECH_KEEPALIVE_ID, bytes(8))
 
 
-def _names(field: str, names: frozenset[str]) -> frozenset[str]:
-    unknown = set(names) - set(PYLONTECH_CONDITION_NAMES)
-    if unknown:
-        raise EncodeRangeError(field, sorted(unknown),
-                               'condition names ' + ', '.join(PYLONTECH_CONDITION_NAMES))
-    return frozenset(names)
+def encode_pylontech_alarms(message: PylontechAlarms) -> Frame:
+    """0x359: the active conditions' bits, then the module count (DLC 4 if None)."""
+    for kind in ('alarms', 'warnings'):
+        unknown = set(getattr(message, kind)) - set(PYLONTECH_CONDITION_NAMES)
+        if unknown:
+            raise EncodeRangeError(f'sma.pylontech.{kind}', sorted(unknown),
+                                   'condition names ' + ', '.join(PYLONTECH_CONDITION_NAMES))
+    count = message.module_count
+    if count is not None:
+        count = check_value('sma.pylontech.module_count', count, 0, 255, integer=True)
+    data = _E_ALARMS(*(int(name in names) for names in (message.alarms, message.warnings)
+                       for name in PYLONTECH_CONDITION_NAMES), count or 0)
+    return Frame(PYLONTECH_ALARMS_ID, data if count is not None else data[:4])
 
 
-_ENCODED = {VictronModules: VICTRON_MODULES_ID, VictronCellExtremes: VICTRON_CELL_EXTREMES_ID,
-            VictronEnergy: VICTRON_ENERGY_ID,
-            VictronInstalledCapacity: VICTRON_INSTALLED_CAPACITY_ID}
-
-
-def encode_dialect(message: DialectReading) -> Frame:
-    """Encode a dialect message; EncodeRangeError names what the wire cannot carry."""
-    if isinstance(message, PylontechAlarms):
-        active = [_names(f'sma.pylontech.{kind}', getattr(message, kind))
-                  for kind in ('alarms', 'warnings')]
-        count = message.module_count
-        if count is not None:
-            count = check_value('sma.pylontech.module_count', count, 0, 255, integer=True)
-        data = _E_ALARMS(*(int(name in names) for names in active
-                           for name, _, _ in PYLONTECH_CONDITIONS), count or 0)
-        return Frame(PYLONTECH_ALARMS_ID, data if count is not None else data[:4])
-    if isinstance(message, PylontechRequest):
-        return Frame(PYLONTECH_REQUEST_ID, _E_REQUEST(*astuple(message)))
-    if isinstance(message, VictronBmsName):
-        if message.part not in (1, 2):
-            raise EncodeRangeError('sma.victron.bms_name.part', message.part, '1 or 2')
-        return Frame(VICTRON_BMS_NAME1_ID + message.part - 1,
-                     encode_ascii('sma.victron.bms_name', message.text))
-    for cls, frame_id in _ENCODED.items():
-        if isinstance(message, cls):
-            return Frame(frame_id, _E[frame_id](*astuple(message)))
-    if isinstance(message, VictronCellId):
-        if message.kind not in CELL_ID_KINDS:
-            raise EncodeRangeError('sma.victron.cell_id.kind', message.kind,
-                                   'one of ' + ', '.join(CELL_ID_KINDS))
-        return Frame(VICTRON_MIN_VOLTAGE_CELL_ID + CELL_ID_KINDS.index(message.kind),
-                     encode_ascii(f'sma.victron.{message.kind}_cell_id', message.text))
-    if isinstance(message, VictronProductName):
-        return Frame(VICTRON_PRODUCT_NAME_ID,
-                     encode_ascii('sma.victron.product_name', message.text))
-    raise EncodeRangeError('message', message, 'an SMA, Pylontech or Victron message')
+_E_ALARMS = DIALECT_LAYOUTS[PYLONTECH_ALARMS_ID].encoder()  # alarms, warnings, module count

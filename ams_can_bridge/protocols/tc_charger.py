@@ -27,7 +27,7 @@ from typing import Union
 
 from ams_can_bridge.protocols.common import (
     check_dlc, EncodeRangeError, Frame, MalformedFrameError)
-from ams_can_bridge.protocols.layout import BIG, check_value, Layout, LITTLE, Signal
+from ams_can_bridge.protocols.layout import BadValue, Layout, LITTLE, Signal
 
 TC_CHARGER1_RX_ID = 0x1806E5F4
 TC_CHARGER1_TX_ID = 0x18FF50E5
@@ -92,29 +92,31 @@ class ChargerStatus:
 ChargerReading = Union[ChargerCommand, ChargerStatus]
 
 
-def _decis(name: str, start: int, unit: str, field: str) -> Signal:
-    return Signal(name, start, 16, BIG, False, 0.1, 0, unit=unit, field=field)
-
-
 # The same bits for chargers 1..3 (msg_defs/evms3.dbc TC_Charger<n>_*, checked by
-# evms3.check_dbc). The status byte stays raw: bits 5..7 are not in the DBC but still warn.
+# evms3.check_dbc); fields big-endian (the default) but the bytes from 4 on. The status byte
+# stays raw: bits 5..7 are not in the DBC but still warn.
 LAYOUTS = {
     'TC_Charger1_Command': Layout('TC_Charger1_Command', 8, (
-        _decis('TargetVoltage', 7, 'V', 'target_voltage_v'),
-        _decis('CurrentLimit', 23, 'A', 'current_limit_a'),
-        Signal('ShutdownByBms', 32, 8, LITTLE, high=1, field='stop')), divide=True),
+        Signal('TargetVoltage', 7, 16, scale=0.1, unit='V', field='target_voltage_v'),
+        Signal('CurrentLimit', 23, 16, scale=0.1, unit='A', field='current_limit_a'),
+        Signal('ShutdownByBms', 32, 8, LITTLE, high=1, field='stop', lookup=(False, True),
+               check='byte 4 = {value}, expected 0 (charge) or 1 (stop)')), divide=True),
     'TC_Charger1_Status': Layout('TC_Charger1_Status', 8, (
-        _decis('OutputVoltage', 7, 'V', 'output_voltage_v'),
-        _decis('OutputCurrent', 23, 'A', 'output_current_a')) + tuple(
+        Signal('OutputVoltage', 7, 16, scale=0.1, unit='V', field='output_voltage_v'),
+        Signal('OutputCurrent', 23, 16, scale=0.1, unit='A', field='output_current_a')) + tuple(
         Signal(name, 32 + bit, 1, LITTLE) for bit, name in enumerate((
             'HardwareFailure', 'OverTemperature', 'InputVoltageError', 'BatteryFault',
             'CommunicationTimeout'))) + (Signal('Temperature', 40, 8, LITTLE),), divide=True),
 }
 _D_COMMAND = LAYOUTS['TC_Charger1_Command'].decoder()
 _E_COMMAND = LAYOUTS['TC_Charger1_Command'].encoder()
-_D_OUTPUT = LAYOUTS['TC_Charger1_Status'].decoder('OutputVoltage', 'OutputCurrent')
-_E_OUTPUT = Layout('TC output', 4, LAYOUTS['TC_Charger1_Status'].signals[:2],
-                   divide=True).encoder()
+# ChargerStatus as the wire carries it: the DBC's output voltage and current, then the
+# status byte and the temperature, both raw.
+_STATUS = Layout('TC status', 6, LAYOUTS['TC_Charger1_Status'].signals[:2] + (
+    Signal('Status', 32, 8, LITTLE, field='status'),
+    Signal('Temperature', 40, 8, LITTLE, field='temperature_raw')), divide=True)
+_D_STATUS = _STATUS.decoder()
+_E_STATUS = _STATUS.encoder()
 
 
 def _check_charger(charger: object) -> int:
@@ -133,16 +135,16 @@ class TcChargerCodec:
         """Frame -> reading; MalformedFrameError for a foreign ID, DLC or value."""
         if arbitration_id in COMMAND_IDS:
             check_dlc(arbitration_id, data, DLC_RANGE)
-            volts, amps, stop = _D_COMMAND(data)
-            if stop > 1:
-                raise MalformedFrameError(arbitration_id, data,
-                                          f'byte 4 = {stop}, expected 0 (charge) or 1 (stop)')
-            return ChargerCommand(COMMAND_IDS.index(arbitration_id) + 1, volts, amps, bool(stop))
+            try:
+                return ChargerCommand(COMMAND_IDS.index(arbitration_id) + 1, *_D_COMMAND(data))
+            except BadValue as exc:  # byte 4 neither charge nor stop
+                raise MalformedFrameError(arbitration_id, data, str(exc)) from None
         if arbitration_id in STATUS_IDS:
             check_dlc(arbitration_id, data, DLC_RANGE)
-            return ChargerStatus(  # type: ignore[call-arg]
-                STATUS_IDS.index(arbitration_id) + 1, *_D_OUTPUT(data),
-                data[4], data[5] if len(data) > 5 else None)
+            charger = STATUS_IDS.index(arbitration_id) + 1
+            if len(data) == 5:  # no temperature sent
+                return ChargerStatus(charger, *_D_STATUS(bytes(data) + b'\x00')[:3])
+            return ChargerStatus(charger, *_D_STATUS(data))
         raise MalformedFrameError(arbitration_id, data, 'not a TC charger ID')
 
     def encode(self, message: ChargerReading) -> Frame:
@@ -153,12 +155,9 @@ class TcChargerCodec:
                               1 if message.stop else 0)
             return Frame(COMMAND_IDS[charger - 1], data, True)
         if isinstance(message, ChargerStatus):
-            check_value('status', message.status, 0, 255, integer=True)
-            temperature = message.temperature_raw
-            if temperature is not None:
-                check_value('temperature_raw', temperature, 0, 255, integer=True)
-            data = (_E_OUTPUT(message.output_voltage_v, message.output_current_a)
-                    + bytes([message.status, temperature or 0, 0, 0]))
-            return Frame(STATUS_IDS[charger - 1], data if temperature is not None
-                         else data[:5], True)
+            temperature = message.temperature_raw  # None: not sent, DLC 5
+            data = _E_STATUS(message.output_voltage_v, message.output_current_a, message.status,
+                             0 if temperature is None else temperature)
+            return Frame(STATUS_IDS[charger - 1], data[:5] if temperature is None
+                         else data + bytes(2), True)
         raise EncodeRangeError('message', message, 'a TC charger message')

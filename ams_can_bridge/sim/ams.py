@@ -242,7 +242,7 @@ class AmsSimulator(SimDevice):
         code = self.faults.error_code
         if code is not None and code != self._injected:
             self._injected = code
-            if code not in proto._ERRORS:
+            if code not in set(map(int, AmsError)):
                 raise ConfigError(f'faults.error_code = {code!r}: not an AMS error ID '
                                   f'(1..{len(AmsError)})')
             self._error(AmsError(code), now)
