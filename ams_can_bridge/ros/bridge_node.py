@@ -23,7 +23,7 @@ from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackRet
 from rclpy.parameter import Parameter
 
 from ams_can_bridge.can_io import CanIo
-from ams_can_bridge.device_set import DeviceSet, unknown_parameter_errors
+from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.devices.base import Device
 from ams_can_bridge.engine.calls import answered
 from ams_can_bridge.engine.gate import CommandGate
@@ -35,7 +35,7 @@ from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.parameters import AUTOSTART, BUS_PARAMS, NODE_PARAMS
 from ams_can_bridge.ros.bus_log import BusStateLog
 from ams_can_bridge.ros.commander import Commander, make_commander
-from ams_can_bridge.ros.convert import RosLogHandler
+from ams_can_bridge.ros.convert import stdlib_logger
 from ams_can_bridge.ros.params import ParamRegistry
 from ams_can_bridge.ros.sink import RosSink
 
@@ -127,13 +127,12 @@ class BridgeNode(LifecycleNode):
 
     def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Release everything, from whichever state."""
-        self._active = False
         self._release()
         return TransitionCallbackReturn.SUCCESS
 
     def _setup(self) -> None:
         """Configure (raise ConfigError naming every bad value), then open the bus."""
-        run_start_checks(self._configure, self.params.errors, self._unknown_parameters)
+        run_start_checks(self._configure, self.params.errors, self.params.unknown)
         self._ready = True
         assert self.can_io is not None  # opened by _configure above
         if self.autostart and self.sink is not None:
@@ -169,11 +168,6 @@ class BridgeNode(LifecycleNode):
             self.sink = None
 
     # --- configure: parameters declared, the pieces built ---------------------------------
-    def _unknown_parameters(self) -> list[str]:
-        """Every key given for this node (file sections, -p) that nothing declared."""
-        given = {name: param.value for name, param in self._parameter_overrides.items()}
-        return unknown_parameter_errors(given, self._parameters.keys())
-
     def _configure(self) -> None:
         bus = self.params.declare_all('can.', BUS_PARAMS)
         node = self.params.declare_all('', NODE_PARAMS)
@@ -219,12 +213,7 @@ class BridgeNode(LifecycleNode):
 
     def _stdlib_logger(self, part: str, level: int = logging.NOTSET) -> logging.Logger:
         """Return a stdlib logger of this node whose records go to the node's rclpy logger."""
-        logger = logging.getLogger(f'{NODE_NAME}.{part}.{id(self)}')
-        logger.propagate = False
-        logger.addHandler(RosLogHandler(self.get_logger()))
-        if level:  # DEBUG: the rclpy logger decides what is shown
-            logger.setLevel(level)
-        return logger
+        return stdlib_logger(f'{NODE_NAME}.{part}.{id(self)}', self.get_logger(), level)
 
     def publish_diagnostics(self) -> None:
         """Publish one DiagnosticArray now: every device plus the CAN bus."""

@@ -89,3 +89,14 @@ class RosLogHandler(logging.Handler):
             self.ros_logger.info(text)
         else:
             self.ros_logger.debug(text)
+
+
+def stdlib_logger(name: str, ros_logger: Any, level: int = logging.NOTSET) -> logging.Logger:
+    """Return the stdlib logger ``name`` whose records go to ``ros_logger`` only."""
+    logger = logging.getLogger(name)
+    logger.propagate = False
+    # one handler, replaced: configured again (lifecycle), a logger is not printed twice
+    logger.handlers = [RosLogHandler(ros_logger)]
+    if level:  # DEBUG: the rclpy logger decides what is shown
+        logger.setLevel(level)
+    return logger
