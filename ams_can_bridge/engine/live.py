@@ -62,7 +62,7 @@ class BusView:
         return self.wall()
 
     def status(self) -> BusStatus:
-        """Return the bus status (``stopped`` while the bus is closed)."""
+        """Return the bus state and counters; a closed bus is ``stopped``."""
         bus = self.bus()
         return self.closed if bus is None else bus.status()
 
