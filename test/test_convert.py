@@ -103,3 +103,25 @@ def test_negative_zero_is_published_as_zero_in_every_float():
         msg = deserialize_message(serialize_message(msg), Float32MultiArray)
         assert all(positive(v) for v in list(msg.data)[:4])
         assert list(msg.data)[4] == -2.0
+
+
+def test_a_node_logger_made_again_forwards_each_record_once():
+    # configure runs again after a cleanup (lifecycle): the node's stdlib logger is made
+    # again under the same name and must not print every line twice
+    import logging
+
+    from ams_can_bridge.ros.convert import stdlib_logger
+
+    class RosLogger:
+        def __init__(self) -> None:
+            self.lines: list[str] = []
+
+        def warning(self, text: str) -> None:
+            self.lines.append(text)
+
+    first, second = RosLogger(), RosLogger()
+    stdlib_logger('test_convert.again', first, logging.DEBUG)
+    logger = stdlib_logger('test_convert.again', second)
+    logger.warning('bus lost')
+    assert second.lines == ['bus lost'] and first.lines == []
+    assert logger.level == logging.DEBUG and not logger.propagate

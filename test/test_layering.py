@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import ast
 from pathlib import Path, PurePath
+import subprocess
+import sys
 
 PACKAGE = Path(__file__).resolve().parent.parent / 'ams_can_bridge'
 ROS_ONLY = ('rclpy', 'rcl_interfaces', 'sensor_msgs', 'diagnostic_msgs', 'std_msgs',
@@ -37,6 +39,22 @@ def test_only_the_ros_package_imports_ros():
     outside = {str(p.relative_to(PACKAGE)): ros_imports(p) for p in sources
                if 'ros' not in p.relative_to(PACKAGE).parts[:1]}
     assert {p: mods for p, mods in outside.items() if mods} == {}
+
+
+def test_the_engine_loads_no_ros_module_even_through_what_it_imports():
+    # the node's decisions live in engine/ (startup, live, param_sets, calls, gate, core):
+    # importing every one of them must not load rclpy or a message package on the way
+    modules = sorted(f'ams_can_bridge.engine.{p.stem}' for p in (PACKAGE / 'engine').glob('*.py')
+                     if p.stem != '__init__')
+    assert {'ams_can_bridge.engine.startup', 'ams_can_bridge.engine.live',
+            'ams_can_bridge.engine.param_sets', 'ams_can_bridge.engine.calls'} <= set(modules)
+    code = ('import importlib, sys\n'
+            f'for name in {modules!r}:\n    importlib.import_module(name)\n'
+            f'print(sorted(m for m in sys.modules if m.split(".")[0] in {ROS_ONLY!r}))\n')
+    result = subprocess.run([sys.executable, '-c', code], cwd=PACKAGE.parent, timeout=60,
+                            capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == '[]'
 
 
 def test_the_check_sees_an_import_inside_a_function(tmp_path):

@@ -18,9 +18,7 @@ counts from the sensor's last reset and goes negative after a drive. The AMS rep
 SOC, so ``charge`` = ``design_capacity_ah`` x SOC when that parameter is set, NaN otherwise
 (docs/protocols.md section 1).
 
-Error bookkeeping: an AMS error event (0x014) stays *active* until the AMS next returns
-from ERROR / CHARGE_ERROR to another state, so a short error is not missed between two
-diagnostics publications.
+Health and diagnostics (what the state means, and the error bookkeeping): ``ams_status.py``.
 """
 from __future__ import annotations
 
@@ -30,10 +28,10 @@ from typing import Any, Callable, Iterable, Mapping
 
 from ams_can_bridge.devices.ams_charger import ChargerRepeater
 from ams_can_bridge.devices.ams_master import AmsMaster, AmsView
+from ams_can_bridge.devices.ams_status import (diagnostic_report, ERROR_STATES, error_text,
+                                               health)
 from ams_can_bridge.devices.base import (
-    BatteryReport, current_status, DiagnosticReport, Device, Level, PowerSupplyHealth,
-    PowerSupplyStatus)
-from ams_can_bridge.devices.ams_values import diagnostic_values
+    BatteryReport, current_status, DiagnosticReport, Device, PowerSupplyStatus)
 from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.timed import CounterHealth, TimedSpans, TimedStore
 from ams_can_bridge.parameters import ParamSpec
@@ -45,7 +43,6 @@ from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.ivt_s import IvtMux
 
 NAN = math.nan
-ERROR_STATES = (AmsState.ERROR, AmsState.CHARGE_ERROR)
 # A counter anomaly stays visible (WARN) until this many good status frames followed it.
 COUNTER_RECOVERY_FRAMES = 10
 # Cells/temperatures are sent every 1 s, the status every 0.1 s: a group is stale after
@@ -53,12 +50,6 @@ COUNTER_RECOVERY_FRAMES = 10
 CELL_STALE_FACTOR = 10.0
 # The IVT-S voltage results one may wire to the pack (ams.pack_voltage_channel).
 PACK_VOLTAGE_CHANNELS = ('U1', 'U2', 'U3')
-HEALTH_OF_ERROR = {
-    AmsError.CELL_VOLTAGE_HIGH: PowerSupplyHealth.OVERVOLTAGE,
-    AmsError.CELL_VOLTAGE_LOW: PowerSupplyHealth.DEAD,
-    AmsError.CELL_TEMP_HIGH: PowerSupplyHealth.OVERHEAT,
-    AmsError.CELL_TEMP_LOW: PowerSupplyHealth.COLD,
-}
 
 
 def _or_one(value: Any) -> Any:
@@ -356,16 +347,6 @@ class AmsDevice(Device):
         capacity = self.config.design_capacity_ah
         return NAN if capacity is None else float(capacity)
 
-    def _health(self) -> PowerSupplyHealth:
-        if self._status is None:
-            return PowerSupplyHealth.UNKNOWN
-        if self._active_errors:
-            return HEALTH_OF_ERROR.get(self._active_errors[-1], PowerSupplyHealth.UNSPEC_FAILURE)
-        word = self._status.status
-        if self.state in ERROR_STATES or word.ams_error or word.imd_error:
-            return PowerSupplyHealth.UNSPEC_FAILURE
-        return PowerSupplyHealth.GOOD
-
     def _battery_report(self) -> BatteryReport:
         voltage, current = self._pack()
         temps = [t for t in self._temp_list() if t == t]
@@ -385,55 +366,15 @@ class AmsDevice(Device):
             stamp=self._stamp, voltage=voltage, current=current,
             charge=capacity * percentage,  # NaN unless both are known
             design_capacity=capacity, temperature=temperature, percentage=percentage,
-            power_supply_status=supply, power_supply_health=self._health(),
+            power_supply_status=supply,
+            power_supply_health=health(status, self.state, self._active_errors),
             present=status is not None, cell_voltage=self._cell_list())
 
     def _error_text(self) -> str:
-        return ', '.join(e.name for e in self._active_errors)
-
-    @staticmethod
-    def _relays_text(word: proto.AmsStatusWord) -> str:
-        return ', '.join(f'{label} {"closed" if closed else "open"}' for label, closed in (
-            ('AIR+', word.air_plus), ('AIR-', word.air_minus), ('precharge', word.precharge)))
+        return error_text(self._active_errors)
 
     def _diagnostic_report(self, with_values: bool = True) -> DiagnosticReport:
-        status = self._status
-        if status is None:
-            return DiagnosticReport(Level.STALE, 'no AMS status received yet',
-                                    diagnostic_values(self) if with_values else {})
-        word = status.status
-        errors, warnings = [], []
-        if self.state in ERROR_STATES:
-            errors.append(f'AMS in {self.state.name}')
-        if self._active_errors:
-            errors.append('errors: ' + self._error_text())
-        if word.ams_error:
-            errors.append('AMS error bit set')
-        if word.imd_error:
-            errors.append('IMD error')
-        if word.warn_volt:
-            warnings.append('cell voltage close to its limits')
-        if word.warn_temp:
-            warnings.append('cell temperature close to its limits')
-        counter = self.counter
-        if counter.repeat_run:
-            warnings.append(f'status counter stuck at {status.counter} '
-                            f'({counter.repeat_run} repeated frames)')
-        elif counter.recovering and counter.lost:
-            warnings.append(f'status counter jumped: {counter.lost} frames lost so far')
-        if self._beyond_banks:
-            warnings.append(f'{self._beyond_banks} frames from bank(s) up to '
-                            f'{self._highest_bank} beyond {self.name}.bank_count = '
-                            f'{self.bank_count}: set {self.name}.bank_count to '
-                            f'{self._highest_bank}')
-        if word.bank_count != self.bank_count:
-            warnings.append(f'AMS reports {word.bank_count} bank(s), '
-                            f'{self.name}.bank_count = {self.bank_count}')
-        if status.soc_pct > 100:
-            warnings.append(f'SOC {status.soc_pct} % out of range (shown as unknown)')
-        level = Level.ERROR if errors else Level.WARN if warnings else Level.OK
-        message = '; '.join([f'{self.state.name}', self._relays_text(word)] + errors + warnings)
-        return DiagnosticReport(level, message, diagnostic_values(self) if with_values else {})
+        return diagnostic_report(self, with_values)
 
     def _fresh(self, kind: type) -> Any:
         """Return the last reading of kind (lock held), None if never or not within stale."""

@@ -1,38 +1,19 @@
 """
 The ``bridge`` node: the ROS adapter of the engine, its parameters and its services.
 
-Data: the CanIo receive thread hands every frame to the ``Engine``, which decodes it into
-the devices and, on a primary status frame, emits that device's BatteryState and arrays into
-the node's ``RosSink`` (``ros/sink.py``) on the same thread (rclpy publishers are
-thread-safe). So every primary frame becomes exactly one message with the values of that
-moment, a replay at rate 0 is paced by publishing (nothing queued, nothing lost), and the
-executor is not woken per frame: profiles showed the executor's wake-up (rebuilding its wait
-set) costing more than the decoding itself. The executor runs only the services: the
-engine's periodic work (diagnostics, stale messages, the watch that notices state and level
-changes) runs on a thread of its own (``Periodic``), so an idle bridge wakes no executor at
-all. Services that wait go in ``service_group`` (reentrant), and telemetry keeps flowing
-while a command waits for the device.
-
-COMMANDERS seam (the command services live in other modules). For each device instance
-whose type is in ``ams_can_bridge.registry.COMMANDERS`` the node builds ``cls(gate, device,
-name, node)``; the parameters its services use are the device type's ``COMMAND_PARAMS``,
-declared with the device (``DeviceSet``). Every frame goes through the gate
-(``engine/gate.py``, ``CommandGate``): commands_allowed / commands_enabled, the bus wait, the
-send locks and the command log line are the gate's; the node only forwards the
-``commands_enabled`` parameter to ``gate.set_enabled`` and names the service a thread answers
-(``gate.calling``). The node is the commander's ``ServiceHost`` (``ros/commander.py``):
-``create_service`` / ``destroy_service``, ``service_group``, ``get_logger``. The gate calls
-a commander's ``on_commands_enabled(enabled)`` (a listener) when ``commands_enabled``
-changes; the node calls its ``destroy()`` at shutdown.
-A device's parameters ``<name>.<key>`` belong to the device: the node asks the device
-(``config_reason``) before a set and applies an accepted set to it (``configure``: a new
-frozen configuration swapped in whole); commanders read ``device.config`` when called.
+A thin rclpy LifecycleNode; every decision is made below ``ros/``, without ROS: the start-up
+checks, errors and summary (``engine/startup.py``), the engine, its bus and its periodic
+thread (``engine/live.py``, ``engine/core.py``: a primary frame is published on the bus
+thread, so the executor runs only the services), which parameter sets are allowed and what
+they change (``engine/param_sets.py``), a command service's answer (``engine/calls.py``),
+the transmit gate (``engine/gate.py``). Here: the lifecycle, the parameter declarations
+(``ros/params.py``), the publishers (``ros/sink.py``) and the services. Each device type in
+``registry.COMMANDERS`` gets ``cls(gate, device, name, node)``: the node is its
+``ServiceHost`` (``ros/commander.py``); services that wait go in ``service_group``.
 """
 from __future__ import annotations
 
 import logging
-import math
-import time
 import traceback
 from typing import Any
 
@@ -41,25 +22,24 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from rclpy.parameter import Parameter
 
-from ams_can_bridge import registry
-from ams_can_bridge.bus_state import BusState, BusStatus
-from ams_can_bridge.can_io import BusConfig, CanIo, parse_options
-from ams_can_bridge.can_io.core import STATE_CHANGE_FORMAT
-from ams_can_bridge.device_set import DeviceSet, unknown_parameter_errors
+from ams_can_bridge.can_io import CanIo
+from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.devices.base import Device
-from ams_can_bridge.engine.core import Engine
+from ams_can_bridge.engine.calls import answered
 from ams_can_bridge.engine.gate import CommandGate
-from ams_can_bridge.errors import ConfigError, ParamError
+from ams_can_bridge.engine.live import live_engine, open_bus
+from ams_can_bridge.engine.param_sets import apply_set, set_refusal
+from ams_can_bridge.engine.startup import (bus_settings, check_replay_clock, launch_gate,
+                                           run_start_checks, start_summary)
+from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.parameters import AUTOSTART, BUS_PARAMS, NODE_PARAMS
-from ams_can_bridge.periodic import Periodic
 from ams_can_bridge.ros.bus_log import BusStateLog
-from ams_can_bridge.ros.commander import Commander
-from ams_can_bridge.ros.convert import format_ids, RosLogHandler
+from ams_can_bridge.ros.commander import Commander, make_commander
+from ams_can_bridge.ros.convert import stdlib_logger
 from ams_can_bridge.ros.params import ParamRegistry
 from ams_can_bridge.ros.sink import RosSink
 
 NODE_NAME = 'ams_can_bridge'
-CLOCK_PERIOD = 0.01  # s between /clock messages of a replay (can.replay_clock)
 
 __all__ = ['BridgeNode', 'ConfigError', 'NODE_NAME']
 
@@ -77,7 +57,6 @@ class BridgeNode(LifecycleNode):
         self.can_io: CanIo | None = None
         self.sink: RosSink | None = None  # made in _configure (the devices' topics)
         self._ready = False
-        self._replaying = False
         self._active = False
         self._armed_at_launch = False  # commands_enabled: true given at launch, not autostart
         self._start_error: ConfigError | None = None
@@ -148,31 +127,12 @@ class BridgeNode(LifecycleNode):
 
     def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Release everything, from whichever state."""
-        self._active = False
         self._release()
         return TransitionCallbackReturn.SUCCESS
 
     def _setup(self) -> None:
         """Configure (raise ConfigError naming every bad value), then open the bus."""
-        try:
-            try:
-                self._configure()
-            finally:  # a typo in a key is reported with the other problems, all at once
-                self.params.errors += self._unknown_parameters()
-            self.params.raise_errors()
-        except (ParamError, ConfigError) as exc:
-            if self.params.errors:  # the values the user wrote come first, all of them
-                text = str(exc)
-                aggregate = all(e in text for e in self.params.errors)  # raise_errors() itself
-                if not aggregate and not any(text.startswith(e.split(' ', 1)[0])
-                                             for e in self.params.errors):
-                    self.params.errors.append(text)
-                try:
-                    self.params.raise_errors()
-                except ParamError as every:
-                    exc = every
-            self.params.errors = []  # a later configure judges the values afresh
-            raise ConfigError(str(exc)) from None
+        run_start_checks(self._configure, self.params.errors, self.params.unknown)
         self._ready = True
         assert self.can_io is not None  # opened by _configure above
         if self.autostart and self.sink is not None:
@@ -180,15 +140,18 @@ class BridgeNode(LifecycleNode):
             # (a replay plays at once) is published, not lost to the inactive state
             self.sink.enabled = True
         self.can_io.start()
-        self._log_summary()
+        summary, warning = start_summary(self.bus_config, self.hardware_id, self.devices,
+                                         enabled=self.commands_enabled,
+                                         allowed=self.commands_allowed)
+        self.get_logger().info(summary)
+        if warning:
+            self.get_logger().warning(warning)
 
     def _release(self) -> None:
         """Stop the periodic work, the commanders and the bus thread; drop the publishers."""
-        self._ready = False
-        self._active = False
-        periodic = getattr(self, 'periodic', None)
-        if periodic is not None:
-            periodic.stop()
+        self._ready = self._active = False
+        if getattr(self, 'periodic', None) is not None:
+            self.periodic.stop()
         if self.gate is not None:
             self.gate.attach_bus(None)  # a command from now on is answered 'shutting down'
         for commander in self.commanders.values():
@@ -204,267 +167,88 @@ class BridgeNode(LifecycleNode):
                 self.destroy_publisher(publisher)
             self.sink = None
 
-    # --- set-up ---------------------------------------------------------------------------
-    def _unknown_parameters(self) -> list[str]:
-        """Every key given for this node (file sections, -p) that nothing declared."""
-        given = {name: param.value for name, param in self._parameter_overrides.items()}
-        return unknown_parameter_errors(given, self._parameters.keys())
-
+    # --- configure: parameters declared, the pieces built ---------------------------------
     def _configure(self) -> None:
         bus = self.params.declare_all('can.', BUS_PARAMS)
         node = self.params.declare_all('', NODE_PARAMS)
         self.diagnostics_period = node['diagnostics_period']
-        # A bus setting that cannot work is collected, not raised: the devices are still
-        # declared, so that every problem of the params file is reported at once.
-        try:
-            options = parse_options(bus['options'])
-        except ValueError as exc:
-            self.params.errors.append(f'can.options: {exc} (write each option as key=value)')
-        else:
-            try:
-                self.bus_config = BusConfig(
-                    interface=bus['interface'], channel=bus['channel'], bitrate=bus['bitrate'],
-                    fd=bus['fd'], options=options, reconnect_period=bus['reconnect_period'],
-                    replay_rate=bus['replay_rate'], record=bus['record'],
-                    use_bus_time=bus['use_bus_time'], slcan_bulk_read=bus['slcan_bulk_read'])
-                # what can never work stops the bridge here rather than being retried forever
-                for warning in self.bus_config.check():
-                    self.get_logger().warning(warning)
-            except ValueError as exc:
-                self.params.errors.append(str(exc))
-        self.hardware_id = f"{bus['interface']}:{bus['channel']}"
-        gate_logger = self._stdlib_logger('gate')
-        gate_logger.setLevel(logging.DEBUG)  # the rclpy logger decides what is shown
-        self.gate = CommandGate(self.hardware_id, allowed=node['commands_allowed'],
-                                connect_wait=bus['connect_wait'], logger=gate_logger,
-                                node_name=self.get_fully_qualified_name())
-        enabled = node['commands_enabled']
-        if enabled and not self.autostart and self.gate.allowed:
-            # configured, not active: nothing may be sent; activate arms it as given
-            enabled = False
+        settings = bus_settings(bus)  # collected: every problem of the file at once
+        self.params.errors += settings.errors
+        for warning in settings.warnings:
+            self.get_logger().warning(warning)
+        if settings.config is not None:
+            self.bus_config = settings.config
+        self.hardware_id = settings.hardware_id
+        self.gate, later, refused = launch_gate(
+            self.hardware_id, node, bus, autostart=self.autostart,
+            logger=self._stdlib_logger('gate', logging.DEBUG),
+            node_name=self.get_fully_qualified_name())
+        if later:  # configured, not active: nothing may be sent; activate arms it as given
             self._armed_at_launch = True
             self.set_parameters([Parameter('commands_enabled', value=False)])
-        refused = self.gate.start_enabled(enabled)
         if refused:
             self.params.errors.append(refused)
-        self._bus_log = BusStateLog(self.get_logger(), self.hardware_id, bus['channel'],
-                                    bus['reconnect_period'])
-        self._replaying = bus['interface'] == 'replay'
-        self._replay_clock = bus['replay_clock']
-        if self._replay_clock and not self._replaying:
-            raise ConfigError('can.replay_clock is true but can.interface is '
-                              f"{bus['interface']!r}: /clock comes from a replayed log only "
-                              "(set can.interface to 'replay', or replay_clock to false)")
+        bus_log = BusStateLog(self.get_logger(), self.hardware_id, bus['channel'],
+                              bus['reconnect_period'])
+        check_replay_clock(settings)
         self.device_set = DeviceSet(node['devices'], self.params.declare)
         self.devices = self.device_set.devices
         if self.params.errors:
             return  # the node will not start (raise_errors): no bus, no publishers
-        filters = self.device_set.filters
-        self._make_publishers()
+        self.sink = RosSink(self, {name: list(device.extra_arrays())
+                                   for name, device in self.devices.items()},
+                            self.hardware_id, settings.replay_clock,
+                            alive=lambda: self._ready and self.context.ok())
+        self.engine, self.bus_view, self.periodic = live_engine(
+            self.device_set, self.sink, settings, self.gate, lambda: self.can_io,
+            status_prefix=self.status_prefix(), diagnostics_period=self.diagnostics_period,
+            on_bus_status=bus_log.update, logger=self._stdlib_logger,
+            thread_name=f'{NODE_NAME}-periodic')
         for name, device in self.devices.items():
-            self._add_commander(name, device)
-        can_logger = self._stdlib_logger('can_io')
-        # CanIo logs every state change; the node logs the user-facing transitions itself
-        # (once per change, with what happens next), so only CanIo's other problems pass.
-        can_logger.setLevel(logging.WARNING)
-        can_logger.addFilter(lambda record: record.msg != STATE_CHANGE_FORMAT)
-        self.can_io = CanIo(self.bus_config, self.engine.on_frame, filters, can_logger)
-        self.gate.attach_bus(self.can_io)
+            commander = make_commander(self.gate, device, name, self)
+            if commander is not None:
+                self.commanders[name] = commander
+        self.can_io = open_bus(self.bus_config, self.engine, self.device_set, self.gate,
+                               self._stdlib_logger('can_io'))
 
-    def _make_publishers(self) -> None:
-        self.sink = sink = RosSink(self, {name: list(device.extra_arrays())
-                                          for name, device in self.devices.items()},
-                                   self.hardware_id, self._replay_clock,
-                                   alive=lambda: self._ready and self.context.ok())
-        self._closed_status = BusStatus(
-            state=BusState.STOPPED, reason='', frames_in=0, frames_out=0, frames_dropped_tx=0,
-            error_frames=0, reconnects=0, hardware_id=self.hardware_id)
-        engine_logger = self._stdlib_logger('engine')
-        engine_logger.setLevel(logging.DEBUG)  # the rclpy logger decides what is shown
-        self.engine = Engine(
-            self.device_set, sink, status_prefix=self.status_prefix(),
-            interface=self.bus_config.interface, bus_status=self._bus_status, now=self._now,
-            bus_values=self._bus_values, on_bus_status=self._bus_log.update,
-            logger=engine_logger)
-        # One thread for all periodic work (see periodic.py: why not executor timers).
-        self.periodic = Periodic(f'{NODE_NAME}-periodic', self._stdlib_logger('periodic'))
-        for period, call in self.engine.schedule(self.diagnostics_period):
-            self.periodic.every(period, call)
-        if self._replay_clock:
-            self.periodic.every(CLOCK_PERIOD, self._publish_clock)
-
-    def _stdlib_logger(self, part: str) -> logging.Logger:
+    def _stdlib_logger(self, part: str, level: int = logging.NOTSET) -> logging.Logger:
         """Return a stdlib logger of this node whose records go to the node's rclpy logger."""
-        logger = logging.getLogger(f'{NODE_NAME}.{part}.{id(self)}')
-        logger.propagate = False
-        logger.addHandler(RosLogHandler(self.get_logger()))
-        return logger
-
-    def _add_commander(self, name: str, device: Device) -> None:
-        path = registry.COMMANDERS.get(device.TYPE)
-        if path is None:
-            return
-        # every module COMMANDERS names ships with the package: a missing one is a broken
-        # install, and the error says so (test_sim_runner.py::test_registry_paths_all_import)
-        cls = registry.load(path)
-        if not (isinstance(cls, type) and issubclass(cls, Commander)):
-            raise ConfigError(f'{path} is not a Commander (ams_can_bridge.ros.commander)')
-        assert self.gate is not None  # made in _configure, before the devices' commanders
-        self.commanders[name] = cls(self.gate, device, name, self)
-
-    def _log_summary(self) -> None:
-        cfg = self.bus_config
-        rate = f' @ {cfg.bitrate} bit/s' if cfg.bitrate else ''
-        lines = [f'CAN bus {self.hardware_id}{rate}'
-                 + (' (FD)' if cfg.fd else '')
-                 + (f', recording to {cfg.record}' if cfg.record else '')
-                 + (', commands ENABLED (commands_enabled set at launch)'
-                    if self.commands_enabled else ', listen only')
-                 + ('' if self.commands_allowed else
-                    ' (commands_allowed is false: commands cannot be enabled)')]
-        for name, device in self.devices.items():
-            ids = device.frame_ids
-            lines.append(f'  {name} ({device.TYPE}): ' + '; '.join(
-                format_ids({i for i, e in ids if e == extended}, extended)
-                for extended in (False, True) if any(e == extended for _, e in ids)))
-        if not self.devices:
-            lines.append('  no devices configured (set the devices parameter)')
-        self.get_logger().info('\n'.join(lines))
-        if not self.devices:
-            self.get_logger().warning(
-                'devices is empty: the bridge decodes nothing and publishes only the CAN bus '
-                'status. Set devices to your instances in the params file (e.g. devices: '
-                '[ams, ivt_s], see config/*.yaml) or --ros-args -p "devices:=[bms16]"')
-
-    # --- the engine's clocks and hooks -----------------------------------------------------
-    def _on_frame(self, arbitration_id: int, data: bytes, is_extended_id: bool,
-                  stamp: float) -> None:
-        """Hand one frame to the engine (the bus thread; bench/bench_own_path.py calls it)."""
-        self.engine.on_frame(arbitration_id, data, is_extended_id, stamp)
+        return stdlib_logger(f'{NODE_NAME}.{part}.{id(self)}', self.get_logger(), level)
 
     def publish_diagnostics(self) -> None:
         """Publish one DiagnosticArray now: every device plus the CAN bus."""
         self.engine.publish_diagnostics()
 
     def status_prefix(self) -> str:
-        """
-        Return what the diagnostics status names start with: the node's name and namespace.
-
-        /diagnostics is global: two bridges in namespaces car1 and car2 both named
-        ams_can_bridge would both say 'ams_can_bridge: ams'. The fully qualified name without
-        its leading slash tells them apart ('car2/ams_can_bridge: ams'), and is the plain
-        node name for a bridge without a namespace.
-        """
+        """Return what the status names start with: 'car2/ams_can_bridge' (namespaced)."""
+        # /diagnostics is global: two bridges in car1 and car2 must not both say
+        # 'ams_can_bridge: ams'; without a namespace this is the plain node name
         return self.get_fully_qualified_name().lstrip('/')
 
-    def _now(self) -> float:
-        """Return the time to stamp with when no frame gives one: a replay's log time."""
-        if self._replaying and self.can_io is not None:
-            stamp = self.can_io.last_stamp
-            if math.isfinite(stamp):
-                return stamp
-        return time.time()
-
-    def _bus_status(self) -> Any:
-        can_io = self.can_io
-        if can_io is None:
-            return self._closed_status
-        return can_io.status()
-
-    def _bus_values(self) -> dict[str, str]:
-        return {'commands_allowed': str(self.commands_allowed).lower(),
-                'commands_enabled': str(self.commands_enabled).lower(),
-                'commands_enabled changes': str(self.gate.changes if self.gate else 0)}
-
-    def _publish_clock(self) -> None:
-        can_io = self.can_io
-        self.engine.publish_clock(can_io.last_stamp if can_io is not None else math.nan)
-
-    # --- commands seam --------------------------------------------------------------------
+    # --- services and parameters ------------------------------------------------------------
     def create_service(self, srv_type: Any, srv_name: str, callback: Any,
                        **kwargs: Any) -> Any:
-        """
-        Create a service; a device's command service is logged (its frames and its answer).
-
-        The call's service name is given to the gate for the thread running it, so the gate's
-        command log line names it; the answer (success and message) is logged once the
-        callback returns: INFO when it succeeded, WARN when not. A callback that raises is a
-        bug: its traceback is logged (ERROR) and the call answered as an internal error. The
-        node's parameter services pass through unchanged.
-        """
-        device = srv_name.split('/', 1)[0]
-        if device not in getattr(self, 'devices', {}):
-            return super().create_service(srv_type, srv_name, callback, **kwargs)
-
-        def logged(request: Any, response: Any) -> Any:
-            try:
-                gate = self.gate
-                assert gate is not None  # made in _configure, before any commander
-                with gate.calling(srv_name):
-                    response = callback(request, response)
-            except Exception as exc:  # a bug, not a refusal: say so, keep the traceback
-                self.get_logger().error(f'{srv_name}: internal error:\n'
-                                        + traceback.format_exc())
-                response.success = False
-                response.message = (f'{srv_name}: internal error: {type(exc).__name__}: '
-                                    f'{exc}; see the log')
-            answer = (f'{srv_name}: answered success={response.success}: '
-                      f'{response.message}')
-            if response.success:
-                self.get_logger().info(answer)
-            else:
-                self.get_logger().warning(answer)
-            return response
-        return super().create_service(srv_type, srv_name, logged, **kwargs)
+        """Create a service; a device's command service is answered and logged (calls.py)."""
+        if srv_name.split('/', 1)[0] in getattr(self, 'devices', {}) and self.gate is not None:
+            callback = answered(srv_name, callback, self.gate, self.get_logger())
+        return super().create_service(srv_type, srv_name, callback, **kwargs)
 
     def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         for param in parameters:
             reason = self.params.validate(param)
-            if (reason is None and self._ready and param.name == 'commands_enabled'
-                    and param.value is True):
-                assert self.gate is not None  # _ready: configured
-                reason = self.gate.arming_reason(True)
-                if reason:
-                    self.get_logger().warning(f'refused: {reason}')
-            if (reason is None and self._ready and not self._active and param.value is True
-                    and param.name == 'commands_enabled'):
-                reason = ('commands_enabled = true refused: the bridge is inactive (lifecycle): '
-                          'activate it first (ros2 lifecycle set /ams_can_bridge activate)')
-            prefix, _, key = param.name.partition('.')
-            if reason is None and self._ready and prefix in self.devices and key:
-                reason = self.devices[prefix].config_reason(key, self.params.value(param))
+            if reason is None and self._ready and self.gate is not None:
+                reason = set_refusal(param.name, self.params.value(param), gate=self.gate,
+                                     devices=self.devices, active=self._active,
+                                     log=self.get_logger())
             if reason:
                 return SetParametersResult(successful=False, reason=reason)
         return SetParametersResult(successful=True)
 
     def _after_set_parameters(self, parameters: list[Parameter]) -> None:
-        if not self._ready:
-            return
-        changed = {p.name: self.params.value(p) for p in parameters}
-        per_device: dict[str, dict[str, Any]] = {}
-        for full_name, value in changed.items():
-            prefix, _, key = full_name.partition('.')
-            if prefix in self.devices and key:
-                per_device.setdefault(prefix, {})[key] = value
-        for name, changes in per_device.items():
-            # one new configuration per device and set: an atomic set stays one change
-            try:
-                self.devices[name].configure(changes)
-            except ValueError as exc:  # checked key by key before; only a combination is left
-                self.get_logger().error(f'{name}: configuration change not applied: {exc}')
-        if 'commands_enabled' in changed:
-            # Who: ROS 2 hands the node the new value, never the caller (the parameter
-            # event names this node); only SROS2 decides who may make this call at all.
-            # The gate tells the commanders (its listeners) before it returns.
-            assert self.gate is not None  # declared by _configure with the gate
-            refused = self.gate.set_enabled(
-                bool(changed['commands_enabled']),
-                how='set at run time through the parameter services; the caller is not known '
-                    'to the node (restrict who may set it with SROS2: security/policy.xml)')
-            if refused:  # checked in _on_set_parameters: not reached
-                self.get_logger().error(f'commands_enabled not applied: {refused}')
+        if self._ready and self.gate is not None:
+            apply_set({p.name: self.params.value(p) for p in parameters}, gate=self.gate,
+                      devices=self.devices, log=self.get_logger())
 
-    # --- shutdown -------------------------------------------------------------------------
     def destroy_node(self) -> None:
         """Release everything (as on_shutdown) and destroy the node."""
         self._release()

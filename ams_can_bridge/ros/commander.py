@@ -16,8 +16,10 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from typing import Any, Callable, Generic, Protocol, TypeVar
 
+from ams_can_bridge import registry
 from ams_can_bridge.devices.base import Device
 from ams_can_bridge.engine.gate import CommandPort
+from ams_can_bridge.errors import ConfigError
 
 
 class ServiceHost(Protocol):
@@ -77,3 +79,17 @@ class Commander(ABC, Generic[DeviceT]):
     @abstractmethod
     def destroy(self) -> None:
         """Stop background work and remove the services (the node is shutting down)."""
+
+
+def make_commander(gate: CommandPort, device: Device, name: str,
+                   host: ServiceHost) -> Commander | None:
+    """Build the commander ``registry.COMMANDERS`` names for the device's type (None: none)."""
+    path = registry.COMMANDERS.get(device.TYPE)
+    if path is None:
+        return None
+    # every module COMMANDERS names ships with the package: a missing one is a broken
+    # install, and the error says so (test_sim_runner.py::test_registry_paths_all_import)
+    cls = registry.load(path)
+    if not (isinstance(cls, type) and issubclass(cls, Commander)):
+        raise ConfigError(f'{path} is not a Commander (ams_can_bridge.ros.commander)')
+    return cls(gate, device, name, host)

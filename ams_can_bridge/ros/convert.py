@@ -91,13 +91,12 @@ class RosLogHandler(logging.Handler):
             self.ros_logger.debug(text)
 
 
-def format_ids(ids: frozenset[int] | set[int], extended: bool) -> str:
-    """'0x300-0x301, 0x305' (runs of consecutive IDs collapsed), '(29-bit)' when extended."""
-    runs: list[list[int]] = []
-    for i in sorted(ids):
-        if runs and i == runs[-1][1] + 1:
-            runs[-1][1] = i
-        else:
-            runs.append([i, i])
-    text = ', '.join(f'0x{a:X}' if a == b else f'0x{a:X}-0x{b:X}' for a, b in runs)
-    return text + (' (29-bit)' if extended else '')
+def stdlib_logger(name: str, ros_logger: Any, level: int = logging.NOTSET) -> logging.Logger:
+    """Return the stdlib logger ``name`` whose records go to ``ros_logger`` only."""
+    logger = logging.getLogger(name)
+    logger.propagate = False
+    # one handler, replaced: configured again (lifecycle), a logger is not printed twice
+    logger.handlers = [RosLogHandler(ros_logger)]
+    if level:  # DEBUG: the rclpy logger decides what is shown
+        logger.setLevel(level)
+    return logger

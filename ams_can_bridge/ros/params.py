@@ -17,6 +17,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 import yaml
 
+from ams_can_bridge.device_set import unknown_parameter_errors
 from ams_can_bridge.errors import ParamError
 from ams_can_bridge.parameters import allowed_text, coerce, ParamSpec, raise_param_errors
 
@@ -128,6 +129,11 @@ class ParamRegistry:
         """Return the coerced value of a parameter that passed validate()."""
         spec = self.specs.get(param.name)
         return param.value if spec is None else coerce(param.name, spec, param.value)
+
+    def unknown(self) -> list[str]:
+        """Return a message per key given for the node (file, -p) that nothing declared."""
+        given = {name: p.value for name, p in self.node._parameter_overrides.items()}
+        return unknown_parameter_errors(given, self.node._parameters.keys())
 
 
 def params_files(argv: Iterable[str]) -> list[str]:
