@@ -149,4 +149,4 @@ def test_installed_bridge_answers_a_command_called_as_soon_as_its_service_appear
                 proc.communicate(timeout=20)
             except subprocess.TimeoutExpired:
                 proc.kill()
-                proc.communicate()
+                proc.communicate(timeout=10)
