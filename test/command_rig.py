@@ -198,6 +198,26 @@ class Rig:
         self.capture.bus.send(can.Message(arbitration_id=can_id, data=bytes(data),
                                           is_extended_id=extended, **fields))
 
+    def frames_out(self) -> int:
+        """Return how many frames the bridge has sent (its bus counter, counted on send)."""
+        return self.node.can_io.status().frames_out
+
+    def assert_silent_since(self, frames_out: int) -> None:
+        """
+        Assert the bridge sent nothing after its counter read frames_out; no sleep.
+
+        A marker frame (``Capture.sync``) shows every frame sent before it is captured; the
+        bridge's counter and the capture must then both still stand at frames_out. For a
+        channel where only the bridge sends (a simulator's frames would be captured too).
+        Read frames_out right after the call that must silence the bridge returned; a
+        periodic sender's thread is shown ended with ``helpers.assert_ended``.
+        """
+        self.capture.sync()
+        captured = [f for _, f in self.capture.since(0)]
+        assert self.frames_out() == len(captured) == frames_out, (
+            f'the bridge sent {self.frames_out() - frames_out} frame(s) after the call '
+            f'returned: {captured[frames_out:]}')
+
     # --- waiting and reading what was published ---------------------------------------------
     def wait(self, predicate: Callable[[], Any], timeout: float = 10.0,
              what: str = 'condition') -> Any:

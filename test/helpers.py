@@ -7,6 +7,7 @@ import logging
 import math
 import os
 import struct
+import threading
 import time
 from typing import Any, Callable, Iterable, Iterator
 import warnings
@@ -133,7 +134,9 @@ def wait_for(predicate: Callable[[], Any], timeout: float = 5.0,
     Poll predicate until it is true and return its value; fail the test naming what.
 
     The one wait of the test suite (bounded: a timeout is an AssertionError, never a hang,
-    never a silent False). A pause in which nothing may happen is ``time.sleep``.
+    never a silent False). "Nothing was sent" is never shown by sleeping: a frame sent by a
+    call is shown absent with a marker frame sent after it (``command_rig.Capture.sync``),
+    a periodic sender shown stopped with ``assert_ended`` on its thread.
     """
     deadline = time.monotonic() + timeout
     while True:
@@ -143,6 +146,19 @@ def wait_for(predicate: Callable[[], Any], timeout: float = 5.0,
         if time.monotonic() >= deadline:
             raise AssertionError(f'timed out after {timeout} s waiting for {what}')
         time.sleep(poll)
+
+
+def assert_ended(thread: threading.Thread | None, what: str, timeout: float = 5.0) -> None:
+    """
+    Assert that a sender's thread has ended (joined, bounded): it can send nothing any more.
+
+    How a test shows a periodic sender stopped without listening for a while: a thread that
+    has returned never sends again, however long one waited. ``stop()``-style calls join
+    their thread themselves; the join here only bounds the check when one does not.
+    """
+    assert thread is not None, f'{what}: no thread to check (was it ever started?)'
+    thread.join(timeout)
+    assert not thread.is_alive(), f'{what}: its thread {thread.name!r} still runs'
 
 
 @contextlib.contextmanager

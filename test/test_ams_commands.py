@@ -11,6 +11,7 @@ from std_srvs.srv import Trigger
 from ams_can_bridge.sim.ams import AmsSimulator
 from ams_can_bridge.sim.runner import SimRunner
 from command_rig import unique_channel
+from helpers import assert_ended
 
 BASE = 0x300
 HEARTBEAT = BASE + 0x005
@@ -74,14 +75,14 @@ def test_start_charging_repeats_start_every_100_ms_until_stop_charging(rig_facto
     assert rig.wait(lambda: len(charger_frames(rig, mark)) >= 4)  # the first START + 3 repeats
     again = rig.call(Trigger, '/ams/start_charging')
     assert again.success and 'already repeated' in again.message, again.message
+    repeat = rig.node.commanders['ams'].charger._thread
     second = rig.call(Trigger, '/ams/stop_charging')
     assert second.success, second.message
     assert 'the repeated START has ended' in second.message
-    # stopped for good: 15 more heartbeats (20 ms each: three 100 ms periods), no START
-    assert rig.wait(lambda: any(d[0] == 2 for d in charger_frames(rig, mark)))
-    stop_at = mark + next(i for i, (_, f) in enumerate(rig.capture.since(mark))
-                          if f.arbitration_id == CHARGER and f.data[0] == 2)
-    assert rig.wait(lambda: len(heartbeat_commands(rig, stop_at)) >= 15)
+    # stopped for good: the repeat's thread has ended, so no START can follow; a marker
+    # after the call shows everything sent until then, the STOP last
+    assert_ended(repeat, 'the charger repeat')
+    rig.capture.sync()
     frames = charger_frames(rig, mark)
     # docs/protocols.md section 1: DLC 3, b0 bits 1..0 = 1 START / 2 STOP, b1..2 = tick (BE)
     assert all(len(d) == 3 for d in frames)
@@ -101,12 +102,21 @@ def test_disarm_stops_the_repeated_start_at_once_and_rearming_does_not_resume_it
     mark = rig.capture.mark()
     assert rig.call(Trigger, '/ams/start_charging').success
     assert rig.wait(lambda: len(charger_frames(rig, mark)) >= 3)
+    charger = rig.node.commanders['ams'].charger
+    repeat = charger._thread
     assert rig.set_param('commands_enabled', False).successful
+    frames_out = rig.frames_out()
+    # at once: the repeat's thread has ended and, the heartbeat stopped too, nothing at all
+    # was sent after set_param returned: no START, and no STOP while disarmed
+    assert_ended(repeat, 'the charger repeat')
+    rig.assert_silent_since(frames_out)
     disarmed = rig.capture.mark()
     assert rig.set_param('commands_enabled', True).successful
-    # the heartbeat is back; 15 heartbeats = three 100 ms periods without a charger frame
-    assert rig.wait(lambda: len(heartbeat_commands(rig, disarmed)) >= 15)
-    assert charger_frames(rig, disarmed) == []  # no START, and no STOP while disarmed
+    # re-armed: the heartbeat is back, the repeat is not (no thread to send a START)
+    assert not charger.active and charger._thread is None
+    assert rig.wait(lambda: len(heartbeat_commands(rig, disarmed)) >= 3)
+    rig.capture.sync()
+    assert charger_frames(rig, disarmed) == []
     assert set(d[0] for d in charger_frames(rig, mark)) == {1}
 
 

@@ -8,7 +8,7 @@ import pytest
 from ams_can_bridge.devices.ams_master import AmsMaster, AmsView, HeartbeatSchedule
 from ams_can_bridge.protocols.ams import AmsState, CarCommand
 from ams_can_bridge.protocols.common import Frame
-from helpers import wait_for
+from helpers import assert_ended, wait_for
 
 
 def encode(command: int, bank_count: int, counter: int) -> Frame:
@@ -99,15 +99,16 @@ def test_schedule_is_absolute_and_skips_missed_slots():
 def test_heartbeat_counter_bank_count_and_no_command(rig):
     ams, master = rig(period=0.002)
     master.start()
+    thread = master._thread
     ams.wait_frames(300)
     master.stop()
+    n = len(ams.frames)  # all the master sent before stop() returned
+    assert_ended(thread, 'the heartbeat')
+    assert len(ams.frames) == n  # stopped means silent: nothing after stop() returned
     counters = [f.data[1] for _, f in ams.frames]
     assert all((b - a) & 0xFF == 1 for a, b in zip(counters, counters[1:]))
     assert 0 in counters[1:] and 255 in counters  # wrapped 255 -> 0
     assert all(f.arbitration_id == 0x305 and f.data[0] == 0x30 for _, f in ams.frames)
-    n = len(ams.frames)
-    time.sleep(0.05)
-    assert len(ams.frames) == n  # stopped means silent
 
 
 def test_state_commands_answer_on_target_then_field_returns_to_no_command(rig):
@@ -155,9 +156,7 @@ def test_abort_replaces_a_waiting_command_in_the_next_heartbeat(rig):
     waiter = threading.Thread(
         target=lambda: answers.setdefault('ts', master.command(CarCommand.ENABLE_TS, 5.0)))
     waiter.start()
-    deadline = time.monotonic() + 2
-    while CarCommand.ENABLE_TS not in ams.commands() and time.monotonic() < deadline:
-        time.sleep(0.002)
+    wait_for(lambda: CarCommand.ENABLE_TS in ams.commands(), 2.0, 'ENABLE_TS carried')
     ams.behaviour = 'obey'  # the AMS obeys the abort
     n_before = len(ams.frames)
     abort = master.command(CarCommand.ABORT, timeout=2.0)
@@ -210,12 +209,13 @@ def test_stop_while_waiting_answers_failure_and_not_running_refuses(rig):
     waiter.start()
     wait_for(lambda: master.current_command() == CarCommand.ENABLE_SC, timeout=2.0,
              what='ENABLE_SC in progress')
+    thread = master._thread
     master.stop('commands_enabled was set to false')
+    n = len(ams.frames)
     waiter.join(2)
     assert not answers[0].success and 'commands_enabled' in answers[0].message
-    n = len(ams.frames)
-    time.sleep(0.05)
-    assert len(ams.frames) == n
+    assert_ended(thread, 'the heartbeat')
+    assert len(ams.frames) == n  # nothing after stop() returned
     master.start()  # restart: heartbeats again, counter continues
     ams.wait_frames(n + 3)
     assert (ams.frames[n][1].data[1] - ams.frames[n - 1][1].data[1]) & 0xFF == 1
@@ -252,8 +252,7 @@ def test_bus_down_while_waiting_fails_the_call_and_nothing_stale_is_replayed(rig
     waiter = threading.Thread(
         target=lambda: answers.append(master.command(CarCommand.ENABLE_TS, 5.0)))
     waiter.start()
-    while 2 not in ams.commands():
-        time.sleep(0.002)
+    wait_for(lambda: 2 in ams.commands(), 5.0, 'ENABLE_TS carried')
     down.set()
     waiter.join(2)
     assert answers and not answers[0].success

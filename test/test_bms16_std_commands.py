@@ -11,8 +11,6 @@ from std_srvs.srv import Trigger
 from command_rig import battery_topics
 from test_protocol_bms16_std import CONFIG, EVMS3_STATUS, GOLDEN_WRITE, STATUS
 
-MARK_ID = 0x7FF  # a frame nobody sends: once the capture has it, anything before it is there
-
 
 def params(enabled=True, config=CONFIG):
     out = {'devices': ['bms16'], 'bms16.variant': 'standard', 'commands_allowed': True,
@@ -22,17 +20,9 @@ def params(enabled=True, config=CONFIG):
 
 
 def sent_after(rig, mark):
-    """Frames the bridge sent after mark, up to a marker frame of ours (so nothing is late)."""
-    sender = can.Bus(interface='virtual', channel=rig.channel)  # the capture hears others
-    try:
-        sender.send(can.Message(arbitration_id=MARK_ID, data=b'\x01', is_extended_id=False))
-    finally:
-        sender.shutdown()
-    rig.wait(lambda: any(f.arbitration_id == MARK_ID for _, f in rig.capture.since(mark)),
-             what='the marker frame')
-    frames = [f for _, f in rig.capture.since(mark)]
-    return [(f.arbitration_id, f.data, f.is_extended_id) for f in frames
-            if f.arbitration_id != MARK_ID and f.data != STATUS and f.data != EVMS3_STATUS]
+    """Frames the bridge sent after mark, up to a marker frame (Capture.sync): none is late."""
+    rig.capture.sync()
+    return [(f.arbitration_id, f.data, f.is_extended_id) for _, f in rig.capture.since(mark)]
 
 
 def heard(rig):

@@ -48,7 +48,7 @@ def stop_and_check(proc: subprocess.Popen, peer: SlcanPeer, signum: int) -> None
         stdout, stderr = proc.communicate(timeout=20)
     except subprocess.TimeoutExpired:
         proc.kill()
-        stdout, stderr = proc.communicate()
+        stdout, stderr = proc.communicate(timeout=10)
         raise AssertionError(f'the bridge ignored {signal.Signals(signum).name}: {stderr}')
     took = time.monotonic() - sent
     assert proc.returncode == 0, stdout + stderr
@@ -82,7 +82,7 @@ def test_signal_during_heavy_traffic(tmp_path, signum):
         stop.set()
         if proc.poll() is None:
             proc.kill()
-            proc.communicate()
+            proc.communicate(timeout=10)
         peer.shutdown()
 
 
@@ -106,7 +106,7 @@ def test_signal_during_a_waiting_call(ros, tmp_path, signum):  # noqa: F811 (fix
     finally:
         if proc.poll() is None:
             proc.kill()
-            proc.communicate()
+            proc.communicate(timeout=10)
         peer.shutdown()
 
 

@@ -151,7 +151,7 @@ def test_installed_bridge_on_slcan(ros, tmp_path):
             output = proc.communicate(timeout=20)[0]
         except subprocess.TimeoutExpired:
             proc.kill()
-            output = proc.communicate()[0]
+            output = proc.communicate(timeout=10)[0]
         peer.shutdown()
     assert proc.returncode == 0, output
     assert 'Traceback' not in output, output
@@ -220,7 +220,7 @@ def test_sigterm_closes_the_channel_and_exits_0(ros, tmp_path, when):
             stdout, stderr = proc.communicate(timeout=20)
         except subprocess.TimeoutExpired:
             proc.kill()
-            stdout, stderr = proc.communicate()
+            stdout, stderr = proc.communicate(timeout=10)
         # the adapter was told to close the channel ('C') after it had been opened
         wait_for(lambda: 'C' in peer.commands[opened + 1:], timeout=5.0,
                  what=f"'C' after 'O' (commands: {peer.commands})")
@@ -228,7 +228,7 @@ def test_sigterm_closes_the_channel_and_exits_0(ros, tmp_path, when):
     finally:
         if proc.poll() is None:
             proc.kill()
-            proc.communicate()
+            proc.communicate(timeout=10)
         peer.shutdown()
     assert proc.returncode == 0, stdout + stderr
     assert 'Traceback' not in stderr, stderr

@@ -361,6 +361,7 @@ def test_second_bus_on_the_same_serial_adapter_is_refused_and_the_first_undistur
         assert second_sink.frames == []
         first.send(Frame(0x321, b'\xBE\xEF'))
         assert peer.wait_received(2)[1:] == [Frame(0x321, b'\xBE\xEF', False)]
+        assert peer.commands == commands  # the first's frame came next: none of the second's
         assert first.status().frames_unreadable == 0 and first.status().reconnects == 0
         # the first lets go of the adapter: the second takes it at its next attempt
         first.stop()

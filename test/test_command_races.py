@@ -19,6 +19,7 @@ import pytest
 from std_srvs.srv import Trigger
 
 from ams_can_bridge.protocols import evms3 as evms3_proto
+from helpers import assert_ended
 from test_zeva_commands import bms16_params, EVMS3_CONFIG, evms3_in, evms3_params
 
 HEARTBEAT = 0x305
@@ -89,15 +90,17 @@ def test_commands_disabled_during_a_waiting_call(rig_factory):
     rig = rig_factory(ams())
     call = rig.call_in_thread(Trigger, '/ams/enable_ts')
     wait_carried(rig, ENABLE_TS)
+    heartbeat = rig.node.commanders['ams'].master._thread
     assert rig.set_param('commands_enabled', False).successful
-    switched = time.monotonic()
+    frames_out = rig.frames_out()
     call['thread'].join(2)  # at once, not after ams.command_timeout (5 s)
     assert 'response' in call, 'the waiting call did not answer when commands were disabled'
     assert not call['response'].success
     assert 'commands_enabled was set to false' in call['response'].message
-    time.sleep(0.5)
-    late = [t for t, _, _ in heartbeats(rig) if t > switched + 0.1]
-    assert late == [], f'{len(late)} heartbeat(s) more than 100 ms after the switch'
+    # the heartbeat stopped with the switch: its thread has ended, and no frame was sent
+    # after set_param returned (a marker after it is captured with nothing before it)
+    assert_ended(heartbeat, 'the heartbeat')
+    rig.assert_silent_since(frames_out)
 
 
 def test_commands_disabled_while_waiting_for_the_bus(rig_factory, tmp_path):
@@ -213,9 +216,12 @@ def test_commands_waiting_for_a_down_bus_leave_telemetry_and_disarming_running(
     # 4 answered at once; 2 wait for the bus, each holding an executor thread
     refused = [c['response'].message for c in calls if 'response' in c]
     assert all('2 commands already wait for it' in m for m in refused), refused
+    # /diagnostics does not stop (every 0.1 s) while the two calls wait: bounded well below
+    # their 20 s bus wait, so they still wait throughout
     start = time.monotonic()
-    time.sleep(1.0)
-    assert len([t for t in arrays if t > start]) >= 5  # /diagnostics did not stop
+    assert rig.wait(lambda: len([t for t in arrays if t > start]) >= 5, 10.0,
+                    '/diagnostics while two calls wait for the bus')
+    assert sum('response' in c for c in calls) == 4  # the two still wait
     # the supervisor can still disarm through the parameter service: the waits end at once
     result = rig.call(SetParameters, '/ams_can_bridge/set_parameters', parameters=[
         Parameter('commands_enabled', value=False).to_parameter_msg()])

@@ -3,10 +3,11 @@ import os
 import statistics
 import subprocess
 import sys
-import time
 
 import pytest
 from std_srvs.srv import SetBool, Trigger
+
+from helpers import assert_ended
 
 
 AMS_SERVICES = ('enable_sc', 'enable_ts', 'enable_drive', 'abort', 'set_bank_count',
@@ -25,6 +26,13 @@ def all_devices(enabled=False, **extra):
     return params
 
 
+def assert_no_periodic_sender(rig):
+    """Assert that the AMS heartbeat and charger repeat of the bridge have no thread."""
+    ams = rig.node.commanders['ams']
+    assert not ams.master.running and ams.master._thread is None
+    assert not ams.charger.active and ams.charger._thread is None
+
+
 def test_disabled_bridge_sends_nothing_and_refuses_every_service(rig_factory):
     rig = rig_factory(all_devices())
     calls = [(Trigger, f'/ams/{s}', {}) for s in AMS_SERVICES]
@@ -32,29 +40,23 @@ def test_disabled_bridge_sends_nothing_and_refuses_every_service(rig_factory):
     calls += [(Trigger, f'/evms3/{s}', {}) for s in EVMS3_SERVICES]
     calls += [(SetBool, '/evms3/set_setup_mode', {'data': True}),
               (SetBool, '/evms3/set_setup_mode', {'data': False})]
-    t0 = time.monotonic()
     for srv_type, name, fields in calls:
         response = rig.call(srv_type, name, **fields)
         assert not response.success, name
         assert 'commands_enabled' in response.message, (name, response.message)
         assert 'nothing was sent' in response.message
-    rig.capture.sync()  # a marker after the calls: every frame they sent is captured by now
-    assert rig.capture.since(0) == []
-    # The heartbeat is a thread of its own, which a marker cannot prove silent: listen for
-    # 2 s in all (20 heartbeat periods) for a frame it would send while disabled.
-    remaining = 2.0 - (time.monotonic() - t0)
-    if remaining > 0:
-        time.sleep(remaining)
-    rig.capture.sync()
-    assert rig.capture.since(0) == []
-    assert rig.node.can_io.status().frames_out == 0
+    # a marker after the calls: every frame they sent is captured by then, and none was
+    rig.assert_silent_since(0)
+    # The senders with threads of their own, which a marker after the calls cannot show
+    # silent, never started: no heartbeat thread, no repeated charger START.
+    assert_no_periodic_sender(rig)
 
 
 def test_heartbeat_period_and_counter_and_run_time_gate(rig_factory):
     rig = rig_factory({'devices': ['ams'], 'ams.heartbeat_period': 0.01, 'ams.bank_count': 3,
                        'commands_allowed': True})
-    time.sleep(0.2)
-    assert rig.capture.since(0) == []
+    assert_no_periodic_sender(rig)  # allowed, not enabled: no heartbeat
+    rig.assert_silent_since(0)
     assert rig.set_param('commands_enabled', True).successful
     assert rig.wait(lambda: len(rig.capture.since(0, HEARTBEAT_ID)) >= 300, timeout=20)
     frames = rig.capture.since(0, HEARTBEAT_ID)
@@ -68,12 +70,13 @@ def test_heartbeat_period_and_counter_and_run_time_gate(rig_factory):
     # How close the period holds is a figure for bench/bench_heartbeat.py, not a test.
     assert statistics.median(b - a for a, b in zip(times, times[1:])) < 0.05 / 2
     assert len(times) - 1 <= (times[-1] - times[0]) / 0.01 + 2
+    heartbeat = rig.node.commanders['ams'].master._thread
     assert rig.set_param('commands_enabled', False).successful
-    time.sleep(0.05)  # a frame already in flight lands
+    frames_out = rig.frames_out()  # a frame in flight is on the bus when set_param returns
+    assert_ended(heartbeat, 'the heartbeat')
+    rig.assert_silent_since(frames_out)  # nothing after the switch returned
     mark = rig.capture.mark()
     last_sent = rig.capture.since(0, HEARTBEAT_ID)[-1][1].data[1]
-    time.sleep(0.5)
-    assert rig.capture.since(mark) == []
     # on again: heartbeats again, the counter continues exactly where it stopped
     assert rig.set_param('commands_enabled', True).successful
     assert rig.wait(lambda: len(rig.capture.since(mark)) >= 3)

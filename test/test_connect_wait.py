@@ -10,11 +10,13 @@ from __future__ import annotations
 
 from std_srvs.srv import Trigger
 
+from ams_can_bridge.protocols.common import Frame
 from helpers import wait_for
 from slcan_peer import SlcanPeer
 
 BMS16_RESET_SOC = 507
 AMS_HEARTBEAT = 0x305
+MARKER = Frame(0x7FF, b'\x01', False)  # no device's ID
 
 
 def slcan(peer: SlcanPeer, **extra) -> dict:
@@ -59,7 +61,11 @@ def test_the_calls_really_raced_the_opening_bus(rig_factory, tmp_path):
         assert 'can.connect_wait is 0' in response.message
         assert 'nothing was sent' in response.message
         assert rig.node.can_io.status().state == 'connecting'
-        assert peer.received() == []
+        # nothing was sent, and nothing kept for later: once the bus is open, a marker the
+        # test sends through the bridge's bus is the first frame the adapter reads
+        rig.wait(lambda: rig.node.can_io.status().connected, 10.0, 'the bus to open')
+        rig.node.can_io.send(MARKER)
+        assert peer.wait_received(1) == [MARKER]
 
 
 def test_a_bus_that_does_not_open_fails_after_connect_wait_naming_state_and_reason(
@@ -143,4 +149,4 @@ def test_installed_bridge_answers_a_command_called_as_soon_as_its_service_appear
                 proc.communicate(timeout=20)
             except subprocess.TimeoutExpired:
                 proc.kill()
-                proc.communicate()
+                proc.communicate(timeout=10)

@@ -40,7 +40,7 @@ def _stop(proc: subprocess.Popen) -> str:
         return proc.communicate(timeout=20)[0]
     except subprocess.TimeoutExpired:
         proc.kill()
-        return proc.communicate()[0]
+        return proc.communicate(timeout=10)[0]
 
 
 def test_simulated_dbc_bms_reaches_the_bridge_over_slcan(ros, tmp_path):  # noqa: F811

@@ -113,15 +113,16 @@ def test_refused_send_and_a_second_read_at_once():
     device = make()
     result = device.read_config(lambda frame: (False, 'commands are disabled'), 1.0)
     assert not result.ok and result.error == 'ID 51 was not sent: commands are disabled'
-    release = threading.Event()
+    release, sending = threading.Event(), threading.Event()
     first = {}
 
     def slow(frame):
-        release.wait(2.0)
+        sending.set()
+        release.wait(5.0)
         return True, 'sent'
     worker = threading.Thread(target=lambda: first.update(r=device.read_config(slow, 0.1)))
     worker.start()
-    time.sleep(0.05)
+    assert sending.wait(5.0)  # the first read is in its send: it waits
     second = device.read_config(answering(device), 1.0)
     release.set()
     worker.join(3.0)

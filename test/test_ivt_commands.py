@@ -22,7 +22,6 @@ CYCLES = {'ivt_s.config.i_cycle_ms': 10, 'ivt_s.config.u1_cycle_ms': 20,
           'ivt_s.config.u2_cycle_ms': 0, 'ivt_s.config.u3_cycle_ms': 0,
           'ivt_s.config.t_cycle_ms': 100, 'ivt_s.config.w_cycle_ms': 0,
           'ivt_s.config.as_cycle_ms': 1000, 'ivt_s.config.wh_cycle_ms': 0}
-MARKER = 0x7AB
 
 
 def params(enabled=True, **more):
@@ -95,13 +94,8 @@ def sim_on():
 
 def commands_before_marker(rig):
     """Send a marker frame, wait until the capture has it; return the 0x411 frames before."""
-    mark = 0
-    with can.Bus(interface='virtual', channel=rig.channel) as other:  # the capture hears it
-        other.send(can.Message(arbitration_id=MARKER, data=b'\x01', is_extended_id=False))
-    rig.wait(lambda: rig.capture.since(mark, MARKER), 5.0, 'the marker frame')
-    frames = rig.capture.since(mark)
-    marker_at = next(i for i, (_, f) in enumerate(frames) if f.arbitration_id == MARKER)
-    return [f for _, f in frames[:marker_at] if f.arbitration_id == 0x411]
+    rig.capture.sync()
+    return [f for _, f in rig.capture.since(0, 0x411)]
 
 
 # --- over slcan: every service end to end -------------------------------------------------
@@ -199,9 +193,22 @@ def test_no_sensor_answer_fails_after_command_timeout(rig_factory):
 
 def test_check_config_at_start_sends_nothing_while_disabled(rig_factory, sim_on):
     rig = rig_factory(params(enabled=False, **{'ivt_s.check_config_at_start': True}))
+    device = rig.node.devices['ivt_s']
+    looks = []  # each time the start check found the sensor heard
+    heard = device.heard
+
+    def spied():
+        result = heard()
+        if result and threading.current_thread().name == 'ivt_s-check':
+            looks.append(result)
+        return result
+    device.heard = spied  # the check thread looks it up at each poll
     sim = sim_on(rig, IvtSSimulator(period=0.02, byte_order='little'))
-    rig.wait(lambda: rig.node.devices['ivt_s'].heard(), 10.0, 'the simulated IVT-S')
-    time.sleep(0.3)  # the check polls every 50 ms: it had its chances
+    check = rig.node.commanders['ivt_s']
+    # the check had its chances: it saw the sensor heard three times while disabled
+    rig.wait(lambda: len(looks) >= 3 or check.start_check, 10.0,
+             'the start check to see the simulated IVT-S')
+    assert check.start_check is None  # it did not run
     assert commands_before_marker(rig) == [] and sim.received == []
     assert rig.set_param('commands_enabled', True).successful  # armed: the check runs now
     status = rig.status('ivt_s', lambda s: level(s) == 2, 10.0)

@@ -15,6 +15,7 @@ from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState, GetState
 
 from ams_can_bridge.protocols.ams import DEFAULT_BASE_ID as AMS_BASE
+from helpers import assert_ended
 
 NODE = '/ams_can_bridge'
 BMS16_STATUS = 500  # primary: b0 error, b1 SoC %, b2..3 0.1 V LE, b4..5 0.1 A + 32768, b6 degC
@@ -60,6 +61,7 @@ def test_configure_activate_deactivate_cleanup_through_the_lifecycle_services(ri
     assert node.commands_enabled is False
     assert node.get_parameter('commands_enabled').value is False
     assert not node.commanders['ams'].master.running
+    rig.assert_silent_since(0)  # a marker: nothing was sent while inactive
     assert not rig.set_param('commands_enabled', True).successful
     rig.send(BMS16_STATUS, status(11))  # decoded, not published
     rig.wait(lambda: node.devices['bms16'].frames_received == 1, what='the frame decoded')
@@ -72,9 +74,14 @@ def test_configure_activate_deactivate_cleanup_through_the_lifecycle_services(ri
     rig.send(BMS16_STATUS, status(22))
     rig.wait(lambda: 22 in socs(rig), what='the frame published')
 
+    heartbeat = node.commanders['ams'].master._thread
     assert change(rig, Transition.TRANSITION_DEACTIVATE)
+    frames_out = rig.frames_out()
     assert state(rig) == 'inactive'
     assert node.commands_enabled is False and not node.commanders['ams'].master.running
+    # a pure listener: the heartbeat's thread has ended, nothing after deactivate returned
+    assert_ended(heartbeat, 'the heartbeat')
+    rig.assert_silent_since(frames_out)
     assert node.get_parameter('commands_enabled').value is False
     rig.send(BMS16_STATUS, status(33))  # decoded, not published
     rig.wait(lambda: node.devices['bms16'].frames_received == 3, what='the frame decoded')

@@ -105,7 +105,7 @@ def test_simulator_and_bridge_as_two_processes_over_the_bundled_link(tmp_path):
                 proc.wait(timeout=10)
             except subprocess.TimeoutExpired:
                 proc.kill()
-                proc.wait()
+                proc.wait(timeout=10)
 
 
 def test_the_several_cars_params_file_configures_each_bridge(tmp_path):

@@ -205,8 +205,14 @@ def test_over_a_real_python_can_bus_into_the_device():
             for f in sim.tick(i * 0.01):
                 sim_bus.send(can.Message(arbitration_id=f.arbitration_id, data=f.data,
                                          is_extended_id=f.is_extended_id))
+        # a marker after the simulator's frames: read up to it, not until 0.5 s of silence
+        sim_bus.send(can.Message(arbitration_id=0x7FF, data=b'', is_extended_id=False))
         bridge_bus.send(can.Message(arbitration_id=38, data=b'', is_extended_id=True))
-        while (msg := bridge_bus.recv(timeout=0.5)) is not None:
+        while True:
+            msg = bridge_bus.recv(timeout=5.0)
+            assert msg is not None, 'the marker did not arrive'
+            if msg.arbitration_id == 0x7FF:
+                break
             assert msg.is_extended_id
             device.handle_frame(msg.arbitration_id, bytes(msg.data), msg.timestamp)
         msg = sim_bus.recv(timeout=2.0)

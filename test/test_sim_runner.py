@@ -228,7 +228,7 @@ def test_simulator_across_processes_on_slcan_and_sigterm(tmp_path):
     finally:
         if proc.poll() is None:
             proc.kill()
-            proc.communicate()
+            proc.communicate(timeout=10)
         peer.close()
     assert proc.returncode == 0, err
     assert 'Traceback' not in err
@@ -245,7 +245,7 @@ def test_simulator_ctrl_c_exits_0_without_traceback():
     finally:
         if proc.poll() is None:
             proc.kill()
-            proc.communicate()
+            proc.communicate(timeout=10)
     assert proc.returncode == 0, err
     assert 'Traceback' not in err
     assert 'stopped:' in err

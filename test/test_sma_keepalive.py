@@ -6,7 +6,6 @@ robot has no inverter, so the bridge sends it: only while commands_enabled and
 inverter_keepalive are both true, stopping at once on disarm, start/stop logged once.
 """
 import threading
-import time
 
 from sensor_msgs.msg import BatteryState
 
@@ -14,7 +13,7 @@ from ams_can_bridge.devices.sma import SmaDevice
 from ams_can_bridge.devices.sma_keepalive import InverterKeepalive
 from ams_can_bridge.protocols.common import Frame
 from command_rig import rigs
-from helpers import wait_for
+from helpers import assert_ended, wait_for
 
 ZERO_305 = Frame(0x305, bytes([0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00]))
 PERIOD = 0.02  # s, unit tests only; the bridge uses 1 s
@@ -43,18 +42,6 @@ def keepalive(sink: Sink) -> tuple[SmaDevice, InverterKeepalive]:
     return device, device.attach_keepalive(sink.send, sink.lines.append, period=PERIOD)
 
 
-def ticks_of_another_keepalive(n: int) -> None:
-    """Wait (bounded) until n periods have passed, counted by a second keep-alive's frames."""
-    other = Sink()
-    clock = InverterKeepalive(lambda: ZERO_305, other.send, lambda line: None, 'clock', PERIOD)
-    clock.set_enabled(True)
-    clock.set_armed(True)
-    try:
-        wait_for(lambda: other.count() >= n, 10.0, f'{n} keep-alive periods')
-    finally:
-        clock.stop('done')
-
-
 def test_runs_only_while_armed_and_enabled():
     sink = Sink()
     device, ka = keepalive(sink)
@@ -64,10 +51,11 @@ def test_runs_only_while_armed_and_enabled():
     assert ka.running
     wait_for(lambda: sink.count() >= 3, 10.0, 'three keep-alives')
     assert set(sink.frames) == {ZERO_305}
+    thread = ka._thread
     ka.set_armed(False)
-    assert not ka.running
     stopped = sink.count()
-    ticks_of_another_keepalive(10)
+    assert not ka.running
+    assert_ended(thread, 'the keep-alive')
     assert sink.count() == stopped  # nothing after the disarm returned
     assert device.diagnostic_report().values['inverter keep-alive (0x305)'] == (
         'off: commands_enabled is false')
@@ -82,9 +70,11 @@ def test_parameter_off_stops_it_at_once_and_logs_once():
     wait_for(lambda: sink.count() >= 5, 10.0, 'five keep-alives')
     assert device.diagnostic_report().values['inverter keep-alive (0x305)'].startswith(
         'sending 0x305 every 0.02 s')
+    thread = ka._thread
     device.configure({'inverter_keepalive': False})
     stopped = sink.count()
-    ticks_of_another_keepalive(10)
+    assert not ka.running
+    assert_ended(thread, 'the keep-alive')
     assert sink.count() == stopped
     # one line for the start, one for the stop: never a line per frame
     assert len(sink.lines) == 2, sink.lines
@@ -122,14 +112,17 @@ def test_bridge_sends_the_keepalive_only_while_commands_are_enabled():
         rig = make(rig_params(), topics={'sma/battery_state': BatteryState})
         assert rig.wait(lambda: len(rig.capture.since(0, 0x305)) >= 2, 10.0)
         assert {f for _, f in rig.capture.since(0, 0x305)} == {ZERO_305}
+        keepalive = rig.node.commanders['sma'].keepalive
+        thread = keepalive._thread
         assert rig.set_param('commands_enabled', False).successful
-        mark = rig.capture.mark()
-        # > 1.5 keep-alive periods pass, counted by the bridge's answers to our frames
-        for k in range(16):
-            rig.send(0x356, [0xBE, 0x14, 0xF9, 0xFF, 0x8C, 0x00])
-            assert rig.wait(lambda: len(battery(rig)) >= k + 1, 10.0)
-            time.sleep(0.1)  # pacing only: what counts is the bridge's answers
-        assert rig.capture.since(mark, 0x305) == []
+        frames_out = rig.frames_out()
+        # stopped with the switch: its thread has ended, nothing came after set_param returned
+        assert not keepalive.running
+        assert_ended(thread, 'the keep-alive')
+        rig.assert_silent_since(frames_out)
+        # and the bridge listens on: telemetry still decoded and published
+        rig.send(0x356, [0xBE, 0x14, 0xF9, 0xFF, 0x8C, 0x00])
+        assert rig.wait(lambda: any(m.present for m in battery(rig)), 10.0)
         assert rig.status('sma', lambda s: any(
             v.key == 'inverter keep-alive (0x305)' and v.value == 'off: commands_enabled is false'
             for v in s.values))
