@@ -1,15 +1,13 @@
 """
-Formula-Student AMS (accumulator management system) protocol: docs/protocols.md section 1.
+Formula-Student AMS protocol: frames <-> typed readings (docs/protocols.md section 1).
 
-Ten 11-bit messages at ``base_id + offset`` (default base 0x300). The field layout is
-``LAYOUTS`` (protocols/layout.py tables): encoders and decoders are generated from it, it is
-checked against the installed ``msg_defs/ams.dbc`` when the first codec is built and
-against cantools in the tests. The module
-adds what a DBC cannot say (valid bank/group IDs and known enum values as checks of the table
-rows; DLC checks: a frame padded beyond its layout up to 8 bytes is accepted, a shorter one is
-malformed; typed readings) and checks every value before it is encoded, so a bad command
-fails loudly instead of being clamped.
-Readings are frozen dataclasses; enums carry the vendor's names.
+Section 1 holds the frames, enums, DLC rule and the decisions on the vendor document's
+garbled parts. The bits are ``LAYOUTS`` (protocols/layout.py tables): encoders and decoders
+are generated from it, and it is checked against msg_defs/ams.dbc at the first codec and
+against cantools in the tests. The table's rows also carry what a DBC cannot say (valid
+bank/group IDs, known enum values); every value is checked before it is encoded, so a bad
+command fails loudly instead of being clamped. Readings are frozen dataclasses; enums
+carry the vendor's names.
 """
 from __future__ import annotations
 
@@ -419,10 +417,7 @@ class AmsCodec:
             raise MalformedFrameError(arbitration_id, data,
                                       f'not an AMS ID at base 0x{self.base_id:X}')
         length, build = entry
-        # Longer is padding (AMS firmwares commonly send 8 bytes, and the seed's size rows
-        # contradict its own field lists): the bytes past the layout are ignored. Shorter
-        # cannot carry the fields, and beyond 8 (CAN FD) is no classic AMS frame: malformed
-        # (docs/protocols.md section 1).
+        # Padding up to 8 bytes is ignored; shorter, or CAN FD, is malformed (section 1.7).
         if not length <= len(data) <= MAX_DLC:
             raise MalformedFrameError(arbitration_id, data,
                                       f'DLC {len(data)}, expected {length}..{MAX_DLC}')

@@ -1,19 +1,10 @@
 """
 Isabellenhuette IVT-S current shunt: result frames <-> typed readings (docs/protocols.md s. 2).
 
-Eight result messages at ``base_id .. base_id + 7`` (factory 0x521..0x528), DLC 6:
-
-- byte 0: MuxID, which result the frame carries (0 I, 1 U1, 2 U2, 3 U3, 4 T, 5 W, 6 As,
-  7 Wh); it must match the frame's ID, else the frame is malformed;
-- byte 1: bits 3..0 message counter (per result, wraps 15 -> 0), bit 4 OCS (over-current
-  detection tripped), bit 5 result error (this result is invalid / out of range), bit 6
-  measurement error (some measurement has an error), bit 7 system error;
-- bytes 2..5: signed 32-bit value in the vendor unit (mA, mV, 0.1 degC, W, As, Wh),
-  big-endian in the factory setting; the sensor can be configured to send it little-endian,
-  hence ``byte_order``.
-
-The command (0x411) and answer (0x511) frames are in protocols/ivt_s_commands.py: the bridge
-sends commands only from its services, behind the transmit gate.
+Section 2.1 holds the eight result frames (MuxID, counter, status bits, the value in the
+vendor unit, big- or little-endian: ``byte_order``) and the decisions on them. The command
+(0x411) and answer (0x511) frames are in protocols/ivt_s_commands.py: the bridge sends
+commands only from its services, behind the transmit gate.
 
 Speed: the bus thread decodes every frame (8 results x up to 100 Hz each), so ``decode``
 reads the value with code generated from the layout table (``LAYOUTS``, protocols/layout.py)

@@ -1,16 +1,11 @@
 """
 IVT-S commands (0x411, host -> sensor) and answers (0x511, sensor -> host).
 
-The layout is in docs/protocols.md section 2. Both are DLC 8 with a mux byte 0 (the
-vendor DBC IVT-S_12082020.dbc: IVT_ID_Cmd / IVT_ID_Response); unused bytes are 0.
-Multi-byte fields are big-endian whatever the result byte order is set to (the DBC's
-Motorola signals). Only what the public sources confirm is encoded here; the other
-commands of the DBC (CAN IDs, thresholds, triggers, log data) are not used by the bridge,
-and answers to them decode as ``OtherAnswer``.
-
-Each message is a layout table (protocols/layout.py) with the vendor DBC's start bits. As
-msg_defs/ivt_s.dbc has 0x411 / 0x511 only as a mux byte and opaque data, the tables are
-checked against golden frames typed by hand from the sources, not against a DBC.
+docs/protocols.md sections 2.2 and 2.3 hold the frames, their public sources, which
+commands the bridge sends and the decisions; answers to the commands it does not send
+decode as ``OtherAnswer``. Each message is a layout table (protocols/layout.py) with the
+vendor DBC's start bits, checked against hand-typed golden frames (msg_defs/ivt_s.dbc has
+no layout for these two IDs).
 """
 from __future__ import annotations
 
@@ -181,9 +176,8 @@ def _layout(name: str, *signals: Signal) -> Layout:
     return Layout(name, DLC, (Signal('IVT_ID', 7, 8, field='IVT-S mux ID'),) + signals)
 
 
-# 0x2n / 0xAn (_2n_Conf_*, _An_Resp_*), in the order of ResultConfig. Byte 1 bits 5..4 are
-# not in the DBC: written 0, as ivts (flags=0) and Stm32-vcu (0x42) do. Endianess 1 =
-# little-endian (Stm32-vcu writes 0x42 and decodes LE).
+# 0x2n / 0xAn (_2n_Conf_*, _An_Resp_*), in the order of ResultConfig; byte 1 bits 5..4 are
+# not in the DBC and stay 0 (section 2.3).
 CONFIG = _layout(
     'Conf_Result',
     Signal('Conf_TriggerMode', 9, 2, high=2, lookup=tuple(TriggerMode),

@@ -1,38 +1,12 @@
 """
 SMA Sunny Island BMS protocol: frames <-> typed readings (docs/protocols.md section 5).
 
-Fixed 11-bit IDs, little-endian fields; sent by SMA-compatible BMSs (Pylontech, BYD, ...)
-and by the ZEVA BMS16 next to its own frames:
-
-- 0x351 limits: charge voltage U16 0.1 V, charge / discharge current S16 0.1 A,
-  discharge voltage U16 0.1 V;
-- 0x355 SoC U16 %, SoH U16 %, optional high-resolution SoC U16 0.01 %; the SoC to publish
-  is ``SmaSoc.percent``;
-- 0x356 voltage S16 0.01 V, current S16 0.1 A (**positive = charging**), temperature
-  S16 0.1 degC;
-- 0x35A alarms (bytes 0..3) and warnings (bytes 4..7), 2 bits per condition
-  (1 active, 2 OK, 0 or 3 not supported); byte 7 bits 2-3 carry Victron's system
-  online / offline status, not a warning;
-- 0x35E manufacturer name, ASCII; 0x35F battery type, BMS version, capacity Ah;
-- the Pylontech (0x359, 0x35C) and Victron (0x370..0x382) dialects: ``sma_dialects``.
-
-Decisions:
-
-- The invalid markers 0x8000 (signed fields) and 0xFFFF (unsigned fields) decode as None
-  ("not available"); encoders write them for None.
-- Devices differ in how many bytes they send, so each message accepts a DLC range and a
-  field the frame is too short for decodes as None (0x35A: NOT_SUPPORTED): 0x351 6..8,
-  0x355 2 or 4..8 (diyBMS sends the SoC alone; 3 would split the SoH), 0x356 6..8,
-  0x35A 1..8, 0x35E 1..8, 0x35F 6..8. Anything else is malformed.
-- 0x355: real batteries put zeros, not 0xFFFF, in the unused high-resolution SoC (a BYD
-  LVS sends ``43 00 64 00 00 00 00 00`` at 67 %): it is used only when it agrees with the
-  integer SoC within HIRES_AGREEMENT_PCT, else the integer SoC (``SmaSoc.percent``).
-- 0x351 bytes 6-7 (discharge voltage limit) absent or zero mean "no limit" (None), not 0 V:
-  Pylontech-style BMSs send DLC 6 or zeros there.
-- The manufacturer name drops trailing NUL / space padding; a byte that is not printable
-  ASCII becomes '?' (a vendor's odd byte is not worth losing the frame for).
-- SMA defines no "generator" alarm (warning byte only); the pair is decoded like the others
-  so alarms and warnings share one set of names.
+Section 5 holds the frames, the "not available" markers, the accepted DLCs and the
+decisions on what real devices send (the high-resolution SoC, the missing discharge voltage
+limit, the online status in 0x35A). The bits are ``LAYOUTS`` here and ``DIALECT_LAYOUTS``
+in sma_dialects (Pylontech, Victron), both checked against msg_defs/sma.dbc by the first
+codec. The module adds the readings, the DLC ranges, the rules a DBC cannot say (0x351's
+zero limit, 0x35A's online pair, ``SmaSoc.percent``) and one codec for the whole family.
 """
 from __future__ import annotations
 
@@ -77,8 +51,7 @@ class SmaFlag(enum.IntEnum):
 
 _FLAGS = (SmaFlag.NOT_SUPPORTED, SmaFlag.ACTIVE, SmaFlag.OK, SmaFlag.NOT_SUPPORTED)
 
-# Condition k is the 2-bit pair at bits 2(k % 4)+1..2(k % 4) of byte k // 4 (alarms) and
-# of byte 4 + k // 4 (warnings).
+# 0x35A's conditions in wire order (alarms from byte 0, warnings from byte 4).
 SMA_CONDITIONS = (
     'general', 'high_voltage', 'low_voltage', 'high_temperature',
     'low_temperature', 'high_temperature_charge', 'low_temperature_charge',
@@ -194,11 +167,9 @@ ABSOLUTE_ZERO_C = -273.15
 
 
 # --- the wire layout, one table checked against msg_defs/sma.dbc ------------------------------
-# "Not available" is 0xFFFF (unsigned) or 0x8000 (signed); a frame cut short (DLC range) is
-# padded with 0xFF first, so the fields not sent read as not available. divide: 1234 -> 12.34.
-# A row's check is a value no BMS may send: the frame is malformed (docs/protocols.md
-# section 5): a state of charge above 100 % (it would publish percentage > 1), a temperature
-# below absolute zero.
+# A frame cut short (DLC range) is padded with 0xFF first, so the fields not sent read as
+# not available (sma_field's marker). divide: 1234 -> 12.34. A row's check is a value no BMS
+# may send: the frame is malformed (docs/protocols.md section 5.2).
 def _camel(name: str) -> str:
     return ''.join(part.capitalize() for part in name.split('_'))
 
@@ -249,8 +220,7 @@ def check_dbc() -> None:
 
 
 # --- how each frame is decoded and built: the SMA tables, then the dialects' -----------------
-# Frames of numbers: ID -> (reading, accepted DLCs); the SoC as diyBMS sends it alone (DLC
-# 2), DLC 3 would split the SoH.
+# Frames of numbers: ID -> (reading, accepted DLCs of section 5.2).
 _NUMBERS = {
     LIMITS_ID: (SmaLimits, (6, 7, 8)), SOC_ID: (SmaSoc, (2, 4, 5, 6, 7, 8)),
     BATTERY_ID: (SmaBattery, (6, 7, 8)), INFO_ID: (SmaBatteryInfo, (6, 7, 8)),

@@ -1,39 +1,12 @@
 """
-The SMA protocol's dialects: frames many SMA-speaking BMSs send next to (or instead of) 0x35A.
+The SMA protocol's dialects (Pylontech, Victron): frames sent next to, or instead of, 0x35A.
 
-The facts (not in the seed documents; confirmed from public vendor firmware and
-widely used open implementations of the Pylontech and Victron CAN protocols):
-
-- Pylontech (and the many BMSs that copy it) send **0x359** instead of 0x35A: byte 0 alarms
-  (bit 1 over-voltage, bit 2 under-voltage, bit 3 over-temperature, bit 4 under-temperature,
-  bit 7 discharge over-current), byte 1 alarms (bit 0 charge over-current, bit 3 BMS
-  internal), bytes 2 and 3 the same bits as warnings, byte 4 the module count; and **0x35C**
-  byte 0: bit 7 charge enable, bit 6 discharge enable, bit 5 request to charge immediately
-  (Pylontech's "force charge request I"), bit 4 force charge request II, bit 3 full charge
-  request (docs/protocols.md section 5).
-- Victron-compatible BMSs add **0x370/0x371** (BMS name, ASCII, 8 + 8 bytes), **0x372**
-  (U16 LE: modules OK, blocking charge, blocking discharge, offline), **0x373** (U16 LE: min
-  cell mV, max cell mV, min cell temperature K, max cell temperature K), **0x374..0x377**
-  (ASCII ids of the min/max voltage cell and the min/max temperature cell), **0x378** (U32
-  LE 0.1 kWh: energy charged, energy discharged), **0x379** (U16 LE installed capacity Ah)
-  and **0x382** (product name, ASCII).
-
-Decisions:
-
-- The 0x359 conditions carry the SMA 0x35A names (``high_voltage`` for over-voltage, ...), so
-  an alarm means the same to the device whichever dialect reported it. Bits the dialect does
-  not define are ignored (copies of the Pylontech frame use them differently); 0x359 bytes
-  after byte 4 and 0x35C bytes after byte 0 are not interpreted.
-- Accepted DLCs: 0x359 4..8 (DLC 4: module count not sent, None), 0x35C 1..8, 0x372 2, 4,
-  6 or 8 (Victron-style short frames: the counts not sent are None; an odd DLC would split
-  one), 0x373 8, 0x378 4..8 (DLC < 8: discharged energy None), 0x379 2..8, the ASCII frames
-  1..8. Anything else is malformed.
-- 0xFFFF in a U16 field and 0xFFFFFFFF in a U32 field are "not available" (None), as in
-  the SMA frames.
-  A min cell voltage above the max one (or a min temperature above the max) is malformed, and
-  so is a temperature above MAX_TEMPERATURE_K (3549 K = 3275.85 degC, inside the 3276.7 degC
-  the SMA frames themselves can carry): such a value would reach BatteryState.temperature.
-- ASCII: trailing NUL / space padding dropped, a non-printable byte becomes '?'.
+docs/protocols.md section 5.4 holds the frames, their public sources, the accepted DLCs
+and the decisions (0x359 takes the 0x35A condition names, the bits and bytes left
+uninterpreted, the cell temperature bound). The bits are ``DIALECT_LAYOUTS``, checked
+against msg_defs/sma.dbc by sma.check_dbc; sma.SmaCodec runs the tables of this module.
+It also holds what the whole SMA family shares: ``sma_field`` (a little-endian field with
+the "not available" marker), the ASCII helpers and ``pad_unsent``.
 """
 from __future__ import annotations
 

@@ -1,23 +1,10 @@
 """
-TC / Elcon chargers as a ZEVA EVMS3 drives them: 29-bit IDs, big-endian fields.
+TC / Elcon chargers as a ZEVA EVMS3 drives them (docs/protocols.md section 7).
 
-Facts (not in the seed documents): ZEVA's open EVMS3 firmware (MIT, August 2021) names the
-IDs of up to three chargers, ``TC_CHARGER1_RX_ID`` 0x1806E5F4 (EVMS -> charger) and
-``TC_CHARGER1_TX_ID`` 0x18FF50E5 (charger -> bus), then E7 and E8 for chargers 2 and 3; the
-fields are those of the TC/Elcon charger CAN protocol:
-
-- command: bytes 0-1 target voltage 0.1 V, bytes 2-3 current limit 0.1 A, byte 4 0 = charge,
-  1 = stop (ZEVA Monitor: "shutdown by BMS");
-- status: bytes 0-1 output voltage 0.1 V, bytes 2-3 output current 0.1 A, byte 4 status bits
-  (bit 0 hardware failure, bit 1 over-temperature shutdown, bit 2 input (AC) voltage error,
-  bit 3 battery fault / no battery, bit 4 communication timeout), byte 5 temperature (raw).
-
-Decisions:
-
-- DLC 5..8 for both (bytes after the defined ones are reserved); a command without byte 4
-  or a status without byte 4 is malformed, a status without byte 5 has no temperature.
-- A command byte 4 other than 0 or 1 is malformed. Status bits 5..7 are not defined: they
-  are kept (``ChargerStatus.status`` is the raw byte) and named 'bit 5'.. so they still warn.
+Section 7 holds the IDs of chargers 1..3, the fields, their sources and the decisions (DLC
+5..8, byte 4 required, byte 5 optional, status bits 5..7 kept). The bits are ``LAYOUTS``
+(checked against msg_defs/evms3.dbc by evms3.check_dbc); ``ChargerStatus.status`` is the raw
+status byte, so that bits the DBC does not name still warn.
 """
 from __future__ import annotations
 
@@ -93,8 +80,7 @@ ChargerReading = Union[ChargerCommand, ChargerStatus]
 
 
 # The same bits for chargers 1..3 (msg_defs/evms3.dbc TC_Charger<n>_*, checked by
-# evms3.check_dbc); fields big-endian (the default) but the bytes from 4 on. The status byte
-# stays raw: bits 5..7 are not in the DBC but still warn.
+# evms3.check_dbc); big-endian (the default) but the single bytes from byte 4 on.
 LAYOUTS = {
     'TC_Charger1_Command': Layout('TC_Charger1_Command', 8, (
         Signal('TargetVoltage', 7, 16, scale=0.1, unit='V', field='target_voltage_v'),
