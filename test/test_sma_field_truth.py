@@ -125,6 +125,7 @@ def test_discharge_voltage_limit_absent_or_zero_is_no_limit():
     assert CODEC.decode(0x351, BYD_351) == SmaLimits(58.4, 128.0, 128.0, 43.0)
     # dalathegreat/Battery-Emulator PYLON-LV-CAN.cpp sends 0x351 with DLC 6.
     assert CODEC.decode(0x351, BYD_351[:6]).discharge_voltage_v is None
+    assert CODEC.decode(0x351, BYD_351[:7]).discharge_voltage_v is None  # half a field
     zero = CODEC.decode(0x351, BYD_351[:6] + bytes(2))
     assert zero.discharge_voltage_v is None and zero.charge_voltage_v == 58.4
     device, _ = make()
@@ -190,6 +191,12 @@ def test_victron_energy_capacity_and_product_name():
     assert CODEC.encode(VictronEnergy(211.2, 183.5)) == Frame(0x378, BYD_378)
     assert CODEC.decode(0x378, BYD_378[:4]) == VictronEnergy(211.2, None)
     assert CODEC.decode(0x378, bytes([0xFF] * 8)) == VictronEnergy(None, None)
+    # A field sent in part is not sent: DLC 5 is the charged energy (0x840 = 211.2 kWh) and
+    # one byte of the discharged one, which must not read as 0xFFFFFF2B x 0.1 kWh.
+    assert CODEC.decode(0x378, bytes([0x40, 0x08, 0x00, 0x00, 0x2B])) \
+        == VictronEnergy(211.2, None)
+    assert CODEC.decode(0x378, bytes([0x40, 0x08, 0x00, 0x00, 0x2B, 0x07, 0x00])) \
+        == VictronEnergy(211.2, None)
     for can_id, dlc in ((0x378, 3), (0x379, 1), (0x382, 0)):
         with pytest.raises(MalformedFrameError, match=f'DLC {dlc}'):
             CODEC.decode(can_id, bytes(dlc))

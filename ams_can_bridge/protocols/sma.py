@@ -256,14 +256,15 @@ def _text_decoder(reading: type, lead: tuple) -> Callable[[bytes], SmaReading]:
 
 _D_ALARMS = LAYOUTS[ALARMS_ID].decoder()
 _TEXT_DLC = tuple(range(1, 9))
-# ID -> (accepted DLCs, length a frame cut short is padded to, decoder)
-_DECODERS: dict[int, tuple[tuple[int, ...], int, Callable[[bytes], SmaReading]]] = {
-    **{frame_id: (dlcs, _LAYOUTS[frame_id].length, _D[frame_id])
+# ID -> (accepted DLCs, layout a frame cut short is padded to or None, decoder)
+_DECODERS: dict[int, tuple[tuple[int, ...], Layout | None, Callable[[bytes], SmaReading]]] = {
+    **{frame_id: (dlcs, _LAYOUTS[frame_id], _D[frame_id])
        for frame_id, (_, dlcs) in _NUMBERS.items()},
-    **{frame_id: (_TEXT_DLC, 0, _text_decoder(reading, tuple(lead)))
+    **{frame_id: (_TEXT_DLC, None, _text_decoder(reading, tuple(lead)))
        for frame_id, (_, reading, *lead) in _TEXTS.items()},
-    LIMITS_ID: (_NUMBERS[LIMITS_ID][1], 8, _limits), ALARMS_ID: (_TEXT_DLC, 8, _alarms),
-    **{frame_id: (dlcs, 0, decode) for frame_id, (dlcs, decode) in DIALECT_DECODERS.items()},
+    LIMITS_ID: (_NUMBERS[LIMITS_ID][1], LAYOUTS[LIMITS_ID], _limits),
+    ALARMS_ID: (_TEXT_DLC, LAYOUTS[ALARMS_ID], _alarms),
+    **{frame_id: (dlcs, None, decode) for frame_id, (dlcs, decode) in DIALECT_DECODERS.items()},
 }
 
 
@@ -330,11 +331,13 @@ class SmaCodec:
         entry = _DECODERS.get(arbitration_id)
         if entry is None:
             raise MalformedFrameError(arbitration_id, data, 'not an SMA BMS ID')
-        dlcs, length, decode = entry
+        dlcs, layout, decode = entry
         if len(data) not in dlcs:
             check_dlc(arbitration_id, data, dlcs)
+        if layout is not None and len(data) < layout.length:
+            data = pad_unsent(data, layout)
         try:
-            return decode(data if len(data) >= length else pad_unsent(data, length))
+            return decode(data)
         except BadValue as exc:
             raise MalformedFrameError(arbitration_id, data, str(exc)) from None
 

@@ -253,7 +253,7 @@ DIALECT_TEXTS: dict[int, tuple] = {
 
 
 def _pylontech_alarms(data: bytes) -> PylontechAlarms:
-    *flags, count = _D_ALARMS(pad_unsent(data, 8))
+    *flags, count = _D_ALARMS(pad_unsent(data, DIALECT_LAYOUTS[PYLONTECH_ALARMS_ID]))
     return PylontechAlarms(
         frozenset(n for n, on in zip(PYLONTECH_CONDITION_NAMES, flags) if on),
         frozenset(n for n, on in zip(PYLONTECH_CONDITION_NAMES, flags[7:]) if on),
@@ -280,9 +280,21 @@ DIALECT_DECODERS: dict[int, tuple[tuple[int, ...], Callable[[bytes], DialectRead
 }
 
 
-def pad_unsent(data: bytes, length: int) -> bytes:
-    """Pad a frame cut short with 0xFF: the fields not sent read as "not available"."""
-    return data if len(data) >= length else bytes(data) + b'\xff' * (length - len(data))
+def pad_unsent(data: bytes, layout: Layout) -> bytes:
+    """
+    Pad a frame cut short with 0xFF: the fields not sent read as "not available".
+
+    A field sent in part is not sent: its bytes are dropped first, or ``378 40 08 00 00 2B``
+    (DLC 5) would read 0xFFFFFF2B as the discharged energy (docs/protocols.md section 5.2).
+    """
+    sent = len(data)
+    if sent >= layout.length:
+        return data
+    for s in layout.signals:  # every SMA field is little-endian: bytes first..last
+        first, last = s.start // 8, (s.start + s.length - 1) // 8
+        if first < sent <= last:
+            sent = first
+    return bytes(data[:sent]) + b'\xff' * (layout.length - sent)
 
 
 # --- encode (simulator, tests; the bridge's keep-alive) ---------------------------------------
