@@ -35,7 +35,7 @@ from __future__ import annotations
 import enum
 import functools
 from dataclasses import dataclass, fields
-from typing import Callable, Union
+from typing import Any, Callable, Union
 
 from ams_can_bridge.protocols.common import (
     check_dlc, ConfigField, EncodeRangeError, Frame, load_dbc, MalformedFrameError)
@@ -228,7 +228,7 @@ _D_CELLS = tuple(layout.decoder() for layout in LAYOUTS[CELLS_1:CELLS_3 + 1])
 _NINTH = tuple(tuple(256 * (bits >> k & 1) for k in range(8)) for bits in range(256))
 
 
-def unchecked_config_values(data: bytes, part: int) -> dict[str, float | int]:
+def unchecked_config_values(data: bytes, part: int) -> dict[str, Any]:
     """Return the values of configuration frame 1 or 2 (part) as on the wire, unchecked."""
     return SETTINGS.decode(part - 1, data)
 

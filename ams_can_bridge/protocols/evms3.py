@@ -34,8 +34,8 @@ from ams_can_bridge.protocols.common import (
     check_dlc, EncodeRangeError, Frame, load_dbc, MalformedFrameError)
 from ams_can_bridge.protocols.evms3_config import (  # noqa: F401 (re-exported)
     BALANCE_DYNAMIC, BALANCE_MODES, BALANCE_OFF, BMS12_MAX_MODULES, CELLS_MAX, CELLS_MIN,
-    check_config_value, config_layouts,
-    CONFIG_FIELDS, CONFIG_FILLER, config_payloads, ConfigReadback, ConfigReport,
+    CELL_NUMBERS_LAYOUT, check_config_value, CONFIG_FIELDS, CONFIG_FILLER, CONFIG_LAYOUTS,
+    config_payloads, ConfigReadback, ConfigReport,
     CORE_REQUEST_CONFIG, CORE_SEND_CELL_NUMS, CORE_SEND_CONFIG1, CORE_SEND_CONFIG2,
     CORE_SEND_CONFIG3, CORE_SEND_CONFIG4, decode_config_packet, Evms3Config, Evms3ConfigPart,
     READBACK_IDS, READBACK_NAMES)
@@ -147,8 +147,8 @@ _E_CELLS = LAYOUTS['BMS12_M0_Cells1to4'].encoder()
 _D_TEMPS = LAYOUTS['BMS12_M0_Temperatures'].decoder()
 _E_TEMPS = LAYOUTS['BMS12_M0_Temperatures'].encoder()
 # IDs 36 and 56: a nibble per BMS12 module (the configuration table, protocols.evms3_config)
-_D_CELL_NUMBERS = config_layouts()[4].decoder()
-_E_CELL_NUMBERS = config_layouts()[4].encoder()
+_D_CELL_NUMBERS = CELL_NUMBERS_LAYOUT.decoder()
+_E_CELL_NUMBERS = CELL_NUMBERS_LAYOUT.encoder()
 
 
 @functools.cache
@@ -165,7 +165,7 @@ def check_dbc() -> None:
     # the configuration, sent on 32..36 and read back on 52..56 in the same layout
     pairs = [(f'EVMS3_Config{k}', f'EVMS3_SendConfig{k}') for k in range(1, 5)] + [
         ('EVMS3_BmsCellNumbers', 'EVMS3_SendCellNumbers')]
-    for layout, names in zip(config_layouts(), pairs):
+    for layout, names in zip(CONFIG_LAYOUTS, pairs):
         for name in names:
             layout.check_dbc(db.get_message_by_name(name), 'msg_defs/evms3.dbc',
                              'EVMS3 configuration')
