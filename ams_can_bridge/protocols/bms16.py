@@ -168,31 +168,29 @@ def _cell_frame(first: int, count: int) -> tuple[Signal, ...]:
 # The configuration frames: each byte a setting, with the range and step the BMS16 accepts
 # (docs/protocols.md section 4); the ConfigFields and the checks come from these rows.
 _CONFIG_1 = Layout('BMS16_Config_1', 8, (
-    setting('Cells', 0, 'cells', 'number of cells in series', int, low=12, high=16),
-    setting('PackCapacity', 1, 'pack_capacity_ah', 'pack capacity', float, 10, low=10,
-            high=1000, unit='Ah'),
-    setting('SocWarning', 2, 'soc_warning_pct', 'SoC below which the BMS warns', float,
-            low=0, high=100, unit='%'),
-    setting('FullVoltage', 3, 'full_voltage_v',
-            'pack voltage at which the pack counts as full (SoC reset to 100 %)', float,
-            low=0, high=100, unit='V'),
-    setting('WarnCurrent', 4, 'warn_current_a', 'overcurrent warning threshold', float, 10,
-            low=0, high=1000, unit='A'),
-    setting('TripCurrent', 5, 'trip_current_a', 'overcurrent shutdown threshold', float, 10,
-            low=0, high=1000, unit='A'),
-    setting('TemperatureLimit', 6, 'temperature_limit_c', 'over-temperature limit', float,
-            low=0, high=100, unit='degC'),
-    setting('MinCellVoltage', 7, 'min_cell_v', 'minimum cell voltage (load disabled below)',
-            float, 0.05, low=1.0, high=5.0, unit='V')))
+    setting('Cells', 0, 'cells', 12, 16, '', 'number of cells in series'),
+    setting('PackCapacity', 1, 'pack_capacity_ah', 10, 1000, 'Ah', 'pack capacity', float, 10),
+    setting('SocWarning', 2, 'soc_warning_pct', 0, 100, '%', 'SoC below which the BMS warns',
+            float),
+    setting('FullVoltage', 3, 'full_voltage_v', 0, 100, 'V',
+            'pack voltage at which the pack counts as full (SoC reset to 100 %)', float),
+    setting('WarnCurrent', 4, 'warn_current_a', 0, 1000, 'A', 'overcurrent warning threshold',
+            float, 10),
+    setting('TripCurrent', 5, 'trip_current_a', 0, 1000, 'A',
+            'overcurrent shutdown threshold', float, 10),
+    setting('TemperatureLimit', 6, 'temperature_limit_c', 0, 100, 'degC',
+            'over-temperature limit', float),
+    setting('MinCellVoltage', 7, 'min_cell_v', 1.0, 5.0, 'V',
+            'minimum cell voltage (load disabled below)', float, 0.05)))
 _CONFIG_2 = Layout('BMS16_Config_2', 4, (
-    setting('MaxCellVoltage', 0, 'max_cell_v', 'maximum cell voltage (charge disabled above)',
-            float, 0.05, low=1.0, high=5.0, unit='V'),
-    setting('Hysteresis', 1, 'hysteresis_v', 'hysteresis on cell voltage trips', float, 0.05,
-            low=0.0, high=1.0, unit='V'),
-    setting('BalanceVoltage', 2, 'balance_v', 'shunt balancing threshold voltage', float,
-            0.05, low=1.0, high=5.0, unit='V'),
-    setting('ShuntSize', 3, 'shunt_size_a', 'current shunt size: 0 (no shunt), 100, 200 or '
-            '500 A', unit='A', lookup=SHUNT_SIZES_A)))
+    setting('MaxCellVoltage', 0, 'max_cell_v', 1.0, 5.0, 'V',
+            'maximum cell voltage (charge disabled above)', float, 0.05),
+    setting('Hysteresis', 1, 'hysteresis_v', 0.0, 1.0, 'V', 'hysteresis on cell voltage trips',
+            float, 0.05),
+    setting('BalanceVoltage', 2, 'balance_v', 1.0, 5.0, 'V', 'shunt balancing threshold voltage',
+            float, 0.05),
+    setting('ShuntSize', 3, 'shunt_size_a', 0, 500, 'A',
+            'current shunt size: 0 (no shunt), 100, 200 or 500 A', lookup=SHUNT_SIZES_A)))
 
 
 def _fault(s: Signal, raw: int, value: float | None) -> str:

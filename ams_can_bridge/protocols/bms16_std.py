@@ -105,44 +105,43 @@ class Bms16StdConfig:
 # Monitor shows OFF for the sentinel ends.
 _LAYOUTS = (
     Layout('BMS16_Std_Config1', 8, (
-        setting('PackCapacity', 0, 'pack_capacity_ah', 'pack capacity', int, 5, low=5,
-                high=1250, unit='Ah'),
-        setting('SocWarning', 1, 'soc_warning_pct', 'SoC below which the BMS16 warns', low=0,
-                high=99, unit='%'),
-        setting('FullVoltage', 2, 'full_voltage_v', 'pack voltage that counts as full',
-                low=5, high=70, unit='V'),
-        setting('WarnCurrent', 3, 'warn_current_a', 'overcurrent warning threshold', int, 10,
-                low=10, high=1210, unit='A', sentinel=(1210, 'off')),
-        setting('TripCurrent', 4, 'trip_current_a', 'overcurrent shutdown threshold', int, 10,
-                low=10, high=1210, unit='A', sentinel=(1210, 'off')),
-        setting('NumCells', 6, 'cells', 'number of cells in series (slot 6, NUM_CELLS)',
-                low=8, high=16),
-        setting('ShuntSize', 7, 'shunt_size_a', 'current shunt size: 0 (no shunt), 100, 200 '
-                'or 500 A (slot 7, SHUNT_SIZE)', unit='A', lookup=SHUNT_SIZES_A))),
+        setting('PackCapacity', 0, 'pack_capacity_ah', 5, 1250, 'Ah', 'pack capacity',
+                scale=5),
+        setting('SocWarning', 1, 'soc_warning_pct', 0, 99, '%',
+                'SoC below which the BMS16 warns'),
+        setting('FullVoltage', 2, 'full_voltage_v', 5, 70, 'V',
+                'pack voltage that counts as full'),
+        setting('WarnCurrent', 3, 'warn_current_a', 10, 1210, 'A',
+                'overcurrent warning threshold', scale=10, sentinel=(1210, 'off')),
+        setting('TripCurrent', 4, 'trip_current_a', 10, 1210, 'A',
+                'overcurrent shutdown threshold', scale=10, sentinel=(1210, 'off')),
+        setting('NumCells', 6, 'cells', 8, 16, '',
+                'number of cells in series (slot 6, NUM_CELLS)'),
+        setting('ShuntSize', 7, 'shunt_size_a', 0, 500, 'A', 'current shunt size: 0 (no '
+                'shunt), 100, 200 or 500 A (slot 7, SHUNT_SIZE)', lookup=SHUNT_SIZES_A))),
     Layout('BMS16_Std_Config2', 8, (
-        setting('MinCellVoltage', 5, 'min_cell_v', 'minimum cell voltage', float, 0.01, 1.5,
-                low=1.5, high=4.0, unit='V'),
-        setting('MaxCellVoltage', 6, 'max_cell_v', 'maximum cell voltage', float, 0.01, 2.0,
-                low=2.0, high=4.5, unit='V'),
+        setting('MinCellVoltage', 5, 'min_cell_v', 1.5, 4.0, 'V', 'minimum cell voltage',
+                float, 0.01, 1.5),
+        setting('MaxCellVoltage', 6, 'max_cell_v', 2.0, 4.5, 'V', 'maximum cell voltage',
+                float, 0.01, 2.0),
         BALANCE_ROW)),
     Layout('BMS16_Std_Config3', 8, (
-        setting('Hysteresis', 0, 'hysteresis_v', 'hysteresis on the cell voltage limits',
-                float, 0.01, low=0, high=0.5, unit='V'),
-        setting('MinTemp', 1, 'min_temp_c', 'minimum temperature', offset=-40, low=-40,
-                high=101, unit='degC', sentinel=(-40, 'off')),
-        setting('MaxTemp', 2, 'max_temp_c', 'maximum temperature', offset=-40, low=-40,
-                high=101, unit='degC', sentinel=(101, 'off')),
-        setting('ChargeVoltage', 3, 'max_charge_voltage_v', 'charger voltage', low=0, high=70,
-                unit='V'),
-        setting('ChargeCurrent', 4, 'max_charge_current_a', 'charger current (bit 7 of its '
-                'byte belongs to the charger voltage)', low=0, high=127, unit='A'))),
+        setting('Hysteresis', 0, 'hysteresis_v', 0, 0.5, 'V',
+                'hysteresis on the cell voltage limits', float, 0.01),
+        setting('MinTemp', 1, 'min_temp_c', -40, 101, 'degC', 'minimum temperature',
+                offset=-40, sentinel=(-40, 'off')),
+        setting('MaxTemp', 2, 'max_temp_c', -40, 101, 'degC', 'maximum temperature',
+                offset=-40, sentinel=(101, 'off')),
+        setting('ChargeVoltage', 3, 'max_charge_voltage_v', 0, 70, 'V', 'charger voltage'),
+        setting('ChargeCurrent', 4, 'max_charge_current_a', 0, 127, 'A',
+                'charger current (bit 7 of its byte belongs to the charger voltage)'))),
     Layout('BMS16_Std_Config4', 8, (
-        setting('StationaryMode', 5, 'stationary_mode', 'stationary (non-vehicle) mode',
-                flag=True),
-        setting('ReverseCurrentDisplay', 6, 'reverse_current_display',
-                "the Monitor shows the current's sign reversed", flag=True),
-        setting('NightBrightness', 7, 'night_brightness',
-                "the Monitor's night brightness, x10 %", low=0, high=10))))
+        setting('StationaryMode', 5, 'stationary_mode', 0, 1, '',
+                'stationary (non-vehicle) mode', bool),
+        setting('ReverseCurrentDisplay', 6, 'reverse_current_display', 0, 1, '',
+                "the Monitor shows the current's sign reversed", bool),
+        setting('NightBrightness', 7, 'night_brightness', 0, 10, '',
+                "the Monitor's night brightness, x10 %"))))
 SETTINGS = Settings(_LAYOUTS)
 _FIELDS = {f.name: f for f in (*SETTINGS.fields(), *BALANCE_FIELDS)}
 CONFIG_FIELDS: tuple[ConfigField, ...] = tuple(

@@ -25,14 +25,18 @@ from ams_can_bridge.protocols.common import ConfigField, EncodeRangeError
 from ams_can_bridge.protocols.layout import check_value, Layout, LITTLE, Signal
 
 
-def setting(name: str, byte: int, field: str, description: str, kind: type = int,
-            scale: float = 1, offset: float = 0, low: float | None = None,
-            high: float | None = None, unit: str = '', length: int = 8, bit: int = 0,
-            sentinel: tuple[float, str] | None = None, lookup: tuple | None = None,
-            flag: bool = False) -> Signal:
-    """Return the row of a little-endian setting in byte (bit) of its frame."""
+def setting(name: str, byte: int, field: str, low: float | None, high: float | None,
+            unit: str, description: str, kind: type = int, scale: float = 1,
+            offset: float = 0, length: int = 8, bit: int = 0,
+            sentinel: tuple[float, str] | None = None, lookup: tuple | None = None) -> Signal:
+    """
+    Return the row of a little-endian setting in byte (bit) of its frame.
+
+    The columns a settings table reads best in: signal name (the DBC's), byte, field, physical
+    range and unit, description; kind bool makes a 0/1 flag (range 0..1).
+    """
     return Signal(name, 8 * byte + bit, length, LITTLE, False, scale, offset, low, high, unit,
-                  field, flag, None, lookup, description, kind, sentinel)
+                  field, kind is bool, None, lookup, description, kind, sentinel)
 
 
 def raw_fault(s: Signal, raw: int, value: Any) -> str:
