@@ -19,12 +19,12 @@ from dataclasses import dataclass, field, fields, replace
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
 from ams_can_bridge.errors import ConfigError
+from ams_can_bridge.protocols.bms12 import BMS12_MAX_MODULES
 from ams_can_bridge.protocols.common import (
     ConfigField, EncodeRangeError, MalformedFrameError)
 from ams_can_bridge.protocols.layout import check_value, Layout, LITTLE, Signal
 from ams_can_bridge.protocols.settings import setting, Settings
 
-BMS12_MAX_MODULES = 16
 BALANCE_DYNAMIC = 251
 BALANCE_OFF = 252
 # Read-back (ZEVA's open firmware, MIT, August 2021): fixed IDs, not moved by base_id. ID 51
