@@ -31,16 +31,17 @@ from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols.common import (
     check_dlc, EncodeRangeError, Frame, load_dbc, MalformedFrameError)
 from ams_can_bridge.protocols.evms3_config import (  # noqa: F401 (re-exported)
-    BALANCE_DYNAMIC, BALANCE_MODES, BALANCE_OFF, BMS12_MAX_MODULES, CELLS_MAX, CELLS_MIN,
-    CELL_NUMBERS_LAYOUT, check_config_value, CONFIG_FIELDS, CONFIG_FILLER, CONFIG_LAYOUTS,
-    config_payloads, ConfigReadback, ConfigReport,
+    BALANCE_DYNAMIC, BALANCE_MODES, BALANCE_OFF, BMS12_MAX_MODULES, BmsCellNumbers,
+    cell_numbers_payload, CELLS_MAX, CELLS_MIN, check_config_value, CONFIG_FIELDS,
+    CONFIG_FILLER, CONFIG_LAYOUTS, config_payloads, ConfigReadback, ConfigReport,
     CORE_REQUEST_CONFIG, CORE_SEND_CELL_NUMS, CORE_SEND_CONFIG1, CORE_SEND_CONFIG2,
-    CORE_SEND_CONFIG3, CORE_SEND_CONFIG4, decode_config_packet, Evms3Config, Evms3ConfigPart,
-    READBACK_IDS, READBACK_NAMES)
+    CORE_SEND_CONFIG3, CORE_SEND_CONFIG4, decode_cell_numbers, decode_config_packet,
+    decode_report, Evms3Config, Evms3ConfigPart, OtherTraffic, READBACK_IDS, READBACK_NAMES,
+    SHARED_READBACK_IDS)
 from ams_can_bridge.protocols import bms12
 from ams_can_bridge.protocols.bms12 import (
     BMS12_BASE_ID, Bms12Cells, Bms12Request, Bms12Temperatures, decode_cells)
-from ams_can_bridge.protocols.layout import BIG, check_value, Layout, LITTLE, Signal
+from ams_can_bridge.protocols.layout import check_value, Layout, LITTLE, Signal
 from ams_can_bridge.protocols.tc_charger import (
     CHARGER_IDS, ChargerCommand, ChargerStatus, LAYOUTS as TC_LAYOUTS, TcChargerCodec)
 
@@ -48,9 +49,6 @@ BMS16_MARKER = 255  # ID 30 byte 5 (aux voltage on an EVMS3): EVMS_Monitor3.c se
 # ID 31 byte 0 (Common.h): CORE_IDLE_STATE 0, CORE_SETUP_STATE 1, CORE_SETUP_EDIT_FUEL_GAUGE 2,
 # CORE_SETUP_EDIT_TEMP_GAUGE 3
 CORE_SETUP_EDIT_TEMP_GAUGE = 3
-# IDs 52/53 are also MC_RECEIVE_SETTINGS_ID / MC_SEND_SETTINGS_ID (Common.h): a Monitor and a
-# ZEVA motor controller use them for the controller's settings.
-SHARED_READBACK_IDS = frozenset({CORE_SEND_CONFIG1, CORE_SEND_CONFIG2})
 CURRENT_OFFSET_MA = 8388608
 STATUS, SET_STATE, CONFIG1, CONFIG2, CONFIG3, CONFIG4 = range(6)
 CELL_NUMBERS, ACK_ERROR, RESET_SOC, POWER_OFF, BATTERY_CURRENT, ZERO_CURRENT = range(6, 12)
@@ -96,38 +94,28 @@ _ERRORS = tuple(Evms3Error)
 
 # --- the wire layout: one table, checked against msg_defs/evms3.dbc --------------------------
 # ZEVA's firmware divides (1234 -> 123.4 V): divide=True keeps those values exact.
-def _u(name: str, start: int, length: int = 8, scale: float = 1, offset: float = 0,
-       low: float | None = None, high: float | None = None, unit: str = '', field: str = '',
-       order: str = LITTLE, invalid: int | None = None, flag: bool = False,
-       lookup: tuple | None = None) -> Signal:
-    return Signal(name, start, length, order, False, scale, offset, low, high, unit, field,
-                  flag, invalid, lookup)
-
-
 LAYOUTS = {
     'EVMS3_Status': Layout('EVMS3_Status', 8, (
-        _u('State', 0, 3, high=5, field='state', lookup=tuple(Evms3State)),
-        _u('ErrorCode', 3, 5, high=16, field='error', lookup=tuple(Evms3Error)),
-        _u('AmpHoursRemaining', 15, 16, 0.1, unit='Ah', field='amp_hours_ah', order=BIG),
-        _u('BatteryVoltage', 31, 16, 0.1, unit='V', field='pack_voltage_v', order=BIG),
-        _u('AuxVoltage', 40, 8, 0.1, unit='V', field='aux_voltage_v'),
-        _u('IsolationIntegrity', 48, 7, high=100, unit='%', field='isolation_pct',
-           invalid=101, lookup=tuple(range(101)) + (None,)),  # 101: cannot be measured
-        _u('Headlights', 55, 1, field='headlights', flag=True),
-        _u('Temperature', 56, 8, 1, -40, unit='degC', field='temperature_c', invalid=0)),
-        divide=True),  # raw 0: no sensor
+        Signal('State', 0, 3, LITTLE, high=5, field='state', lookup=tuple(Evms3State)),
+        Signal('ErrorCode', 3, 5, LITTLE, high=16, field='error', lookup=tuple(Evms3Error)),
+        Signal('AmpHoursRemaining', 15, 16, scale=0.1, unit='Ah', field='amp_hours_ah'),
+        Signal('BatteryVoltage', 31, 16, scale=0.1, unit='V', field='pack_voltage_v'),
+        Signal('AuxVoltage', 40, 8, LITTLE, scale=0.1, unit='V', field='aux_voltage_v'),
+        Signal('IsolationIntegrity', 48, 7, LITTLE, high=100, unit='%', field='isolation_pct',
+               invalid=101, lookup=tuple(range(101)) + (None,)),  # 101: cannot be measured
+        Signal('Headlights', 55, 1, LITTLE, field='headlights', flag=True),
+        Signal('Temperature', 56, 8, LITTLE, offset=-40, unit='degC', field='temperature_c',
+               invalid=0)),  # raw 0: no sensor
+        divide=True),
     'EVMS3_BatteryCurrent': Layout('EVMS3_BatteryCurrent', 3, (
-        _u('BatteryCurrent', 7, 24, 0.001, -8388.608, unit='A', field='current_a',
-           order=BIG),), divide=True),
+        Signal('BatteryCurrent', 7, 24, scale=0.001, offset=-8388.608, unit='A',
+               field='current_a'),), divide=True),
 }
 _D_STATUS_RAW = LAYOUTS['EVMS3_Status'].decoder('State', 'ErrorCode', 'IsolationIntegrity',
                                                 raw=True)
 _E_STATUS = LAYOUTS['EVMS3_Status'].encoder()
 _D_CURRENT = LAYOUTS['EVMS3_BatteryCurrent'].decoder()
 _E_CURRENT = LAYOUTS['EVMS3_BatteryCurrent'].encoder()
-# IDs 36 and 56: a nibble per BMS12 module (the configuration table, protocols.evms3_config)
-_D_CELL_NUMBERS = CELL_NUMBERS_LAYOUT.decoder()
-_E_CELL_NUMBERS = CELL_NUMBERS_LAYOUT.encoder()
 
 
 @functools.cache
@@ -183,21 +171,6 @@ class SetState:
     setup: bool
     request: int | None = None  # DLC 2 only: CORE_SETUP_STATE 1, EDIT_FUEL 2, EDIT_TEMP 3
     gauge_value: int | None = None
-
-
-@dataclass(frozen=True, slots=True)
-class OtherTraffic:
-    """A frame on an ID the EVMS3 shares (52, 53) that carries no EVMS3 state: ignored."""
-
-    arbitration_id: int
-    what: str
-
-
-@dataclass(frozen=True, slots=True)
-class BmsCellNumbers:
-    """ID 36: cells per BMS12 module, 16 values (0 or 4..12 to send; 4 bits on the wire)."""
-
-    cells_per_module: tuple[int, ...]
 
 
 @dataclass(frozen=True, slots=True)
@@ -302,7 +275,8 @@ class Evms3Codec:
         b = base_id
         self._decoders = {
             b + STATUS: self._decode_status, b + SET_STATE: self._decode_set_state,
-            b + CELL_NUMBERS: self._decode_cell_numbers, b + ACK_ERROR: self._decode_ack,
+            b + CELL_NUMBERS: lambda aid, data: BmsCellNumbers(decode_cell_numbers(aid, data)),
+            b + ACK_ERROR: self._decode_ack,
             b + POWER_OFF: self._decode_empty, b + ZERO_CURRENT: self._decode_empty,
             b + BATTERY_CURRENT: self._decode_current,
             # any DLC: ZEVA's 2021 firmware reads a SoC byte, older firmware none
@@ -310,8 +284,8 @@ class Evms3Codec:
         }
         for packet in range(4):
             self._decoders[b + CONFIG1 + packet] = self._decode_config
-            self._decoders[CORE_SEND_CONFIG1 + packet] = self._decode_report
-        self._decoders[CORE_SEND_CELL_NUMS] = self._decode_report
+        for aid in READBACK_IDS:  # 52..56: the EVMS's answer to 51 (or foreign traffic)
+            self._decoders[aid] = self._decode_report
 
     # --- decode ---------------------------------------------------------------------------
     def decode(self, arbitration_id: int, data: bytes) -> Any:
@@ -349,37 +323,11 @@ class Evms3Codec:
         return SetState(bool(data[0]))
 
     def _decode_config(self, aid: int, data: bytes) -> Evms3ConfigPart:
-        check_dlc(aid, data, 8)  # ID 35 too: bytes 6-7 are settings 30-31 (Common.h)
         return decode_config_packet(aid - self.base_id - CONFIG1, aid, data,
                                     self.voltage_multiplier)
 
     def _decode_report(self, aid: int, data: bytes) -> ConfigReport | OtherTraffic:
-        if aid == CORE_SEND_CELL_NUMS:
-            cells = self._decode_cell_numbers(aid, data).cells_per_module
-            return ConfigReport(aid, {'cells_per_module': cells})
-        packet = aid - CORE_SEND_CONFIG1
-        if aid in SHARED_READBACK_IDS:
-            # A Monitor's or motor controller's frame here is normal traffic: only a
-            # frame that reads as the EVMS3's packet counts, the rest is ignored.
-            if len(data) != 8:
-                return OtherTraffic(aid, f'DLC {len(data)}: motor-controller settings traffic')
-            try:
-                part = decode_config_packet(packet, aid, data, self.voltage_multiplier)
-            except MalformedFrameError as exc:
-                return OtherTraffic(aid, f'not an EVMS3 configuration ({exc.reason})')
-            return ConfigReport(aid, part.values)
-        check_dlc(aid, data, 8)
-        return ConfigReport(aid, decode_config_packet(packet, aid, data,
-                                                      self.voltage_multiplier).values)
-
-    def _decode_cell_numbers(self, aid: int, data: bytes) -> BmsCellNumbers:
-        check_dlc(aid, data, 8)
-        cells = _D_CELL_NUMBERS(data)
-        for m, n in enumerate(cells):
-            if 0 < n < CELLS_MIN or n > CELLS_MAX:  # 13..15 overrun the firmware's arrays
-                raise MalformedFrameError(aid, data, f'module {m}: {n} cells (0 or '
-                                          f'{CELLS_MIN}..{CELLS_MAX})')
-        return BmsCellNumbers(cells)
+        return decode_report(aid, data, self.voltage_multiplier)
 
     def _decode_ack(self, aid: int, data: bytes) -> AcknowledgeError:
         check_dlc(aid, data, 1)
@@ -432,8 +380,7 @@ class Evms3Codec:
             cfg = Evms3Config.from_mapping({**CONFIG_FILLER, **msg.values})
             return self.config_frames(cfg)[msg.part - 1]
         if isinstance(msg, BmsCellNumbers):
-            cells = check_config_value('cells_per_module', msg.cells_per_module)
-            return self._frame(CELL_NUMBERS, _E_CELL_NUMBERS(*cells))
+            return self._frame(CELL_NUMBERS, cell_numbers_payload(msg.cells_per_module))
         if isinstance(msg, AcknowledgeError):
             return self._frame(ACK_ERROR, bytes([
                 check_value('error', msg.error, 0, len(_ERRORS) - 1, integer=True)]))

@@ -21,7 +21,7 @@ from typing import Any, Callable, Iterable, Mapping, Sequence
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols.bms12 import BMS12_MAX_MODULES
 from ams_can_bridge.protocols.common import (
-    ConfigField, EncodeRangeError, MalformedFrameError)
+    check_dlc, ConfigField, EncodeRangeError, MalformedFrameError)
 from ams_can_bridge.protocols.layout import check_value, Layout, LITTLE, Signal
 from ams_can_bridge.protocols.settings import setting, Settings
 
@@ -33,6 +33,9 @@ CORE_REQUEST_CONFIG = 51
 CORE_SEND_CONFIG1, CORE_SEND_CONFIG2, CORE_SEND_CONFIG3, CORE_SEND_CONFIG4 = range(52, 56)
 CORE_SEND_CELL_NUMS = 56
 READBACK_IDS = range(CORE_SEND_CONFIG1, CORE_SEND_CELL_NUMS + 1)
+# IDs 52/53 are also MC_RECEIVE_SETTINGS_ID / MC_SEND_SETTINGS_ID (Common.h): a Monitor and a
+# ZEVA motor controller use them for the controller's settings.
+SHARED_READBACK_IDS = frozenset({CORE_SEND_CONFIG1, CORE_SEND_CONFIG2})
 READBACK_NAMES = {52: 'config 1', 53: 'config 2', 54: 'config 3', 55: 'config 4',
                   56: 'cell numbers'}
 # Cells per BMS12 module: 0 (absent) or 4..12 (the firmware holds 12 cells a module; the
@@ -112,6 +115,21 @@ class Evms3ConfigPart:
 
     part: int
     values: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True, slots=True)
+class BmsCellNumbers:
+    """ID 36: cells per BMS12 module, 16 values (0 or 4..12 to send; 4 bits on the wire)."""
+
+    cells_per_module: tuple[int, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class OtherTraffic:
+    """A frame on an ID the EVMS3 shares (52, 53) that carries no EVMS3 state: ignored."""
+
+    arbitration_id: int
+    what: str
 
 
 @dataclass(frozen=True)
@@ -272,6 +290,8 @@ _CONFIG4 = Layout('EVMS3_Config4', 8, (
             'Monitor night brightness, x 10 %')))
 CELL_NUMBERS_LAYOUT = Layout('EVMS3_BmsCellNumbers', 8, tuple(
     Signal(f'Module{m}Cells', 4 * m, 4, LITTLE) for m in range(BMS12_MAX_MODULES)))
+_D_CELL_NUMBERS = CELL_NUMBERS_LAYOUT.decoder()
+_E_CELL_NUMBERS = CELL_NUMBERS_LAYOUT.encoder()
 CONFIG_LAYOUTS = (_CONFIG1, _CONFIG2, _CONFIG3, _CONFIG4, CELL_NUMBERS_LAYOUT)
 # By PACK_VOLTAGE_MULTIPLIER: an 800 V build counts the full voltage in 4 V steps.
 _SETTINGS = {1: Settings(CONFIG_LAYOUTS[:4]), 2: Settings((_CONFIG1.replace(
@@ -341,6 +361,7 @@ def decode_config_packet(packet: int, aid: int, data: bytes,
     """Decode packet 0..3 (the layout of 32..35); MalformedFrameError for a raw value."""
     def fail(why: str) -> Exception:
         return MalformedFrameError(aid, data, why)
+    check_dlc(aid, data, 8)  # ID 35 too: bytes 6-7 are settings 30-31 (Common.h)
     values = _SETTINGS[multiplier].decode(packet, data, fail)
     if packet == 1:
         values.update(balance_values(data[7], fail))
@@ -349,6 +370,39 @@ def decode_config_packet(packet: int, aid: int, data: bytes,
         values['max_charge_voltage_v'] = (max_low + max_bit8) * multiplier
         values['alt_charge_voltage_v'] = (alt_low + alt_bit8) * multiplier
     return Evms3ConfigPart(packet + 1, values)
+
+
+def decode_report(aid: int, data: bytes, multiplier: int = 1) -> ConfigReport | OtherTraffic:
+    """Decode one packet of the EVMS's answer to ID 51 (52..55 config, 56 cell numbers)."""
+    if aid == CORE_SEND_CELL_NUMS:
+        return ConfigReport(aid, {'cells_per_module': decode_cell_numbers(aid, data)})
+    # A Monitor's or motor controller's frame on 52/53 is normal traffic: only a frame that
+    # reads as the EVMS3's packet counts, the rest is ignored.
+    if aid in SHARED_READBACK_IDS and len(data) != 8:
+        return OtherTraffic(aid, f'DLC {len(data)}: motor-controller settings traffic')
+    try:
+        part = decode_config_packet(aid - CORE_SEND_CONFIG1, aid, data, multiplier)
+    except MalformedFrameError as exc:
+        if aid not in SHARED_READBACK_IDS:
+            raise
+        return OtherTraffic(aid, f'not an EVMS3 configuration ({exc.reason})')
+    return ConfigReport(aid, part.values)
+
+
+def decode_cell_numbers(aid: int, data: bytes) -> tuple[int, ...]:
+    """Decode ID 36 or 56: cells per module; MalformedFrameError for 1..3 or 13..15."""
+    check_dlc(aid, data, 8)
+    cells = _D_CELL_NUMBERS(data)
+    for m, n in enumerate(cells):
+        if 0 < n < CELLS_MIN or n > CELLS_MAX:  # 13..15 overrun the firmware's arrays
+            raise MalformedFrameError(aid, data, f'module {m}: {n} cells (0 or '
+                                      f'{CELLS_MIN}..{CELLS_MAX})')
+    return cells
+
+
+def cell_numbers_payload(cells_per_module: Sequence[int]) -> bytes:
+    """Return the payload of ID 36 (and 56); EncodeRangeError names a bad module."""
+    return _E_CELL_NUMBERS(*check_config_value('cells_per_module', cells_per_module))
 
 
 # Valid values to encode a single decoded part: the other parts' fields do not reach its frame.
