@@ -45,7 +45,7 @@ def test_payload_and_decode_are_the_rows_both_ways():
 
 @pytest.mark.parametrize('name,value,allowed', [
     ('warn_a', 1215, '10..1210 A in steps of 10 A'), ('warn_a', 0, '10..1210 A'),
-    ('cell_v', 3.655, '1.5..4 V in steps of 0.01 V'), ('on', 2, 'true or false'),
+    ('cell_v', 3.655, '1.5..4 V in steps of 0.01 V'), ('on', 2, 'True/False (or 0/1)'),
     ('shunt_a', 300, 'shunt: 0, 100, 200 or 500 A'), ('shunt_a', True, 'shunt: 0'),
     ('nothing', 1, 'one of warn_a, on, cell_v, shunt_a'),
 ])

@@ -263,7 +263,7 @@ class Bms16Codec:
         self.base_id = base_id
         self.arbitration_ids = frozenset(range(base_id, base_id + ID_COUNT))
         self._decoders = (self._status, self._cells, self._cells, self._cells,
-                          self._config1, self._config2, self._command, self._command,
+                          self._config, self._config, self._command, self._command,
                           self._command)
 
     # --- decode ---------------------------------------------------------------------
@@ -295,12 +295,10 @@ class Bms16Codec:
             [(low + high) / 100 for low, high in zip(lows, _NINTH[ninth])]))
 
     @staticmethod
-    def _config1(arbitration_id: int, offset: int, data: bytes) -> Bms16ConfigPart1:
-        return Bms16ConfigPart1(**SETTINGS.decode(0, data, _malformed(arbitration_id, data)))
-
-    @staticmethod
-    def _config2(arbitration_id: int, offset: int, data: bytes) -> Bms16ConfigPart2:
-        return Bms16ConfigPart2(**SETTINGS.decode(1, data, _malformed(arbitration_id, data)))
+    def _config(arbitration_id: int, offset: int, data: bytes) -> Bms16Reading:
+        part = offset - CONFIG_1  # 0, 1: the frames of SETTINGS
+        values = SETTINGS.decode(part, data, _malformed(arbitration_id, data))
+        return (Bms16ConfigPart1, Bms16ConfigPart2)[part](**values)
 
     @staticmethod
     def _command(arbitration_id: int, offset: int, data: bytes) -> Bms16Reading:

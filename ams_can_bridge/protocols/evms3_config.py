@@ -10,7 +10,9 @@ warn/trip current 1210 A = off, EVMS temperature warning 151 = off, BMS minimum 
 (Common.h ``PACK_VOLTAGE_MULTIPLIER`` 2) doubles full and charge voltages (``multiplier``).
 ZEVA's open EVMS3 firmware (MIT, August 2021) also reports them: ID 51 asks, 52..55 answer
 in the layout of 32..35 and 56 in the layout of 36 (``ConfigReport``, joined by
-``ConfigReadback``). ``protocols.evms3`` builds and reads the frames and re-exports every
+``ConfigReadback``). The settings are rows of the layout table (protocols/settings.py derives
+the fields, checks and payloads); this module adds the balance byte, the 9-bit charge
+voltages and the cell nibbles. ``protocols.evms3`` builds the frames and re-exports every
 name here.
 """
 from __future__ import annotations
@@ -302,7 +304,11 @@ _D_CHARGE = _CONFIG3.decoder('MaxChargeVoltageLow', 'MaxChargeVoltageBit8',
 SENTINELS: dict[str, tuple[float, str]] = _SETTINGS[1].sentinels()
 
 
+_X2 = '; x 2 with voltage_multiplier 2)'
+
+
 def _build_fields() -> tuple[ConfigField, ...]:
+    """Return the fields in Evms3Config's order: the rows', the balance and charge voltages."""
     by_name = {f.name: f for f in (*_SETTINGS[1].fields(), *BALANCE_FIELDS)}
     full = by_name['full_voltage_v']  # declared wide enough for both builds
     by_name[full.name] = replace(full, high=_SETTINGS[2].field(full.name).high,
@@ -315,7 +321,6 @@ def _build_fields() -> tuple[ConfigField, ...]:
         'cells on each of the 16 BMS12 modules (0 or 4..12), ID 36', length=BMS12_MAX_MODULES),)
 
 
-_X2 = '; x 2 with voltage_multiplier 2)'
 CONFIG_FIELDS: tuple[ConfigField, ...] = _build_fields()
 
 

@@ -22,7 +22,7 @@ from __future__ import annotations
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
 from ams_can_bridge.protocols.common import ConfigField, EncodeRangeError
-from ams_can_bridge.protocols.layout import check_value, Layout, LITTLE, Signal
+from ams_can_bridge.protocols.layout import check_flag, check_value, Layout, LITTLE, Signal
 
 
 def setting(name: str, byte: int, field: str, low: float | None, high: float | None,
@@ -108,9 +108,7 @@ class Settings:
         if s is None:
             raise EncodeRangeError(name, value, 'one of ' + ', '.join(self.rows))
         if s.flag:
-            if isinstance(value, bool) or (isinstance(value, int) and value in (0, 1)):
-                return bool(value)
-            raise EncodeRangeError(name, value, 'true or false')
+            return bool(check_flag(name, value))
         if s.lookup is not None:
             if isinstance(value, bool) or not isinstance(value, (int, float)) \
                     or value not in s.lookup:
