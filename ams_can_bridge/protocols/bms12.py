@@ -90,7 +90,7 @@ def decode(aid: int, data: bytes, module: int, t: int) -> Any:
 
 def encode(msg: Bms12Request | Bms12Cells | Bms12Temperatures, base_id: int,
            extended_id: bool) -> Frame:
-    """Reading -> Frame of its module (IDs from base_id); EncodeRangeError if out of range."""
+    """Build the frame of a module reading (IDs from base_id); EncodeRangeError if bad."""
     module = check_value('module', msg.module, 0, BMS12_MAX_MODULES - 1, integer=True)
     base = base_id + 10 * module
     if isinstance(msg, Bms12Request):
