@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
+from ams_can_bridge.errors import LayoutError
 from ams_can_bridge.protocols.common import ConfigField, EncodeRangeError
 from ams_can_bridge.protocols.layout import check_flag, check_value, Layout, LITTLE, Signal
 
@@ -72,8 +73,14 @@ class Settings:
         """
         self.layouts = tuple(layouts)
         self.rows = {s.field: s for layout in self.layouts for s in layout.signals if s.field}
-        self._raw = tuple(layout.decoder(raw=True) for layout in self.layouts)
         self._bounds = {name: raw_bounds(s) for name, s in self.rows.items()}
+        # Decoding: the generated raw decoder of each frame's settings, and per setting its
+        # raw range and its value of every raw value (a setting is a byte or less).
+        self._raw = tuple(layout.decoder(*(s.name for s in layout.signals if s.field), raw=True)
+                          for layout in self.layouts)
+        self._plans = tuple(tuple(
+            (s.field, *self._bounds[s.field], self._values(s)) for s in layout.signals
+            if s.field) for layout in self.layouts)
         self._fault = fault
         self._ranged = ranged
 
@@ -165,15 +172,18 @@ class Settings:
         wire, unchecked (a simulator clamps them, as the device does).
         """
         values: dict[str, Any] = {}
-        for s, raw in zip(self.layouts[k].signals, self._raw[k](data)):
-            if not s.field:
-                continue
-            low, high = self._bounds[s.field]
-            if fail is not None and not low <= raw <= high:
-                value = None if s.lookup is not None else self.physical(s, raw)
-                raise fail(self._fault(s, raw, value))
-            values[s.field] = self.physical(s, raw)
+        for (name, low, high, value), raw in zip(self._plans[k], self._raw[k](data)):
+            if not low <= raw <= high and fail is not None:
+                raise fail(self._fault(self.rows[name], raw, value[raw]))
+            values[name] = value[raw]
         return values
+
+    def _values(self, s: Signal) -> tuple:
+        """Return the value of each raw value of a setting (None past its enum codes)."""
+        if s.length > 8:
+            raise LayoutError(f'{s.name}: a setting is a byte or less, not {s.length} bits')
+        return tuple(None if s.lookup is not None and raw >= len(s.lookup)
+                     else self.physical(s, raw) for raw in range(1 << s.length))
 
     def fields(self, names: Iterable[str] | None = None) -> tuple[ConfigField, ...]:
         """Return the ConfigFields of names (default: every setting, in frame order)."""
