@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import enum
 import functools
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import Any, Callable, Union
 
 from ams_can_bridge.protocols.common import (
@@ -149,9 +149,6 @@ class PowerOff:
 
 Bms16Reading = Union[Bms16Status, Bms16Cells, Bms16ConfigPart1, Bms16ConfigPart2,
                      AcknowledgeError, ResetSoc, PowerOff]
-
-_PART1 = tuple(f.name for f in fields(Bms16ConfigPart1))
-_PART2 = tuple(f.name for f in fields(Bms16ConfigPart2))
 
 
 # --- the wire layout: one table, checked against msg_defs/bms16.dbc --------------------------

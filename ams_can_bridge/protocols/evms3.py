@@ -30,14 +30,12 @@ from typing import Any, Sequence
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols.common import (
     check_dlc, EncodeRangeError, Frame, load_dbc, MalformedFrameError)
-from ams_can_bridge.protocols.evms3_config import (  # noqa: F401 (re-exported)
-    BALANCE_DYNAMIC, BALANCE_MODES, BALANCE_OFF, BMS12_MAX_MODULES, BmsCellNumbers,
-    cell_numbers_payload, CELLS_MAX, CELLS_MIN, check_config_value, CONFIG_FIELDS,
+from ams_can_bridge.protocols.evms3_config import (  # noqa: F401 (some re-exported)
+    BMS12_MAX_MODULES, BmsCellNumbers, cell_numbers_payload, check_config_value, CONFIG_FIELDS,
     CONFIG_FILLER, CONFIG_LAYOUTS, config_payloads, ConfigReadback, ConfigReport,
-    CORE_REQUEST_CONFIG, CORE_SEND_CELL_NUMS, CORE_SEND_CONFIG1, CORE_SEND_CONFIG2,
-    CORE_SEND_CONFIG3, CORE_SEND_CONFIG4, decode_cell_numbers, decode_config_packet,
-    decode_report, Evms3Config, Evms3ConfigPart, OtherTraffic, READBACK_IDS, READBACK_NAMES,
-    SHARED_READBACK_IDS)
+    CORE_REQUEST_CONFIG, CORE_SEND_CELL_NUMS, CORE_SEND_CONFIG1, decode_cell_numbers,
+    decode_config_packet, decode_report, Evms3Config, Evms3ConfigPart, OtherTraffic,
+    READBACK_IDS, READBACK_NAMES)
 from ams_can_bridge.protocols import bms12
 from ams_can_bridge.protocols.bms12 import (
     BMS12_BASE_ID, Bms12Cells, Bms12Request, Bms12Temperatures, decode_cells)

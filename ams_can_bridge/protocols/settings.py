@@ -19,7 +19,7 @@ protocol module reads and writes itself: the rules a table cannot state.
 """
 from __future__ import annotations
 
-from typing import Any, Callable, Iterable, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 from ams_can_bridge.errors import LayoutError
 from ams_can_bridge.protocols.common import ConfigField, EncodeRangeError
@@ -185,6 +185,6 @@ class Settings:
         return tuple(None if s.lookup is not None and raw >= len(s.lookup)
                      else self.physical(s, raw) for raw in range(1 << s.length))
 
-    def fields(self, names: Iterable[str] | None = None) -> tuple[ConfigField, ...]:
-        """Return the ConfigFields of names (default: every setting, in frame order)."""
-        return tuple(self.field(name) for name in (self.rows if names is None else names))
+    def fields(self) -> tuple[ConfigField, ...]:
+        """Return the ConfigField of every setting, in frame order."""
+        return tuple(self.field(name) for name in self.rows)
