@@ -20,15 +20,18 @@ Decisions (where the vendor document is silent):
   bits 6..7 of the others) are ignored, not malformed: the vendor does not say what the
   firmware puts there, and rejecting the frame would blank real cell readings for it.
 - An error code above 8 or a shunt-size code above 3 is malformed (no such value exists).
-- Configuration frames are decoded as sent (the BMS16 itself restricts received values to
-  its ranges, the simulator does the same); the encoder instead refuses any value outside
-  a range or off its step with EncodeRangeError: nothing is clamped or rounded.
+- A configuration frame with a byte outside its documented range is malformed: the BMS16
+  itself clamps such a value (the simulator too, through ``unchecked_config_values``), so
+  the frame is not a configuration the bridge can trust. The encoder refuses any value
+  outside a range or off its step with EncodeRangeError: nothing is clamped or rounded.
 - Telemetry encoders (used by the simulator) round to the wire resolution and refuse what
   the wire cannot carry.
 
 Speed: ``decode`` runs in the bus thread for every frame; its bits come from code generated
 from ``LAYOUTS`` (protocols/layout.py), a table the codec checks against msg_defs/bms16.dbc
-at construction. The module adds the 9th bits of the cells and the enum codes.
+at construction. The configuration rows carry each setting's range, step, unit and
+description (protocols/settings.py derives the fields and checks); the module adds the 9th
+bits of the cells and the enum codes.
 """
 from __future__ import annotations
 
@@ -229,12 +232,7 @@ def unchecked_config_values(data: bytes, part: int) -> dict[str, Any]:
 
 
 def _malformed(arbitration_id: int, data: bytes) -> Callable[[str], MalformedFrameError]:
-    """
-    Return fail(why) for a configuration byte outside the documented range.
-
-    The BMS16 itself clamps such a value (the simulator does: ``unchecked_config_values``);
-    a frame seen on the bus with one is not a configuration the bridge can trust.
-    """
+    """Return fail(why) for a configuration byte outside the documented range."""
     return lambda why: MalformedFrameError(arbitration_id, data, why)
 
 

@@ -20,7 +20,7 @@ here because its bytes 5 and 6 mean something else on a BMS16.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Mapping
 
 from ams_can_bridge.errors import BadConfigBytes, ConfigError
@@ -32,8 +32,8 @@ from ams_can_bridge.protocols.evms3 import (
     PowerOff, ResetSoc, status_fault)
 from ams_can_bridge.protocols.evms3_config import (  # noqa: F401 (BALANCE_*: public here too)
     balance_byte, BALANCE_DYNAMIC, BALANCE_FIELDS, BALANCE_MODES, BALANCE_NAMES, BALANCE_OFF,
-    BALANCE_ROW, balance_values, check_balance)
-from ams_can_bridge.protocols.layout import check_value, Layout
+    BALANCE_ROW, balance_values, check_balance, CONFIG_LAYOUTS)
+from ams_can_bridge.protocols.layout import check_value, Layout, Signal
 from ams_can_bridge.protocols.settings import setting, Settings
 
 DEFAULT_BASE_ID = 30                  # Common.h CAN_BASE_ID
@@ -98,50 +98,45 @@ class Bms16StdConfig:
     night_brightness: int
 
 
-# The setting bytes of IDs 32..35 a BMS16 uses, several with BMS16 meanings (slot 2 full
-# voltage in 1 V steps, slot 6 number of cells, slot 7 shunt size); every other byte is sent
-# as 0. Ranges: the Monitor's minimums[] and bms16maximums[] (Common.h), scales from its
-# RenderSettings (capacity x5 Ah, currents x10 A, full voltage x1 V for a BMS16); the
-# Monitor shows OFF for the sentinel ends.
+# The setting bytes of IDs 32..35 a BMS16 uses: most as the EVMS3 reads them (the Monitor's
+# one settings table, Common.h), several with BMS16 meanings (slot 2 full voltage in 1 V
+# steps, slot 6 number of cells, slot 7 shunt size) or ranges; every other byte is sent as 0. Ranges: the Monitor's minimums[] and bms16maximums[] (Common.h),
+# scales from its RenderSettings; the Monitor shows OFF for the sentinel ends.
+_EVMS3 = {s.name: s for layout in CONFIG_LAYOUTS[:4] for s in layout.signals}
+
+
+def _alike(name: str, field: str, description: str) -> Signal:
+    """Return the EVMS3 setting row name (its slot, scale and range) under a BMS16 field."""
+    return replace(_EVMS3[name], field=field, description=description)
+
+
 _LAYOUTS = (
     Layout('BMS16_Std_Config1', 8, (
-        setting('PackCapacity', 0, 'pack_capacity_ah', 5, 1250, 'Ah', 'pack capacity',
-                scale=5),
-        setting('SocWarning', 1, 'soc_warning_pct', 0, 99, '%',
-                'SoC below which the BMS16 warns'),
+        _alike('PackCapacity', 'pack_capacity_ah', 'pack capacity'),
+        _alike('SocWarning', 'soc_warning_pct', 'SoC below which the BMS16 warns'),
         setting('FullVoltage', 2, 'full_voltage_v', 5, 70, 'V',
                 'pack voltage that counts as full'),
-        setting('WarnCurrent', 3, 'warn_current_a', 10, 1210, 'A',
-                'overcurrent warning threshold', scale=10, sentinel=(1210, 'off')),
-        setting('TripCurrent', 4, 'trip_current_a', 10, 1210, 'A',
-                'overcurrent shutdown threshold', scale=10, sentinel=(1210, 'off')),
+        _alike('WarnCurrent', 'warn_current_a', 'overcurrent warning threshold'),
+        _alike('TripCurrent', 'trip_current_a', 'overcurrent shutdown threshold'),
         setting('NumCells', 6, 'cells', 8, 16, '',
                 'number of cells in series (slot 6, NUM_CELLS)'),
         setting('ShuntSize', 7, 'shunt_size_a', 0, 500, 'A', 'current shunt size: 0 (no '
                 'shunt), 100, 200 or 500 A (slot 7, SHUNT_SIZE)', lookup=SHUNT_SIZES_A))),
     Layout('BMS16_Std_Config2', 8, (
-        setting('MinCellVoltage', 5, 'min_cell_v', 1.5, 4.0, 'V', 'minimum cell voltage',
-                float, 0.01, 1.5),
-        setting('MaxCellVoltage', 6, 'max_cell_v', 2.0, 4.5, 'V', 'maximum cell voltage',
-                float, 0.01, 2.0),
-        BALANCE_ROW)),
+        _alike('BmsMinVoltage', 'min_cell_v', 'minimum cell voltage'),
+        _alike('BmsMaxVoltage', 'max_cell_v', 'maximum cell voltage'), BALANCE_ROW)),
     Layout('BMS16_Std_Config3', 8, (
-        setting('Hysteresis', 0, 'hysteresis_v', 0, 0.5, 'V',
-                'hysteresis on the cell voltage limits', float, 0.01),
-        setting('MinTemp', 1, 'min_temp_c', -40, 101, 'degC', 'minimum temperature',
-                offset=-40, sentinel=(-40, 'off')),
-        setting('MaxTemp', 2, 'max_temp_c', -40, 101, 'degC', 'maximum temperature',
-                offset=-40, sentinel=(101, 'off')),
+        _alike('BmsHysteresis', 'hysteresis_v', 'hysteresis on the cell voltage limits'),
+        _alike('BmsMinTemp', 'min_temp_c', 'minimum temperature'),
+        _alike('BmsMaxTemp', 'max_temp_c', 'maximum temperature'),
         setting('ChargeVoltage', 3, 'max_charge_voltage_v', 0, 70, 'V', 'charger voltage'),
         setting('ChargeCurrent', 4, 'max_charge_current_a', 0, 127, 'A',
                 'charger current (bit 7 of its byte belongs to the charger voltage)'))),
     Layout('BMS16_Std_Config4', 8, (
-        setting('StationaryMode', 5, 'stationary_mode', 0, 1, '',
-                'stationary (non-vehicle) mode', bool),
-        setting('ReverseCurrentDisplay', 6, 'reverse_current_display', 0, 1, '',
-                "the Monitor shows the current's sign reversed", bool),
-        setting('NightBrightness', 7, 'night_brightness', 0, 10, '',
-                "the Monitor's night brightness, x10 %"))))
+        _alike('StationaryMode', 'stationary_mode', 'stationary (non-vehicle) mode'),
+        _alike('ReverseCurrentDisplay', 'reverse_current_display',
+               "the Monitor shows the current's sign reversed"),
+        _alike('NightBrightness', 'night_brightness', "the Monitor's night brightness, x10 %"))))
 SETTINGS = Settings(_LAYOUTS)
 _FIELDS = {f.name: f for f in (*SETTINGS.fields(), *BALANCE_FIELDS)}
 CONFIG_FIELDS: tuple[ConfigField, ...] = tuple(
