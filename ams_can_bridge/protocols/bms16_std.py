@@ -100,8 +100,9 @@ class Bms16StdConfig:
 
 # The setting bytes of IDs 32..35 a BMS16 uses: most as the EVMS3 reads them (the Monitor's
 # one settings table, Common.h), several with BMS16 meanings (slot 2 full voltage in 1 V
-# steps, slot 6 number of cells, slot 7 shunt size) or ranges; every other byte is sent as 0. Ranges: the Monitor's minimums[] and bms16maximums[] (Common.h),
-# scales from its RenderSettings; the Monitor shows OFF for the sentinel ends.
+# steps, slot 6 number of cells, slot 7 shunt size) or ranges; every other byte is sent as 0.
+# Ranges: the Monitor's minimums[] and bms16maximums[] (Common.h), scales from its
+# RenderSettings; the Monitor shows OFF for the sentinel ends.
 _EVMS3 = {s.name: s for layout in CONFIG_LAYOUTS[:4] for s in layout.signals}
 
 
