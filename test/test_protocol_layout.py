@@ -166,3 +166,19 @@ def test_a_checked_lookup_encodes_only_its_members():
         assert info.value.field == 'mode' and info.value.allowed == 'a _Mode value (OFF=1, ON=2)'
     with pytest.raises(EncodeRangeError, match='count'):
         encode(_Mode.ON, 6, 0, 0, 0)
+
+
+def test_setting_columns_change_no_generated_code():
+    # description, kind and sentinel (the columns a configuration row adds) are for
+    # protocols/settings.py only: the same bits decode and encode exactly as without them.
+    from dataclasses import replace
+    from ams_can_bridge.protocols.layout import LITTLE, Signal
+    plain = Signal('Warn', 0, 8, LITTLE, scale=10, low=10, high=1210, unit='A', field='warn')
+    rich = replace(plain, description='warning', kind=int, sentinel=(1210, 'off'))
+    assert (plain.description, plain.kind, plain.sentinel) == ('', None, None)
+    a, b = Layout('X', 1, (plain,)), Layout('X', 1, (rich,))
+    for raw in (1, 121, 255):
+        assert a.decoder()(bytes([raw])) == b.decoder()(bytes([raw]))
+    assert a.encoder()(1210) == b.encoder()(1210) == bytes([121])
+    with pytest.raises(EncodeRangeError):
+        b.encoder()(1215)  # off the step: still refused

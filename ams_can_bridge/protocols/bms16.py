@@ -20,26 +20,30 @@ Decisions (where the vendor document is silent):
   bits 6..7 of the others) are ignored, not malformed: the vendor does not say what the
   firmware puts there, and rejecting the frame would blank real cell readings for it.
 - An error code above 8 or a shunt-size code above 3 is malformed (no such value exists).
-- Configuration frames are decoded as sent (the BMS16 itself restricts received values to
-  its ranges, the simulator does the same); the encoder instead refuses any value outside
-  a range or off its step with EncodeRangeError: nothing is clamped or rounded.
+- A configuration frame with a byte outside its documented range is malformed: the BMS16
+  itself clamps such a value (the simulator too, through ``unchecked_config_values``), so
+  the frame is not a configuration the bridge can trust. The encoder refuses any value
+  outside a range or off its step with EncodeRangeError: nothing is clamped or rounded.
 - Telemetry encoders (used by the simulator) round to the wire resolution and refuse what
   the wire cannot carry.
 
 Speed: ``decode`` runs in the bus thread for every frame; its bits come from code generated
 from ``LAYOUTS`` (protocols/layout.py), a table the codec checks against msg_defs/bms16.dbc
-at construction. The module adds the 9th bits of the cells and the enum codes.
+at construction. The configuration rows carry each setting's range, step, unit and
+description (protocols/settings.py derives the fields and checks); the module adds the 9th
+bits of the cells and the enum codes.
 """
 from __future__ import annotations
 
 import enum
 import functools
-from dataclasses import dataclass, fields
-from typing import Union
+from dataclasses import dataclass
+from typing import Any, Callable, Union
 
 from ams_can_bridge.protocols.common import (
     check_dlc, ConfigField, EncodeRangeError, Frame, load_dbc, MalformedFrameError)
 from ams_can_bridge.protocols.layout import check_value, Layout, LITTLE, Signal
+from ams_can_bridge.protocols.settings import setting, Settings
 
 DEFAULT_BASE_ID = 500
 STATUS, CELLS_1, CELLS_2, CELLS_3, CONFIG_1, CONFIG_2, ACK_ERROR, RESET_SOC, POWER_OFF = range(9)
@@ -149,28 +153,6 @@ class PowerOff:
 Bms16Reading = Union[Bms16Status, Bms16Cells, Bms16ConfigPart1, Bms16ConfigPart2,
                      AcknowledgeError, ResetSoc, PowerOff]
 
-CONFIG_FIELDS: tuple[ConfigField, ...] = (
-    ConfigField('cells', int, 12, 16, 1, '', 'number of cells in series'),
-    ConfigField('pack_capacity_ah', float, 10, 1000, 10, 'Ah', 'pack capacity'),
-    ConfigField('soc_warning_pct', float, 0, 100, 1, '%', 'SoC below which the BMS warns'),
-    ConfigField('full_voltage_v', float, 0, 100, 1, 'V',
-                'pack voltage at which the pack counts as full (SoC reset to 100 %)'),
-    ConfigField('warn_current_a', float, 0, 1000, 10, 'A', 'overcurrent warning threshold'),
-    ConfigField('trip_current_a', float, 0, 1000, 10, 'A', 'overcurrent shutdown threshold'),
-    ConfigField('temperature_limit_c', float, 0, 100, 1, 'degC', 'over-temperature limit'),
-    ConfigField('min_cell_v', float, 1.0, 5.0, 0.05, 'V',
-                'minimum cell voltage (load disabled below)'),
-    ConfigField('max_cell_v', float, 1.0, 5.0, 0.05, 'V',
-                'maximum cell voltage (charge disabled above)'),
-    ConfigField('hysteresis_v', float, 0.0, 1.0, 0.05, 'V', 'hysteresis on cell voltage trips'),
-    ConfigField('balance_v', float, 1.0, 5.0, 0.05, 'V', 'shunt balancing threshold voltage'),
-    ConfigField('shunt_size_a', int, 0, 500, None, 'A',
-                'current shunt size: 0 (no shunt), 100, 200 or 500 A'),
-)
-CONFIG_FIELD = {f.name: f for f in CONFIG_FIELDS}
-_PART1 = tuple(f.name for f in fields(Bms16ConfigPart1))
-_PART2 = tuple(f.name for f in fields(Bms16ConfigPart2))
-
 
 # --- the wire layout: one table, checked against msg_defs/bms16.dbc --------------------------
 def _u(name: str, start: int, length: int = 8, scale: float = 1, offset: float = 0,
@@ -183,6 +165,46 @@ def _cell_frame(first: int, count: int) -> tuple[Signal, ...]:
         _u('NinthBits', 48),)
 
 
+# The configuration frames: each byte a setting, with the range and step the BMS16 accepts
+# (docs/protocols.md section 4); the ConfigFields and the checks come from these rows.
+_CONFIG_1 = Layout('BMS16_Config_1', 8, (
+    setting('Cells', 0, 'cells', 12, 16, '', 'number of cells in series'),
+    setting('PackCapacity', 1, 'pack_capacity_ah', 10, 1000, 'Ah', 'pack capacity', float, 10),
+    setting('SocWarning', 2, 'soc_warning_pct', 0, 100, '%', 'SoC below which the BMS warns',
+            float),
+    setting('FullVoltage', 3, 'full_voltage_v', 0, 100, 'V',
+            'pack voltage at which the pack counts as full (SoC reset to 100 %)', float),
+    setting('WarnCurrent', 4, 'warn_current_a', 0, 1000, 'A', 'overcurrent warning threshold',
+            float, 10),
+    setting('TripCurrent', 5, 'trip_current_a', 0, 1000, 'A',
+            'overcurrent shutdown threshold', float, 10),
+    setting('TemperatureLimit', 6, 'temperature_limit_c', 0, 100, 'degC',
+            'over-temperature limit', float),
+    setting('MinCellVoltage', 7, 'min_cell_v', 1.0, 5.0, 'V',
+            'minimum cell voltage (load disabled below)', float, 0.05)))
+_CONFIG_2 = Layout('BMS16_Config_2', 4, (
+    setting('MaxCellVoltage', 0, 'max_cell_v', 1.0, 5.0, 'V',
+            'maximum cell voltage (charge disabled above)', float, 0.05),
+    setting('Hysteresis', 1, 'hysteresis_v', 0.0, 1.0, 'V', 'hysteresis on cell voltage trips',
+            float, 0.05),
+    setting('BalanceVoltage', 2, 'balance_v', 1.0, 5.0, 'V', 'shunt balancing threshold voltage',
+            float, 0.05),
+    setting('ShuntSize', 3, 'shunt_size_a', 0, 500, 'A',
+            'current shunt size: 0 (no shunt), 100, 200 or 500 A', lookup=SHUNT_SIZES_A)))
+
+
+def _fault(s: Signal, raw: int, value: float | None) -> str:
+    """Word a configuration byte outside the BMS16's range (its physical value)."""
+    if s.lookup is not None:
+        return f'shunt size code {raw}, known codes are 0..{len(s.lookup) - 1}'
+    return f'{s.field} {value:g}, allowed {s.low:g}..{s.high:g}'
+
+
+SETTINGS = Settings((_CONFIG_1, _CONFIG_2), _fault, ranged=False)
+CONFIG_FIELDS: tuple[ConfigField, ...] = SETTINGS.fields()
+CONFIG_FIELD = {f.name: f for f in CONFIG_FIELDS}
+check_config_value = SETTINGS.check  # one value -> normalized (EncodeRangeError)
+
 LAYOUTS: tuple[Layout, ...] = (  # by offset from base_id; divide: 523 -> 52.3 V exactly
     Layout('BMS16_Status', 7, (
         _u('Error', 0, field='error'), _u('SoC', 8, unit='%', field='soc_pct'),
@@ -192,79 +214,26 @@ LAYOUTS: tuple[Layout, ...] = (  # by offset from base_id; divide: 523 -> 52.3 V
     Layout('BMS16_Cells_1_6', 7, _cell_frame(0, 6)),
     Layout('BMS16_Cells_7_12', 7, _cell_frame(6, 6)),
     Layout('BMS16_Cells_13_16', 7, _cell_frame(12, 4)),
-    Layout('BMS16_Config_1', 8, tuple(_u(name, 8 * k, scale=scale, field=field) for k, (
-        name, scale, field) in enumerate(zip(
-            ('Cells', 'PackCapacity', 'SocWarning', 'FullVoltage', 'WarnCurrent',
-             'TripCurrent', 'TemperatureLimit', 'MinCellVoltage'),
-            (1, 10, 1, 1, 10, 10, 1, 0.05), _PART1)))),
-    Layout('BMS16_Config_2', 4, tuple(_u(name, 8 * k, scale=scale, field=field) for k, (
-        name, scale, field) in enumerate(zip(
-            ('MaxCellVoltage', 'Hysteresis', 'BalanceVoltage', 'ShuntSize'),
-            (0.05, 0.05, 0.05, 1), _PART2)))),
+    _CONFIG_1, _CONFIG_2,
     Layout('BMS16_AcknowledgeError', 0, ()),
     Layout('BMS16_ResetSoc', 0, ()),
     Layout('BMS16_PowerOff', 0, ()),
 )
 _DLC = tuple(layout.length for layout in LAYOUTS)
-# Physical units per wire count of each configuration byte (shunt size is an enum).
-_CONFIG_SCALE = {s.field: s.scale for layout in LAYOUTS[CONFIG_1:CONFIG_2 + 1]
-                 for s in layout.signals if s.field != 'shunt_size_a'}
 _D_STATUS = LAYOUTS[STATUS].decoder()
 _E_STATUS = LAYOUTS[STATUS].encoder(exact=False)  # telemetry: rounded to the resolution
 _D_CELLS = tuple(layout.decoder() for layout in LAYOUTS[CELLS_1:CELLS_3 + 1])
 _NINTH = tuple(tuple(256 * (bits >> k & 1) for k in range(8)) for bits in range(256))
 
 
-def shunt_code(name: str, value: object) -> int:
-    """Return the wire code 0..3 of a shunt size (also the BMS16 standard form's slot 7)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) \
-            or value not in SHUNT_SIZES_A:
-        raise EncodeRangeError(name, value, '0 (no shunt), 100, 200 or 500 A')
-    return SHUNT_SIZES_A.index(value)
-
-
-def check_config_value(name: str, value: object) -> int:
-    """
-    Validate one configuration value (physical units) and return its wire byte.
-
-    Raises EncodeRangeError naming the field, the value and the allowed range for a value
-    out of range, off its step, or not a number; nothing is clamped.
-    """
-    spec = CONFIG_FIELD[name]
-    if name == 'shunt_size_a':
-        return shunt_code(name, value)
-    value = check_value(name, value, spec.low, spec.high,  # type: ignore[arg-type]  # a range
-                        spec.step, spec.unit)
-    return round(value / _CONFIG_SCALE[name])  # type: ignore[operator]  # a number
-
-
-def _config_value(name: str, raw: int) -> float | int:
-    """Physical value of a configuration byte (exact decimals: divide, do not multiply)."""
-    if name == 'cells':
-        return raw
-    scale = _CONFIG_SCALE[name]
-    return raw / 20 if scale == 0.05 else float(raw * scale)
-
-
-def _checked_config_value(name: str, raw: int, arbitration_id: int, data: bytes) -> float | int:
-    """
-    Return the physical value; raise MalformedFrameError outside the documented range.
-
-    The BMS16 itself clamps such a value (the simulator does: ``unchecked_config_values``);
-    a frame seen on the bus with one is not a configuration the bridge can trust.
-    """
-    spec = CONFIG_FIELD[name]
-    value = _config_value(name, raw)
-    if not spec.low <= value <= spec.high:  # type: ignore[operator]  # numbers have a range
-        raise MalformedFrameError(arbitration_id, data,
-                                  f'{name} {value:g}, allowed {spec.low:g}..{spec.high:g}')
-    return value
-
-
-def unchecked_config_values(data: bytes, part: int) -> dict[str, float | int]:
+def unchecked_config_values(data: bytes, part: int) -> dict[str, Any]:
     """Return the values of configuration frame 1 or 2 (part) as on the wire, unchecked."""
-    names = _PART1 if part == 1 else _PART2[:3]
-    return {name: _config_value(name, raw) for name, raw in zip(names, data)}
+    return SETTINGS.decode(part - 1, data)
+
+
+def _malformed(arbitration_id: int, data: bytes) -> Callable[[str], MalformedFrameError]:
+    """Return fail(why) for a configuration byte outside the documented range."""
+    return lambda why: MalformedFrameError(arbitration_id, data, why)
 
 
 @functools.cache
@@ -289,7 +258,7 @@ class Bms16Codec:
         self.base_id = base_id
         self.arbitration_ids = frozenset(range(base_id, base_id + ID_COUNT))
         self._decoders = (self._status, self._cells, self._cells, self._cells,
-                          self._config1, self._config2, self._command, self._command,
+                          self._config, self._config, self._command, self._command,
                           self._command)
 
     # --- decode ---------------------------------------------------------------------
@@ -321,20 +290,10 @@ class Bms16Codec:
             [(low + high) / 100 for low, high in zip(lows, _NINTH[ninth])]))
 
     @staticmethod
-    def _config1(arbitration_id: int, offset: int, data: bytes) -> Bms16ConfigPart1:
-        return Bms16ConfigPart1(*(  # type: ignore[arg-type]
-            _checked_config_value(n, raw, arbitration_id, data)
-            for n, raw in zip(_PART1, data)))
-
-    @staticmethod
-    def _config2(arbitration_id: int, offset: int, data: bytes) -> Bms16ConfigPart2:
-        if data[3] >= len(SHUNT_SIZES_A):
-            raise MalformedFrameError(arbitration_id, data,
-                                      f'shunt size code {data[3]}, known codes are 0..3')
-        return Bms16ConfigPart2(*(  # type: ignore[arg-type, call-arg]
-            _checked_config_value(n, raw, arbitration_id, data)
-            for n, raw in zip(_PART2[:3], data)),
-                                SHUNT_SIZES_A[data[3]])
+    def _config(arbitration_id: int, offset: int, data: bytes) -> Bms16Reading:
+        part = offset - CONFIG_1  # 0, 1: the frames of SETTINGS
+        values = SETTINGS.decode(part, data, _malformed(arbitration_id, data))
+        return (Bms16ConfigPart1, Bms16ConfigPart2)[part](**values)
 
     @staticmethod
     def _command(arbitration_id: int, offset: int, data: bytes) -> Bms16Reading:
@@ -352,11 +311,9 @@ class Bms16Codec:
         if isinstance(message, Bms16Cells):
             return self._encode_cells(message)
         if isinstance(message, Bms16ConfigPart1):
-            return self.frame(CONFIG_1, bytes(
-                check_config_value(n, getattr(message, n)) for n in _PART1))
+            return self.frame(CONFIG_1, SETTINGS.payload(0, message))
         if isinstance(message, Bms16ConfigPart2):
-            return self.frame(CONFIG_2, bytes(
-                check_config_value(n, getattr(message, n)) for n in _PART2))
+            return self.frame(CONFIG_2, SETTINGS.payload(1, message))
         for offset, cls in ((ACK_ERROR, AcknowledgeError), (RESET_SOC, ResetSoc),
                             (POWER_OFF, PowerOff)):
             if isinstance(message, cls):
@@ -365,10 +322,10 @@ class Bms16Codec:
 
     def config_frames(self, config: Bms16Config) -> list[Frame]:
         """Build the two configuration frames [base + 4, base + 5], validating every value."""
-        values = {f.name: getattr(config, f.name) for f in fields(Bms16Config)}
-        raw = {name: check_config_value(name, value) for name, value in values.items()}
-        return [self.frame(CONFIG_1, bytes(raw[n] for n in _PART1)),
-                self.frame(CONFIG_2, bytes(raw[n] for n in _PART2))]
+        for name in CONFIG_FIELD:  # every value checked before the first frame is built
+            check_config_value(name, getattr(config, name))
+        return [self.frame(CONFIG_1, SETTINGS.payload(0, config)),
+                self.frame(CONFIG_2, SETTINGS.payload(1, config))]
 
     def acknowledge_error(self) -> Frame:
         """Frame base + 6 (acknowledge error)."""

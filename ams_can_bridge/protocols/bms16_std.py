@@ -20,20 +20,21 @@ here because its bytes 5 and 6 mean something else on a BMS16.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Mapping
 
 from ams_can_bridge.errors import BadConfigBytes, ConfigError
 from ams_can_bridge.protocols.common import (
     check_dlc, ConfigField, EncodeRangeError, Frame, MalformedFrameError)
-from ams_can_bridge.protocols.bms16 import shunt_code, SHUNT_SIZES_A  # slot 7: code 0..3
+from ams_can_bridge.protocols.bms16 import SHUNT_SIZES_A  # slot 7: code 0..3
 from ams_can_bridge.protocols.evms3 import (
     AcknowledgeError, BatteryCurrent, Bms12Cells, Evms3Codec, Evms3Error, Evms3State, LAYOUTS,
     PowerOff, ResetSoc, status_fault)
 from ams_can_bridge.protocols.evms3_config import (  # noqa: F401 (BALANCE_*: public here too)
-    BALANCE_DYNAMIC, BALANCE_FIELDS, BALANCE_MODES, BALANCE_OFF, check_field, pack_slots,
-    slot_field, SlotRow, unpack_slots)
-from ams_can_bridge.protocols.layout import check_value
+    balance_byte, BALANCE_DYNAMIC, BALANCE_FIELDS, BALANCE_MODES, BALANCE_NAMES, BALANCE_OFF,
+    BALANCE_ROW, balance_values, check_balance, CONFIG_LAYOUTS)
+from ams_can_bridge.protocols.layout import check_value, Layout, Signal
+from ams_can_bridge.protocols.settings import setting, Settings
 
 DEFAULT_BASE_ID = 30                  # Common.h CAN_BASE_ID
 BMS16_MARKER = 255                    # status byte 5 of a BMS16 (EVMS_Monitor3.c)
@@ -97,35 +98,48 @@ class Bms16StdConfig:
     night_brightness: int
 
 
-# Byte slots with a linear meaning, in the slot table format of protocols.evms3_config. Ranges:
-# the Monitor's minimums[] and bms16maximums[] (Common.h), scales from its RenderSettings
-# (capacity x5 Ah, currents x10 A, full voltage x1 V for a BMS16).
-_LINEAR: tuple[SlotRow, ...] = (
-    ('pack_capacity_ah', int, 0, 5, 0, 1, 250, 'Ah', 'pack capacity'),
-    ('soc_warning_pct', int, 1, 1, 0, 0, 99, '%', 'SoC below which the BMS16 warns'),
-    ('full_voltage_v', int, 2, 1, 0, 5, 70, 'V', 'pack voltage that counts as full'),
-    ('warn_current_a', int, 3, 10, 0, 1, 121, 'A',
-     'overcurrent warning threshold (1210 = off: the Monitor shows OFF above 1200 A)'),
-    ('trip_current_a', int, 4, 10, 0, 1, 121, 'A',
-     'overcurrent shutdown threshold (1210 = off)'),
-    ('cells', int, 6, 1, 0, 8, 16, '', 'number of cells in series (slot 6, NUM_CELLS)'),
-    ('min_cell_v', float, 13, 0.01, 1.5, 0, 250, 'V', 'minimum cell voltage'),
-    ('max_cell_v', float, 14, 0.01, 2.0, 0, 250, 'V', 'maximum cell voltage'),
-    ('hysteresis_v', float, 16, 0.01, 0, 0, 50, 'V', 'hysteresis on the cell voltage limits'),
-    ('min_temp_c', int, 17, 1, -40, 0, 141, 'degC', 'minimum temperature (-40 = off)'),
-    ('max_temp_c', int, 18, 1, -40, 0, 141, 'degC', 'maximum temperature (101 = off)'),
-    ('max_charge_voltage_v', int, 19, 1, 0, 0, 70, 'V', 'charger voltage'),
-    ('max_charge_current_a', int, 20, 1, 0, 0, 127, 'A',
-     'charger current (bit 7 of its byte belongs to the charger voltage)'),
-    ('night_brightness', int, 31, 1, 0, 0, 10, '', "the Monitor's night brightness, x10 %"),
-)
-_BOOLS = (('stationary_mode', 29, 'stationary (non-vehicle) mode'),
-          ('reverse_current_display', 30, "the Monitor shows the current's sign reversed"))
-_SHUNT_SLOT = 7
-_FIELDS = {f.name: f for f in (*map(slot_field, _LINEAR), *BALANCE_FIELDS, *(
-    ConfigField(name, bool, description=what) for name, _, what in _BOOLS), ConfigField(
-    'shunt_size_a', int, 0, 500, None, 'A',
-    'current shunt size: 0 (no shunt), 100, 200 or 500 A (slot 7, SHUNT_SIZE)'))}
+# The setting bytes of IDs 32..35 a BMS16 uses: most as the EVMS3 reads them (the Monitor's
+# one settings table, Common.h), several with BMS16 meanings (slot 2 full voltage in 1 V
+# steps, slot 6 number of cells, slot 7 shunt size) or ranges; every other byte is sent as 0.
+# Ranges: the Monitor's minimums[] and bms16maximums[] (Common.h), scales from its
+# RenderSettings; the Monitor shows OFF for the sentinel ends.
+_EVMS3 = {s.name: s for layout in CONFIG_LAYOUTS[:4] for s in layout.signals}
+
+
+def _alike(name: str, field: str, description: str) -> Signal:
+    """Return the EVMS3 setting row name (its slot, scale and range) under a BMS16 field."""
+    return replace(_EVMS3[name], field=field, description=description)
+
+
+_LAYOUTS = (
+    Layout('BMS16_Std_Config1', 8, (
+        _alike('PackCapacity', 'pack_capacity_ah', 'pack capacity'),
+        _alike('SocWarning', 'soc_warning_pct', 'SoC below which the BMS16 warns'),
+        setting('FullVoltage', 2, 'full_voltage_v', 5, 70, 'V',
+                'pack voltage that counts as full'),
+        _alike('WarnCurrent', 'warn_current_a', 'overcurrent warning threshold'),
+        _alike('TripCurrent', 'trip_current_a', 'overcurrent shutdown threshold'),
+        setting('NumCells', 6, 'cells', 8, 16, '',
+                'number of cells in series (slot 6, NUM_CELLS)'),
+        setting('ShuntSize', 7, 'shunt_size_a', 0, 500, 'A', 'current shunt size: 0 (no '
+                'shunt), 100, 200 or 500 A (slot 7, SHUNT_SIZE)', lookup=SHUNT_SIZES_A))),
+    Layout('BMS16_Std_Config2', 8, (
+        _alike('BmsMinVoltage', 'min_cell_v', 'minimum cell voltage'),
+        _alike('BmsMaxVoltage', 'max_cell_v', 'maximum cell voltage'), BALANCE_ROW)),
+    Layout('BMS16_Std_Config3', 8, (
+        _alike('BmsHysteresis', 'hysteresis_v', 'hysteresis on the cell voltage limits'),
+        _alike('BmsMinTemp', 'min_temp_c', 'minimum temperature'),
+        _alike('BmsMaxTemp', 'max_temp_c', 'maximum temperature'),
+        setting('ChargeVoltage', 3, 'max_charge_voltage_v', 0, 70, 'V', 'charger voltage'),
+        setting('ChargeCurrent', 4, 'max_charge_current_a', 0, 127, 'A',
+                'charger current (bit 7 of its byte belongs to the charger voltage)'))),
+    Layout('BMS16_Std_Config4', 8, (
+        _alike('StationaryMode', 'stationary_mode', 'stationary (non-vehicle) mode'),
+        _alike('ReverseCurrentDisplay', 'reverse_current_display',
+               "the Monitor shows the current's sign reversed"),
+        _alike('NightBrightness', 'night_brightness', "the Monitor's night brightness, x10 %"))))
+SETTINGS = Settings(_LAYOUTS)
+_FIELDS = {f.name: f for f in (*SETTINGS.fields(), *BALANCE_FIELDS)}
 CONFIG_FIELDS: tuple[ConfigField, ...] = tuple(
     _FIELDS[name] for name in Bms16StdConfig.__dataclass_fields__)
 CONFIG_FIELD = {f.name: f for f in CONFIG_FIELDS}
@@ -133,9 +147,9 @@ CONFIG_FIELD = {f.name: f for f in CONFIG_FIELDS}
 
 def check_config_value(name: str, value: Any) -> Any:
     """Validate one value (physical units) and return it normalized; EncodeRangeError if not."""
-    if name == 'shunt_size_a':
-        return SHUNT_SIZES_A[shunt_code(name, value)]
-    return check_field(CONFIG_FIELD.get(name), name, value, CONFIG_FIELD)
+    if name in BALANCE_NAMES:
+        return check_balance(name, value)
+    return SETTINGS.check(name, value)
 
 
 def config_from_mapping(values: Mapping[str, Any]) -> Bms16StdConfig:
@@ -150,12 +164,8 @@ def config_from_mapping(values: Mapping[str, Any]) -> Bms16StdConfig:
 
 def config_payloads(cfg: Bms16StdConfig) -> list[bytes]:
     """Return the payloads of IDs 32..35: 32 slots, the unused ones 0 (EncodeRangeError)."""
-    slots = bytearray(SLOTS)
-    pack_slots(_LINEAR, slots, cfg, check_config_value)
-    slots[_SHUNT_SLOT] = shunt_code('shunt_size_a', cfg.shunt_size_a)
-    for name, slot, _ in _BOOLS:
-        slots[slot] = int(check_config_value(name, getattr(cfg, name)))
-    return [bytes(slots[8 * k:8 * k + 8]) for k in range(4)]
+    raws = {BALANCE_ROW.name: balance_byte(cfg.balance_mode, cfg.balance_v)}
+    return [SETTINGS.payload(k, cfg, raws) for k in range(4)]
 
 
 def decode_config(payloads: list[bytes]) -> dict[str, Any]:
@@ -163,12 +173,10 @@ def decode_config(payloads: list[bytes]) -> dict[str, Any]:
     slots = b''.join(payloads)
     if len(slots) != SLOTS:
         raise BadConfigBytes(f'{len(slots)} setting bytes, expected {SLOTS}')
-    values = unpack_slots(_LINEAR, slots, 0, BadConfigBytes)
-    if slots[_SHUNT_SLOT] >= len(SHUNT_SIZES_A):
-        raise BadConfigBytes(f'shunt size code {slots[_SHUNT_SLOT]} outside 0..3')
-    values['shunt_size_a'] = SHUNT_SIZES_A[slots[_SHUNT_SLOT]]
-    for name, slot, _ in _BOOLS:
-        values[name] = bool(slots[slot])
+    values: dict[str, Any] = {}
+    for k in range(4):
+        values.update(SETTINGS.decode(k, slots[8 * k:8 * k + 8], BadConfigBytes))
+    values.update(balance_values(slots[8 + BALANCE_ROW.start // 8], BadConfigBytes))
     return values
 
 

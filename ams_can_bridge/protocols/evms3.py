@@ -3,15 +3,13 @@ ZEVA EVMS3 and its BMS12 cell modules: 29-bit frames <-> typed readings and comm
 
 docs/protocols.md section 3 (EVMS3 CAN protocol rev 1.1; BMS12 from ZEVA's open firmware).
 IDs of the EVMS3 are ``base_id + 0..11`` (30 status .. 41 zero current sensor by default);
-BMS12 module ``m`` uses ``300 + 10 m + t`` (t = 0 request, 1..3 cells, 4 temperatures).
+BMS12 module ``m`` uses ``300 + 10 m + t`` (``protocols.bms12``; this codec owns their IDs).
 29-bit by default; ``extended_id=False`` for a firmware built with 11-bit IDs. The TC chargers
 the EVMS drives (``protocols.tc_charger``, always 29-bit) are decoded here too.
-The bits of the status, current and BMS12 frames are one table (``LAYOUTS``, the format of
-protocols/layout.py), checked against msg_defs/evms3.dbc at the first codec; decoders and
-encoders are generated from it (a few microseconds a frame, no cantools). The module adds
-what the DBC cannot carry: the 9th bit of the charge voltages, the
-balance special values (251 dynamic, 252 off) and refusing, instead of clamping, any
-configuration value the EVMS would silently limit.
+The bits of the status and current frames are one table (``LAYOUTS``, the format of
+protocols/layout.py), checked with the BMS12's, the chargers' and the configuration's
+against msg_defs/evms3.dbc at the first codec; decoders and encoders are generated from it
+(a few microseconds a frame, no cantools).
 
 A ZEVA Monitor shares the bus (EVMS_Monitor3.c): it sends ID 31 with DLC 2 while a gauge
 setting is edited, and ID 52 (its motor controller's settings ID, which the EVMS3 also uses
@@ -32,25 +30,23 @@ from typing import Any, Sequence
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols.common import (
     check_dlc, EncodeRangeError, Frame, load_dbc, MalformedFrameError)
-from ams_can_bridge.protocols.evms3_config import (  # noqa: F401 (re-exported)
-    BALANCE_DYNAMIC, BALANCE_MODES, BALANCE_OFF, BMS12_MAX_MODULES, CELLS_MAX, CELLS_MIN,
-    check_config_value, config_layouts,
-    CONFIG_FIELDS, CONFIG_FILLER, config_payloads, ConfigReadback, ConfigReport,
-    CORE_REQUEST_CONFIG, CORE_SEND_CELL_NUMS, CORE_SEND_CONFIG1, CORE_SEND_CONFIG2,
-    CORE_SEND_CONFIG3, CORE_SEND_CONFIG4, decode_config_packet, Evms3Config, Evms3ConfigPart,
+from ams_can_bridge.protocols.evms3_config import (  # noqa: F401 (some re-exported)
+    BMS12_MAX_MODULES, BmsCellNumbers, cell_numbers_payload, check_config_value, CONFIG_FIELDS,
+    CONFIG_FILLER, CONFIG_LAYOUTS, config_payloads, ConfigReadback, ConfigReport,
+    CORE_REQUEST_CONFIG, CORE_SEND_CELL_NUMS, CORE_SEND_CONFIG1, decode_cell_numbers,
+    decode_config_packet, decode_report, Evms3Config, Evms3ConfigPart, OtherTraffic,
     READBACK_IDS, READBACK_NAMES)
-from ams_can_bridge.protocols.layout import BIG, check_value, Layout, LITTLE, Signal
+from ams_can_bridge.protocols import bms12
+from ams_can_bridge.protocols.bms12 import (
+    BMS12_BASE_ID, Bms12Cells, Bms12Request, Bms12Temperatures, decode_cells)
+from ams_can_bridge.protocols.layout import check_value, Layout, LITTLE, Signal
 from ams_can_bridge.protocols.tc_charger import (
     CHARGER_IDS, ChargerCommand, ChargerStatus, LAYOUTS as TC_LAYOUTS, TcChargerCodec)
 
-BMS12_BASE_ID = 300
 BMS16_MARKER = 255  # ID 30 byte 5 (aux voltage on an EVMS3): EVMS_Monitor3.c sets isBMS16
 # ID 31 byte 0 (Common.h): CORE_IDLE_STATE 0, CORE_SETUP_STATE 1, CORE_SETUP_EDIT_FUEL_GAUGE 2,
 # CORE_SETUP_EDIT_TEMP_GAUGE 3
 CORE_SETUP_EDIT_TEMP_GAUGE = 3
-# IDs 52/53 are also MC_RECEIVE_SETTINGS_ID / MC_SEND_SETTINGS_ID (Common.h): a Monitor and a
-# ZEVA motor controller use them for the controller's settings.
-SHARED_READBACK_IDS = frozenset({CORE_SEND_CONFIG1, CORE_SEND_CONFIG2})
 CURRENT_OFFSET_MA = 8388608
 STATUS, SET_STATE, CONFIG1, CONFIG2, CONFIG3, CONFIG4 = range(6)
 CELL_NUMBERS, ACK_ERROR, RESET_SOC, POWER_OFF, BATTERY_CURRENT, ZERO_CURRENT = range(6, 12)
@@ -96,66 +92,35 @@ _ERRORS = tuple(Evms3Error)
 
 # --- the wire layout: one table, checked against msg_defs/evms3.dbc --------------------------
 # ZEVA's firmware divides (1234 -> 123.4 V): divide=True keeps those values exact.
-def _u(name: str, start: int, length: int = 8, scale: float = 1, offset: float = 0,
-       low: float | None = None, high: float | None = None, unit: str = '', field: str = '',
-       order: str = LITTLE, invalid: int | None = None, flag: bool = False,
-       lookup: tuple | None = None) -> Signal:
-    return Signal(name, start, length, order, False, scale, offset, low, high, unit, field,
-                  flag, invalid, lookup)
-
-
-def _cells(first: int) -> tuple[Signal, ...]:
-    return tuple(_u(f'Cell{first + k}', 7 + 16 * k, 16, 0.001, unit='V',
-                    field=f'voltages_v[{k}]', order=BIG) for k in range(4))
-
-
 LAYOUTS = {
     'EVMS3_Status': Layout('EVMS3_Status', 8, (
-        _u('State', 0, 3, high=5, field='state', lookup=tuple(Evms3State)),
-        _u('ErrorCode', 3, 5, high=16, field='error', lookup=tuple(Evms3Error)),
-        _u('AmpHoursRemaining', 15, 16, 0.1, unit='Ah', field='amp_hours_ah', order=BIG),
-        _u('BatteryVoltage', 31, 16, 0.1, unit='V', field='pack_voltage_v', order=BIG),
-        _u('AuxVoltage', 40, 8, 0.1, unit='V', field='aux_voltage_v'),
-        _u('IsolationIntegrity', 48, 7, high=101, unit='%', field='isolation_pct',
-           invalid=101, lookup=tuple(range(101)) + (None,)),  # 101: cannot be measured
-        _u('Headlights', 55, 1, field='headlights', flag=True),
-        _u('Temperature', 56, 8, 1, -40, unit='degC', field='temperature_c', invalid=0)),
-        divide=True),  # raw 0: no sensor
-    'EVMS3_BatteryCurrent': Layout('EVMS3_BatteryCurrent', 3, (
-        _u('BatteryCurrent', 7, 24, 0.001, -8388.608, unit='A', field='current_a',
-           order=BIG),), divide=True),
-    'BMS12_M0_Request': Layout('BMS12_M0_Request', 2, (
-        _u('BalanceVoltage', 7, 16, 0.001, unit='V', order=BIG),), divide=True),
-    'BMS12_M0_Cells1to4': Layout('BMS12_M0_Cells1to4', 8, _cells(1), divide=True),
-    'BMS12_M0_Cells5to8': Layout('BMS12_M0_Cells5to8', 8, _cells(5), divide=True),
-    'BMS12_M0_Cells9to12': Layout('BMS12_M0_Cells9to12', 8, _cells(9), divide=True),
-    'BMS12_M0_Temperatures': Layout('BMS12_M0_Temperatures', 8, (
-        _u('Temperature1', 0, 8, 1, -40, unit='degC', field='temperatures_c[0]', invalid=0),
-        _u('Temperature2', 8, 8, 1, -40, unit='degC', field='temperatures_c[1]', invalid=0)),
+        Signal('State', 0, 3, LITTLE, high=5, field='state', lookup=tuple(Evms3State)),
+        Signal('ErrorCode', 3, 5, LITTLE, high=16, field='error', lookup=tuple(Evms3Error)),
+        Signal('AmpHoursRemaining', 15, 16, scale=0.1, unit='Ah', field='amp_hours_ah'),
+        Signal('BatteryVoltage', 31, 16, scale=0.1, unit='V', field='pack_voltage_v'),
+        Signal('AuxVoltage', 40, 8, LITTLE, scale=0.1, unit='V', field='aux_voltage_v'),
+        Signal('IsolationIntegrity', 48, 7, LITTLE, high=100, unit='%', field='isolation_pct',
+               invalid=101, lookup=tuple(range(101)) + (None,)),  # 101: cannot be measured
+        Signal('Headlights', 55, 1, LITTLE, field='headlights', flag=True),
+        Signal('Temperature', 56, 8, LITTLE, offset=-40, unit='degC', field='temperature_c',
+               invalid=0)),  # raw 0: no sensor
         divide=True),
+    'EVMS3_BatteryCurrent': Layout('EVMS3_BatteryCurrent', 3, (
+        Signal('BatteryCurrent', 7, 24, scale=0.001, offset=-8388.608, unit='A',
+               field='current_a'),), divide=True),
 }
 _D_STATUS_RAW = LAYOUTS['EVMS3_Status'].decoder('State', 'ErrorCode', 'IsolationIntegrity',
                                                 raw=True)
 _E_STATUS = LAYOUTS['EVMS3_Status'].encoder()
 _D_CURRENT = LAYOUTS['EVMS3_BatteryCurrent'].decoder()
 _E_CURRENT = LAYOUTS['EVMS3_BatteryCurrent'].encoder()
-_D_REQUEST = LAYOUTS['BMS12_M0_Request'].decoder(raw=True)  # the firmware's mV
-_D_CELLS = LAYOUTS['BMS12_M0_Cells1to4'].decoder()  # the same bits for the three frames
-_E_CELLS = LAYOUTS['BMS12_M0_Cells1to4'].encoder()
-# Raw 0 = no sensor: the BMS12 firmware's LineariseTemp returns 0 for "not available", and
-# the EVMS3 and the Monitor skip 0.
-_D_TEMPS = LAYOUTS['BMS12_M0_Temperatures'].decoder()
-_E_TEMPS = LAYOUTS['BMS12_M0_Temperatures'].encoder()
-# IDs 36 and 56: a nibble per BMS12 module (the configuration table, protocols.evms3_config)
-_D_CELL_NUMBERS = config_layouts()[4].decoder()
-_E_CELL_NUMBERS = config_layouts()[4].encoder()
 
 
 @functools.cache
 def check_dbc() -> None:
     """Raise LayoutError unless msg_defs/evms3.dbc has the bits of LAYOUTS."""
     db = load_dbc('evms3')
-    for name, layout in LAYOUTS.items():
+    for name, layout in {**LAYOUTS, **bms12.LAYOUTS}.items():
         layout.check_dbc(db.get_message_by_name(name), 'msg_defs/evms3.dbc', 'EVMS3')
     for n in range(1, 4):  # the TC chargers 1..3 the EVMS drives: one layout each way
         for kind in ('Command', 'Status'):
@@ -165,7 +130,7 @@ def check_dbc() -> None:
     # the configuration, sent on 32..36 and read back on 52..56 in the same layout
     pairs = [(f'EVMS3_Config{k}', f'EVMS3_SendConfig{k}') for k in range(1, 5)] + [
         ('EVMS3_BmsCellNumbers', 'EVMS3_SendCellNumbers')]
-    for layout, names in zip(config_layouts(), pairs):
+    for layout, names in zip(CONFIG_LAYOUTS, pairs):
         for name in names:
             layout.check_dbc(db.get_message_by_name(name), 'msg_defs/evms3.dbc',
                              'EVMS3 configuration')
@@ -207,21 +172,6 @@ class SetState:
 
 
 @dataclass(frozen=True, slots=True)
-class OtherTraffic:
-    """A frame on an ID the EVMS3 shares (52, 53) that carries no EVMS3 state: ignored."""
-
-    arbitration_id: int
-    what: str
-
-
-@dataclass(frozen=True, slots=True)
-class BmsCellNumbers:
-    """ID 36: cells per BMS12 module, 16 values (0 or 4..12 to send; 4 bits on the wire)."""
-
-    cells_per_module: tuple[int, ...]
-
-
-@dataclass(frozen=True, slots=True)
 class AcknowledgeError:
     """ID 37: acknowledge this error code."""
 
@@ -260,32 +210,10 @@ class ZeroCurrentSensor:
     """ID 41: zero the current sensor."""
 
 
-@dataclass(frozen=True, slots=True)
-class Bms12Request:
-    """BMS12 t=0 (EVMS -> module): balance (shunt) voltage in mV, None = no balancing."""
-
-    module: int
-    balance_mv: int | None
-
-
-@dataclass(frozen=True, slots=True)
-class Bms12Cells:
-    """BMS12 t=1..3: four cell voltages (V) starting at cell index first_cell (0, 4, 8)."""
-
-    module: int
-    first_cell: int
-    voltages_v: tuple[float, float, float, float]
-
-
-@dataclass(frozen=True, slots=True)
-class Bms12Temperatures:
-    """BMS12 t=4: the module's two temperatures (degC; None = no sensor, raw 0)."""
-
-    module: int
-    temperatures_c: tuple[int | None, int | None]
-
-
-_CELLS = LAYOUTS['BMS12_M0_Cells1to4'].decoder(into=Bms12Cells, pack=2)  # module, first
+# The commands without data (DLC 0) by offset from base_id: one path each way.
+_EMPTY: dict[int, type] = {RESET_SOC: ResetSoc, POWER_OFF: PowerOff,
+                           ZERO_CURRENT: ZeroCurrentSensor}
+_EMPTY_OFFSET = {command: offset for offset, command in _EMPTY.items()}
 _STATUS = LAYOUTS['EVMS3_Status'].decoder(  # in the order of the reading's fields
     'State', 'ErrorCode', 'AmpHoursRemaining', 'BatteryVoltage', 'AuxVoltage', 'Headlights',
     'IsolationIntegrity', 'Temperature', into=Evms3Status)
@@ -345,15 +273,17 @@ class Evms3Codec:
         b = base_id
         self._decoders = {
             b + STATUS: self._decode_status, b + SET_STATE: self._decode_set_state,
-            b + CELL_NUMBERS: self._decode_cell_numbers, b + ACK_ERROR: self._decode_ack,
-            b + RESET_SOC: lambda aid, data: ResetSoc(),
+            b + CELL_NUMBERS: lambda aid, data: BmsCellNumbers(decode_cell_numbers(aid, data)),
+            b + ACK_ERROR: self._decode_ack,
             b + POWER_OFF: self._decode_empty, b + ZERO_CURRENT: self._decode_empty,
             b + BATTERY_CURRENT: self._decode_current,
+            # any DLC: ZEVA's 2021 firmware reads a SoC byte, older firmware none
+            b + RESET_SOC: lambda aid, data: ResetSoc(),
         }
         for packet in range(4):
             self._decoders[b + CONFIG1 + packet] = self._decode_config
-            self._decoders[CORE_SEND_CONFIG1 + packet] = self._decode_report
-        self._decoders[CORE_SEND_CELL_NUMS] = self._decode_report
+        for aid in READBACK_IDS:  # 52..56: the EVMS's answer to 51 (or foreign traffic)
+            self._decoders[aid] = self._decode_report
 
     # --- decode ---------------------------------------------------------------------------
     def decode(self, arbitration_id: int, data: bytes) -> Any:
@@ -368,8 +298,8 @@ class Evms3Codec:
             raise MalformedFrameError(arbitration_id, data, 'not an EVMS3/BMS12 ID of this codec')
         module, t = module_type
         if 1 <= t <= 3 and len(data) == 8:  # the bulk of the bus: cells in one call
-            return _CELLS(data, module, 4 * (t - 1))
-        return self._decode_bms12(arbitration_id, data, module, t)
+            return decode_cells(data, module, 4 * (t - 1))
+        return bms12.decode(arbitration_id, data, module, t)
 
     def _decode_status(self, aid: int, data: bytes) -> Evms3Status:
         if len(data) != 8:
@@ -391,37 +321,11 @@ class Evms3Codec:
         return SetState(bool(data[0]))
 
     def _decode_config(self, aid: int, data: bytes) -> Evms3ConfigPart:
-        check_dlc(aid, data, 8)  # ID 35 too: bytes 6-7 are settings 30-31 (Common.h)
         return decode_config_packet(aid - self.base_id - CONFIG1, aid, data,
                                     self.voltage_multiplier)
 
     def _decode_report(self, aid: int, data: bytes) -> ConfigReport | OtherTraffic:
-        if aid == CORE_SEND_CELL_NUMS:
-            cells = self._decode_cell_numbers(aid, data).cells_per_module
-            return ConfigReport(aid, {'cells_per_module': cells})
-        packet = aid - CORE_SEND_CONFIG1
-        if aid in SHARED_READBACK_IDS:
-            # A Monitor's or motor controller's frame here is normal traffic: only a
-            # frame that reads as the EVMS3's packet counts, the rest is ignored.
-            if len(data) != 8:
-                return OtherTraffic(aid, f'DLC {len(data)}: motor-controller settings traffic')
-            try:
-                part = decode_config_packet(packet, aid, data, self.voltage_multiplier)
-            except MalformedFrameError as exc:
-                return OtherTraffic(aid, f'not an EVMS3 configuration ({exc.reason})')
-            return ConfigReport(aid, part.values)
-        check_dlc(aid, data, 8)
-        return ConfigReport(aid, decode_config_packet(packet, aid, data,
-                                                      self.voltage_multiplier).values)
-
-    def _decode_cell_numbers(self, aid: int, data: bytes) -> BmsCellNumbers:
-        check_dlc(aid, data, 8)
-        cells = _D_CELL_NUMBERS(data)
-        for m, n in enumerate(cells):
-            if 0 < n < CELLS_MIN or n > CELLS_MAX:  # 13..15 overrun the firmware's arrays
-                raise MalformedFrameError(aid, data, f'module {m}: {n} cells (0 or '
-                                          f'{CELLS_MIN}..{CELLS_MAX})')
-        return BmsCellNumbers(cells)
+        return decode_report(aid, data, self.voltage_multiplier)
 
     def _decode_ack(self, aid: int, data: bytes) -> AcknowledgeError:
         check_dlc(aid, data, 1)
@@ -429,27 +333,14 @@ class Evms3Codec:
             raise MalformedFrameError(aid, data, f'unknown error code {data[0]} (0..16)')
         return AcknowledgeError(_ERRORS[data[0]])
 
-    def _decode_empty(self, aid: int, data: bytes) -> PowerOff | ZeroCurrentSensor:
+    def _decode_empty(self, aid: int, data: bytes) -> Any:
         check_dlc(aid, data, 0)
-        return PowerOff() if aid - self.base_id == POWER_OFF else ZeroCurrentSensor()
+        return _EMPTY[aid - self.base_id]()
 
     def _decode_current(self, aid: int, data: bytes) -> BatteryCurrent:
         if len(data) != 3:
             check_dlc(aid, data, 3)
         return BatteryCurrent(*_D_CURRENT(data))
-
-    def _decode_bms12(self, aid: int, data: bytes, module: int, t: int) -> Any:
-        if t == 0:
-            check_dlc(aid, data, 2)
-            mv, = _D_REQUEST(data)
-            return Bms12Request(module, mv or None)
-        if t == 4:
-            # The BMS12 PDF says DLC 2; ZEVA's firmware sends 8 with zero padding.
-            check_dlc(aid, data, (2, 8))
-            return Bms12Temperatures(module, _D_TEMPS(data))
-        if len(data) != 8:
-            check_dlc(aid, data, 8)
-        return Bms12Cells(module, 4 * (t - 1), _D_CELLS(data))
 
     # --- encode ---------------------------------------------------------------------------
     def _frame(self, offset: int, data: bytes | bytearray) -> Frame:
@@ -469,65 +360,34 @@ class Evms3Codec:
 
     def encode(self, msg: Any) -> Frame:
         """Reading/command -> Frame; EncodeRangeError names the field and allowed range."""
+        offset = _EMPTY_OFFSET.get(type(msg))
+        if offset is not None:  # a command without data
+            return self._frame(offset, b'')
         if isinstance(msg, Evms3Status):
-            return self._encode_status(msg)
+            return self._frame(STATUS, _E_STATUS(  # each value checked by the layout encoder
+                msg.state, msg.error, msg.amp_hours_ah, msg.pack_voltage_v, msg.aux_voltage_v,
+                msg.isolation_pct, msg.headlights, msg.temperature_c))
         if isinstance(msg, SetState):
             if msg.request is not None:  # the Monitor's gauge edit (DLC 2)
-                _check_int('request', msg.request, 1, CORE_SETUP_EDIT_TEMP_GAUGE)
-                value = _check_int('gauge_value', msg.gauge_value or 0, 0, 255)
-                return self._frame(SET_STATE, bytes([int(msg.request), value]))
+                return self._frame(SET_STATE, bytes([
+                    check_value('request', msg.request, 1, CORE_SETUP_EDIT_TEMP_GAUGE,
+                                integer=True),
+                    check_value('gauge_value', msg.gauge_value or 0, 0, 255, integer=True)]))
             return self._frame(SET_STATE, bytes([1 if msg.setup else 0]))
         if isinstance(msg, Evms3ConfigPart):
             cfg = Evms3Config.from_mapping({**CONFIG_FILLER, **msg.values})
             return self.config_frames(cfg)[msg.part - 1]
         if isinstance(msg, BmsCellNumbers):
-            cells = check_config_value('cells_per_module', msg.cells_per_module)
-            return self._frame(CELL_NUMBERS, _E_CELL_NUMBERS(*cells))
+            return self._frame(CELL_NUMBERS, cell_numbers_payload(msg.cells_per_module))
         if isinstance(msg, AcknowledgeError):
-            _check_int('error', msg.error, 0, 16)
-            return self._frame(ACK_ERROR, bytes([int(msg.error)]))
-        if isinstance(msg, ResetSoc):
-            return self._frame(RESET_SOC, b'')
-        if isinstance(msg, RequestConfig):
+            return self._frame(ACK_ERROR, bytes([
+                check_value('error', msg.error, 0, len(_ERRORS) - 1, integer=True)]))
+        if isinstance(msg, RequestConfig):  # DLC 0 too, at a fixed ID
             return Frame(CORE_REQUEST_CONFIG, b'', self.is_extended_id)
-        if isinstance(msg, PowerOff):
-            return self._frame(POWER_OFF, b'')
-        if isinstance(msg, ZeroCurrentSensor):
-            return self._frame(ZERO_CURRENT, b'')
         if isinstance(msg, BatteryCurrent):
             return self._frame(BATTERY_CURRENT, _E_CURRENT(msg.current_a))
         if isinstance(msg, (Bms12Request, Bms12Cells, Bms12Temperatures)):
-            return self._encode_bms12(msg)
+            return bms12.encode(msg, self.bms12_base, self.is_extended_id)
         if isinstance(msg, (ChargerCommand, ChargerStatus)):
             return self.chargers.encode(msg)
         raise EncodeRangeError('message', msg, 'an EVMS3, BMS12 or TC charger message')
-
-    def _encode_status(self, msg: Evms3Status) -> Frame:
-        iso = None if msg.isolation_pct is None else _check_int(
-            'isolation_pct', msg.isolation_pct, 0, 100)
-        return self._frame(STATUS, _E_STATUS(
-            _check_int('state', msg.state, 0, 5), _check_int('error', msg.error, 0, 16),
-            msg.amp_hours_ah, msg.pack_voltage_v, msg.aux_voltage_v, iso,
-            int(bool(msg.headlights)), msg.temperature_c))
-
-    def _encode_bms12(self, msg: Any) -> Frame:
-        module = _check_int('module', msg.module, 0, BMS12_MAX_MODULES - 1)
-        base = self.bms12_base + 10 * module
-        if isinstance(msg, Bms12Request):
-            mv = (0 if msg.balance_mv is None
-                  else _check_int('balance_mv', msg.balance_mv, 1, 65535))
-            return Frame(base, mv.to_bytes(2, 'big'), self.is_extended_id)
-        if isinstance(msg, Bms12Temperatures):
-            if len(msg.temperatures_c) != 2:
-                raise EncodeRangeError('temperatures_c', msg.temperatures_c, '2 values')
-            return Frame(base + 4, _E_TEMPS(*msg.temperatures_c), self.is_extended_id)
-        if msg.first_cell not in (0, 4, 8):
-            raise EncodeRangeError('first_cell', msg.first_cell, '0, 4 or 8')
-        if len(msg.voltages_v) != 4:
-            raise EncodeRangeError('voltages_v', msg.voltages_v, '4 values')
-        return Frame(base + 1 + msg.first_cell // 4, _E_CELLS(*msg.voltages_v),
-                     self.is_extended_id)
-
-
-def _check_int(name: str, value: Any, low: int, high: int) -> int:
-    return check_value(name, value, low, high, integer=True)

@@ -10,7 +10,9 @@ warn/trip current 1210 A = off, EVMS temperature warning 151 = off, BMS minimum 
 (Common.h ``PACK_VOLTAGE_MULTIPLIER`` 2) doubles full and charge voltages (``multiplier``).
 ZEVA's open EVMS3 firmware (MIT, August 2021) also reports them: ID 51 asks, 52..55 answer
 in the layout of 32..35 and 56 in the layout of 36 (``ConfigReport``, joined by
-``ConfigReadback``). ``protocols.evms3`` builds and reads the frames and re-exports every
+``ConfigReadback``). The settings are rows of the layout table (protocols/settings.py derives
+the fields, checks and payloads); this module adds the balance byte, the 9-bit charge
+voltages and the cell nibbles. ``protocols.evms3`` builds the frames and re-exports every
 name here.
 """
 from __future__ import annotations
@@ -19,11 +21,12 @@ from dataclasses import dataclass, field, fields, replace
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
 from ams_can_bridge.errors import ConfigError
+from ams_can_bridge.protocols.bms12 import BMS12_MAX_MODULES
 from ams_can_bridge.protocols.common import (
-    ConfigField, EncodeRangeError, MalformedFrameError)
+    check_dlc, ConfigField, EncodeRangeError, MalformedFrameError)
 from ams_can_bridge.protocols.layout import check_value, Layout, LITTLE, Signal
+from ams_can_bridge.protocols.settings import setting, Settings
 
-BMS12_MAX_MODULES = 16
 BALANCE_DYNAMIC = 251
 BALANCE_OFF = 252
 # Read-back (ZEVA's open firmware, MIT, August 2021): fixed IDs, not moved by base_id. ID 51
@@ -32,21 +35,15 @@ CORE_REQUEST_CONFIG = 51
 CORE_SEND_CONFIG1, CORE_SEND_CONFIG2, CORE_SEND_CONFIG3, CORE_SEND_CONFIG4 = range(52, 56)
 CORE_SEND_CELL_NUMS = 56
 READBACK_IDS = range(CORE_SEND_CONFIG1, CORE_SEND_CELL_NUMS + 1)
+# IDs 52/53 are also MC_RECEIVE_SETTINGS_ID / MC_SEND_SETTINGS_ID (Common.h): a Monitor and a
+# ZEVA motor controller use them for the controller's settings.
+SHARED_READBACK_IDS = frozenset({CORE_SEND_CONFIG1, CORE_SEND_CONFIG2})
 READBACK_NAMES = {52: 'config 1', 53: 'config 2', 54: 'config 3', 55: 'config 4',
                   56: 'cell numbers'}
 # Cells per BMS12 module: 0 (absent) or 4..12 (the firmware holds 12 cells a module; the
 # Monitor offers 4..12). The 4-bit nibble of ID 36 could carry 13..15: refused.
 CELLS_MIN, CELLS_MAX = 4, 12
-# Physical value of each setting whose raw range ends in "off"/"never" (EVMS3 firmware:
-# CURRENT_WARNING/CURRENT_TRIP < 121, OVER_TEMP != 151, BMS_MIN_TEMP > 0, BMS_MAX_TEMP < 141,
-# CAN_POWER_DOWN_DELAY != 6), and the word shown for it.
-SENTINELS: dict[str, tuple[int, str]] = {
-    'warn_current_a': (1210, 'off'), 'trip_current_a': (1210, 'off'),
-    'temp_warning_c': (151, 'off'), 'bms_min_temp_c': (-40, 'off'),
-    'bms_max_temp_c': (101, 'off'), 'sleep_delay_min': (6, 'never'),
-}
 VOLTAGE_MULTIPLIERS = (1, 2)  # Common.h PACK_VOLTAGE_MULTIPLIER: 1 (up to ~400 V) or 2 (800 V)
-_SCALED = ('full_voltage_v', 'max_charge_voltage_v', 'alt_charge_voltage_v')
 
 
 def sentinel_text(name: str, value: Any) -> str | None:
@@ -122,6 +119,21 @@ class Evms3ConfigPart:
     values: Mapping[str, Any] = field(default_factory=dict)
 
 
+@dataclass(frozen=True, slots=True)
+class BmsCellNumbers:
+    """ID 36: cells per BMS12 module, 16 values (0 or 4..12 to send; 4 bits on the wire)."""
+
+    cells_per_module: tuple[int, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class OtherTraffic:
+    """A frame on an ID the EVMS3 shares (52, 53) that carries no EVMS3 state: ignored."""
+
+    arbitration_id: int
+    what: str
+
+
 @dataclass(frozen=True)
 class ConfigReport:
     """IDs 52..56: one packet of the configuration the EVMS reports (its answer to 51)."""
@@ -179,186 +191,137 @@ class ConfigReadback:
                 + (', ' + ', '.join(off) if off else ''))
 
 
-# --- configuration table ----------------------------------------------------------------------
-# The setting slots of IDs 32..35 (byte 8 * packet + byte), one table format shared with the
-# BMS16 standard form (protocols.bms16_std), which gives several slots other meanings.
-# Linear slots: (name, type, slot, scale, offset, raw low, raw high, unit, what).
-SlotRow = tuple[str, type, int, float, float, int, int, str, str]
-_LINEAR: tuple[SlotRow, ...] = (
-    ('pack_capacity_ah', int, 0, 5, 0, 1, 250, 'Ah', 'pack capacity'),
-    ('soc_warning_pct', int, 1, 1, 0, 0, 99, '%', 'state of charge warning level'),
-    ('full_voltage_v', int, 2, 2, 0, 5, 251, 'V', 'pack voltage that counts as full'),
-    ('warn_current_a', int, 3, 10, 0, 1, 121, 'A', 'overcurrent warning threshold'),
-    ('trip_current_a', int, 4, 10, 0, 1, 121, 'A', 'overcurrent shutdown threshold'),
-    ('temp_warning_c', int, 5, 1, 0, 0, 151, 'degC', 'EVMS temperature warning'),
-    ('min_aux_voltage_v', int, 6, 1, 0, 8, 16, 'V', 'minimum 12 V (aux) voltage'),
-    ('min_isolation_pct', int, 7, 1, 0, 0, 99, '%', 'minimum isolation integrity'),
-    ('tacho_ppr', int, 8, 1, 0, 1, 6, '', 'tachometer pulses per revolution'),
-    ('fuel_gauge_full_pct', int, 9, 1, 0, 0, 100, '%', 'fuel gauge output when full'),
-    ('fuel_gauge_empty_pct', int, 10, 1, 0, 0, 100, '%', 'fuel gauge output when empty'),
-    ('temp_gauge_hot_pct', int, 11, 1, 0, 0, 100, '%', 'temperature gauge output hot'),
-    ('temp_gauge_cold_pct', int, 12, 1, 0, 0, 100, '%', 'temperature gauge output cold'),
-    ('bms_min_cell_v', float, 13, 0.01, 1.5, 0, 250, 'V', 'BMS minimum cell voltage'),
-    ('bms_max_cell_v', float, 14, 0.01, 2.0, 0, 250, 'V', 'BMS maximum cell voltage'),
-    ('bms_hysteresis_v', float, 16, 0.01, 0, 0, 50, 'V', 'BMS hysteresis'),
-    ('bms_min_temp_c', int, 17, 1, -40, 0, 141, 'degC', 'BMS minimum temperature'),
-    ('bms_max_temp_c', int, 18, 1, -40, 0, 141, 'degC', 'BMS maximum temperature'),
-    ('sleep_delay_min', int, 23, 1, 0, 1, 6, 'min', 'sleep delay'),
-    ('mpi_function', int, 24, 1, 0, 0, 3, '', 'MPI function (EVMS3 manual order)'),
-    ('mpo1_function', int, 25, 1, 0, 0, 6, '', 'MPO1 function (EVMS3 manual order)'),
-    ('mpo2_function', int, 26, 1, 0, 0, 6, '', 'MPO2 function (EVMS3 manual order)'),
-    ('parallel_strings', int, 27, 1, 0, 1, 20, '', 'parallel strings'),
-    ('night_brightness', int, 31, 1, 0, 0, 10, '', 'Monitor night brightness, x 10 %'),
-)
-BALANCE_SLOT = 15
-# 9-bit voltage (low byte + bit 7 of the current byte) and 7-bit current, slots 19..22
-_CHARGE = (('max_charge_voltage_v', 'max_charge_current_a', 19),
-           ('alt_charge_voltage_v', 'alt_charge_current_a', 21))
-_BOOLS = (('enable_precharge', 28), ('stationary_mode', 29), ('reverse_current_display', 30))
+# --- the balance byte, shared with protocols.bms16_std ----------------------------------------
+# Slot 15: 2.00..4.50 V (raw 0..250), 251 dynamic, 252 off: one byte for two settings.
+BALANCE_ROW = Signal('BalanceVoltage', 56, 8, LITTLE, scale=0.01, offset=2.0)
 BALANCE_MODES = ('static', 'dynamic', 'off')
-# The name msg_defs/evms3.dbc gives each setting byte of _LINEAR and _BOOLS.
-_DBC_NAMES = dict(zip(
-    [row[0] for row in _LINEAR] + [name for name, _ in _BOOLS],
-    ('PackCapacity', 'SocWarning', 'FullVoltage', 'WarnCurrent', 'TripCurrent',
-     'EvmsTempWarning', 'MinAuxVoltage', 'MinIsolation', 'TachoPpr', 'FuelGaugeFull',
-     'FuelGaugeEmpty', 'TempGaugeHot', 'TempGaugeCold', 'BmsMinVoltage', 'BmsMaxVoltage',
-     'BmsHysteresis', 'BmsMinTemp', 'BmsMaxTemp', 'SleepDelay', 'MpiFunction', 'Mpo1Function',
-     'Mpo2Function', 'ParallelStrings', 'NightBrightness', 'EnablePrecharge', 'StationaryMode',
-     'ReverseCurrentDisplay')))
-
-
-def config_layouts() -> list[Layout]:
-    """
-    Return the bits of IDs 32..35 and 36 in the table format of protocols/layout.py.
-
-    Built from the tables the encoder and decoder here use (_LINEAR, _CHARGE, _BOOLS, the
-    balance byte, the cell nibbles), so ``evms3.check_dbc`` proves them against the DBC.
-    """
-    def u(name: str, start: int, length: int = 8, scale: float = 1,
-          offset: float = 0) -> Signal:
-        return Signal(name, start, length, LITTLE, False, scale, offset)
-    packets: list[list[Signal]] = [[] for _ in range(4)]
-    for name, _, slot, scale, offset, *_ in _LINEAR:
-        packets[slot // 8].append(u(_DBC_NAMES[name], 8 * (slot % 8), scale=scale,
-                                    offset=offset))
-    packets[1].append(u('BalanceVoltage', 56, scale=0.01, offset=2.0))
-    for (_, _, slot), prefix in zip(_CHARGE, ('Max', 'Alt')):
-        packets[2] += [u(f'{prefix}ChargeVoltageLow', 8 * (slot % 8)),
-                       u(f'{prefix}ChargeCurrent', 8 * (slot % 8) + 8, 7),
-                       u(f'{prefix}ChargeVoltageBit8', 8 * (slot % 8) + 15, 1, 256)]
-    packets[3] += [u(_DBC_NAMES[name], 8 * (slot % 8)) for name, slot in _BOOLS]
-    cells = [u(f'Module{m}Cells', 4 * m, 4) for m in range(BMS12_MAX_MODULES)]
-    return [Layout(f'EVMS3_Config{k + 1}', 8, tuple(signals))
-            for k, signals in enumerate(packets)] + [Layout('EVMS3_BmsCellNumbers', 8,
-                                                            tuple(cells))]
-
-
-# --- the slot codec, shared with protocols.bms16_std -------------------------------------------
-def _phys(typ: type, scale: float, offset: float, raw: int) -> float:
-    return int(raw * scale + offset) if typ is int else round(raw * scale + offset, 6)
-
-
-def slot_field(row: SlotRow) -> ConfigField:
-    """Return the ConfigField of a linear slot: its physical range, step and description."""
-    name, typ, _, scale, offset, rlo, rhi, unit, what = row
-    low, high = _phys(typ, scale, offset, rlo), _phys(typ, scale, offset, rhi)
-    return ConfigField(name, typ, low, high, scale, unit,
-                       f'{what} ({low:g}..{high:g} {unit})'.replace(' )', ')'))
-
-
 BALANCE_FIELDS = (
     ConfigField('balance_v', float, 2.0, 4.5, 0.01, 'V',
                 'static balance voltage (2.00..4.50 V), used only when balance_mode is static'),
     ConfigField('balance_mode', str, description='balancing: static (at balance_v), dynamic '
                 'or off', choices=BALANCE_MODES))
+BALANCE_NAMES = ('balance_v', 'balance_mode')
 
 
-def check_field(spec: ConfigField | None, name: str, value: Any,
-                known: Iterable[str]) -> Any:
-    """Validate a bool, choice or number setting; return it normalized (EncodeRangeError)."""
-    if spec is None:
-        raise EncodeRangeError(name, value, 'one of ' + ', '.join(known))
-    if spec.type is bool:
-        if isinstance(value, bool) or (isinstance(value, int) and value in (0, 1)):
-            return bool(value)
-        raise EncodeRangeError(name, value, 'true or false')
-    if spec.type is str:
-        if value not in spec.choices:
-            raise EncodeRangeError(name, value, 'one of ' + ', '.join(spec.choices))
+def check_balance(name: str, value: Any) -> Any:
+    """Validate balance_mode (a choice) or balance_v (a voltage); EncodeRangeError if not."""
+    if name == 'balance_mode':
+        if value not in BALANCE_MODES:
+            raise EncodeRangeError(name, value, 'one of ' + ', '.join(BALANCE_MODES))
         return value
-    number = check_value(name, value, spec.low, spec.high,  # type: ignore[arg-type]  # a range
-                         spec.step, spec.unit)
-    return int(round(number)) if spec.type is int else round(float(number), 6)
+    return round(float(check_value(name, value, 2.0, 4.5, 0.01, 'V')), 6)
 
 
-def pack_slots(rows: Iterable[SlotRow], slots: bytearray, values: Any,
-               check: Callable[[str, Any], Any], multiplier: int = 1,
-               check_unused_balance: bool = False) -> None:
-    """Write the linear slots and then the balance byte of values (checked) into slots."""
-    for name, _, slot, scale, offset, *_ in rows:
-        value = check(name, getattr(values, name))
-        slots[slot] = round((value - offset) / (scale * (multiplier if name in _SCALED
-                                                         else 1)))
-    mode = check('balance_mode', values.balance_mode)
-    if mode == 'static' or (check_unused_balance and values.balance_v is not None):
-        balance = check('balance_v', values.balance_v)
-    slots[BALANCE_SLOT] = (BALANCE_DYNAMIC if mode == 'dynamic' else BALANCE_OFF
-                           if mode == 'off' else round((balance - 2.0) / 0.01))
+def balance_byte(mode: Any, volts: Any, check_unused: bool = False) -> int:
+    """Return slot 15 of a balance mode and voltage (checked; the voltage only if static)."""
+    mode = check_balance('balance_mode', mode)
+    if mode == 'static' or (check_unused and volts is not None):
+        volts = check_balance('balance_v', volts)
+    return (BALANCE_DYNAMIC if mode == 'dynamic' else BALANCE_OFF if mode == 'off'
+            else round((volts - 2.0) / 0.01))
 
 
-def unpack_slots(rows: Iterable[SlotRow], data: bytes, first: int,
-                 fail: Callable[[str], Exception], multiplier: int = 1) -> dict[str, Any]:
-    """Read the linear slots (and the balance byte) in data, slot first..; fail(why) if bad."""
-    values: dict[str, Any] = {}
-    for name, typ, slot, scale, offset, rlo, rhi, _, _ in rows:
-        if first <= slot < first + len(data):
-            raw = data[slot - first]
-            if not rlo <= raw <= rhi:
-                raise fail(f'{name} raw {raw} outside {rlo}..{rhi}')
-            values[name] = _phys(typ, scale * (multiplier if name in _SCALED else 1),
-                                 offset, raw)
-    if first <= BALANCE_SLOT < first + len(data):
-        raw = data[BALANCE_SLOT - first]
-        if raw > BALANCE_OFF:
-            raise fail(f'balance voltage raw {raw} outside 0..252')
-        values['balance_mode'] = ('dynamic' if raw == BALANCE_DYNAMIC else
-                                  'off' if raw == BALANCE_OFF else 'static')
-        values['balance_v'] = round(2.0 + raw * 0.01, 2) if raw <= 250 else None
-    return values
+def balance_values(raw: int, fail: Callable[[str], Exception]) -> dict[str, Any]:
+    """Return balance_mode and balance_v (None unless static) of slot 15; fail(why) if bad."""
+    if raw > BALANCE_OFF:
+        raise fail(f'balance voltage raw {raw} outside 0..252')
+    return {'balance_mode': ('dynamic' if raw == BALANCE_DYNAMIC else
+                             'off' if raw == BALANCE_OFF else 'static'),
+            'balance_v': round(2.0 + raw * 0.01, 2) if raw <= 250 else None}
+
+
+# --- the configuration table ----------------------------------------------------------------
+# The 32 setting bytes of IDs 32..35 (Common.h settings 0..31) and the cell nibbles of ID 36,
+# with the names of msg_defs/evms3.dbc (``evms3.check_dbc`` proves the bits against it) and
+# the ranges of the firmware and the Monitor (minimums[] / maximums[], physical units).
+_CONFIG1 = Layout('EVMS3_Config1', 8, (
+    setting('PackCapacity', 0, 'pack_capacity_ah', 5, 1250, 'Ah', 'pack capacity', scale=5),
+    setting('SocWarning', 1, 'soc_warning_pct', 0, 99, '%', 'state of charge warning level'),
+    setting('FullVoltage', 2, 'full_voltage_v', 10, 502, 'V',
+            'pack voltage that counts as full', scale=2),
+    setting('WarnCurrent', 3, 'warn_current_a', 10, 1210, 'A', 'overcurrent warning threshold',
+            scale=10, sentinel=(1210, 'off')),
+    setting('TripCurrent', 4, 'trip_current_a', 10, 1210, 'A',
+            'overcurrent shutdown threshold', scale=10, sentinel=(1210, 'off')),
+    setting('EvmsTempWarning', 5, 'temp_warning_c', 0, 151, 'degC', 'EVMS temperature warning',
+            sentinel=(151, 'off')),
+    setting('MinAuxVoltage', 6, 'min_aux_voltage_v', 8, 16, 'V', 'minimum 12 V (aux) voltage'),
+    setting('MinIsolation', 7, 'min_isolation_pct', 0, 99, '%', 'minimum isolation integrity')))
+_CONFIG2 = Layout('EVMS3_Config2', 8, (
+    setting('TachoPpr', 0, 'tacho_ppr', 1, 6, '', 'tachometer pulses per revolution'),
+    setting('FuelGaugeFull', 1, 'fuel_gauge_full_pct', 0, 100, '%', 'fuel gauge output when full'),
+    setting('FuelGaugeEmpty', 2, 'fuel_gauge_empty_pct', 0, 100, '%',
+            'fuel gauge output when empty'),
+    setting('TempGaugeHot', 3, 'temp_gauge_hot_pct', 0, 100, '%', 'temperature gauge output hot'),
+    setting('TempGaugeCold', 4, 'temp_gauge_cold_pct', 0, 100, '%',
+            'temperature gauge output cold'),
+    setting('BmsMinVoltage', 5, 'bms_min_cell_v', 1.5, 4.0, 'V', 'BMS minimum cell voltage',
+            float, 0.01, 1.5),
+    setting('BmsMaxVoltage', 6, 'bms_max_cell_v', 2.0, 4.5, 'V', 'BMS maximum cell voltage',
+            float, 0.01, 2.0),
+    BALANCE_ROW))
+_CONFIG3 = Layout('EVMS3_Config3', 8, (
+    setting('BmsHysteresis', 0, 'bms_hysteresis_v', 0, 0.5, 'V', 'BMS hysteresis', float, 0.01),
+    setting('BmsMinTemp', 1, 'bms_min_temp_c', -40, 101, 'degC', 'BMS minimum temperature',
+            offset=-40, sentinel=(-40, 'off')),
+    setting('BmsMaxTemp', 2, 'bms_max_temp_c', -40, 101, 'degC', 'BMS maximum temperature',
+            offset=-40, sentinel=(101, 'off')),
+    # charge voltages: 9 bits, the low byte and bit 7 of the current's byte (by hand below)
+    Signal('MaxChargeVoltageLow', 24, 8, LITTLE),
+    setting('MaxChargeCurrent', 4, 'max_charge_current_a', 0, 127, 'A', 'max charge current',
+            length=7),
+    Signal('MaxChargeVoltageBit8', 39, 1, LITTLE, scale=256),
+    Signal('AltChargeVoltageLow', 40, 8, LITTLE),
+    setting('AltChargeCurrent', 6, 'alt_charge_current_a', 0, 127, 'A', 'alt charge current',
+            length=7),
+    Signal('AltChargeVoltageBit8', 55, 1, LITTLE, scale=256),
+    setting('SleepDelay', 7, 'sleep_delay_min', 1, 6, 'min', 'sleep delay',
+            sentinel=(6, 'never'))))
+_CONFIG4 = Layout('EVMS3_Config4', 8, (
+    setting('MpiFunction', 0, 'mpi_function', 0, 3, '', 'MPI function (EVMS3 manual order)'),
+    setting('Mpo1Function', 1, 'mpo1_function', 0, 6, '', 'MPO1 function (EVMS3 manual order)'),
+    setting('Mpo2Function', 2, 'mpo2_function', 0, 6, '', 'MPO2 function (EVMS3 manual order)'),
+    setting('ParallelStrings', 3, 'parallel_strings', 1, 20, '', 'parallel strings'),
+    setting('EnablePrecharge', 4, 'enable_precharge', 0, 1, '', 'enable the precharge sequence',
+            bool),
+    setting('StationaryMode', 5, 'stationary_mode', 0, 1, '', 'stationary (non-vehicle) mode: '
+            'a low cell opens the main contactor, a high cell disables charging', bool),
+    setting('ReverseCurrentDisplay', 6, 'reverse_current_display', 0, 1, '',
+            'ZEVA Monitor shows the current reversed', bool),
+    setting('NightBrightness', 7, 'night_brightness', 0, 10, '',
+            'Monitor night brightness, x 10 %')))
+CELL_NUMBERS_LAYOUT = Layout('EVMS3_BmsCellNumbers', 8, tuple(
+    Signal(f'Module{m}Cells', 4 * m, 4, LITTLE) for m in range(BMS12_MAX_MODULES)))
+_D_CELL_NUMBERS = CELL_NUMBERS_LAYOUT.decoder()
+_E_CELL_NUMBERS = CELL_NUMBERS_LAYOUT.encoder()
+CONFIG_LAYOUTS = (_CONFIG1, _CONFIG2, _CONFIG3, _CONFIG4, CELL_NUMBERS_LAYOUT)
+# By PACK_VOLTAGE_MULTIPLIER: an 800 V build counts the full voltage in 4 V steps.
+_SETTINGS = {1: Settings(CONFIG_LAYOUTS[:4]), 2: Settings((_CONFIG1.replace(
+    'FullVoltage', scale=4, low=20, high=1004), *CONFIG_LAYOUTS[1:4]))}
+_CHARGE = ('max_charge_voltage_v', 'alt_charge_voltage_v')  # x multiplier as full voltage
+_D_CHARGE = _CONFIG3.decoder('MaxChargeVoltageLow', 'MaxChargeVoltageBit8',
+                             'AltChargeVoltageLow', 'AltChargeVoltageBit8')
+SENTINELS: dict[str, tuple[float, str]] = _SETTINGS[1].sentinels()
+
+
+_X2 = '; x 2 with voltage_multiplier 2)'
 
 
 def _build_fields() -> tuple[ConfigField, ...]:
-    by_name = {f.name: f for f in BALANCE_FIELDS}
-    for row in _LINEAR:
-        spec = slot_field(row)
-        if row[0] in SENTINELS:
-            value, word = SENTINELS[row[0]]
-            spec = replace(spec, description=spec.description[:-1] + f'; {value} = {word})')
-        if row[0] in _SCALED:  # declared wide enough for both builds; the device checks its own
-            spec = replace(spec, high=_phys(row[1], row[3] * 2, row[4], row[6]),
-                           description=spec.description[:-1] + '; x 2 with voltage_multiplier 2)')
-        by_name[row[0]] = spec
-    for volt, amp, _ in _CHARGE:
-        kind = volt.split('_')[0]
-        by_name[volt] = ConfigField(volt, int, 0, 1022, 1, 'V', f'{kind} charge voltage '
-                                    '(0..511 V; x 2 with voltage_multiplier 2)')
-        by_name[amp] = ConfigField(amp, int, 0, 127, 1, 'A', f'{kind} charge current (0..127 A)')
-    by_name['enable_precharge'] = ConfigField('enable_precharge', bool,
-                                              description='enable the precharge sequence')
-    by_name['stationary_mode'] = ConfigField(
-        'stationary_mode', bool, description='stationary (non-vehicle) mode: a low cell opens '
-        'the main contactor, a high cell disables charging')
-    by_name['reverse_current_display'] = ConfigField(
-        'reverse_current_display', bool, description='ZEVA Monitor shows the current reversed')
-    ordered = [by_name[f.name] for f in fields(Evms3Config)]
-    ordered.append(ConfigField('cells_per_module', 'int[]', 0, CELLS_MAX, 1, '',
-                               'cells on each of the 16 BMS12 modules (0 or 4..12), ID 36',
-                               length=BMS12_MAX_MODULES))
-    return tuple(ordered)
+    """Return the fields in Evms3Config's order: the rows', the balance and charge voltages."""
+    by_name = {f.name: f for f in (*_SETTINGS[1].fields(), *BALANCE_FIELDS)}
+    full = by_name['full_voltage_v']  # declared wide enough for both builds
+    by_name[full.name] = replace(full, high=_SETTINGS[2].field(full.name).high,
+                                 description=full.description[:-1] + _X2)
+    for volt in _CHARGE:
+        by_name[volt] = ConfigField(volt, int, 0, 1022, 1, 'V', volt.split('_')[0]
+                                    + ' charge voltage (0..511 V' + _X2)
+    return tuple(by_name[f.name] for f in fields(Evms3Config)) + (ConfigField(
+        'cells_per_module', 'int[]', 0, CELLS_MAX, 1, '',
+        'cells on each of the 16 BMS12 modules (0 or 4..12), ID 36', length=BMS12_MAX_MODULES),)
 
 
 CONFIG_FIELDS: tuple[ConfigField, ...] = _build_fields()
-_FIELD_BY_NAME = {f.name: f for f in CONFIG_FIELDS}
 
 
 def check_config_value(name: str, value: Any, multiplier: int = 1) -> Any:
@@ -369,11 +332,12 @@ def check_config_value(name: str, value: Any, multiplier: int = 1) -> Any:
     written as int or float (3 and 3.0 are the same); nothing is clamped. ``multiplier``
     is the EVMS build's PACK_VOLTAGE_MULTIPLIER (1 or 2): full and charge voltages scale.
     """
-    spec = _FIELD_BY_NAME.get(name)
-    if spec is not None and spec.type == 'int[]':
-        allowed = f'{spec.length} integers, each 0 or {CELLS_MIN}..{CELLS_MAX}'
+    if multiplier not in VOLTAGE_MULTIPLIERS:
+        raise ConfigError(f'voltage multiplier {multiplier!r}: allowed 1 or 2')
+    if name == 'cells_per_module':
+        allowed = f'{BMS12_MAX_MODULES} integers, each 0 or {CELLS_MIN}..{CELLS_MAX}'
         if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) \
-                or len(value) != spec.length:
+                or len(value) != BMS12_MAX_MODULES:
             raise EncodeRangeError(name, value, allowed)
         cells = tuple(int(check_value(f'{name}[{i}]', v, 0, CELLS_MAX, 1))
                       for i, v in enumerate(value))
@@ -381,35 +345,20 @@ def check_config_value(name: str, value: Any, multiplier: int = 1) -> Any:
             if 0 < n < CELLS_MIN:
                 raise EncodeRangeError(f'{name}[{i}]', n, f'0 or {CELLS_MIN}..{CELLS_MAX}')
         return cells
-    if spec is not None and name in _SCALED:
-        spec = _scaled(spec, multiplier)
-    return check_field(spec, name, value, _FIELD_BY_NAME)
+    if name in _CHARGE:
+        return int(check_value(name, value, 0, 511 * multiplier, multiplier, 'V'))
+    if name in BALANCE_NAMES:
+        return check_balance(name, value)
+    return _SETTINGS[multiplier].check(name, value)
 
 
-def _scaled(spec: ConfigField, multiplier: int) -> ConfigField:
-    """Return the range of a full/charge voltage on a build with this multiplier."""
-    if multiplier not in VOLTAGE_MULTIPLIERS:
-        raise ConfigError(f'voltage multiplier {multiplier!r}: allowed 1 or 2')
-    if spec.name == 'full_voltage_v':
-        low, high, step = 10 * multiplier, 502 * multiplier, 2 * multiplier
-    else:
-        low, high, step = 0, 511 * multiplier, multiplier
-    return ConfigField(spec.name, spec.type, low, high, step, spec.unit)
-
-
-def config_payloads(cfg: Evms3Config, multiplier: int = 1) -> list[bytearray]:
+def config_payloads(cfg: Evms3Config, multiplier: int = 1) -> list[bytes]:
     """Return the payloads of IDs 32..35 (EncodeRangeError names the first bad value)."""
-    def check(name: str, value: Any) -> Any:
-        return check_config_value(name, value, multiplier)
-    slots = bytearray(32)
-    pack_slots(_LINEAR, slots, cfg, check, multiplier, check_unused_balance=True)
-    for volt, amp, slot in _CHARGE:
-        v = check(volt, getattr(cfg, volt)) // multiplier
-        slots[slot] = v & 0xFF
-        slots[slot + 1] = check_config_value(amp, getattr(cfg, amp)) | (v >> 8) << 7
-    for name, slot in _BOOLS:
-        slots[slot] = int(check_config_value(name, getattr(cfg, name)))
-    return [slots[8 * k:8 * k + 8] for k in range(4)]
+    raws = {BALANCE_ROW.name: balance_byte(cfg.balance_mode, cfg.balance_v, True)}
+    for volt, prefix in zip(_CHARGE, ('Max', 'Alt')):
+        v = check_config_value(volt, getattr(cfg, volt), multiplier) // multiplier
+        raws[f'{prefix}ChargeVoltageLow'], raws[f'{prefix}ChargeVoltageBit8'] = v & 0xFF, v >> 8
+    return [_SETTINGS[multiplier].payload(k, cfg, raws) for k in range(4)]
 
 
 def decode_config_packet(packet: int, aid: int, data: bytes,
@@ -417,18 +366,48 @@ def decode_config_packet(packet: int, aid: int, data: bytes,
     """Decode packet 0..3 (the layout of 32..35); MalformedFrameError for a raw value."""
     def fail(why: str) -> Exception:
         return MalformedFrameError(aid, data, why)
-    values = unpack_slots(_LINEAR, data, 8 * packet, fail, multiplier)
-    for volt, amp, slot in _CHARGE:
-        if slot // 8 == packet:
-            byte = slot % 8
-            values[volt] = (data[byte] | (data[byte + 1] >> 7) << 8) * multiplier
-            values[amp] = data[byte + 1] & 0x7F
-    for name, slot in _BOOLS:
-        if slot // 8 == packet:
-            if data[slot % 8] > 1:
-                raise fail(f'{name} raw {data[slot % 8]}, expected 0 or 1')
-            values[name] = bool(data[slot % 8])
+    check_dlc(aid, data, 8)  # ID 35 too: bytes 6-7 are settings 30-31 (Common.h)
+    values = _SETTINGS[multiplier].decode(packet, data, fail)
+    if packet == 1:
+        values.update(balance_values(data[7], fail))
+    if packet == 2:
+        max_low, max_bit8, alt_low, alt_bit8 = _D_CHARGE(data)
+        values['max_charge_voltage_v'] = (max_low + max_bit8) * multiplier
+        values['alt_charge_voltage_v'] = (alt_low + alt_bit8) * multiplier
     return Evms3ConfigPart(packet + 1, values)
+
+
+def decode_report(aid: int, data: bytes, multiplier: int = 1) -> ConfigReport | OtherTraffic:
+    """Decode one packet of the EVMS's answer to ID 51 (52..55 config, 56 cell numbers)."""
+    if aid == CORE_SEND_CELL_NUMS:
+        return ConfigReport(aid, {'cells_per_module': decode_cell_numbers(aid, data)})
+    # A Monitor's or motor controller's frame on 52/53 is normal traffic: only a frame that
+    # reads as the EVMS3's packet counts, the rest is ignored.
+    if aid in SHARED_READBACK_IDS and len(data) != 8:
+        return OtherTraffic(aid, f'DLC {len(data)}: motor-controller settings traffic')
+    try:
+        part = decode_config_packet(aid - CORE_SEND_CONFIG1, aid, data, multiplier)
+    except MalformedFrameError as exc:
+        if aid not in SHARED_READBACK_IDS:
+            raise
+        return OtherTraffic(aid, f'not an EVMS3 configuration ({exc.reason})')
+    return ConfigReport(aid, part.values)
+
+
+def decode_cell_numbers(aid: int, data: bytes) -> tuple[int, ...]:
+    """Decode ID 36 or 56: cells per module; MalformedFrameError for 1..3 or 13..15."""
+    check_dlc(aid, data, 8)
+    cells = _D_CELL_NUMBERS(data)
+    for m, n in enumerate(cells):
+        if 0 < n < CELLS_MIN or n > CELLS_MAX:  # 13..15 overrun the firmware's arrays
+            raise MalformedFrameError(aid, data, f'module {m}: {n} cells (0 or '
+                                      f'{CELLS_MIN}..{CELLS_MAX})')
+    return cells
+
+
+def cell_numbers_payload(cells_per_module: Sequence[int]) -> bytes:
+    """Return the payload of ID 36 (and 56); EncodeRangeError names a bad module."""
+    return _E_CELL_NUMBERS(*check_config_value('cells_per_module', cells_per_module))
 
 
 # Valid values to encode a single decoded part: the other parts' fields do not reach its frame.

@@ -138,6 +138,12 @@ class Signal:
     invalid: int | None = None  # raw value meaning "not available": None both ways
     # decode only: raw value -> reading value (an enum member, None); IndexError past its end
     lookup: tuple | None = None
+    # A configuration setting (protocols/settings.py derives its ConfigField from the row):
+    # what it means, its physical type (int or float; a flag is a bool) and a range end that
+    # the device reads as a word (EVMS3: warn current 1210 A = 'off'). No effect on the code.
+    description: str = ''
+    kind: type | None = None
+    sentinel: tuple[float, str] | None = None
     # A rule of the protocol (not of the bits): decoding refuses a value outside low..high,
     # or with a lookup a raw value without a member, raising BadValue with this text
     # formatted with value, low and high ('bank ID {value} (allowed {low}..{high})'; for a

@@ -166,8 +166,7 @@ class Bms16Simulator(SimDevice):
             part1: dict[str, Any] = unchecked_config_values(data, 1)
             return Bms16ConfigPart1(**part1)
         if offset == CONFIG_2 and len(data) == 4 and data[3] < len(SHUNT_SIZES_A):
-            return Bms16ConfigPart2(**unchecked_config_values(data, 2),
-                                    shunt_size_a=SHUNT_SIZES_A[data[3]])
+            return Bms16ConfigPart2(**unchecked_config_values(data, 2))
         return None
 
     def on_frame(self, frame: Frame, now: float) -> None:
