@@ -12,6 +12,7 @@ carry the vendor's names.
 from __future__ import annotations
 
 import enum
+import functools
 from dataclasses import dataclass, fields
 from typing import Any, Callable, Union
 
@@ -31,9 +32,6 @@ DISCHARGE_TEMPERATURES = 0x013
 ERROR = 0x014
 OVERRIDE_CHARGE_CURRENT = 0x050
 OVERRIDE_BANK_COUNT = 0x051
-OFFSETS = (STATUS, CHARGER_STATUS, CAR_STATUS, CHARGER_COMMANDS, CELL_VOLTAGES,
-           CELL_TEMPERATURES, DISCHARGE_TEMPERATURES, ERROR, OVERRIDE_CHARGE_CURRENT,
-           OVERRIDE_BANK_COUNT)
 
 MAX_DLC = 8  # classic CAN: frames padded up to 8 bytes are accepted
 MAX_BANKS = 5
@@ -237,10 +235,9 @@ AmsMessage = Union[AmsStatus, AmsChargerStatus, CarStatus, ChargerCommand, CellV
                    CellTemperatures, DischargeTemperatures, AmsErrorEvent,
                    OverrideChargeCurrent, OverrideBankCount]
 
-_STATUS_BITS = (('AIR_Plus', 'air_plus'), ('AIR_Minus', 'air_minus'),
-                ('Precharge_Relay', 'precharge'), ('Warn_Volt', 'warn_volt'),
-                ('Warn_Temp', 'warn_temp'), ('HVDC_Interlock', 'hvdc_interlock'),
-                ('IMD_Error', 'imd_error'), ('AMS_Error', 'ams_error'))
+# The status word's bits 7..0 as msg_defs/ams.dbc names them (AmsStatusWord's order).
+_STATUS_BITS = ('AIR_Plus', 'AIR_Minus', 'Precharge_Relay', 'Warn_Volt', 'Warn_Temp',
+                'HVDC_Interlock', 'IMD_Error', 'AMS_Error')
 # offset -> its reading; the two status frames start with the status word, the series frames
 # end with one tuple of values after bank and group.
 READINGS: dict[int, type] = {
@@ -262,8 +259,8 @@ _SERIES = (CELL_VOLTAGES, CELL_TEMPERATURES, DISCHARGE_TEMPERATURES)
 # first codec. A value outside a check makes the frame malformed with the check's text.
 _ALLOWED = ' {value} (allowed {low:g}..{high:g})'
 _UNKNOWN = ' {value} (known {low}..{high})'
-_WORD = tuple(Signal(dbc, 7 - bit, 1, field=attr, flag=True)
-              for bit, (dbc, attr) in enumerate(_STATUS_BITS)) + (
+_WORD = tuple(Signal(dbc, 7 - bit, 1, field=attr.name, flag=True)
+              for bit, (dbc, attr) in enumerate(zip(_STATUS_BITS, fields(AmsStatusWord)))) + (
     Signal('Bank_Count', 15, 3, high=MAX_BANKS, field='bank_count',
            check='status bank count' + _ALLOWED),
     Signal('AMS_State', 12, 5, field='state', lookup=tuple(AmsState),
@@ -328,6 +325,7 @@ LAYOUTS: dict[int, Layout] = {offset: Layout(name, length, signals) for
 )}
 
 
+@functools.cache
 def _check_dbc() -> None:
     """Fail loudly (LayoutError) if msg_defs/ams.dbc no longer has the layout of LAYOUTS."""
     db = load_dbc('ams')
@@ -388,22 +386,19 @@ class AmsCodec:
     """Frames <-> typed AMS messages at one base ID (11-bit IDs)."""
 
     is_extended_id = False
-    _dbc_checked = False
 
     def __init__(self, base_id: int = DEFAULT_BASE_ID) -> None:
-        highest = 0x7FF - max(OFFSETS)
+        highest = 0x7FF - max(LAYOUTS)
         if isinstance(base_id, bool) or not isinstance(base_id, int) \
                 or not 0 <= base_id <= highest:
             raise EncodeRangeError('base_id', base_id,
                                    f'0..0x{highest:X} (11-bit IDs up to base + 0x051)')
         self.base_id = base_id
-        if not AmsCodec._dbc_checked:
-            _check_dbc()
-            AmsCodec._dbc_checked = True
+        _check_dbc()  # once
         # One dict lookup per frame: ID -> (DLC, reading builder).
         self._decode_table: dict[int, tuple[int, Callable[[bytes], Any]]] = {
-            base_id + offset: (LAYOUTS[offset].length, _DECODERS[offset])
-            for offset in OFFSETS}
+            base_id + offset: (layout.length, _DECODERS[offset])
+            for offset, layout in LAYOUTS.items()}
         self.arbitration_ids = frozenset(self._decode_table)
 
     def id_of(self, offset: int) -> int:
