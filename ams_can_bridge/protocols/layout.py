@@ -249,19 +249,17 @@ class Layout:
             tables[name] = _Known(s) if s.check else s.lookup
             return f'{name}[{raw}]'
         plain = raw_only or (s.scale == 1 and s.offset == 0)
+        var = f'r_{s.start}_{s.length}'  # the raw value, read once (:=) where tested
+        value = var if plain else self.scaled_expression(s, var)
         if s.check and tables is not None:
             # The range test is on the raw integer (exact); the message shows the value.
-            var, name = f'r_{s.start}_{s.length}', f'B{len(tables)}'
+            name, (lo, hi) = f'B{len(tables)}', s.raw_limits()
             tables[name] = functools.partial(self._refuse, s, self._scale_function(s))
-            lo, hi = s.raw_limits()
-            value = var if plain else self.scaled_expression(s, var)
-            if s.invalid is not None:
-                return (f'(None if ({var} := {raw}) == {s.invalid} else {value} '
-                        f'if {lo} <= {var} <= {hi} else {name}({var}))')
-            return f'({value} if {lo} <= ({var} := {raw}) <= {hi} else {name}({var}))'
+            tested = var if s.invalid is not None else f'({var} := {raw})'
+            value = f'{value} if {lo} <= {tested} <= {hi} else {name}({var})'
+            if s.invalid is None:
+                return f'({value})'
         if s.invalid is not None:
-            var = f'r_{s.start}_{s.length}'
-            value = var if plain else self.scaled_expression(s, var)
             return f'(None if ({var} := {raw}) == {s.invalid} else {value})'
         if plain:
             return raw
