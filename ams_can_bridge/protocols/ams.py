@@ -2,12 +2,9 @@
 Formula-Student AMS protocol: frames <-> typed readings (docs/protocols.md section 1).
 
 Section 1 holds the frames, enums, DLC rule and the decisions on the vendor document's
-garbled parts. The bits are ``LAYOUTS`` (protocols/layout.py tables): encoders and decoders
-are generated from it, and it is checked against msg_defs/ams.dbc at the first codec and
-against cantools in the tests. The table's rows also carry what a DBC cannot say (valid
-bank/group IDs, known enum values); every value is checked before it is encoded, so a bad
-command fails loudly instead of being clamped. Readings are frozen dataclasses; enums
-carry the vendor's names.
+garbled parts. The bits are the ``LAYOUTS`` table below, also checked against cantools in
+the tests; every value is checked before it is encoded, so a bad command fails loudly
+instead of being clamped. Readings are frozen dataclasses; enums carry the vendor's names.
 """
 from __future__ import annotations
 

@@ -228,9 +228,8 @@ DIALECT_IDS = frozenset(DIALECT_LAYOUTS)  # Pylontech's 0x359, 0x35C; Victron's 
 
 
 # --- how each frame is decoded and built (SmaCodec runs these tables) ------------------------
-# Frames of numbers, decoded and built by code generated from the table: ID -> (reading,
-# accepted DLCs); a frame cut short is padded with 0xFF, so the fields not sent read as not
-# available.
+# Frames of numbers, decoded and built by code generated from the table (a frame cut short
+# padded by pad_unsent): ID -> (reading, accepted DLCs).
 DIALECT_NUMBERS: dict[int, tuple[type, tuple[int, ...]]] = {
     PYLONTECH_REQUEST_ID: (PylontechRequest, tuple(range(1, 9))),
     VICTRON_MODULES_ID: (VictronModules, (2, 4, 6, 8)),  # odd: would split a count
