@@ -479,6 +479,9 @@ def test_a_dbc_with_another_layout_is_refused(monkeypatch):
         text.replace('SG_ SOC : 39|8@0+ (1,0) [0|100]', 'SG_ SOC : 39|8@0+ (2,0) [0|200]', 1),
         strict=True)
     monkeypatch.setattr(ams_protocol, 'load_dbc', lambda name: changed)
-    monkeypatch.setattr(AmsCodec, '_dbc_checked', False)
-    with pytest.raises(RuntimeError, match='AMS_Status does not match the AMS codec layout'):
-        AmsCodec()
+    ams_protocol._check_dbc.cache_clear()
+    try:
+        with pytest.raises(RuntimeError, match='AMS_Status does not match the AMS codec layout'):
+            AmsCodec()
+    finally:
+        ams_protocol._check_dbc.cache_clear()

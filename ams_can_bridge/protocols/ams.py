@@ -2,16 +2,14 @@
 Formula-Student AMS protocol: frames <-> typed readings (docs/protocols.md section 1).
 
 Section 1 holds the frames, enums, DLC rule and the decisions on the vendor document's
-garbled parts. The bits are ``LAYOUTS`` (protocols/layout.py tables): encoders and decoders
-are generated from it, and it is checked against msg_defs/ams.dbc at the first codec and
-against cantools in the tests. The table's rows also carry what a DBC cannot say (valid
-bank/group IDs, known enum values); every value is checked before it is encoded, so a bad
-command fails loudly instead of being clamped. Readings are frozen dataclasses; enums
-carry the vendor's names.
+garbled parts. The bits are the ``LAYOUTS`` table below, also checked against cantools in
+the tests; every value is checked before it is encoded, so a bad command fails loudly
+instead of being clamped. Readings are frozen dataclasses; enums carry the vendor's names.
 """
 from __future__ import annotations
 
 import enum
+import functools
 from dataclasses import dataclass, fields
 from typing import Any, Callable, Union
 
@@ -31,9 +29,6 @@ DISCHARGE_TEMPERATURES = 0x013
 ERROR = 0x014
 OVERRIDE_CHARGE_CURRENT = 0x050
 OVERRIDE_BANK_COUNT = 0x051
-OFFSETS = (STATUS, CHARGER_STATUS, CAR_STATUS, CHARGER_COMMANDS, CELL_VOLTAGES,
-           CELL_TEMPERATURES, DISCHARGE_TEMPERATURES, ERROR, OVERRIDE_CHARGE_CURRENT,
-           OVERRIDE_BANK_COUNT)
 
 MAX_DLC = 8  # classic CAN: frames padded up to 8 bytes are accepted
 MAX_BANKS = 5
@@ -237,19 +232,11 @@ AmsMessage = Union[AmsStatus, AmsChargerStatus, CarStatus, ChargerCommand, CellV
                    CellTemperatures, DischargeTemperatures, AmsErrorEvent,
                    OverrideChargeCurrent, OverrideBankCount]
 
-_STATUS_BITS = (('AIR_Plus', 'air_plus'), ('AIR_Minus', 'air_minus'),
-                ('Precharge_Relay', 'precharge'), ('Warn_Volt', 'warn_volt'),
-                ('Warn_Temp', 'warn_temp'), ('HVDC_Interlock', 'hvdc_interlock'),
-                ('IMD_Error', 'imd_error'), ('AMS_Error', 'ams_error'))
-# offset -> its reading; the two status frames start with the status word, the series frames
-# end with one tuple of values after bank and group.
-READINGS: dict[int, type] = {
-    STATUS: AmsStatus, CHARGER_STATUS: AmsChargerStatus, CAR_STATUS: CarStatus,
-    CHARGER_COMMANDS: ChargerCommand, CELL_VOLTAGES: CellVoltages,
-    CELL_TEMPERATURES: CellTemperatures, DISCHARGE_TEMPERATURES: DischargeTemperatures,
-    ERROR: AmsErrorEvent, OVERRIDE_CHARGE_CURRENT: OverrideChargeCurrent,
-    OVERRIDE_BANK_COUNT: OverrideBankCount,
-}
+# The status word's bits 7..0 as msg_defs/ams.dbc names them (AmsStatusWord's order).
+_STATUS_BITS = ('AIR_Plus', 'AIR_Minus', 'Precharge_Relay', 'Warn_Volt', 'Warn_Temp',
+                'HVDC_Interlock', 'IMD_Error', 'AMS_Error')
+# The two status frames' readings start with the status word; the series frames' end with
+# one tuple of values after bank and group.
 _WORD_FRAMES = (STATUS, CHARGER_STATUS)
 _SERIES = (CELL_VOLTAGES, CELL_TEMPERATURES, DISCHARGE_TEMPERATURES)
 
@@ -262,34 +249,32 @@ _SERIES = (CELL_VOLTAGES, CELL_TEMPERATURES, DISCHARGE_TEMPERATURES)
 # first codec. A value outside a check makes the frame malformed with the check's text.
 _ALLOWED = ' {value} (allowed {low:g}..{high:g})'
 _UNKNOWN = ' {value} (known {low}..{high})'
-_WORD = tuple(Signal(dbc, 7 - bit, 1, field=attr, flag=True)
-              for bit, (dbc, attr) in enumerate(_STATUS_BITS)) + (
+_WORD = tuple(Signal(dbc, 7 - bit, 1, field=attr.name, flag=True)
+              for bit, (dbc, attr) in enumerate(zip(_STATUS_BITS, fields(AmsStatusWord)))) + (
     Signal('Bank_Count', 15, 3, high=MAX_BANKS, field='bank_count',
            check='status bank count' + _ALLOWED),
     Signal('AMS_State', 12, 5, field='state', lookup=tuple(AmsState),
            check='unknown AMS state' + _UNKNOWN))
 
 
-def _bank_group_signals(groups: int) -> tuple[Signal, ...]:
+def _series(groups: int, prefix: str, count: int, field: str,
+            **kwargs: Any) -> tuple[Signal, ...]:
+    """Bank ID and group ID, then count values of a byte each."""
     return (Signal('Bank_ID', 7, 3, low=1, high=MAX_BANKS, field='bank',
                    check='bank ID' + _ALLOWED),
             Signal('Group_ID', 2, 3, high=groups - 1, field='group',
-                   check='group ID' + _ALLOWED))
-
-
-def _series(prefix: str, count: int, field: str, **kwargs: Any) -> tuple[Signal, ...]:
-    return tuple(Signal(f'{prefix}_{k + 1}', 15 + 8 * k, 8, field=f'{field}[{k}]', **kwargs)
-                 for k in range(count))
+                   check='group ID' + _ALLOWED)) + tuple(
+        Signal(f'{prefix}_{k + 1}', 15 + 8 * k, 8, field=f'{field}[{k}]', **kwargs)
+        for k in range(count))
 
 
 _VOLTS: dict[str, Any] = dict(scale=CELL_VOLT_STEP, high=5.1, unit='V')
 _AMPS: dict[str, Any] = dict(scale=CURRENT_STEP, high=25.5, unit='A')
 _TEMPS: dict[str, Any] = dict(signed=True, unit='degC')
 _BANKS: dict[str, Any] = dict(low=1, high=MAX_BANKS, field='bank_count')
-# offset -> the message as msg_defs/ams.dbc names it, its length and signals
-LAYOUTS: dict[int, Layout] = {offset: Layout(name, length, signals) for
-                              offset, name, length, signals in (
-    (STATUS, 'AMS_Status', 7, _WORD + (
+# offset -> its reading, the message as msg_defs/ams.dbc names it, its length and signals
+_MESSAGES: tuple[tuple[int, type, str, int, tuple[Signal, ...]], ...] = (
+    (STATUS, AmsStatus, 'AMS_Status', 7, _WORD + (
         Signal('Volt_min', 23, 8, field='volt_min_v', **_VOLTS),
         Signal('Temp_max', 31, 8, unit='degC', field='temp_max_c'),
         Signal('SOC', 39, 8, high=100, unit='%', field='soc_pct'),
@@ -297,37 +282,40 @@ LAYOUTS: dict[int, Layout] = {offset: Layout(name, length, signals) for
         Signal('Relay_Error_AIR_Minus', 48, 1, field='relay_error_air_minus', flag=True),
         Signal('Relay_Error_AIR_Plus', 49, 1, field='relay_error_air_plus', flag=True),
         Signal('Relay_Error_Precharge', 50, 1, field='relay_error_precharge', flag=True))),
-    (CHARGER_STATUS, 'AMS_Status_Charger', 5, _WORD + (
+    (CHARGER_STATUS, AmsChargerStatus, 'AMS_Status_Charger', 5, _WORD + (
         Signal('SOC', 23, 8, high=100, unit='%', field='soc_pct'),
         Signal('Charger_Current', 31, 8, field='charger_current_a', **_AMPS),
         Signal('Turn_On_Charger', 32, 1, field='charger_on', flag=True))),
-    (CAR_STATUS, 'CAR_Status', 2, (
+    (CAR_STATUS, CarStatus, 'CAR_Status', 2, (
         Signal('CMD', 3, 4, field='command', lookup=tuple(CarCommand),
                check='unknown car command' + _UNKNOWN),
         Signal('Bank_Count', 7, 4, **_BANKS, check='car status bank count' + _ALLOWED),
         Signal('Counter', 15, 8, field='counter'))),
-    (CHARGER_COMMANDS, 'CHARGER_Commands', 3, (
+    (CHARGER_COMMANDS, ChargerCommand, 'CHARGER_Commands', 3, (
         Signal('Start', 1, 2, field='start', lookup=tuple(ChargerStart),
                check='unknown charger start command' + _UNKNOWN),
         Signal('Time_Tick', 15, 16, field='time_tick'))),
-    (CELL_VOLTAGES, 'AMS_Cell_Voltages', 8, _bank_group_signals(CELL_GROUPS)
-     + _series('Cell_Voltage', CELLS_PER_GROUP, 'voltages_v', **_VOLTS)),
-    (CELL_TEMPERATURES, 'AMS_Cell_Temperatures', 6, _bank_group_signals(TEMP_GROUPS)
-     + _series('Cell_Temperature', TEMPS_PER_GROUP, 'temperatures_c', **_TEMPS)),
-    (DISCHARGE_TEMPERATURES, 'AMS_Discharge_Temperatures', 8, _bank_group_signals(TEMP_GROUPS)
-     + _series('Discharge_Temperature', DISCHARGE_TEMPS_PER_GROUP, 'temperatures_c',
-               **_TEMPS)),
-    (ERROR, 'AMS_Error', 3, (  # error IDs count from 1
+    (CELL_VOLTAGES, CellVoltages, 'AMS_Cell_Voltages', 8, _series(
+        CELL_GROUPS, 'Cell_Voltage', CELLS_PER_GROUP, 'voltages_v', **_VOLTS)),
+    (CELL_TEMPERATURES, CellTemperatures, 'AMS_Cell_Temperatures', 6, _series(
+        TEMP_GROUPS, 'Cell_Temperature', TEMPS_PER_GROUP, 'temperatures_c', **_TEMPS)),
+    (DISCHARGE_TEMPERATURES, DischargeTemperatures, 'AMS_Discharge_Temperatures', 8, _series(
+        TEMP_GROUPS, 'Discharge_Temperature', DISCHARGE_TEMPS_PER_GROUP, 'temperatures_c',
+        **_TEMPS)),
+    (ERROR, AmsErrorEvent, 'AMS_Error', 3, (  # error IDs count from 1
         Signal('AMS_Error_ID', 7, 8, field='error', lookup=(None, *AmsError),
                check='unknown AMS error ID' + _UNKNOWN),
         Signal('AMS_Time_Tick', 15, 16, field='time_tick'))),
-    (OVERRIDE_CHARGE_CURRENT, 'CHARGER_Override_Charge_Current', 1, (
+    (OVERRIDE_CHARGE_CURRENT, OverrideChargeCurrent, 'CHARGER_Override_Charge_Current', 1, (
         Signal('Charge_Current', 7, 8, field='current_a', **_AMPS),)),
-    (OVERRIDE_BANK_COUNT, 'CHARGER_Override_Bank_Count', 1, (
+    (OVERRIDE_BANK_COUNT, OverrideBankCount, 'CHARGER_Override_Bank_Count', 1, (
         Signal('Bank_Count', 7, 8, **_BANKS, check='override bank count' + _ALLOWED),)),
-)}
+)
+LAYOUTS = {offset: Layout(name, length, signals) for offset, _, name, length, signals in _MESSAGES}
+READINGS = {offset: reading for offset, reading, *_ in _MESSAGES}
 
 
+@functools.cache
 def _check_dbc() -> None:
     """Fail loudly (LayoutError) if msg_defs/ams.dbc no longer has the layout of LAYOUTS."""
     db = load_dbc('ams')
@@ -388,22 +376,19 @@ class AmsCodec:
     """Frames <-> typed AMS messages at one base ID (11-bit IDs)."""
 
     is_extended_id = False
-    _dbc_checked = False
 
     def __init__(self, base_id: int = DEFAULT_BASE_ID) -> None:
-        highest = 0x7FF - max(OFFSETS)
+        highest = 0x7FF - max(LAYOUTS)
         if isinstance(base_id, bool) or not isinstance(base_id, int) \
                 or not 0 <= base_id <= highest:
             raise EncodeRangeError('base_id', base_id,
                                    f'0..0x{highest:X} (11-bit IDs up to base + 0x051)')
         self.base_id = base_id
-        if not AmsCodec._dbc_checked:
-            _check_dbc()
-            AmsCodec._dbc_checked = True
+        _check_dbc()  # once
         # One dict lookup per frame: ID -> (DLC, reading builder).
         self._decode_table: dict[int, tuple[int, Callable[[bytes], Any]]] = {
-            base_id + offset: (LAYOUTS[offset].length, _DECODERS[offset])
-            for offset in OFFSETS}
+            base_id + offset: (layout.length, _DECODERS[offset])
+            for offset, layout in LAYOUTS.items()}
         self.arbitration_ids = frozenset(self._decode_table)
 
     def id_of(self, offset: int) -> int:

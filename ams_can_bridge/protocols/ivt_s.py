@@ -7,11 +7,9 @@ vendor unit, big- or little-endian: ``byte_order``) and the decisions on them. T
 commands only from its services, behind the transmit gate.
 
 Speed: the bus thread decodes every frame (8 results x up to 100 Hz each), so ``decode``
-reads the value with code generated from the layout table (``LAYOUTS``, protocols/layout.py)
-and the counter and status bits from tables precomputed per byte 1, instead of going through
-cantools. The layout is checked against the installed DBC at the first codec (the DBC can
-describe only the big-endian value; the little-endian variant is the same table with that
-one signal changed).
+reads the value with code generated from ``LAYOUTS`` and the counter and status bits from
+tables precomputed per byte 1. The DBC can describe only the big-endian value; the
+little-endian variant is the same table with that one signal changed.
 """
 from __future__ import annotations
 
@@ -117,7 +115,7 @@ LAYOUTS = {kind: _layout(kind) for kind in IvtMux}
 # The sensor can be set to send the value little-endian (its byte 2 first).
 LITTLE_LAYOUTS = {kind: layout.replace(f'IVT_Result_{DBC_NAME[kind]}', start=16,
                                        byte_order=LITTLE) for kind, layout in LAYOUTS.items()}
-# Byte 1 -> the reading's counter and status bits, decoded once per value by the table.
+# Byte 1 -> the reading's counter and status bits.
 _BYTE1_FIELDS = ('counter', 'ocs', 'result_error', 'measurement_error', 'system_error')
 _BYTE1 = LAYOUTS[IvtMux.I].decoder(*(s.name for s in LAYOUTS[IvtMux.I].signals[1:6]))
 _ENCODE_I = LAYOUTS[IvtMux.I].encoder()
@@ -185,8 +183,7 @@ class IvtSCodec:
         self._encoders = {kind: layout.replace(
             f'IVT_Result_{DBC_NAME[kind]}', scale=1, unit=RAW_UNIT[kind]).encoder()
             for kind, layout in layouts.items()}  # the raw value, in the vendor unit
-        # ID -> (kind, divisor, fields by byte 1): one dict lookup finds everything decode
-        # needs; the per-byte-1 field dicts (kind, counter, status bits) are precomputed.
+        # ID -> (kind, divisor, fields by byte 1): one dict lookup finds everything decode needs.
         self._by_id = {base_id + kind: (kind, DIVISOR[kind], [
             {'kind': kind, **dict(zip(_BYTE1_FIELDS, _BYTE1(bytes((kind, b)))))}
             for b in range(256)]) for kind in IvtMux}

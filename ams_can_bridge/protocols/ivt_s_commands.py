@@ -16,7 +16,7 @@ from typing import Any, Callable
 
 from ams_can_bridge.protocols.common import Frame, MalformedFrameError
 from ams_can_bridge.protocols.ivt_s import COMMAND_ID, IvtMux, RESPONSE_ID
-from ams_can_bridge.protocols.layout import Layout, Signal
+from ams_can_bridge.protocols.layout import BadValue, Layout, Signal
 
 DLC = 8
 
@@ -180,8 +180,8 @@ def _layout(name: str, *signals: Signal) -> Layout:
 # not in the DBC and stay 0 (section 2.3).
 CONFIG = _layout(
     'Conf_Result',
-    Signal('Conf_TriggerMode', 9, 2, high=2, lookup=tuple(TriggerMode),
-           field='IVT-S trigger mode'),  # 3 is not defined: malformed
+    Signal('Conf_TriggerMode', 9, 2, lookup=tuple(TriggerMode), field='IVT-S trigger mode',
+           check='trigger mode {value} (allowed {low}..{high})'),  # 3 is not defined
     Signal('Conf_CycleTime', 23, 16, unit='ms', field='IVT-S cycle time'),
     Signal('Conf_Endianess', 14, 1, flag=True, field='little_endian'),
     Signal('Conf_Sign', 15, 1, flag=True, field='sign_inverted'))
@@ -224,7 +224,6 @@ _MUX = {(reading, known): mux for mux, (reading, _, known) in _ANSWERS.items()}
 _KNOWN = {reading: len(known) for reading, _, known in _ANSWERS.values()}
 _E_CONFIG = {kind: CONFIG.replace('Conf_CycleTime', field=f'IVT-S {kind.name} cycle time')
              .encoder() for kind in IvtMux}  # the error names the result
-_TRIGGER_MODE = CONFIG.decoder('Conf_TriggerMode', raw=True)  # for the error message
 _E_EMPTY, _E_MODE, _E_RESET = EMPTY.encoder(), MODE.encoder(), RESET.encoder()
 
 
@@ -274,10 +273,8 @@ def reset_errors(item: int, serial: int) -> Frame:
 def _decoded(decode: Callable[[bytes], Any], arbitration_id: int, data: bytes) -> Any:
     try:
         return decode(data)
-    except IndexError:  # past the end of the trigger modes: 3 is not defined
-        mode = _TRIGGER_MODE(data)[0]
-        raise MalformedFrameError(arbitration_id, data,
-                                  f'trigger mode {mode} (allowed 0..2)') from None
+    except BadValue as exc:  # a trigger mode that is not defined
+        raise MalformedFrameError(arbitration_id, data, str(exc)) from None
 
 
 def decode_answer(data: bytes) -> IvtAnswer:

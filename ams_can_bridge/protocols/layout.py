@@ -200,15 +200,12 @@ class Layout:
 
     def check_dbc(self, message: Any, dbc: str, codec: str) -> None:
         """Raise LayoutError unless the DBC message has exactly these bits, scales and DLC."""
-        def bits(signals: Any) -> list[tuple]:
-            return sorted((s[0], s[1], s[2], s[3], bool(s[4]), float(s[5]), float(s[6]))
-                          for s in signals)
-        got = (message.length, bits((s.name, s.start, s.length, s.byte_order, s.is_signed,
-                                     s.scale, s.offset) for s in message.signals),
-               any(s.is_float for s in message.signals))
-        want = (self.length, bits((s.name, s.start, s.length, s.byte_order, s.signed,
-                                   s.scale, s.offset) for s in self.signals), False)
-        if got != want:
+        def bits(layout: Layout) -> tuple:
+            return layout.length, sorted((s.name, s.start, s.length, s.byte_order, s.signed,
+                                          float(s.scale), float(s.offset))
+                                         for s in layout.signals)
+        got = bits(Layout.from_dbc(message)) + (any(s.is_float for s in message.signals),)
+        if got != bits(self) + (False,):
             raise LayoutError(f'{dbc} {message.name} does not match the {codec} codec '
                               f'layout: {got}')
 
@@ -236,8 +233,14 @@ class Layout:
             expr = f'(({expr}) ^ {half:#x}) - {half:#x}'
         return expr
 
-    def _physical(self, s: Signal, raw_only: bool = False,
-                  tables: dict[str, Any] | None = None) -> str:
+    def value_expression(self, s: Signal, raw_only: bool = False,
+                         tables: dict[str, Any] | None = None) -> str:
+        """
+        Return the expression of a signal's value as decoder() computes it.
+
+        Without tables (code compiled beside the table's own) a lookup stays raw, a check is
+        not made and a scaled byte is computed inline.
+        """
         raw = self.raw_expression(s)
         if s.flag and not raw_only:
             return f'({raw}) != 0'
@@ -246,19 +249,17 @@ class Layout:
             tables[name] = _Known(s) if s.check else s.lookup
             return f'{name}[{raw}]'
         plain = raw_only or (s.scale == 1 and s.offset == 0)
+        var = f'r_{s.start}_{s.length}'  # the raw value, read once (:=) where tested
+        value = var if plain else self.scaled_expression(s, var)
         if s.check and tables is not None:
             # The range test is on the raw integer (exact); the message shows the value.
-            var, name = f'r_{s.start}_{s.length}', f'B{len(tables)}'
+            name, (lo, hi) = f'B{len(tables)}', s.raw_limits()
             tables[name] = functools.partial(self._refuse, s, self._scale_function(s))
-            lo, hi = s.raw_limits()
-            value = var if plain else self.scaled_expression(s, var)
-            if s.invalid is not None:
-                return (f'(None if ({var} := {raw}) == {s.invalid} else {value} '
-                        f'if {lo} <= {var} <= {hi} else {name}({var}))')
-            return f'({value} if {lo} <= ({var} := {raw}) <= {hi} else {name}({var}))'
+            tested = var if s.invalid is not None else f'({var} := {raw})'
+            value = f'{value} if {lo} <= {tested} <= {hi} else {name}({var})'
+            if s.invalid is None:
+                return f'({value})'
         if s.invalid is not None:
-            var = f'r_{s.start}_{s.length}'
-            value = var if plain else self.scaled_expression(s, var)
             return f'(None if ({var} := {raw}) == {s.invalid} else {value})'
         if plain:
             return raw
@@ -271,13 +272,9 @@ class Layout:
             return f'{name}[{raw}]'
         return self.scaled_expression(s, raw)
 
-    def value_expression(self, s: Signal) -> str:
-        """Return the expression of a signal's value as decoder() computes it (no tables)."""
-        return self._physical(s)
-
     def _scale_function(self, s: Signal) -> Callable[[int], Any]:
-        return _compile(f'def f(r):\n    return {self.scaled_expression(s, "r")}\n',
-                        self.name, 'f')
+        return compile_function(f'def f(r):\n    return {self.scaled_expression(s, "r")}\n',
+                                self.name, 'f')
 
     @staticmethod
     def _refuse(s: Signal, scale: Callable[[int], Any], raw: int) -> Any:
@@ -313,7 +310,7 @@ class Layout:
         by_name = {s.name: s for s in self.signals}
         signals = [by_name[n] for n in names] if names else self.signals
         tables: dict[str, Any] = {}
-        values = [self._physical(s, raw, tables) for s in signals]
+        values = [self.value_expression(s, raw, tables) for s in signals]
         if tail:
             values[-tail:] = [f'({", ".join(values[-tail:])},)']
         body = ', '.join(values)
@@ -322,8 +319,8 @@ class Layout:
             body = f'{args[2:]}, ({body},)'
         result = (f'into(head(data), {body})' if head else f'into({body})') if into \
             else f'({body},)'
-        return _compile(f'def decode(data{args}):\n    return {result}\n', self.name,
-                        'decode', {'into': into, 'head': head, **tables})
+        return compile_function(f'def decode(data{args}):\n    return {result}\n', self.name,
+                                'decode', {'into': into, 'head': head, **tables})
 
     def replace(self, name: str, **changes: Any) -> Layout:
         """Return this layout with one signal changed (a variant the DBC cannot describe)."""
@@ -369,17 +366,12 @@ class Layout:
                   f"{self.length}, 'little')",
                   f"    hi = (n >> {8 * self.length}).to_bytes({self.length}, 'big')",
                   '    return bytes(a | b for a, b in zip(lo, hi))']
-        return _compile('\n'.join(lines) + '\n', self.name, 'encode', scope)
+        return compile_function('\n'.join(lines) + '\n', self.name, 'encode', scope)
 
 
 def compile_function(source: str, name: str, function: str,
                      scope: dict[str, Any] | None = None) -> Callable:
-    """Compile generated code beside a table's own (a protocol's per-ID fast path)."""
-    return _compile(source, name, function, scope)
-
-
-def _compile(source: str, name: str, function: str,
-             scope: dict[str, Any] | None = None) -> Callable:
+    """Compile generated code: the tables' own and a protocol's (its per-ID fast path)."""
     scope = dict(scope or {})
     exec(compile(source, f'<layout {name}>', 'exec'), scope)  # noqa: S102 (our own table)
     return scope[function]

@@ -30,8 +30,6 @@ ALARMS_ID = 0x35A
 MANUFACTURER_ID = 0x35E
 INFO_ID = 0x35F
 SMA_IDS = frozenset({LIMITS_ID, SOC_ID, BATTERY_ID, ALARMS_ID, MANUFACTURER_ID, INFO_ID})
-INVALID_S16 = -0x8000
-INVALID_U16 = 0xFFFF
 # %: the high-resolution SoC counts only within this of the integer SoC (section 5).
 HIRES_AGREEMENT_PCT = 1.0
 # 0x35A byte 7 bits 2-3: Victron's system status (2 = online, 1 = offline), not a warning.
@@ -209,13 +207,14 @@ LAYOUTS = {
         sma_field('Capacity', 32, unit='Ah', field='capacity_ah'))),
 }
 _ONLINE = 16 + SMA_CONDITIONS.index(ONLINE_CONDITION)  # SystemOnline among the pairs
+_LAYOUTS = {**LAYOUTS, **DIALECT_LAYOUTS}
 
 
 @functools.cache
 def check_dbc() -> None:
     """Raise LayoutError unless msg_defs/sma.dbc has the bits of LAYOUTS and the dialects'."""
     db = load_dbc('sma')
-    for frame_id, layout in {**LAYOUTS, **DIALECT_LAYOUTS}.items():
+    for frame_id, layout in _LAYOUTS.items():
         layout.check_dbc(db.get_message_by_frame_id(frame_id), 'msg_defs/sma.dbc', 'SMA')
 
 
@@ -226,7 +225,6 @@ _NUMBERS = {
     BATTERY_ID: (SmaBattery, (6, 7, 8)), INFO_ID: (SmaBatteryInfo, (6, 7, 8)),
     **DIALECT_NUMBERS}
 _TEXTS = {MANUFACTURER_ID: ('sma.manufacturer', SmaManufacturer), **DIALECT_TEXTS}
-_LAYOUTS = {**LAYOUTS, **DIALECT_LAYOUTS}
 _D = {frame_id: _LAYOUTS[frame_id].decoder(into=reading)
       for frame_id, (reading, _) in _NUMBERS.items()}
 

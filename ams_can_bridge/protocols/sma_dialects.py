@@ -32,11 +32,6 @@ VICTRON_MAX_TEMPERATURE_CELL_ID = 0x377
 VICTRON_ENERGY_ID = 0x378
 VICTRON_INSTALLED_CAPACITY_ID = 0x379
 VICTRON_PRODUCT_NAME_ID = 0x382
-
-PYLONTECH_IDS = frozenset({PYLONTECH_ALARMS_ID, PYLONTECH_REQUEST_ID})
-VICTRON_IDS = frozenset(range(VICTRON_BMS_NAME1_ID, VICTRON_INSTALLED_CAPACITY_ID + 1)) | {
-    VICTRON_PRODUCT_NAME_ID}
-DIALECT_IDS = PYLONTECH_IDS | VICTRON_IDS
 KELVIN_OFFSET = 273.15
 MAX_TEMPERATURE_K = 3549
 
@@ -229,12 +224,12 @@ DIALECT_LAYOUTS = {
         sma_field('InstalledCapacity', 0, unit='Ah', field='victron.installed_capacity_ah'),)),
     VICTRON_PRODUCT_NAME_ID: Layout('Victron_ProductName', 8, (sma_field('ProductName', 0, 64),)),
 }
+DIALECT_IDS = frozenset(DIALECT_LAYOUTS)  # Pylontech's 0x359, 0x35C; Victron's 0x370..0x382
 
 
 # --- how each frame is decoded and built (SmaCodec runs these tables) ------------------------
-# Frames of numbers, decoded and built by code generated from the table: ID -> (reading,
-# accepted DLCs); a frame cut short is padded with 0xFF, so the fields not sent read as not
-# available.
+# Frames of numbers, decoded and built by code generated from the table (a frame cut short
+# padded by pad_unsent): ID -> (reading, accepted DLCs).
 DIALECT_NUMBERS: dict[int, tuple[type, tuple[int, ...]]] = {
     PYLONTECH_REQUEST_ID: (PylontechRequest, tuple(range(1, 9))),
     VICTRON_MODULES_ID: (VictronModules, (2, 4, 6, 8)),  # odd: would split a count

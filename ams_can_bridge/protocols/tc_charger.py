@@ -27,7 +27,6 @@ COMMAND_IDS = (TC_CHARGER1_RX_ID, TC_CHARGER2_RX_ID, TC_CHARGER3_RX_ID)
 STATUS_IDS = (TC_CHARGER1_TX_ID, TC_CHARGER2_TX_ID, TC_CHARGER3_TX_ID)
 CHARGER_IDS = frozenset(COMMAND_IDS + STATUS_IDS)
 DLC_RANGE = (5, 6, 7, 8)
-MAX_DECIVOLTS = 0xFFFF
 
 
 class ChargerStatusBit(enum.IntFlag):
@@ -119,19 +118,18 @@ class TcChargerCodec:
 
     def decode(self, arbitration_id: int, data: bytes) -> ChargerReading:
         """Frame -> reading; MalformedFrameError for a foreign ID, DLC or value."""
+        if arbitration_id not in CHARGER_IDS:
+            raise MalformedFrameError(arbitration_id, data, 'not a TC charger ID')
+        check_dlc(arbitration_id, data, DLC_RANGE)
         if arbitration_id in COMMAND_IDS:
-            check_dlc(arbitration_id, data, DLC_RANGE)
             try:
                 return ChargerCommand(COMMAND_IDS.index(arbitration_id) + 1, *_D_COMMAND(data))
             except BadValue as exc:  # byte 4 neither charge nor stop
                 raise MalformedFrameError(arbitration_id, data, str(exc)) from None
-        if arbitration_id in STATUS_IDS:
-            check_dlc(arbitration_id, data, DLC_RANGE)
-            charger = STATUS_IDS.index(arbitration_id) + 1
-            if len(data) == 5:  # no temperature sent
-                return ChargerStatus(charger, *_D_STATUS(bytes(data) + b'\x00')[:3])
-            return ChargerStatus(charger, *_D_STATUS(data))
-        raise MalformedFrameError(arbitration_id, data, 'not a TC charger ID')
+        charger = STATUS_IDS.index(arbitration_id) + 1
+        if len(data) == 5:  # no temperature sent
+            return ChargerStatus(charger, *_D_STATUS(bytes(data) + b'\x00')[:3])
+        return ChargerStatus(charger, *_D_STATUS(data))
 
     def encode(self, message: ChargerReading) -> Frame:
         """Encode a reading as an 8-byte frame (reserved bytes 0); EncodeRangeError else."""
