@@ -20,11 +20,11 @@ from ams_can_bridge.protocols.common import (
 from ams_can_bridge.protocols.evms3 import (
     ACK_ERROR, AcknowledgeError, BatteryCurrent, Bms12Cells, BMS16_MARKER, CELL_NUMBERS,
     CONFIG1, Evms3Codec, Evms3Error, Evms3State, LAYOUTS, POWER_OFF, PowerOff, RESET_SOC,
-    ResetSoc, STATUS, status_fault)
+    ResetSoc, STATUS)
 from ams_can_bridge.protocols.evms3_config import (
     balance_byte, BALANCE_FIELDS, BALANCE_NAMES, BALANCE_ROW, balance_values, check_balance,
     CONFIG_LAYOUTS)
-from ams_can_bridge.protocols.layout import check_value, Layout, Signal
+from ams_can_bridge.protocols.layout import BadValue, check_value, Layout, Signal
 from ams_can_bridge.protocols.settings import setting, Settings
 
 DEFAULT_BASE_ID = 30                  # Common.h CAN_BASE_ID
@@ -201,10 +201,10 @@ class Bms16StdCodec:
             raise MalformedFrameError(
                 aid, data, f'byte 5 = {data[5]}, not the BMS16 marker 255: the status of '
                 'another device (an EVMS3 sends its aux voltage there), not decoded')
-        try:
+        try:  # the EVMS3's rows refuse an unknown state or error code
             return _D_STATUS(data)
-        except IndexError:
-            raise MalformedFrameError(aid, data, status_fault(data)) from None
+        except BadValue as exc:
+            raise MalformedFrameError(aid, data, str(exc)) from None
 
     # --- encode ---------------------------------------------------------------------------
     def _frame(self, offset: int, data: bytes) -> Frame:
