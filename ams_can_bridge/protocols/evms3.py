@@ -144,13 +144,7 @@ class Evms3Status:
 
 @dataclass(frozen=True, slots=True)
 class SetState:
-    """
-    ID 31: enter Setup (True) or return to Idle (False).
-
-    A ZEVA Monitor editing a setting sends DLC 2: byte 0 = 1 setup, 2 edit fuel gauge, 3 edit
-    temperature gauge, byte 1 = the value shown on that gauge meanwhile (``request``,
-    ``gauge_value``); the EVMS3 stays in Setup.
-    """
+    """ID 31: enter Setup (True) or return to Idle (False); DLC 2 from a Monitor (section 3.2)."""
 
     setup: bool
     request: int | None = None  # DLC 2 only: CORE_SETUP_STATE 1, EDIT_FUEL 2, EDIT_TEMP 3
@@ -166,12 +160,7 @@ class AcknowledgeError:
 
 @dataclass(frozen=True, slots=True)
 class ResetSoc:
-    """
-    ID 38: reset the state of charge to 100 % (sent with DLC 0).
-
-    ZEVA's 2021 firmware reads one data byte 0..100 as the SoC to set; older firmware
-    ignores the data and sets 100 %. The bridge sends no data, so both mean 100 %.
-    """
+    """ID 38: reset the state of charge to 100 % (sent with DLC 0: 100 % for every firmware)."""
 
 
 @dataclass(frozen=True, slots=True)
