@@ -93,21 +93,8 @@ class Bms16ConfigPart2:
 
 
 @dataclass(frozen=True)
-class Bms16Config:
-    """The whole configuration (the names of the ``bms16.config.*`` parameters)."""
-
-    cells: int
-    pack_capacity_ah: float
-    soc_warning_pct: float
-    full_voltage_v: float
-    warn_current_a: float
-    trip_current_a: float
-    temperature_limit_c: float
-    min_cell_v: float
-    max_cell_v: float
-    hysteresis_v: float
-    balance_v: float
-    shunt_size_a: int
+class Bms16Config(Bms16ConfigPart2, Bms16ConfigPart1):
+    """The whole configuration: part 1's fields, then part 2's (``bms16.config.*``)."""
 
 
 @dataclass(frozen=True)

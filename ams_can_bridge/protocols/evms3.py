@@ -246,9 +246,10 @@ class Evms3Codec:
             b + RESET_SOC: lambda aid, data: ResetSoc(),
         }
         for packet in range(4):
-            self._decoders[b + CONFIG1 + packet] = self._decode_config
+            self._decoders[b + CONFIG1 + packet] = functools.partial(
+                decode_config_packet, packet, multiplier=voltage_multiplier)
         for aid in READBACK_IDS:  # 52..56: the EVMS's answer to 51 (or foreign traffic)
-            self._decoders[aid] = self._decode_report
+            self._decoders[aid] = functools.partial(decode_report, multiplier=voltage_multiplier)
 
     # --- decode ---------------------------------------------------------------------------
     def decode(self, arbitration_id: int, data: bytes) -> Any:
@@ -284,13 +285,6 @@ class Evms3Codec:
         if data[0] > 1:
             raise MalformedFrameError(aid, data, f'set state {data[0]}, expected 0 or 1')
         return SetState(bool(data[0]))
-
-    def _decode_config(self, aid: int, data: bytes) -> Evms3ConfigPart:
-        return decode_config_packet(aid - self.base_id - CONFIG1, aid, data,
-                                    self.voltage_multiplier)
-
-    def _decode_report(self, aid: int, data: bytes) -> ConfigReport | OtherTraffic:
-        return decode_report(aid, data, self.voltage_multiplier)
 
     def _decode_ack(self, aid: int, data: bytes) -> AcknowledgeError:
         check_dlc(aid, data, 1)
