@@ -144,7 +144,12 @@ class Evms3Status:
 
 @dataclass(frozen=True, slots=True)
 class SetState:
-    """ID 31: enter Setup (True) or return to Idle (False); DLC 2 from a Monitor (section 3.2)."""
+    """
+    ID 31: enter Setup (True) or return to Idle (False).
+
+    DLC 2: a Monitor editing a gauge setting (section 3.2), ``request`` 1..3 and the
+    ``gauge_value`` shown meanwhile; the EVMS3 stays in Setup.
+    """
 
     setup: bool
     request: int | None = None  # DLC 2 only: CORE_SETUP_STATE 1, EDIT_FUEL 2, EDIT_TEMP 3
