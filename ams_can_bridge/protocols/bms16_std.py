@@ -221,20 +221,16 @@ class Bms16StdCodec:
     def encode(self, msg: Any) -> Frame:
         """Command or (for the simulator) reading -> Frame; EncodeRangeError if out of range."""
         if isinstance(msg, AcknowledgeError):
-            if not 0 <= int(msg.error) <= 16:
-                raise EncodeRangeError('error', msg.error, '0..16')
-            return self._frame(ACK_ERROR, bytes([int(msg.error)]))
+            return self._frame(ACK_ERROR, bytes([
+                check_value('error', msg.error, 0, 16, integer=True)]))
         if type(msg) in _COMMANDS:
             return self._frame(_COMMANDS[type(msg)], b'')
         if isinstance(msg, Bms16StdStatus):
-            return self._encode_status(msg)
+            # The EVMS3 status layout (its rows check state and error): byte 5 the marker
+            # (aux voltage 25.5 V), byte 6 unused.
+            return self._frame(STATUS, _E_STATUS(
+                msg.state, msg.error, msg.amp_hours_ah, msg.pack_voltage_v, BMS16_MARKER / 10,
+                0, 0, msg.temperature_c))
         if isinstance(msg, (Bms12Cells, BatteryCurrent)):
             return self._evms3.encode(msg)
         raise EncodeRangeError('message', msg, 'a BMS16 (standard) message')
-
-    def _encode_status(self, msg: Bms16StdStatus) -> Frame:
-        # The EVMS3 status layout: byte 5 the marker (aux voltage 25.5 V), byte 6 unused.
-        return self._frame(STATUS, _E_STATUS(
-            check_value('state', msg.state, 0, 5, integer=True),
-            check_value('error', msg.error, 0, 16, integer=True), msg.amp_hours_ah,
-            msg.pack_voltage_v, BMS16_MARKER / 10, 0, 0, msg.temperature_c))
