@@ -160,16 +160,11 @@ def test_commands_have_no_data(frame_id, message):
     assert CODEC.decode(frame_id, b'') == message
 
 
-def test_command_helpers():
-    assert [CODEC.acknowledge_error(), CODEC.reset_soc(), CODEC.power_off()] == [
-        Frame(506, b''), Frame(507, b''), Frame(508, b'')]
-
-
 def test_base_id_moves_every_id():
     codec = Bms16Codec(0x100)
     assert codec.arbitration_ids == frozenset(range(0x100, 0x109))
     assert codec.decode(0x101, bytes(7)).first_cell == 0
-    assert codec.power_off() == Frame(0x108, b'')
+    assert codec.encode(PowerOff()) == Frame(0x108, b'')
     with pytest.raises(EncodeRangeError):
         Bms16Codec(0x7FA)
 

@@ -8,7 +8,8 @@ from ams_can_bridge.devices.base import Level, PowerSupplyHealth, PowerSupplySta
 from ams_can_bridge.devices.bms16 import Bms16Device
 from ams_can_bridge.devices.sma import SmaDevice
 from ams_can_bridge.protocols.bms16 import (
-    Bms16Codec, Bms16Config, Bms16ConfigPart1, Bms16ConfigPart2, Bms16Error)
+    AcknowledgeError, Bms16Codec, Bms16Config, Bms16ConfigPart1, Bms16ConfigPart2, Bms16Error,
+    PowerOff, ResetSoc)
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.sma import SmaCodec, SmaFlag
 from ams_can_bridge.sim.bms16 import Bms16Simulator
@@ -85,11 +86,11 @@ def test_bms16_error_ack_reset_soc_and_power_off():
     diag = device.diagnostic_report()
     assert diag.level == Level.ERROR and diag.values['sma alarm high_voltage'] == 'ACTIVE'
     codec = Bms16Codec()
-    sim.on_frame(codec.acknowledge_error(), 0.5)
-    sim.on_frame(codec.reset_soc(), 0.5)
+    sim.on_frame(codec.encode(AcknowledgeError()), 0.5)
+    sim.on_frame(codec.encode(ResetSoc()), 0.5)
     run_sim(sim, device, 0.5, start=0.5)
     assert device.error == Bms16Error.NONE and device.battery_report().percentage == 1.0
-    sim.on_frame(codec.power_off(), 1.0)
+    sim.on_frame(codec.encode(PowerOff()), 1.0)
     assert run_sim(sim, None, 2.0, start=1.0) == []
     sim.power_on()
     assert sim.tick(3.0)

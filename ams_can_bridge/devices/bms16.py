@@ -105,15 +105,15 @@ class Bms16Device(Device):
 
     def ack_frame(self) -> Frame:
         """Build frame base + 6 (acknowledge error)."""
-        return self.codec.bms16.acknowledge_error()
+        return self.codec.bms16.encode(bms16_proto.AcknowledgeError())
 
     def reset_soc_frame(self) -> Frame:
         """Build frame base + 7 (reset SoC to 100 %)."""
-        return self.codec.bms16.reset_soc()
+        return self.codec.bms16.encode(bms16_proto.ResetSoc())
 
     def power_off_frame(self) -> Frame:
         """Build frame base + 8 (power off)."""
-        return self.codec.bms16.power_off()
+        return self.codec.bms16.encode(bms16_proto.PowerOff())
 
     def cell_count(self) -> int:
         """Cells from the bms16.config.cells parameter, 16 while that is unset."""

@@ -1,13 +1,9 @@
 """
-ZEVA BMS12 cell modules on an EVMS3 bus: frames <-> typed readings (docs/protocols.md section 3).
+ZEVA BMS12 cell modules on an EVMS3 bus: frames <-> typed readings (docs/protocols.md 3.3).
 
-Module ``m`` uses ``300 + 10 m + t`` (29-bit unless the EVMS3 firmware is built with 11-bit
-IDs): t = 0 the EVMS's request (balance voltage in mV, big-endian; 0 = no balancing),
-t = 1..3 four cell voltages each (mV, big-endian), t = 4 two temperatures (degC + 40; raw 0 =
-no sensor). ZEVA's open BMS12 firmware; the bits are one table (``LAYOUTS``) that
-``evms3.check_dbc`` proves against msg_defs/evms3.dbc. The EVMS3 codec (``protocols.evms3``)
-owns the IDs and calls ``decode``/``encode`` here; a BMS16 in its standard form sends its
-cells in these frames too.
+The bits are one table (``LAYOUTS``) that ``evms3.check_dbc`` proves against
+msg_defs/evms3.dbc. The EVMS3 codec owns the IDs (``300 + 10 m + t``) and calls ``decode`` /
+``encode`` here; a BMS16 in its standard form sends its cells in these frames too.
 """
 from __future__ import annotations
 
@@ -58,8 +54,7 @@ LAYOUTS = {
     'BMS12_M0_Cells1to4': Layout('BMS12_M0_Cells1to4', 8, _cells(1), divide=True),
     'BMS12_M0_Cells5to8': Layout('BMS12_M0_Cells5to8', 8, _cells(5), divide=True),
     'BMS12_M0_Cells9to12': Layout('BMS12_M0_Cells9to12', 8, _cells(9), divide=True),
-    # Raw 0 = no sensor: the BMS12 firmware's LineariseTemp returns 0 for "not available",
-    # and the EVMS3 and the Monitor skip 0.
+    # Raw 0 = no sensor (section 3.3)
     'BMS12_M0_Temperatures': Layout('BMS12_M0_Temperatures', 8, tuple(
         Signal(f'Temperature{k + 1}', 8 * k, 8, LITTLE, offset=-40, unit='degC',
                field=f'temperatures_c[{k}]', invalid=0) for k in range(2)), divide=True),
@@ -80,7 +75,7 @@ def decode(aid: int, data: bytes, module: int, t: int) -> Any:
         mv, = _D_REQUEST(data)
         return Bms12Request(module, mv or None)
     if t == 4:
-        # The BMS12 PDF says DLC 2; ZEVA's firmware sends 8 with zero padding.
+        # The BMS12 PDF says DLC 2; ZEVA's firmware sends 8 (section 3.3)
         check_dlc(aid, data, (2, 8))
         return Bms12Temperatures(module, _D_TEMPS(data))
     if len(data) != 8:

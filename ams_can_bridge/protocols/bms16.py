@@ -1,54 +1,29 @@
 """
-ZEVA BMS16 (11-bit / 500 kbit/s variant): frames <-> typed readings (docs/protocols.md section 4).
+ZEVA BMS16, 11-bit / 500 kbit/s inverter form: frames <-> typed readings.
 
-Nine IDs from ``base_id`` (default 500 = 0x1F4), every multi-byte field little-endian:
-
-- base + 0, status (4 Hz, DLC 7): error code, SoC %, voltage 0.1 V, current (raw - 32768,
-  0.1 A, **positive = discharge**), temperature degC;
-- base + 1..3, cell voltages (4 Hz, DLC 7): the low 8 bits of 6 cells (base + 3: 4 cells,
-  13..16) in bytes 0..5 and their 9th bits in byte 6 (bit k = k-th cell of the frame);
-  0.01 V per bit, so 9 bits reach 5.11 V;
-- base + 4 / base + 5, configuration parts 1 and 2 (to the BMS16, DLC 8 / 4);
-- base + 6 / 7 / 8: acknowledge error / reset SoC to 100 % / power off (DLC 0).
-
-The BMS16 also sends the SMA Sunny Island frames 0x351.. at fixed IDs: those are decoded by
-``protocols.sma.SmaCodec``; this codec knows only the BMS16's own IDs.
-
-Decisions (where the vendor document is silent):
-
-- Unused bits of a cell frame (byte 6 bits 4..7 and bytes 4..5 of the 13..16 frame, byte 6
-  bits 6..7 of the others) are ignored, not malformed: the vendor does not say what the
-  firmware puts there, and rejecting the frame would blank real cell readings for it.
-- An error code above 8 or a shunt-size code above 3 is malformed (no such value exists).
-- A configuration frame with a byte outside its documented range is malformed: the BMS16
-  itself clamps such a value (the simulator too, through ``unchecked_config_values``), so
-  the frame is not a configuration the bridge can trust. The encoder refuses any value
-  outside a range or off its step with EncodeRangeError: nothing is clamped or rounded.
-- Telemetry encoders (used by the simulator) round to the wire resolution and refuse what
-  the wire cannot carry.
-
-Speed: ``decode`` runs in the bus thread for every frame; its bits come from code generated
-from ``LAYOUTS`` (protocols/layout.py), a table the codec checks against msg_defs/bms16.dbc
-at construction. The configuration rows carry each setting's range, step, unit and
-description (protocols/settings.py derives the fields and checks); the module adds the 9th
-bits of the cells and the enum codes.
+docs/protocols.md section 4 holds the frames, the codes, their source and the decisions
+(unused cell bits ignored; an unknown code or a configuration byte out of range malformed;
+values refused, never clamped). The bits are ``LAYOUTS``, checked against msg_defs/bms16.dbc
+at the first codec; the configuration rows carry each setting's range, step, unit and
+description (protocols/settings.py). The module adds the 9th bits of the cells. Telemetry
+encoders (the simulator's) round to the wire resolution. The SMA frames a BMS16 also sends
+are ``protocols.sma``'s.
 """
 from __future__ import annotations
 
 import enum
 import functools
 from dataclasses import dataclass
-from typing import Any, Callable, Union
+from typing import Union
 
 from ams_can_bridge.protocols.common import (
     check_dlc, ConfigField, EncodeRangeError, Frame, load_dbc, MalformedFrameError)
-from ams_can_bridge.protocols.layout import check_value, Layout, LITTLE, Signal
+from ams_can_bridge.protocols.layout import BadValue, check_value, Layout, LITTLE, Signal
 from ams_can_bridge.protocols.settings import setting, Settings
 
 DEFAULT_BASE_ID = 500
 STATUS, CELLS_1, CELLS_2, CELLS_3, CONFIG_1, CONFIG_2, ACK_ERROR, RESET_SOC, POWER_OFF = range(9)
 ID_COUNT = 9
-CURRENT_OFFSET = 32768
 MAX_CELLS = 16
 CELL_FRAME_FIRST = (0, 6, 12)  # first cell index (0-based) of the frames base + 1..3
 CELL_FRAME_COUNT = (6, 6, 4)
@@ -118,21 +93,8 @@ class Bms16ConfigPart2:
 
 
 @dataclass(frozen=True)
-class Bms16Config:
-    """The whole configuration (the names of the ``bms16.config.*`` parameters)."""
-
-    cells: int
-    pack_capacity_ah: float
-    soc_warning_pct: float
-    full_voltage_v: float
-    warn_current_a: float
-    trip_current_a: float
-    temperature_limit_c: float
-    min_cell_v: float
-    max_cell_v: float
-    hysteresis_v: float
-    balance_v: float
-    shunt_size_a: int
+class Bms16Config(Bms16ConfigPart2, Bms16ConfigPart1):
+    """The whole configuration: part 1's fields, then part 2's (``bms16.config.*``)."""
 
 
 @dataclass(frozen=True)
@@ -155,14 +117,9 @@ Bms16Reading = Union[Bms16Status, Bms16Cells, Bms16ConfigPart1, Bms16ConfigPart2
 
 
 # --- the wire layout: one table, checked against msg_defs/bms16.dbc --------------------------
-def _u(name: str, start: int, length: int = 8, scale: float = 1, offset: float = 0,
-       unit: str = '', field: str = '') -> Signal:
-    return Signal(name, start, length, LITTLE, False, scale, offset, unit=unit, field=field)
-
-
 def _cell_frame(first: int, count: int) -> tuple[Signal, ...]:
-    return tuple(_u(f'Cell{first + k + 1}_Low', 8 * k) for k in range(count)) + (
-        _u('NinthBits', 48),)
+    return tuple(Signal(f'Cell{first + k + 1}_Low', 8 * k, 8, LITTLE) for k in range(count)) + (
+        Signal('NinthBits', 48, 8, LITTLE),)
 
 
 # The configuration frames: each byte a setting, with the range and step the BMS16 accepts
@@ -207,10 +164,14 @@ check_config_value = SETTINGS.check  # one value -> normalized (EncodeRangeError
 
 LAYOUTS: tuple[Layout, ...] = (  # by offset from base_id; divide: 523 -> 52.3 V exactly
     Layout('BMS16_Status', 7, (
-        _u('Error', 0, field='error'), _u('SoC', 8, unit='%', field='soc_pct'),
-        _u('Voltage', 16, 16, 0.1, unit='V', field='voltage_v'),
-        _u('Current', 32, 16, 0.1, -3276.8, 'A', 'current_a'),
-        _u('Temperature', 48, unit='degC', field='temperature_c')), divide=True),
+        Signal('Error', 0, 8, LITTLE, field='error', lookup=_ERRORS,
+               check='error code {value}, known codes are {low}..{high}'),
+        Signal('SoC', 8, 8, LITTLE, high=100, unit='%', field='soc_pct',
+               check='SoC {value} %, above 100 %'),
+        Signal('Voltage', 16, 16, LITTLE, scale=0.1, unit='V', field='voltage_v'),
+        Signal('Current', 32, 16, LITTLE, scale=0.1, offset=-3276.8, unit='A',
+               field='current_a'),
+        Signal('Temperature', 48, 8, LITTLE, unit='degC', field='temperature_c')), divide=True),
     Layout('BMS16_Cells_1_6', 7, _cell_frame(0, 6)),
     Layout('BMS16_Cells_7_12', 7, _cell_frame(6, 6)),
     Layout('BMS16_Cells_13_16', 7, _cell_frame(12, 4)),
@@ -220,20 +181,14 @@ LAYOUTS: tuple[Layout, ...] = (  # by offset from base_id; divide: 523 -> 52.3 V
     Layout('BMS16_PowerOff', 0, ()),
 )
 _DLC = tuple(layout.length for layout in LAYOUTS)
-_D_STATUS = LAYOUTS[STATUS].decoder()
+_STATUS = LAYOUTS[STATUS].decoder(into=Bms16Status)
 _E_STATUS = LAYOUTS[STATUS].encoder(exact=False)  # telemetry: rounded to the resolution
 _D_CELLS = tuple(layout.decoder() for layout in LAYOUTS[CELLS_1:CELLS_3 + 1])
 _NINTH = tuple(tuple(256 * (bits >> k & 1) for k in range(8)) for bits in range(256))
-
-
-def unchecked_config_values(data: bytes, part: int) -> dict[str, Any]:
-    """Return the values of configuration frame 1 or 2 (part) as on the wire, unchecked."""
-    return SETTINGS.decode(part - 1, data)
-
-
-def _malformed(arbitration_id: int, data: bytes) -> Callable[[str], MalformedFrameError]:
-    """Return fail(why) for a configuration byte outside the documented range."""
-    return lambda why: MalformedFrameError(arbitration_id, data, why)
+# The readings sent as a whole frame: configuration parts and the commands without data
+_OFFSET = {Bms16ConfigPart1: CONFIG_1, Bms16ConfigPart2: CONFIG_2, AcknowledgeError: ACK_ERROR,
+           ResetSoc: RESET_SOC, PowerOff: POWER_OFF}
+_CLASS = {offset: cls for cls, offset in _OFFSET.items()}
 
 
 @functools.cache
@@ -273,13 +228,10 @@ class Bms16Codec:
 
     @staticmethod
     def _status(arbitration_id: int, offset: int, data: bytes) -> Bms16Status:
-        code, soc, volts, amps, temp = _D_STATUS(data)
-        if code >= len(_ERRORS):
-            raise MalformedFrameError(arbitration_id, data,
-                                      f'error code {code}, known codes are 0..8')
-        if soc > 100:
-            raise MalformedFrameError(arbitration_id, data, f'SoC {soc} %, above 100 %')
-        return Bms16Status(_ERRORS[code], soc, volts, amps, temp)
+        try:  # the reading in one generated call; the error code and SoC are checked there
+            return _STATUS(data)
+        except BadValue as exc:
+            raise MalformedFrameError(arbitration_id, data, str(exc)) from None
 
     @staticmethod
     def _cells(arbitration_id: int, offset: int, data: bytes) -> Bms16Cells:
@@ -291,13 +243,13 @@ class Bms16Codec:
 
     @staticmethod
     def _config(arbitration_id: int, offset: int, data: bytes) -> Bms16Reading:
-        part = offset - CONFIG_1  # 0, 1: the frames of SETTINGS
-        values = SETTINGS.decode(part, data, _malformed(arbitration_id, data))
-        return (Bms16ConfigPart1, Bms16ConfigPart2)[part](**values)
+        values = SETTINGS.decode(offset - CONFIG_1, data,
+                                 lambda why: MalformedFrameError(arbitration_id, data, why))
+        return _CLASS[offset](**values)
 
     @staticmethod
     def _command(arbitration_id: int, offset: int, data: bytes) -> Bms16Reading:
-        return (AcknowledgeError, ResetSoc, PowerOff)[offset - ACK_ERROR]()
+        return _CLASS[offset]()
 
     # --- encode ---------------------------------------------------------------------
     def frame(self, offset: int, data: bytes) -> Frame:
@@ -307,42 +259,21 @@ class Bms16Codec:
     def encode(self, message: Bms16Reading) -> Frame:
         """Encode any BMS16 message; EncodeRangeError for a value the wire cannot carry."""
         if isinstance(message, Bms16Status):
-            return self._encode_status(message)
+            return self.frame(STATUS, _E_STATUS(
+                message.error, message.soc_pct, message.voltage_v, message.current_a,
+                message.temperature_c))
         if isinstance(message, Bms16Cells):
             return self._encode_cells(message)
-        if isinstance(message, Bms16ConfigPart1):
-            return self.frame(CONFIG_1, SETTINGS.payload(0, message))
-        if isinstance(message, Bms16ConfigPart2):
-            return self.frame(CONFIG_2, SETTINGS.payload(1, message))
-        for offset, cls in ((ACK_ERROR, AcknowledgeError), (RESET_SOC, ResetSoc),
-                            (POWER_OFF, PowerOff)):
-            if isinstance(message, cls):
-                return self.frame(offset, b'')
-        raise EncodeRangeError('message', message, 'a BMS16 message')
+        offset = _OFFSET.get(type(message))
+        if offset is None:
+            raise EncodeRangeError('message', message, 'a BMS16 message')
+        if offset in (CONFIG_1, CONFIG_2):  # each value checked
+            return self.frame(offset, SETTINGS.payload(offset - CONFIG_1, message))
+        return self.frame(offset, b'')  # a command without data
 
     def config_frames(self, config: Bms16Config) -> list[Frame]:
-        """Build the two configuration frames [base + 4, base + 5], validating every value."""
-        for name in CONFIG_FIELD:  # every value checked before the first frame is built
-            check_config_value(name, getattr(config, name))
-        return [self.frame(CONFIG_1, SETTINGS.payload(0, config)),
-                self.frame(CONFIG_2, SETTINGS.payload(1, config))]
-
-    def acknowledge_error(self) -> Frame:
-        """Frame base + 6 (acknowledge error)."""
-        return self.encode(AcknowledgeError())
-
-    def reset_soc(self) -> Frame:
-        """Frame base + 7 (reset SoC to 100 %)."""
-        return self.encode(ResetSoc())
-
-    def power_off(self) -> Frame:
-        """Frame base + 8 (power off)."""
-        return self.encode(PowerOff())
-
-    def _encode_status(self, status: Bms16Status) -> Frame:
-        return self.frame(STATUS, _E_STATUS(
-            check_value('error', status.error, 0, 8, integer=True), status.soc_pct,
-            status.voltage_v, status.current_a, status.temperature_c))
+        """Build the two configuration frames [base + 4, base + 5] (EncodeRangeError first)."""
+        return [self.frame(CONFIG_1 + k, SETTINGS.payload(k, config)) for k in range(2)]
 
     def _encode_cells(self, cells: Bms16Cells) -> Frame:
         if cells.first_cell not in CELL_FRAME_FIRST:

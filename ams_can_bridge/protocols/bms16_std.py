@@ -1,22 +1,11 @@
 """
-ZEVA BMS16 in its standard form: the EVMS3 protocol, 29-bit, 250 kbit/s (docs/protocols.md s. 6).
+ZEVA BMS16 in its standard form: the EVMS3 protocol, 29-bit, 250 kbit/s.
 
-ZEVA's "CAN bus protocol for BMS16v2": the standard BMS16 uses the CAN format of the EVMS3
-and BMS12, with the data it does not have sent as zero. What the BMS16 puts where comes from
-ZEVA's EVMS Monitor firmware (EVMS_Monitor3.c, Common.h), the display that drives it:
-
-- ``base_id`` + 0 (ID 30): the EVMS3 status frame; **byte 5 = 255** marks a BMS16 (an EVMS3
-  sends its aux voltage there), byte 6 is not used, byte 7 = temperature + 40 (0 = none);
-- BMS12 frames of modules 0 and 1 (IDs 301, 302 and 311, 312): cells 1..8 and 9..16;
-- ID 40 (fixed, as in the Monitor): the shunt current, 24-bit BE, mA + 8388608;
-- ``base_id`` + 2..5 (IDs 32..35): the 32 EVMS3 setting bytes, several with BMS16 meanings
-  (slot 2 full voltage in 1 V steps, slot 6 number of cells, slot 7 shunt size);
-  ``base_id`` + 6 (ID 36): cells per BMS12 module, as the Monitor sends it;
-- ``base_id`` + 7 / 8 / 9 (IDs 37 / 38 / 39): acknowledge error (the code) / reset SoC /
-  power off.
-
-The EVMS3/BMS12 codec (``protocols.evms3``) reads the BMS12 frames; the status frame is read
-here because its bytes 5 and 6 mean something else on a BMS16.
+docs/protocols.md section 6 holds which frames and setting slots a BMS16 fills, the marker
+that tells it from an EVMS3, the order of a write and their sources (ZEVA's BMS16v2 document
+and EVMS Monitor firmware). The frames are the EVMS3's (``protocols.evms3``, whose codec
+reads the cell frames and ID 40 here); the settings are the EVMS3's rows under BMS16 names,
+plus the slots a BMS16 reassigns. The status is read here: its bytes 5 and 6 differ.
 """
 from __future__ import annotations
 
@@ -24,26 +13,23 @@ from dataclasses import dataclass, replace
 from typing import Any, Mapping
 
 from ams_can_bridge.errors import BadConfigBytes, ConfigError
+from ams_can_bridge.protocols.bms12 import BMS12_BASE_ID
+from ams_can_bridge.protocols.bms16 import SHUNT_SIZES_A  # slot 7: code 0..3
 from ams_can_bridge.protocols.common import (
     check_dlc, ConfigField, EncodeRangeError, Frame, MalformedFrameError)
-from ams_can_bridge.protocols.bms16 import SHUNT_SIZES_A  # slot 7: code 0..3
 from ams_can_bridge.protocols.evms3 import (
-    AcknowledgeError, BatteryCurrent, Bms12Cells, Evms3Codec, Evms3Error, Evms3State, LAYOUTS,
-    PowerOff, ResetSoc, status_fault)
-from ams_can_bridge.protocols.evms3_config import (  # noqa: F401 (BALANCE_*: public here too)
-    balance_byte, BALANCE_DYNAMIC, BALANCE_FIELDS, BALANCE_MODES, BALANCE_NAMES, BALANCE_OFF,
-    BALANCE_ROW, balance_values, check_balance, CONFIG_LAYOUTS)
-from ams_can_bridge.protocols.layout import check_value, Layout, Signal
+    ACK_ERROR, AcknowledgeError, BatteryCurrent, Bms12Cells, BMS16_MARKER, CELL_NUMBERS,
+    CONFIG1, Evms3Codec, Evms3Error, Evms3State, LAYOUTS, POWER_OFF, PowerOff, RESET_SOC,
+    ResetSoc, STATUS)
+from ams_can_bridge.protocols.evms3_config import (
+    balance_byte, BALANCE_FIELDS, BALANCE_NAMES, BALANCE_ROW, balance_values, check_balance,
+    CONFIG_LAYOUTS)
+from ams_can_bridge.protocols.layout import BadValue, check_value, Layout, Signal
 from ams_can_bridge.protocols.settings import setting, Settings
 
 DEFAULT_BASE_ID = 30                  # Common.h CAN_BASE_ID
-BMS16_MARKER = 255                    # status byte 5 of a BMS16 (EVMS_Monitor3.c)
 CAN_CURRENT_SENSOR_ID = 40            # Common.h: a fixed ID, not base-relative
-BMS12_BASE_ID = 300                   # Common.h BMS_BASE_ID
-CURRENT_OFFSET_MA = 8388608
-STATUS, SET_STATE, CONFIG1, CONFIG2, CONFIG3, CONFIG4 = range(6)
-CELL_NUMBERS, ACK_ERROR, RESET_SOC, POWER_OFF = range(6, 10)
-ID_COUNT = 10                         # base_id + 0 .. base_id + 9
+ID_COUNT = 10                         # base_id + 0 .. base_id + 9 (the EVMS3 offsets)
 MAX_CELLS = 16
 CELLS_PER_MODULE = 8                  # reply 1 and 2 of a BMS12 frame set: 4 + 4 cells
 # BMS12 frames the BMS16 sends: (module, type) -> first cell (0-based) of the 4 in the frame
@@ -51,15 +37,14 @@ CELL_FRAMES = {(0, 1): 0, (0, 2): 4, (1, 1): 8, (1, 2): 12}
 CELL_IDS = {BMS12_BASE_ID + 10 * m + t: first for (m, t), first in CELL_FRAMES.items()}
 CONFIG_GAP_S = 0.02                   # the Monitor waits 20 ms after each settings frame
 SLOTS = 32                            # setting bytes in IDs 32..35
+_COMMANDS = {ResetSoc: RESET_SOC, PowerOff: POWER_OFF}  # without data
 
 
-# ID 30 and ID 40 have the EVMS3 layout (protocols.evms3.LAYOUTS, checked against its DBC).
+# ID 30 has the EVMS3 layout (protocols.evms3.LAYOUTS, checked against its DBC).
 _D_STATUS = LAYOUTS['EVMS3_Status'].decoder(  # byte 6 (isolation on an EVMS3) is unused
     'State', 'ErrorCode', 'AmpHoursRemaining', 'BatteryVoltage', 'Temperature',
     into=lambda *values: Bms16StdStatus(*values))
 _E_STATUS = LAYOUTS['EVMS3_Status'].encoder(exact=False)  # telemetry: rounded to 0.1
-_D_CURRENT = LAYOUTS['EVMS3_BatteryCurrent'].decoder()
-_E_CURRENT = LAYOUTS['EVMS3_BatteryCurrent'].encoder()
 
 
 @dataclass(frozen=True, slots=True)
@@ -98,11 +83,8 @@ class Bms16StdConfig:
     night_brightness: int
 
 
-# The setting bytes of IDs 32..35 a BMS16 uses: most as the EVMS3 reads them (the Monitor's
-# one settings table, Common.h), several with BMS16 meanings (slot 2 full voltage in 1 V
-# steps, slot 6 number of cells, slot 7 shunt size) or ranges; every other byte is sent as 0.
-# Ranges: the Monitor's minimums[] and bms16maximums[] (Common.h), scales from its
-# RenderSettings; the Monitor shows OFF for the sentinel ends.
+# The setting slots a BMS16 uses (docs/protocols.md section 6): the EVMS3's rows under BMS16
+# names, and the slots it reassigns or whose range it narrows; every other byte is sent as 0.
 _EVMS3 = {s.name: s for layout in CONFIG_LAYOUTS[:4] for s in layout.signals}
 
 
@@ -196,21 +178,20 @@ class Bms16StdCodec:
             raise ConfigError(f'base_id {base_id}: IDs {base_id}..{base_id + ID_COUNT - 1} '
                               f'overlap the fixed IDs 40 (current) or 301..312 (cells)')
         self.base_id = base_id
-        self._bms12 = Evms3Codec(bms12_modules=2)  # reads the BMS12 frames of modules 0, 1
+        # An EVMS3 codec at its default base 30 reads the BMS12 frames of modules 0 and 1 and
+        # the current sensor's fixed ID 40 (its base + 10).
+        self._evms3 = Evms3Codec(bms12_modules=2)
         # received: the status, the cell frames and the current (the rest are sent to it)
-        self.arbitration_ids = frozenset({base_id + STATUS, CAN_CURRENT_SENSOR_ID}
-                                         | set(CELL_IDS))
+        self._evms3_ids = frozenset({CAN_CURRENT_SENSOR_ID} | set(CELL_IDS))
+        self.arbitration_ids = self._evms3_ids | {base_id + STATUS}
 
     # --- decode ---------------------------------------------------------------------------
     def decode(self, arbitration_id: int, data: bytes) -> Any:
         """Frame -> Bms16StdStatus / Bms12Cells / BatteryCurrent; MalformedFrameError if bad."""
         if arbitration_id == self.base_id + STATUS:
             return self._status(arbitration_id, data)
-        if arbitration_id in CELL_IDS:
-            return self._bms12.decode(arbitration_id, data)
-        if arbitration_id == CAN_CURRENT_SENSOR_ID:
-            check_dlc(arbitration_id, data, 3)
-            return BatteryCurrent(*_D_CURRENT(data))
+        if arbitration_id in self._evms3_ids:
+            return self._evms3.decode(arbitration_id, data)
         raise MalformedFrameError(arbitration_id, data, 'not an ID of this BMS16')
 
     @staticmethod
@@ -220,10 +201,10 @@ class Bms16StdCodec:
             raise MalformedFrameError(
                 aid, data, f'byte 5 = {data[5]}, not the BMS16 marker 255: the status of '
                 'another device (an EVMS3 sends its aux voltage there), not decoded')
-        try:
+        try:  # the EVMS3's rows refuse an unknown state or error code
             return _D_STATUS(data)
-        except IndexError:
-            raise MalformedFrameError(aid, data, status_fault(data)) from None
+        except BadValue as exc:
+            raise MalformedFrameError(aid, data, str(exc)) from None
 
     # --- encode ---------------------------------------------------------------------------
     def _frame(self, offset: int, data: bytes) -> Frame:
@@ -240,24 +221,16 @@ class Bms16StdCodec:
     def encode(self, msg: Any) -> Frame:
         """Command or (for the simulator) reading -> Frame; EncodeRangeError if out of range."""
         if isinstance(msg, AcknowledgeError):
-            if not 0 <= int(msg.error) <= 16:
-                raise EncodeRangeError('error', msg.error, '0..16')
-            return self._frame(ACK_ERROR, bytes([int(msg.error)]))
-        if isinstance(msg, ResetSoc):
-            return self._frame(RESET_SOC, b'')
-        if isinstance(msg, PowerOff):
-            return self._frame(POWER_OFF, b'')
+            return self._frame(ACK_ERROR, bytes([
+                check_value('error', msg.error, 0, 16, integer=True)]))
+        if type(msg) in _COMMANDS:
+            return self._frame(_COMMANDS[type(msg)], b'')
         if isinstance(msg, Bms16StdStatus):
-            return self._encode_status(msg)
-        if isinstance(msg, Bms12Cells):
-            return self._bms12.encode(msg)
-        if isinstance(msg, BatteryCurrent):
-            return Frame(CAN_CURRENT_SENSOR_ID, _E_CURRENT(msg.current_a), True)
+            # The EVMS3 status layout (its rows check state and error): byte 5 the marker
+            # (aux voltage 25.5 V), byte 6 unused.
+            return self._frame(STATUS, _E_STATUS(
+                msg.state, msg.error, msg.amp_hours_ah, msg.pack_voltage_v, BMS16_MARKER / 10,
+                0, 0, msg.temperature_c))
+        if isinstance(msg, (Bms12Cells, BatteryCurrent)):
+            return self._evms3.encode(msg)
         raise EncodeRangeError('message', msg, 'a BMS16 (standard) message')
-
-    def _encode_status(self, msg: Bms16StdStatus) -> Frame:
-        # The EVMS3 status layout: byte 5 the marker (aux voltage 25.5 V), byte 6 unused.
-        return self._frame(STATUS, _E_STATUS(
-            check_value('state', msg.state, 0, 5, integer=True),
-            check_value('error', msg.error, 0, 16, integer=True), msg.amp_hours_ah,
-            msg.pack_voltage_v, BMS16_MARKER / 10, 0, 0, msg.temperature_c))

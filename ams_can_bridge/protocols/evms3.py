@@ -1,24 +1,14 @@
 """
 ZEVA EVMS3 and its BMS12 cell modules: 29-bit frames <-> typed readings and commands.
 
-docs/protocols.md section 3 (EVMS3 CAN protocol rev 1.1; BMS12 from ZEVA's open firmware).
-IDs of the EVMS3 are ``base_id + 0..11`` (30 status .. 41 zero current sensor by default);
-BMS12 module ``m`` uses ``300 + 10 m + t`` (``protocols.bms12``; this codec owns their IDs).
-29-bit by default; ``extended_id=False`` for a firmware built with 11-bit IDs. The TC chargers
-the EVMS drives (``protocols.tc_charger``, always 29-bit) are decoded here too.
-The bits of the status and current frames are one table (``LAYOUTS``, the format of
-protocols/layout.py), checked with the BMS12's, the chargers' and the configuration's
-against msg_defs/evms3.dbc at the first codec; decoders and encoders are generated from it
-(a few microseconds a frame, no cantools).
-
-A ZEVA Monitor shares the bus (EVMS_Monitor3.c): it sends ID 31 with DLC 2 while a gauge
-setting is edited, and ID 52 (its motor controller's settings ID, which the EVMS3 also uses
-for its read-back) with DLC 1 or 8. These decode to ``SetState``/``OtherTraffic``, never
-malformed. A ZEVA BMS16 in its standard form speaks this protocol and marks its ID 30 with
-byte 5 = 255 (``Evms3Status.bms16_marker``).
-
-The configuration (typed config, its layout in 32..36, the read-back 51..56) lives in
-``protocols.evms3_config``; every name of it is importable from here too.
+docs/protocols.md section 3 holds the frames (IDs ``base_id + 0..11``, the fixed read-back
+51..56, BMS12 ``300 + 10 m + t``), the codes, their sources and the decisions (a Monitor's
+ID 31 and 52 traffic is never malformed; the BMS16 marker). This codec owns every ID on the
+bus: the BMS12 frames (``protocols.bms12``), the TC chargers (``protocols.tc_charger``,
+always 29-bit) and the configuration (``protocols.evms3_config``, whose names are importable
+from here too). The bits are ``LAYOUTS``, checked with the others against msg_defs/evms3.dbc
+at the first codec; decoders and encoders are generated from them (a few microseconds a
+frame, no cantools).
 """
 from __future__ import annotations
 
@@ -39,15 +29,12 @@ from ams_can_bridge.protocols.evms3_config import (  # noqa: F401 (some re-expor
 from ams_can_bridge.protocols import bms12
 from ams_can_bridge.protocols.bms12 import (
     BMS12_BASE_ID, Bms12Cells, Bms12Request, Bms12Temperatures, decode_cells)
-from ams_can_bridge.protocols.layout import check_value, Layout, LITTLE, Signal
+from ams_can_bridge.protocols.layout import BadValue, check_value, Layout, LITTLE, Signal
 from ams_can_bridge.protocols.tc_charger import (
     CHARGER_IDS, ChargerCommand, ChargerStatus, LAYOUTS as TC_LAYOUTS, TcChargerCodec)
 
 BMS16_MARKER = 255  # ID 30 byte 5 (aux voltage on an EVMS3): EVMS_Monitor3.c sets isBMS16
-# ID 31 byte 0 (Common.h): CORE_IDLE_STATE 0, CORE_SETUP_STATE 1, CORE_SETUP_EDIT_FUEL_GAUGE 2,
-# CORE_SETUP_EDIT_TEMP_GAUGE 3
-CORE_SETUP_EDIT_TEMP_GAUGE = 3
-CURRENT_OFFSET_MA = 8388608
+CORE_SETUP_EDIT_TEMP_GAUGE = 3  # ID 31 byte 0, the last of Common.h's setup states
 STATUS, SET_STATE, CONFIG1, CONFIG2, CONFIG3, CONFIG4 = range(6)
 CELL_NUMBERS, ACK_ERROR, RESET_SOC, POWER_OFF, BATTERY_CURRENT, ZERO_CURRENT = range(6, 12)
 
@@ -86,7 +73,6 @@ class Evms3Error(enum.IntEnum):
 
 
 EVMS3_WARNINGS = frozenset({2, 4, 6, 10})
-_STATES = tuple(Evms3State)
 _ERRORS = tuple(Evms3Error)
 
 
@@ -94,13 +80,15 @@ _ERRORS = tuple(Evms3Error)
 # ZEVA's firmware divides (1234 -> 123.4 V): divide=True keeps those values exact.
 LAYOUTS = {
     'EVMS3_Status': Layout('EVMS3_Status', 8, (
-        Signal('State', 0, 3, LITTLE, high=5, field='state', lookup=tuple(Evms3State)),
-        Signal('ErrorCode', 3, 5, LITTLE, high=16, field='error', lookup=tuple(Evms3Error)),
+        Signal('State', 0, 3, LITTLE, field='state', lookup=tuple(Evms3State),
+               check='unknown state {value} ({low}..{high})'),
+        Signal('ErrorCode', 3, 5, LITTLE, field='error', lookup=_ERRORS,
+               check='unknown error code {value} ({low}..{high})'),
         Signal('AmpHoursRemaining', 15, 16, scale=0.1, unit='Ah', field='amp_hours_ah'),
         Signal('BatteryVoltage', 31, 16, scale=0.1, unit='V', field='pack_voltage_v'),
         Signal('AuxVoltage', 40, 8, LITTLE, scale=0.1, unit='V', field='aux_voltage_v'),
         Signal('IsolationIntegrity', 48, 7, LITTLE, high=100, unit='%', field='isolation_pct',
-               invalid=101, lookup=tuple(range(101)) + (None,)),  # 101: cannot be measured
+               invalid=101, check='isolation {value} % (0..100, 101 = n/a)'),  # 101: n/a
         Signal('Headlights', 55, 1, LITTLE, field='headlights', flag=True),
         Signal('Temperature', 56, 8, LITTLE, offset=-40, unit='degC', field='temperature_c',
                invalid=0)),  # raw 0: no sensor
@@ -109,8 +97,6 @@ LAYOUTS = {
         Signal('BatteryCurrent', 7, 24, scale=0.001, offset=-8388.608, unit='A',
                field='current_a'),), divide=True),
 }
-_D_STATUS_RAW = LAYOUTS['EVMS3_Status'].decoder('State', 'ErrorCode', 'IsolationIntegrity',
-                                                raw=True)
 _E_STATUS = LAYOUTS['EVMS3_Status'].encoder()
 _D_CURRENT = LAYOUTS['EVMS3_BatteryCurrent'].decoder()
 _E_CURRENT = LAYOUTS['EVMS3_BatteryCurrent'].encoder()
@@ -161,9 +147,8 @@ class SetState:
     """
     ID 31: enter Setup (True) or return to Idle (False).
 
-    A ZEVA Monitor editing a setting sends DLC 2: byte 0 = 1 setup, 2 edit fuel gauge, 3 edit
-    temperature gauge, byte 1 = the value shown on that gauge meanwhile (``request``,
-    ``gauge_value``); the EVMS3 stays in Setup.
+    DLC 2: a Monitor editing a gauge setting (section 3.2), ``request`` 1..3 and the
+    ``gauge_value`` shown meanwhile; the EVMS3 stays in Setup.
     """
 
     setup: bool
@@ -180,12 +165,7 @@ class AcknowledgeError:
 
 @dataclass(frozen=True, slots=True)
 class ResetSoc:
-    """
-    ID 38: reset the state of charge to 100 % (sent with DLC 0).
-
-    ZEVA's 2021 firmware reads one data byte 0..100 as the SoC to set; older firmware
-    ignores the data and sets 100 %. The bridge sends no data, so both mean 100 %.
-    """
+    """ID 38: reset the state of charge to 100 % (sent with DLC 0: 100 % for every firmware)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -217,16 +197,6 @@ _EMPTY_OFFSET = {command: offset for offset, command in _EMPTY.items()}
 _STATUS = LAYOUTS['EVMS3_Status'].decoder(  # in the order of the reading's fields
     'State', 'ErrorCode', 'AmpHoursRemaining', 'BatteryVoltage', 'AuxVoltage', 'Headlights',
     'IsolationIntegrity', 'Temperature', into=Evms3Status)
-
-
-def status_fault(data: bytes) -> str:
-    """Say why an ID 30 frame is no status: the state, error or isolation byte."""
-    state, error, iso = _D_STATUS_RAW(data)
-    if state > 5:
-        return f'unknown state {state} (0..5)'
-    if error > 16:
-        return f'unknown error code {error} (0..16)'
-    return f'isolation {iso} % (0..100, 101 = n/a)'
 
 
 # --- the codec -------------------------------------------------------------------------------
@@ -281,9 +251,10 @@ class Evms3Codec:
             b + RESET_SOC: lambda aid, data: ResetSoc(),
         }
         for packet in range(4):
-            self._decoders[b + CONFIG1 + packet] = self._decode_config
+            self._decoders[b + CONFIG1 + packet] = functools.partial(
+                decode_config_packet, packet, multiplier=voltage_multiplier)
         for aid in READBACK_IDS:  # 52..56: the EVMS's answer to 51 (or foreign traffic)
-            self._decoders[aid] = self._decode_report
+            self._decoders[aid] = functools.partial(decode_report, multiplier=voltage_multiplier)
 
     # --- decode ---------------------------------------------------------------------------
     def decode(self, arbitration_id: int, data: bytes) -> Any:
@@ -304,10 +275,10 @@ class Evms3Codec:
     def _decode_status(self, aid: int, data: bytes) -> Evms3Status:
         if len(data) != 8:
             check_dlc(aid, data, 8)
-        try:  # the reading built in one generated call; an unknown code is past a lookup
+        try:  # the reading built in one generated call; its rows refuse an unknown code
             return _STATUS(data)
-        except IndexError:
-            raise MalformedFrameError(aid, data, status_fault(data)) from None
+        except BadValue as exc:
+            raise MalformedFrameError(aid, data, str(exc)) from None
 
     def _decode_set_state(self, aid: int, data: bytes) -> SetState:
         check_dlc(aid, data, (1, 2))
@@ -319,13 +290,6 @@ class Evms3Codec:
         if data[0] > 1:
             raise MalformedFrameError(aid, data, f'set state {data[0]}, expected 0 or 1')
         return SetState(bool(data[0]))
-
-    def _decode_config(self, aid: int, data: bytes) -> Evms3ConfigPart:
-        return decode_config_packet(aid - self.base_id - CONFIG1, aid, data,
-                                    self.voltage_multiplier)
-
-    def _decode_report(self, aid: int, data: bytes) -> ConfigReport | OtherTraffic:
-        return decode_report(aid, data, self.voltage_multiplier)
 
     def _decode_ack(self, aid: int, data: bytes) -> AcknowledgeError:
         check_dlc(aid, data, 1)

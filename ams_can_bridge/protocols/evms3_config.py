@@ -1,19 +1,11 @@
 """
-ZEVA EVMS3 configuration: the typed config, its wire layout (IDs 32..36) and the read-back.
+ZEVA EVMS3 configuration: the typed config, its frames (IDs 32..36) and the read-back 51..56.
 
-The 32 setting bytes of IDs 32..35 and the cell counts of ID 36 (docs/protocols.md section 3), in
-physical units with the ranges the firmware allows (``CONFIG_FIELDS``: the encoder refuses,
-instead of clamping, any value the EVMS would silently limit). Settings whose vendor range
-ends in an "off"/"never" value (``SENTINELS``) take that end value as a documented number:
-warn/trip current 1210 A = off, EVMS temperature warning 151 = off, BMS minimum temperature
--40 = off, BMS maximum temperature 101 = off, sleep delay 6 = never sleep. An 800 V build
-(Common.h ``PACK_VOLTAGE_MULTIPLIER`` 2) doubles full and charge voltages (``multiplier``).
-ZEVA's open EVMS3 firmware (MIT, August 2021) also reports them: ID 51 asks, 52..55 answer
-in the layout of 32..35 and 56 in the layout of 36 (``ConfigReport``, joined by
-``ConfigReadback``). The settings are rows of the layout table (protocols/settings.py derives
-the fields, checks and payloads); this module adds the balance byte, the 9-bit charge
-voltages and the cell nibbles. ``protocols.evms3`` builds the frames and re-exports every
-name here.
+docs/protocols.md sections 3.4..3.6 hold the settings, their ranges and off/never ends, the
+800 V multiplier, the read-back and their sources. The settings are rows of the layout table
+(protocols/settings.py derives the fields, the checks and the payloads; a value the EVMS would
+clamp is refused); this module adds the balance byte, the 9-bit charge voltages and the cell
+nibbles. ``protocols.evms3`` builds the frames and re-exports every name here.
 """
 from __future__ import annotations
 
@@ -29,21 +21,16 @@ from ams_can_bridge.protocols.settings import setting, Settings
 
 BALANCE_DYNAMIC = 251
 BALANCE_OFF = 252
-# Read-back (ZEVA's open firmware, MIT, August 2021): fixed IDs, not moved by base_id. ID 51
-# is also a ZEVA motor controller's throttle frame (MC_SET_THROTTLE_ID), 52/53 its settings.
+# Read-back: fixed IDs, not moved by base_id (docs/protocols.md 3.4)
 CORE_REQUEST_CONFIG = 51
 CORE_SEND_CONFIG1, CORE_SEND_CONFIG2, CORE_SEND_CONFIG3, CORE_SEND_CONFIG4 = range(52, 56)
 CORE_SEND_CELL_NUMS = 56
 READBACK_IDS = range(CORE_SEND_CONFIG1, CORE_SEND_CELL_NUMS + 1)
-# IDs 52/53 are also MC_RECEIVE_SETTINGS_ID / MC_SEND_SETTINGS_ID (Common.h): a Monitor and a
-# ZEVA motor controller use them for the controller's settings.
+# also a ZEVA motor controller's settings IDs (Common.h MC_RECEIVE/SEND_SETTINGS_ID)
 SHARED_READBACK_IDS = frozenset({CORE_SEND_CONFIG1, CORE_SEND_CONFIG2})
 READBACK_NAMES = {52: 'config 1', 53: 'config 2', 54: 'config 3', 55: 'config 4',
                   56: 'cell numbers'}
-# Cells per BMS12 module: 0 (absent) or 4..12 (the firmware holds 12 cells a module; the
-# Monitor offers 4..12). The 4-bit nibble of ID 36 could carry 13..15: refused.
-CELLS_MIN, CELLS_MAX = 4, 12
-VOLTAGE_MULTIPLIERS = (1, 2)  # Common.h PACK_VOLTAGE_MULTIPLIER: 1 (up to ~400 V) or 2 (800 V)
+CELLS_MIN, CELLS_MAX = 4, 12  # cells per BMS12 module, or 0 (docs/protocols.md 3.5)
 
 
 def sentinel_text(name: str, value: Any) -> str | None:
@@ -93,8 +80,8 @@ class Evms3Config:
     night_brightness: int  # setting 31, ID 35 byte 7: 0..10 (x 10 % on the Monitor)
 
     @classmethod
-    def from_parts(cls, parts: Iterable['Evms3ConfigPart']) -> 'Evms3Config':
-        """Join the four decoded packets (any order) into one configuration."""
+    def from_parts(cls, parts: Iterable[Evms3ConfigPart | ConfigReport]) -> Evms3Config:
+        """Join the four decoded packets or reports (any order) into one configuration."""
         values: dict[str, Any] = {}
         for part in parts:
             values.update(part.values)
@@ -157,11 +144,8 @@ class ConfigReadback:
         missing = tuple(i for i in READBACK_IDS if i not in by_id)
         if missing:
             return cls(None, None, missing)
-        values: dict[str, Any] = {}
-        for report in by_id.values():
-            values.update(report.values)
-        cells = values.pop('cells_per_module')
-        return cls(Evms3Config(**values), tuple(cells))
+        cells = by_id.pop(CORE_SEND_CELL_NUMS).values['cells_per_module']
+        return cls(Evms3Config.from_parts(by_id.values()), tuple(cells))
 
     def parameter_values(self) -> dict[str, Any]:
         """Every configuration field read, physical units (balance_v only when static)."""
@@ -182,8 +166,8 @@ class ConfigReadback:
         balance = (f'static {cfg.balance_v:.2f} V' if cfg.balance_mode == 'static'
                    else cfg.balance_mode)
         modules = [n for n in self.cells_per_module if n]
-        off = [f'{name} {sentinel_text(name, getattr(cfg, name))}' for name in SENTINELS
-               if sentinel_text(name, getattr(cfg, name))]
+        off = [f'{name} {word}' for name, (value, word) in SENTINELS.items()
+               if getattr(cfg, name) == value]
         return (f'{cfg.pack_capacity_ah} Ah, full {cfg.full_voltage_v} V, cells '
                 f'{cfg.bms_min_cell_v:.2f}..{cfg.bms_max_cell_v:.2f} V, balance {balance}, '
                 f'charge {cfg.max_charge_voltage_v} V {cfg.max_charge_current_a} A, '
@@ -231,9 +215,8 @@ def balance_values(raw: int, fail: Callable[[str], Exception]) -> dict[str, Any]
 
 
 # --- the configuration table ----------------------------------------------------------------
-# The 32 setting bytes of IDs 32..35 (Common.h settings 0..31) and the cell nibbles of ID 36,
-# with the names of msg_defs/evms3.dbc (``evms3.check_dbc`` proves the bits against it) and
-# the ranges of the firmware and the Monitor (minimums[] / maximums[], physical units).
+# Common.h settings 0..31 in IDs 32..35 and the cell nibbles of ID 36, with the names of
+# msg_defs/evms3.dbc (``evms3.check_dbc``) and the ranges of minimums[] / maximums[].
 _CONFIG1 = Layout('EVMS3_Config1', 8, (
     setting('PackCapacity', 0, 'pack_capacity_ah', 5, 1250, 'Ah', 'pack capacity', scale=5),
     setting('SocWarning', 1, 'soc_warning_pct', 0, 99, '%', 'state of charge warning level'),
@@ -332,7 +315,7 @@ def check_config_value(name: str, value: Any, multiplier: int = 1) -> Any:
     written as int or float (3 and 3.0 are the same); nothing is clamped. ``multiplier``
     is the EVMS build's PACK_VOLTAGE_MULTIPLIER (1 or 2): full and charge voltages scale.
     """
-    if multiplier not in VOLTAGE_MULTIPLIERS:
+    if multiplier not in (1, 2):  # Common.h PACK_VOLTAGE_MULTIPLIER
         raise ConfigError(f'voltage multiplier {multiplier!r}: allowed 1 or 2')
     if name == 'cells_per_module':
         allowed = f'{BMS12_MAX_MODULES} integers, each 0 or {CELLS_MIN}..{CELLS_MAX}'

@@ -2,20 +2,13 @@
 Device configuration from the layout table: one mechanism for every ZEVA settings frame.
 
 A configuration frame is a :class:`Layout` whose :class:`Signal` rows name a setting
-(``field``) and carry what the ROS layer declares for it: the physical range (``low`` ..
-``high``), the step (the row's scale), the unit, a ``description``, the physical ``kind``
-(int or float; a ``flag`` row is a bool), enum codes (``lookup``: BMS16 shunt sizes) and a
-``sentinel`` end (EVMS3: 1210 A = off). :class:`Settings` turns those rows into
-
-* the ``ConfigField`` tuple the parameters are declared from (``fields``),
-* the check of one value (:func:`check_value`, the package's one validator: EncodeRangeError
-  naming the field and the allowed range; nothing is clamped or rounded),
-* a frame's payload from checked values (``payload``),
-* a frame's values, each raw byte range-checked (``decode``: a value the device could not
-  have sent makes the frame malformed, with the protocol's own wording).
-
-Rows without a field (the EVMS3 balance byte, the 9th bit of a charge voltage) are bits the
-protocol module reads and writes itself: the rules a table cannot state.
+(``field``) and carry what the parameters declare: range, step (the scale), unit,
+``description``, ``kind`` (int or float; a ``flag`` is a bool), enum codes (``lookup``) and a
+``sentinel`` end (EVMS3: 1210 A = off). :class:`Settings` derives from them the ConfigFields
+(``fields``), the check of one value (:func:`check_value`: EncodeRangeError, nothing clamped
+or rounded), a frame's payload and a frame's values (``decode``: a raw value the device could
+not have sent makes the frame malformed). Rows without a field (the EVMS3 balance byte, a
+charge voltage's 9th bit) are bits the protocol module reads and writes itself.
 """
 from __future__ import annotations
 
@@ -54,9 +47,7 @@ def raw_bounds(s: Signal) -> tuple[int, int]:
         return 0, 1
     if s.lookup is not None:
         return 0, len(s.lookup) - 1
-    low, high = s.bounds()
-    ends = sorted((round((low - s.offset) / s.scale), round((high - s.offset) / s.scale)))
-    return ends[0], ends[1]
+    return s.raw_limits()
 
 
 class Settings:
@@ -73,13 +64,12 @@ class Settings:
         """
         self.layouts = tuple(layouts)
         self.rows = {s.field: s for layout in self.layouts for s in layout.signals if s.field}
-        self._bounds = {name: raw_bounds(s) for name, s in self.rows.items()}
         # Decoding: the generated raw decoder of each frame's settings, and per setting its
         # raw range and its value of every raw value (a setting is a byte or less).
         self._raw = tuple(layout.decoder(*(s.name for s in layout.signals if s.field), raw=True)
                           for layout in self.layouts)
         self._plans = tuple(tuple(
-            (s.field, *self._bounds[s.field], self._values(s)) for s in layout.signals
+            (s.field, *raw_bounds(s), self._values(s)) for s in layout.signals
             if s.field) for layout in self.layouts)
         self._fault = fault
         self._ranged = ranged

@@ -16,7 +16,7 @@ from typing import Any, Callable
 from ams_can_bridge.protocols.bms16 import (
     AcknowledgeError, Bms16Cells, Bms16Codec, Bms16ConfigPart1, Bms16ConfigPart2, Bms16Error,
     Bms16Status, CELL_FRAME_COUNT, CELL_FRAME_FIRST, CONFIG_1, CONFIG_2, CONFIG_FIELD,
-    PowerOff, ResetSoc, SHUNT_SIZES_A, unchecked_config_values)
+    PowerOff, ResetSoc, SETTINGS, SHUNT_SIZES_A)
 from ams_can_bridge.protocols.common import Frame, MalformedFrameError, ProtocolError
 from ams_can_bridge.protocols.sma import (
     SmaAlarms, SmaBattery, SmaCodec, SmaFlag, SmaLimits, SmaSoc)
@@ -163,10 +163,10 @@ class Bms16Simulator(SimDevice):
         """Read a configuration frame with a value out of range as the unit does (to clamp)."""
         offset = arbitration_id - self.codec.base_id
         if offset == CONFIG_1 and len(data) == 8:
-            part1: dict[str, Any] = unchecked_config_values(data, 1)
+            part1: dict[str, Any] = SETTINGS.decode(0, data)  # no fail: unchecked
             return Bms16ConfigPart1(**part1)
         if offset == CONFIG_2 and len(data) == 4 and data[3] < len(SHUNT_SIZES_A):
-            return Bms16ConfigPart2(**unchecked_config_values(data, 2))
+            return Bms16ConfigPart2(**SETTINGS.decode(1, data))
         return None
 
     def on_frame(self, frame: Frame, now: float) -> None:
