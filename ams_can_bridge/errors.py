@@ -20,8 +20,7 @@ The hierarchy::
      +-- RefusedCommand                     a service call refused before any frame is sent
      +-- LogFileError                       a CAN log that cannot be read at all
 
-``protocols.common`` imports ProtocolError, MalformedFrameError and EncodeRangeError for
-the protocol modules, which import them from there.
+Every module imports the errors from here (there is no second import place).
 
 No rclpy and no python-can here: protocol code imports this module.
 """

@@ -20,7 +20,7 @@ from rclpy.context import Context
 from ams_can_bridge import registry
 from ams_can_bridge.can_io.replay import open_log
 from ams_can_bridge.devices.base import device_params
-from ams_can_bridge.protocols.common import MalformedFrameError
+from ams_can_bridge.errors import MalformedFrameError
 
 _bridges = itertools.count()
 

@@ -4,11 +4,11 @@ import pytest
 from ams_can_bridge import errors
 from ams_can_bridge.bus_state import BusState, BusStatus
 from ams_can_bridge.can_io import BusConfig, CanIo
-from ams_can_bridge.errors import CanSendError, LogFileError
+from ams_can_bridge.errors import (
+    CanSendError, EncodeRangeError, LogFileError, MalformedFrameError, ProtocolError)
 from ams_can_bridge.offline.log_frames import LogFrames
 from ams_can_bridge.protocols.bms16 import Bms16Codec
-from ams_can_bridge.protocols.common import (
-    EncodeRangeError, Frame, MalformedFrameError, ProtocolError)
+from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import Evms3Codec
 from ams_can_bridge.reports import bus_report
 

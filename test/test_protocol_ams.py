@@ -10,8 +10,8 @@ from ams_can_bridge.protocols.ams import (
     CarCommand, CarStatus, CellTemperatures, CellVoltages, ChargerCommand, ChargerStart,
     DischargeTemperatures, OverrideBankCount, OverrideChargeCurrent)
 from ams_can_bridge.protocols import ams as ams_protocol
-from ams_can_bridge.protocols.common import (
-    EncodeRangeError, Frame, MalformedFrameError, msg_defs_dir)
+from ams_can_bridge.errors import EncodeRangeError, MalformedFrameError
+from ams_can_bridge.protocols.common import Frame, msg_defs_dir
 
 CODEC = AmsCodec()
 WORD_DRIVE = AmsStatusWord(air_plus=True, air_minus=True, bank_count=2, state=AmsState.DRIVE)

@@ -7,8 +7,8 @@ from ams_can_bridge.protocols.bms16 import (
     AcknowledgeError, BMS16_WARNINGS, Bms16Cells, Bms16Codec, Bms16Config, Bms16ConfigPart1,
     Bms16ConfigPart2, Bms16Error, Bms16Status, check_config_value, CONFIG_FIELDS, PowerOff,
     ResetSoc)
-from ams_can_bridge.protocols.common import (
-    EncodeRangeError, Frame, MalformedFrameError, msg_defs_dir)
+from ams_can_bridge.errors import EncodeRangeError, MalformedFrameError
+from ams_can_bridge.protocols.common import Frame, msg_defs_dir
 from helpers import assert_decodes_or_malformed, load_dbc_strictly
 
 CODEC = Bms16Codec()

@@ -14,10 +14,11 @@ import pytest
 from ams_can_bridge import registry
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.devices.base import device_params, Level, PowerSupplyHealth
-from ams_can_bridge.errors import ConfigError, RefusedCommand
+from ams_can_bridge.errors import (
+    ConfigError, EncodeRangeError, MalformedFrameError, RefusedCommand)
 from ams_can_bridge.protocols.bms16_std import (
     Bms16StdCodec, Bms16StdStatus, check_config_value, config_from_mapping)
-from ams_can_bridge.protocols.common import EncodeRangeError, Frame, MalformedFrameError
+from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import (
     AcknowledgeError, BatteryCurrent, Bms12Cells, Evms3Error, Evms3State, PowerOff, ResetSoc)
 from helpers import assert_decodes_or_malformed, Clock

@@ -10,7 +10,8 @@ import cantools
 from hypothesis import given, settings, strategies as st
 import pytest
 
-from ams_can_bridge.protocols.common import EncodeRangeError, Frame, MalformedFrameError
+from ams_can_bridge.errors import EncodeRangeError, MalformedFrameError
+from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.common import msg_defs_dir
 from ams_can_bridge.protocols.evms3 import (
     AcknowledgeError, BatteryCurrent, Bms12Cells, Bms12Request, Bms12Temperatures,

@@ -7,7 +7,8 @@ is enough) asks; 52..55 answer in exactly the layout of 32..35 and 56 in the lay
 import cantools
 import pytest
 
-from ams_can_bridge.protocols.common import Frame, MalformedFrameError, msg_defs_dir
+from ams_can_bridge.errors import MalformedFrameError
+from ams_can_bridge.protocols.common import Frame, msg_defs_dir
 from ams_can_bridge.protocols.evms3 import (
     ConfigReadback, ConfigReport, Evms3Codec, OtherTraffic, RequestConfig)
 from test_protocol_evms3 import GOLDEN_CONFIG

@@ -4,8 +4,8 @@ import math
 from hypothesis import given, settings, strategies as st
 import pytest
 
-from ams_can_bridge.protocols.common import (
-    EncodeRangeError, Frame, load_dbc, MalformedFrameError)
+from ams_can_bridge.errors import EncodeRangeError, MalformedFrameError
+from ams_can_bridge.protocols.common import Frame, load_dbc
 from ams_can_bridge.protocols.ivt_s import IvtMux, IvtResult, IvtSCodec
 
 BE = IvtSCodec()

@@ -7,7 +7,8 @@ IVT-S_12082020.dbc, the EVtv/Stm32-vcu isa_shunt.cpp and sectioncritical/ivts.
 import pytest
 
 from ams_can_bridge.protocols import ivt_s_commands as cmd
-from ams_can_bridge.protocols.common import EncodeRangeError, Frame, MalformedFrameError
+from ams_can_bridge.errors import EncodeRangeError, MalformedFrameError
+from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.ivt_s import IvtMux
 from ams_can_bridge.protocols.ivt_s_commands import (
     AliveAnswer, ErrorAnswer, ModeAnswer, OtherAnswer, ResetAnswer, ResultConfig, SerialAnswer,

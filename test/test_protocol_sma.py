@@ -2,8 +2,8 @@
 from hypothesis import given, settings, strategies as st
 import pytest
 
-from ams_can_bridge.protocols.common import (
-    EncodeRangeError, Frame, MalformedFrameError, msg_defs_dir)
+from ams_can_bridge.errors import EncodeRangeError, MalformedFrameError
+from ams_can_bridge.protocols.common import Frame, msg_defs_dir
 from ams_can_bridge.protocols.sma import (
     SMA_CONDITIONS, SMA_IDS, SmaAlarms, SmaBattery, SmaBatteryInfo, SmaCodec, SmaFlag,
     SmaLimits, SmaManufacturer, SmaSoc)

@@ -7,7 +7,8 @@ not produced by the encoder; the encoder and msg_defs/sma.dbc are then checked a
 from hypothesis import given, settings, strategies as st
 import pytest
 
-from ams_can_bridge.protocols.common import EncodeRangeError, Frame, MalformedFrameError
+from ams_can_bridge.errors import EncodeRangeError, MalformedFrameError
+from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.common import msg_defs_dir
 from ams_can_bridge.protocols.sma import SMA_CONDITIONS, SmaCodec
 from ams_can_bridge.protocols.sma_dialects import (

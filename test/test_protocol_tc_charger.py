@@ -8,7 +8,8 @@ against them.
 import cantools
 import pytest
 
-from ams_can_bridge.protocols.common import EncodeRangeError, Frame, MalformedFrameError
+from ams_can_bridge.errors import EncodeRangeError, MalformedFrameError
+from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.common import msg_defs_dir
 from ams_can_bridge.protocols.evms3 import Bms12Request, Evms3Codec, ResetSoc
 from ams_can_bridge.protocols.tc_charger import (

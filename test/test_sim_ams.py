@@ -9,7 +9,8 @@ from ams_can_bridge.protocols.ams import (
     AmsChargerStatus, AmsCodec, AmsError, AmsErrorEvent, AmsState, AmsStatus, CarCommand,
     CarStatus, CellVoltages, ChargerCommand, ChargerStart, OverrideBankCount,
     OverrideChargeCurrent)
-from ams_can_bridge.protocols.common import Frame, MalformedFrameError
+from ams_can_bridge.errors import MalformedFrameError
+from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.sim.ams import AmsSimulator
 
 TICK = 0.002  # the SimRunner's default tick period

@@ -7,7 +7,8 @@ import can
 import pytest
 
 from ams_can_bridge.devices.evms3 import Evms3Device
-from ams_can_bridge.protocols.common import Frame, MalformedFrameError
+from ams_can_bridge.errors import MalformedFrameError
+from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import (
     AcknowledgeError, BatteryCurrent, Bms12Cells, Bms12Request,
     BmsCellNumbers, Evms3Codec, Evms3Config, Evms3Error, Evms3State, Evms3Status, PowerOff,

@@ -7,7 +7,7 @@ import pytest
 
 from ams_can_bridge import registry
 from ams_can_bridge.devices.ivt_s import IvtSDevice
-from ams_can_bridge.protocols.common import MalformedFrameError
+from ams_can_bridge.errors import MalformedFrameError
 from ams_can_bridge.protocols.ivt_s import IvtMux, IvtSCodec
 from ams_can_bridge.sim.ivt_s import IvtSSimulator
 

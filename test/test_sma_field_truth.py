@@ -10,7 +10,8 @@ import pytest
 
 from ams_can_bridge.devices.base import Level
 from ams_can_bridge.devices.sma import IDENTITY_TIMEOUT, SmaDevice
-from ams_can_bridge.protocols.common import Frame, load_dbc, MalformedFrameError
+from ams_can_bridge.errors import MalformedFrameError
+from ams_can_bridge.protocols.common import Frame, load_dbc
 from ams_can_bridge.protocols.sma import SmaCodec, SmaFlag, SmaLimits, SmaSoc
 from ams_can_bridge.protocols.sma_dialects import (
     keepalive_frame, PylontechRequest, VictronEnergy, VictronInstalledCapacity, VictronModules,

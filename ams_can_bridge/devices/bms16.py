@@ -20,13 +20,13 @@ from ams_can_bridge.devices.base import (
 from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
 from ams_can_bridge.devices.sma import sma_values
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
-from ams_can_bridge.errors import ParamError
+from ams_can_bridge.errors import MalformedFrameError, ParamError
 from ams_can_bridge.parameters import config_param_specs
 from ams_can_bridge.protocols import bms16 as bms16_proto
 from ams_can_bridge.protocols.bms16 import (
     BMS16_WARNINGS, Bms16Cells, Bms16Codec, Bms16Config, Bms16Error, Bms16Status, CELL_FRAME_COUNT,
     CELL_FRAME_FIRST, CELLS_3, DEFAULT_BASE_ID, MAX_CELLS)
-from ams_can_bridge.protocols.common import Frame, MalformedFrameError
+from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.sma import (
     SMA_IDS, SmaAlarms, SmaBattery, SmaBatteryInfo, SmaCodec, SmaLimits, SmaManufacturer,
     SmaSoc)

@@ -16,8 +16,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Callable, ClassVar, Iterable, Mapping, TYPE_CHECKING
 
-from ams_can_bridge.errors import ParamError, RefusedCommand
-from ams_can_bridge.protocols.common import EncodeRangeError
+from ams_can_bridge.errors import EncodeRangeError, ParamError, RefusedCommand
 
 _PYTHON_TYPES = {'int[]': tuple, 'str[]': tuple, 'float[]': tuple}
 

@@ -26,9 +26,8 @@ from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.dbc_mapping import (
     Array, Enum, load_plan, MappingError, Plan, Ref, Scalar)
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
-from ams_can_bridge.errors import ConfigError
+from ams_can_bridge.errors import ConfigError, ProtocolError
 from ams_can_bridge.parameters import ParamSpec
-from ams_can_bridge.protocols.common import ProtocolError
 
 _LOG = logging.getLogger(__name__)
 _GroupKey = tuple[int, Any]

@@ -32,9 +32,8 @@ from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.ivt_s_commands import CommandLink
 from ams_can_bridge.devices.ivt_s_control import CYCLE_KEYS, IvtSControl
 from ams_can_bridge.devices.timed import CounterHealth, TimedStore
-from ams_can_bridge.errors import ParamError
+from ams_can_bridge.errors import ParamError, ProtocolError
 from ams_can_bridge.parameters import ParamSpec
-from ams_can_bridge.protocols.common import ProtocolError
 from ams_can_bridge.protocols.ivt_s import (
     BYTE_ORDERS, COMMAND_ID, DBC_NAME, DEFAULT_BASE_ID, IvtMux, IvtResult, IvtSCodec,
     RAW_UNIT, RESPONSE_ID, SI_UNIT)

@@ -6,6 +6,6 @@ One module per protocol. Each defines a codec class with:
 * ``arbitration_ids``: frozenset of the IDs it decodes;
 * ``decode(arbitration_id, data) -> <reading dataclass>``, raising MalformedFrameError;
 * ``encode(<message dataclass>) -> Frame``, raising EncodeRangeError.
+
+The errors are in ``ams_can_bridge.errors``, ``Frame`` in ``protocols.common``.
 """
-from ams_can_bridge.protocols.common import (  # noqa: F401
-    EncodeRangeError, Frame, MalformedFrameError, ProtocolError)

@@ -13,7 +13,8 @@ import functools
 from dataclasses import dataclass, fields
 from typing import Any, Callable, Union
 
-from ams_can_bridge.protocols.common import EncodeRangeError, Frame, load_dbc, MalformedFrameError
+from ams_can_bridge.errors import EncodeRangeError, MalformedFrameError
+from ams_can_bridge.protocols.common import Frame, load_dbc
 from ams_can_bridge.protocols.layout import BadValue, Layout, Signal
 
 DEFAULT_BASE_ID = 0x300

@@ -10,7 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from ams_can_bridge.protocols.common import check_dlc, EncodeRangeError, Frame
+from ams_can_bridge.errors import EncodeRangeError
+from ams_can_bridge.protocols.common import check_dlc, Frame
 from ams_can_bridge.protocols.layout import BIG, check_value, Layout, LITTLE, Signal
 
 BMS12_BASE_ID = 300

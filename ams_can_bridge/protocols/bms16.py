@@ -16,8 +16,8 @@ import functools
 from dataclasses import dataclass
 from typing import Union
 
-from ams_can_bridge.protocols.common import (
-    check_dlc, ConfigField, EncodeRangeError, Frame, load_dbc, MalformedFrameError)
+from ams_can_bridge.errors import EncodeRangeError, MalformedFrameError
+from ams_can_bridge.protocols.common import check_dlc, ConfigField, Frame, load_dbc
 from ams_can_bridge.protocols.layout import BadValue, check_value, Layout, LITTLE, Signal
 from ams_can_bridge.protocols.settings import setting, Settings
 

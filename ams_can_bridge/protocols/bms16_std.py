@@ -12,11 +12,11 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Any, Mapping
 
-from ams_can_bridge.errors import BadConfigBytes, ConfigError
+from ams_can_bridge.errors import (
+    BadConfigBytes, ConfigError, EncodeRangeError, MalformedFrameError)
 from ams_can_bridge.protocols.bms12 import BMS12_BASE_ID
 from ams_can_bridge.protocols.bms16 import SHUNT_SIZES_A  # slot 7: code 0..3
-from ams_can_bridge.protocols.common import (
-    check_dlc, ConfigField, EncodeRangeError, Frame, MalformedFrameError)
+from ams_can_bridge.protocols.common import check_dlc, ConfigField, Frame
 from ams_can_bridge.protocols.evms3 import (
     ACK_ERROR, AcknowledgeError, BatteryCurrent, Bms12Cells, BMS16_MARKER, CELL_NUMBERS,
     CONFIG1, Evms3Codec, Evms3Error, Evms3State, LAYOUTS, POWER_OFF, PowerOff, RESET_SOC,

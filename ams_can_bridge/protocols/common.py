@@ -1,5 +1,5 @@
 """
-What every protocol module shares: the frame type, the typed errors, the DBC loader.
+What every protocol module shares: the frame type, the configuration field, the DBC loader.
 
 Protocol code is pure Python (no rclpy, no python-can): a frame is just an ID, bytes and
 a flag, so the codecs run the same in the node, the simulators, the tests and benchmarks.
@@ -15,8 +15,7 @@ from typing import Any, NamedTuple
 import cantools
 from cantools.database.can import Database
 
-from ams_can_bridge.errors import (  # noqa: F401 (their import place before errors.py)
-    EncodeRangeError, MalformedFrameError, MsgDefsNotFound, ProtocolError)
+from ams_can_bridge.errors import MalformedFrameError, MsgDefsNotFound
 
 PACKAGE = 'ams_can_bridge'
 

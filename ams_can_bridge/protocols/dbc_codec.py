@@ -21,7 +21,7 @@ from typing import Any, Callable, Sequence
 import cantools
 from cantools.database.can import Database, Message
 
-from ams_can_bridge.protocols.common import MalformedFrameError
+from ams_can_bridge.errors import MalformedFrameError
 from ams_can_bridge.protocols.layout import compile_function, Layout, tolerance
 
 NAN = math.nan

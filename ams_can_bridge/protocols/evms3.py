@@ -17,9 +17,8 @@ import functools
 from dataclasses import dataclass
 from typing import Any, Sequence
 
-from ams_can_bridge.errors import ConfigError
-from ams_can_bridge.protocols.common import (
-    check_dlc, EncodeRangeError, Frame, load_dbc, MalformedFrameError)
+from ams_can_bridge.errors import ConfigError, EncodeRangeError, MalformedFrameError
+from ams_can_bridge.protocols.common import check_dlc, Frame, load_dbc
 from ams_can_bridge.protocols.evms3_config import (  # noqa: F401 (some re-exported)
     BMS12_MAX_MODULES, BmsCellNumbers, cell_numbers_payload, check_config_value, CONFIG_FIELDS,
     CONFIG_FILLER, CONFIG_LAYOUTS, config_payloads, ConfigReadback, ConfigReport,

@@ -12,10 +12,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field, fields, replace
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
-from ams_can_bridge.errors import ConfigError
+from ams_can_bridge.errors import ConfigError, EncodeRangeError, MalformedFrameError
 from ams_can_bridge.protocols.bms12 import BMS12_MAX_MODULES
-from ams_can_bridge.protocols.common import (
-    check_dlc, ConfigField, EncodeRangeError, MalformedFrameError)
+from ams_can_bridge.protocols.common import check_dlc, ConfigField
 from ams_can_bridge.protocols.layout import check_value, Layout, LITTLE, Signal
 from ams_can_bridge.protocols.settings import setting, Settings
 

@@ -18,9 +18,8 @@ import enum
 import functools
 from typing import Any
 
-from ams_can_bridge.errors import ConfigError
-from ams_can_bridge.protocols.common import (
-    EncodeRangeError, Frame, load_dbc, MalformedFrameError)
+from ams_can_bridge.errors import ConfigError, EncodeRangeError, MalformedFrameError
+from ams_can_bridge.protocols.common import Frame, load_dbc
 from ams_can_bridge.protocols.layout import BIG, compile_function, Layout, LITTLE, Signal
 
 COMMAND_ID = 0x411

@@ -14,7 +14,8 @@ from dataclasses import dataclass
 import enum
 from typing import Any, Callable
 
-from ams_can_bridge.protocols.common import Frame, MalformedFrameError
+from ams_can_bridge.errors import MalformedFrameError
+from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.ivt_s import COMMAND_ID, IvtMux, RESPONSE_ID
 from ams_can_bridge.protocols.layout import BadValue, Layout, Signal
 

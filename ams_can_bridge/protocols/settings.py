@@ -14,8 +14,8 @@ from __future__ import annotations
 
 from typing import Any, Callable, Mapping, Sequence
 
-from ams_can_bridge.errors import LayoutError
-from ams_can_bridge.protocols.common import ConfigField, EncodeRangeError
+from ams_can_bridge.errors import EncodeRangeError, LayoutError
+from ams_can_bridge.protocols.common import ConfigField
 from ams_can_bridge.protocols.layout import check_flag, check_value, Layout, LITTLE, Signal
 
 

@@ -15,8 +15,8 @@ import functools
 from dataclasses import astuple, dataclass, field, fields, replace
 from typing import Any, Callable, Union
 
-from ams_can_bridge.protocols.common import (
-    check_dlc, EncodeRangeError, Frame, load_dbc, MalformedFrameError)
+from ams_can_bridge.errors import EncodeRangeError, MalformedFrameError
+from ams_can_bridge.protocols.common import check_dlc, Frame, load_dbc
 from ams_can_bridge.protocols.layout import BadValue, Layout
 from ams_can_bridge.protocols.sma_dialects import (
     ascii_text, DIALECT_DECODERS, DIALECT_IDS, DIALECT_LAYOUTS, DIALECT_NUMBERS, DIALECT_TEXTS,

@@ -13,7 +13,8 @@ from __future__ import annotations
 from dataclasses import dataclass, fields
 from typing import Any, Callable, Union
 
-from ams_can_bridge.protocols.common import EncodeRangeError, Frame
+from ams_can_bridge.errors import EncodeRangeError
+from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.layout import BadValue, check_value, Layout, LITTLE, Signal
 
 # Pylontech

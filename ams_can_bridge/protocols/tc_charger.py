@@ -12,8 +12,8 @@ import enum
 from dataclasses import dataclass
 from typing import Union
 
-from ams_can_bridge.protocols.common import (
-    check_dlc, EncodeRangeError, Frame, MalformedFrameError)
+from ams_can_bridge.errors import EncodeRangeError, MalformedFrameError
+from ams_can_bridge.protocols.common import check_dlc, Frame
 from ams_can_bridge.protocols.layout import BadValue, Layout, LITTLE, Signal
 
 TC_CHARGER1_RX_ID = 0x1806E5F4

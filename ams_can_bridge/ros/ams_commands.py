@@ -22,9 +22,9 @@ from std_srvs.srv import Trigger
 from ams_can_bridge.devices.ams_master import CommandResult
 from ams_can_bridge.devices.ams import AmsDevice
 from ams_can_bridge.engine.gate import CommandPort
-from ams_can_bridge.errors import RefusedCommand
+from ams_can_bridge.errors import EncodeRangeError, RefusedCommand
 from ams_can_bridge.protocols.ams import CarCommand, ChargerStart
-from ams_can_bridge.protocols.common import EncodeRangeError, Frame
+from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.ros.commander import Commander, ServiceHost
 from ams_can_bridge.ros.zeva_commands import frame_text
 

@@ -24,8 +24,8 @@ from ams_can_bridge.devices.bms16 import Bms16Device
 from ams_can_bridge.devices.bms16_std import Bms16StdDevice
 from ams_can_bridge.devices.evms3 import Evms3Device
 from ams_can_bridge.engine.gate import CommandPort
-from ams_can_bridge.errors import RefusedCommand
-from ams_can_bridge.protocols.common import EncodeRangeError, Frame
+from ams_can_bridge.errors import EncodeRangeError, RefusedCommand
+from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.ros.commander import Commander, DeviceT, ServiceHost
 
 

@@ -42,13 +42,13 @@ import math
 import random
 from typing import Callable
 
-from ams_can_bridge.errors import ConfigError
+from ams_can_bridge.errors import ConfigError, ProtocolError
 from ams_can_bridge.protocols import ams as proto
 from ams_can_bridge.protocols.ams import (
     AmsChargerStatus, AmsCodec, AmsError, AmsErrorEvent, AmsState, AmsStatus, AmsStatusWord,
     CarCommand, CarStatus, CellTemperatures, CellVoltages, ChargerCommand, ChargerStart,
     DischargeTemperatures, OverrideBankCount, OverrideChargeCurrent)
-from ams_can_bridge.protocols.common import Frame, ProtocolError
+from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.sim.base import Periodic, SimDevice
 from ams_can_bridge.sim.pack import Elapsed, integrate_soc, thermal_lag
 from ams_can_bridge.sim.profiles import drive_current_a

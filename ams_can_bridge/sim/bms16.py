@@ -17,7 +17,8 @@ from ams_can_bridge.protocols.bms16 import (
     AcknowledgeError, Bms16Cells, Bms16Codec, Bms16ConfigPart1, Bms16ConfigPart2, Bms16Error,
     Bms16Status, CELL_FRAME_COUNT, CELL_FRAME_FIRST, CONFIG_1, CONFIG_2, CONFIG_FIELD,
     PowerOff, ResetSoc, SETTINGS, SHUNT_SIZES_A)
-from ams_can_bridge.protocols.common import Frame, MalformedFrameError, ProtocolError
+from ams_can_bridge.errors import MalformedFrameError, ProtocolError
+from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.sma import (
     SmaAlarms, SmaBattery, SmaCodec, SmaFlag, SmaLimits, SmaSoc)
 from ams_can_bridge.sim.base import Periodic, SimDevice

@@ -30,8 +30,8 @@ import random
 from dataclasses import asdict
 from typing import Any, Callable, Sequence
 
-from ams_can_bridge.errors import ConfigError
-from ams_can_bridge.protocols.common import Frame, ProtocolError
+from ams_can_bridge.errors import ConfigError, ProtocolError
+from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import (
     AcknowledgeError, BatteryCurrent, Bms12Cells, Bms12Request, Bms12Temperatures,
     BmsCellNumbers, CORE_REQUEST_CONFIG, Evms3Codec, Evms3Config, Evms3ConfigPart, Evms3Error,

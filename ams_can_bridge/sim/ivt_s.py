@@ -20,7 +20,8 @@ import dataclasses
 from typing import Any, Callable
 
 from ams_can_bridge.protocols import ivt_s_commands as cmd
-from ams_can_bridge.protocols.common import Frame, ProtocolError
+from ams_can_bridge.errors import ProtocolError
+from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.ivt_s import (
     COMMAND_ID, DEFAULT_BASE_ID, DIVISOR, INT32_MAX, INT32_MIN, IvtMux, IvtResult, IvtSCodec)
 from ams_can_bridge.protocols.ivt_s_commands import (
