@@ -436,3 +436,13 @@ def test_float_signals_and_nested_multiplexing_decode_through_cantools(tmp_path)
     assert report.cell_voltage == pytest.approx([3.7, 3.65])  # both branches kept
     device.handle_frame(300, struct.pack('<ff', 1200.0, 0.0), 2.0)  # above [0|1000]
     assert math.isnan(device.battery_report().voltage) and device.frames_malformed == 1
+
+
+def test_a_message_without_signals_compiles_to_an_empty_decoder():
+    # msg_defs/bms16.dbc's BMS16_PowerOff is a command with no data: its generated decoder
+    # once read `return (,), bad`, a SyntaxError when compiled.
+    message = cantools.database.load_file(
+        str(Path(__file__).parents[1] / 'msg_defs' / 'bms16.dbc')).get_message_by_name(
+            'BMS16_PowerOff')
+    compiled = dbc_codec.compile_message(message)
+    assert compiled.compiled and compiled.decode_values(b'') == ((), [])

@@ -142,8 +142,8 @@ def _generate(message: Message, infos: tuple[SignalInfo, ...]) -> Callable | Non
             for i in members:
                 value(i, '        ')
         lines += ['    else:', '        raise malformed(message, data, mux)']
-    names = ', '.join(f'v{i}' for i in range(len(signals)))
-    lines.append(f'    return ({names},), bad')
+    names = ''.join(f'v{i}, ' for i in range(len(signals)))  # () for a message of no signal
+    lines.append(f'    return ({names}), bad')
     return compile_function('\n'.join(lines) + '\n', f'dbc {message.name}', 'decode', scope)
 
 
