@@ -27,9 +27,10 @@ from ams_can_bridge.devices.base import (
 from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
 from ams_can_bridge.devices.evms3_health import (
     error_health, error_text, WRITABLE_STATES)
+from ams_can_bridge.devices.evms3_peers import Bms12Module, Chargers
 from ams_can_bridge.devices.evms3_readback import ConfigReader, ReadResult
 from ams_can_bridge.devices.ports import SendFrame
-from ams_can_bridge.devices.timed import NEVER, TimedSpans, TimedStore
+from ams_can_bridge.devices.timed import TimedStore
 from ams_can_bridge.parameters import config_param_specs, ParamSpec
 from ams_can_bridge.protocols import evms3 as evms3_proto
 from ams_can_bridge.errors import ParamError, RefusedCommand
@@ -39,8 +40,7 @@ from ams_can_bridge.protocols.evms3 import (
     Bms12Temperatures, BmsCellNumbers, ConfigReport, Evms3Codec, Evms3Config, Evms3Error,
     Evms3State, Evms3Status, EVMS3_WARNINGS, READBACK_IDS, RequestConfig, ResetSoc, SetState)
 from ams_can_bridge.protocols.evms3_config import check_config_value
-from ams_can_bridge.protocols.tc_charger import (
-    CHARGERS, ChargerCommand, ChargerStatus, STATUS_BIT_TEXT)
+from ams_can_bridge.protocols.tc_charger import ChargerCommand, ChargerStatus
 
 NAN = math.nan
 CELLS_PER_BMS12 = 12  # t = 1..3 carry 3 x 4 cells: a module cannot report more
@@ -49,19 +49,6 @@ CELLS_PER_BMS12 = 12  # t = 1..3 carry 3 x 4 cells: a module cannot report more
 BMS12_STALE_TIMEOUT = 3.0
 # TC chargers and the EVMS's commands to them come about once a second: five missed.
 CHARGER_STALE_TIMEOUT = 5.0
-
-
-class _Module:
-    """Last readings of one BMS12 module, each timed (Device.clock() of its frame)."""
-
-    def __init__(self) -> None:
-        self.cells = TimedSpans.uniform(4, 3)  # the frames t = 1..3, 4 cells each
-        # Bms12Temperatures -> (t1, t2) (None: no sensor, raw 0); Bms12Request -> the balance
-        # target the EVMS asks (None = balancing off)
-        self.latest: TimedStore[type, Any] = TimedStore()
-
-    def last_seen(self) -> float:
-        return max(self.cells.newest(), self.latest.seen(Bms12Temperatures))
 
 
 class Evms3Device(Device):
@@ -112,13 +99,11 @@ class Evms3Device(Device):
                                 voltage_multiplier=self._multiplier(config))
         self._bms16_marker = False  # latched, as the ZEVA Monitor does
         self._reconfigured(config, config)
-        # charger 1..3 -> its last command from the EVMS, its last status
-        self._charger_commands: TimedStore[int, ChargerCommand] = TimedStore()
-        self._charger_status: TimedStore[int, ChargerStatus] = TimedStore()
+        self._chargers = Chargers()  # 1..3: the last command from the EVMS, the last status
         self._status: Evms3Status | None = None
         self._stamp = NAN
         self._current: TimedStore[type, float] = TimedStore()  # wire sign: + = discharge
-        self._modules = [_Module() for _ in range(modules)]
+        self._modules = [Bms12Module() for _ in range(modules)]
         self.reader = ConfigReader(self.lock, self.codec.encode(RequestConfig()))
 
     # --- configuration ---------------------------------------------------------------------
@@ -261,10 +246,8 @@ class Evms3Device(Device):
         elif isinstance(reading, Bms12Request):
             self._modules[reading.module].latest.put(Bms12Request, reading.balance_mv,
                                                      self.clock())
-        elif isinstance(reading, ChargerCommand):
-            self._charger_commands.put(reading.charger, reading, self.clock())
-        elif isinstance(reading, ChargerStatus):
-            self._charger_status.put(reading.charger, reading, self.clock())
+        elif isinstance(reading, (ChargerCommand, ChargerStatus)):
+            self._chargers.offer(reading, self.clock())
         elif isinstance(reading, ConfigReport):
             self.reader.offer(reading, self.clock())
         # Our own commands seen on the bus carry no state.
@@ -288,15 +271,6 @@ class Evms3Device(Device):
         current_a = self._current.get(BatteryCurrent, self.clock(), self.stale_timeout)
         return NAN if current_a is None else -current_a
 
-    def _module_cells(self, m: int, count: int) -> list[float]:
-        return self._modules[m].cells.read(self.clock(), self.module_timeout,
-                                           (count + 3) // 4)[:count]
-
-    def _module_temps(self, m: int) -> tuple[float | None, ...]:
-        temps = self._modules[m].latest.get(Bms12Temperatures, self.clock(),
-                                            self.module_timeout)
-        return (NAN, NAN) if temps is None else temps
-
     def _stationary(self) -> bool | None:
         """Stationary mode: the parameter, else the last read-back seen; None = unknown."""
         value = self.config.config_stationary_mode
@@ -315,7 +289,7 @@ class Evms3Device(Device):
         capacity = self._capacity_ah()
         cells: list[float] = []
         for m, count in enumerate(self._cells_per_module()):
-            cells += self._module_cells(m, count)
+            cells += self._modules[m].cell_voltages(count, self.clock(), self.module_timeout)
         report = BatteryReport(current=current, capacity=capacity, design_capacity=capacity,
                                cell_voltage=cells)
         status = self._status
@@ -342,7 +316,7 @@ class Evms3Device(Device):
             return DiagnosticReport(Level.OK, 'no status frame (ID 30) yet', values)
         if with_values:
             self._values(status, values)
-        charger_faults = self._charger_values(values)
+        charger_faults = self._chargers.values(values, self.clock(), self.charger_timeout)
         if with_values:
             values.update(self.reader.values(self.clock()))
         else:
@@ -393,51 +367,6 @@ class Evms3Device(Device):
             'current (A, discharge negative)': ('not received (ID 40)' if current != current
                                                 else f'{current:.3f}'),
         })
-        for m, count in enumerate(self._cells_per_module()):
-            cells = [v for v in self._module_cells(m, count) if v == v]
-            temps = self._module_temps(m)
-            seen = self._modules[m].last_seen()
-            values[f'module {m} cells'] = f'{len(cells)}/{count} received'
-            if cells:
-                values[f'module {m} cell min (V)'] = f'{min(cells):.3f}'
-                values[f'module {m} cell max (V)'] = f'{max(cells):.3f}'
-            values[f'module {m} temperatures (degC)'] = ', '.join(
-                'no sensor' if t is None else 'unknown' if t != t else f'{t:g}' for t in temps)
-            values[f'module {m} last heard'] = ('never' if seen == NEVER
-                                                else f'{self.clock() - seen:.1f} s ago')
-            values[f'module {m} balance target (mV)'] = self._balance_text(m)
-
-    def _balance_text(self, m: int) -> str:
-        latest = self._modules[m].latest
-        if self.clock() - latest.seen(Bms12Request) > self.module_timeout:
-            return 'unknown (no request from the EVMS)'
-        balance_mv = latest.latest(Bms12Request)
-        return 'off' if balance_mv is None else str(balance_mv)
-
-    def _charger_values(self, values: dict[str, str]) -> list[str]:
-        """Add each charger's values (ZEVA Monitor names); return its faults, if any."""
         now = self.clock()
-        faults = []
-        for n in range(1, CHARGERS + 1):
-            command, command_seen = (self._charger_commands.latest(n),
-                                     self._charger_commands.seen(n))
-            status, status_seen = self._charger_status.latest(n), self._charger_status.seen(n)
-            if command is None and status is None:
-                continue
-            key = f'charger {n} '
-            if command is not None and now - command_seen <= self.charger_timeout:
-                values[key + 'target volts (V)'] = f'{command.target_voltage_v:.1f}'
-                values[key + 'target amps (A)'] = f'{command.current_limit_a:.1f}'
-                values[key + 'shutdown by BMS'] = 'yes' if command.stop else 'no'
-            if status is not None and now - status_seen <= self.charger_timeout:
-                values[key + 'output volts (V)'] = f'{status.output_voltage_v:.1f}'
-                values[key + 'output amps (A)'] = f'{status.output_current_a:.1f}'
-                values[key + 'status'] = ', '.join(status.active_bits) or 'OK'
-                for bit, text in STATUS_BIT_TEXT.items():
-                    values[key + text] = 'yes' if status.status & bit else 'no'
-                values[key + 'temperature (raw)'] = ('not sent' if status.temperature_raw is None
-                                                     else str(status.temperature_raw))
-                if status.status:
-                    faults.append(f'charger {n}: ' + ', '.join(status.active_bits))
-            values[key + 'last heard'] = f'{now - max(command_seen, status_seen):.1f} s ago'
-        return faults
+        for m, count in enumerate(self._cells_per_module()):
+            self._modules[m].values(m, count, now, self.module_timeout, values)
