@@ -23,8 +23,8 @@ from ams_can_bridge.devices.base import (
     BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyHealth,
     PowerSupplyStatus)
 from ams_can_bridge.devices.config import DeviceConfig
-from ams_can_bridge.devices.dbc_mapping import (
-    Array, Enum, load_plan, MappingError, Plan, Ref, Scalar)
+from ams_can_bridge.devices.dbc_mapping import load_plan
+from ams_can_bridge.devices.dbc_plan import Array, Enum, MappingError, Plan, Ref, Scalar
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
 from ams_can_bridge.errors import ConfigError, ProtocolError
 from ams_can_bridge.parameters import ParamSpec

@@ -23,7 +23,8 @@ import math
 from typing import Any
 
 from ams_can_bridge.devices.base import PowerSupplyHealth, PowerSupplyStatus
-from ams_can_bridge.devices.dbc_mapping import Array, load_plan, Plan, Ref, resolve_path
+from ams_can_bridge.devices.dbc_mapping import load_plan
+from ams_can_bridge.devices.dbc_plan import Array, Plan, Ref, resolve_path
 from ams_can_bridge.protocols import dbc_codec
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.sim.base import Periodic, SimDevice
