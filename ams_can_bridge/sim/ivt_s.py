@@ -35,6 +35,10 @@ AMBIENT_C = 25.0
 HEATING_C_PER_A2 = 0.0008  # steady-state rise: 120 A -> about +11.5 degC
 RESTART_S = 0.05  # the simulated sensor is back (alive message) this long after 0x3F
 SERIAL = 0x00012345
+# The commands 0x34 and 0x30 share the layouts of their answers 0xB4 and 0xB0 (the vendor
+# DBC's _34_* / _30_* signals): decoded by the protocol's layouts, not by hand here.
+_MODE = cmd.MODE.decoder('Actual_Mode', 'Startup_Mode')  # -> (running, startup_running)
+_RESET = cmd.RESET.decoder('Reset_Item', 'Reset_Device_SN')  # -> (item, serial)
 
 
 class IvtSSimulator(SimDevice):
@@ -189,7 +193,7 @@ class IvtSSimulator(SimDevice):
         elif cmd.GET_CONFIG_RESULT <= mux <= cmd.GET_CONFIG_RESULT + 7:
             self._answer(self.configs[IvtMux(mux - cmd.GET_CONFIG_RESULT)], now)
         elif mux == cmd.SET_MODE:
-            self.running, self.startup_running = bool(data[1] & 1), bool(data[2] & 1)
+            self.running, self.startup_running = _MODE(data)
             self._answer(ModeAnswer(self.running, self.startup_running), now)
         elif mux == cmd.GET_MODE:
             self._answer(ModeAnswer(self.running, self.startup_running), now)
@@ -209,8 +213,8 @@ class IvtSSimulator(SimDevice):
                       else bool(self.faults.extra.get('measurement_error')))
             self._answer(ErrorAnswer(system, data[1], int(active)), now)
         elif mux == cmd.RESET_ERR_LOG:
-            item = int.from_bytes(data[1:3], 'big')
-            if int.from_bytes(data[3:7], 'big') == self.serial:
+            item, serial = _RESET(data)
+            if serial == self.serial:
                 if item == cmd.RESET_ALL_SYSTEM_ERRORS:
                     self.faults.error_code = None
                 elif item == cmd.RESET_ALL_MEASUREMENT_ERRORS:
