@@ -88,7 +88,7 @@ def test_zeva_examples_hold_a_complete_configuration(context, name):
 @pytest.mark.parametrize('path', FILES, ids=lambda p: p.name)
 def test_config_file_loads_in_log2bag(path, tmp_path):
     """log2bag reads the same files without ROS, with the same values and checks."""
-    from ams_can_bridge.offline.log2bag import Converter
+    from ams_can_bridge.offline.converter import Converter
     from ams_can_bridge.offline.params_file import load_parameters
     converter = Converter(load_parameters(str(path), 'ams_can_bridge'), None, 'replay:x')
     expected = flatten(yaml.safe_load(path.read_text())['/**']['ros__parameters'])

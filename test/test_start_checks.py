@@ -22,7 +22,7 @@ from rclpy.parameter import Parameter
 from ams_can_bridge.can_io.config import BusConfig, parse_options
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.errors import ConfigError, ParamError
-from ams_can_bridge.offline.log2bag import Converter
+from ams_can_bridge.offline.converter import Converter
 from ams_can_bridge.offline.params_file import load_parameters
 from ams_can_bridge.parameters import coerce
 from ams_can_bridge.ros.bridge_node import BridgeNode

@@ -17,6 +17,9 @@ Every failure is one line and exit 2, and leaves no bag behind (the output direc
 removed): an output that exists or cannot be created, a log that is empty or not a CAN log
 (no frame read, or most entries unreadable), a --start past the end of the log, rosbags
 not installed. A log cut short is converted up to where it stops, and the summary says where.
+
+This module reads the log, owns the bag directory and the command line; the engine on the
+log's time and its bag sink are ``offline/converter.py``'s.
 """
 from __future__ import annotations
 
@@ -29,19 +32,14 @@ import sys
 import time
 from typing import Sequence, TextIO, TYPE_CHECKING
 
-from ams_can_bridge.bus_state import BusState, BusStatus
-from ams_can_bridge.device_set import DeviceSet
-from ams_can_bridge.devices.base import BatteryReport
-from ams_can_bridge.engine.core import Arrays, Engine, Schedule, Statuses
 from ams_can_bridge.errors import ConfigError, LogFileError
+from ams_can_bridge.offline.converter import Converter, NODE_NAME
 from ams_can_bridge.offline.log_frames import LogFrames
-from ams_can_bridge.offline.params_file import FileParams, load_parameters
-from ams_can_bridge.parameters import BUS_PARAMS, NODE_PARAMS
+from ams_can_bridge.offline.params_file import load_parameters
 
 if TYPE_CHECKING:  # rosbags is imported only when a bag is written
     from ams_can_bridge.offline.bag import BagOut
 
-NODE_NAME = 'ams_can_bridge'  # the bridge's default node name: its entry in params files
 PROGRESS_PERIOD = 0.2  # s between progress-bar redraws
 PROGRESS_EVERY = 0x3FF  # look at the clock once per 1024 frames (mask)
 STORAGE_NAMES = ('mcap', 'sqlite3')  # offline/bag.py STORAGES (imported only to write)
@@ -91,102 +89,6 @@ class Summary:
         lines.append('messages written:')
         lines += [f'  {topic}: {count}' for topic, count in sorted(self.messages.items())]
         return '\n'.join(lines)
-
-
-class BagSink:
-    """The engine's bag sink: every message written at its stamp (muted before --start)."""
-
-    def __init__(self, hardware_id: str) -> None:
-        """Write nothing until ``bag`` is set and ``enabled`` is true."""
-        self.bag: BagOut | None = None
-        self.hardware_id = hardware_id
-        self.enabled = False
-
-    def battery(self, name: str, frame_id: str, report: BatteryReport, arrays: Arrays,
-                stamp: float) -> None:
-        """Write a BatteryState and its arrays, header stamp and bag time = stamp."""
-        if self.enabled and self.bag is not None:
-            self.bag.battery_state(f'/{name}/battery_state', report, frame_id, stamp)
-            for suffix, (rows, cols, data) in arrays.items():
-                self.bag.multi_array(f'/{name}/{suffix}', rows, cols, data, stamp)
-
-    def diagnostics(self, statuses: Statuses, stamp: float) -> None:
-        """Write one /diagnostics at stamp."""
-        if self.enabled and self.bag is not None:
-            self.bag.diagnostics(statuses, self.hardware_id, stamp)
-
-    def clock(self, stamp: float) -> None:
-        """Write nothing: a bag's time is its messages' own."""
-
-
-class Converter:
-    """Feed frames to the engine on the log's time; the bag sink writes what it emits."""
-
-    def __init__(self, parameters: dict, bag: BagOut | None, hardware_id: str,
-                 node_name: str = NODE_NAME) -> None:
-        """
-        Build the devices from flat parameter values; raise ConfigError naming bad ones.
-
-        node_name names the statuses as the live bridge does: with its namespace, without
-        the leading slash ('car2/ams_can_bridge: ams').
-        """
-        status_prefix = node_name.strip('/') or NODE_NAME
-        params = FileParams(parameters)
-        params.declare_all('can.', BUS_PARAMS)  # checked like the bridge's, not used
-        node = params.declare_all('', NODE_PARAMS)
-        self.now = math.nan
-        self.devices = DeviceSet(node['devices'], params.declare, clock=lambda: self.now)
-        params.raise_errors()
-        self.diagnostics_period = node['diagnostics_period']
-        self.hardware_id = hardware_id
-        self.sink = BagSink(hardware_id)
-        self.bag = bag
-        self.frames_in = 0
-        self.error_frames = 0
-        self.state = BusState.CONNECTED
-        # the engine's clocks are the log's time: its periodic work runs at log moments
-        self.engine = Engine(self.devices, self.sink, status_prefix=status_prefix,
-                             interface='replay', bus_status=self._bus_status,
-                             now=lambda: self.now, monotonic=lambda: self.now)
-        self.schedule = Schedule(self.engine.schedule(self.diagnostics_period),
-                                 self._set_now)
-
-    @property
-    def bag(self) -> BagOut | None:
-        """Return the bag written to (None: nothing is written)."""
-        return self.sink.bag
-
-    @bag.setter
-    def bag(self, bag: BagOut | None) -> None:
-        self.sink.bag = bag
-
-    def _set_now(self, now: float) -> None:
-        self.now = now
-
-    def _bus_status(self) -> BusStatus:
-        return BusStatus(state=self.state, reason='', frames_in=self.frames_in, frames_out=0,
-                         frames_dropped_tx=0, error_frames=self.error_frames, reconnects=0,
-                         hardware_id=self.hardware_id)
-
-    def frame(self, arbitration_id: int, data: bytes, is_extended_id: bool, stamp: float,
-              write: bool) -> None:
-        """Apply one frame at log time stamp; write its messages when write is true."""
-        if write:  # the periodic work due before this frame, each at its own moment
-            if self.schedule.started:
-                self.schedule.run_until(stamp)
-            else:  # the first written frame starts the grid
-                self.schedule.start(stamp)
-        self.now = stamp
-        self.frames_in += 1
-        self.sink.enabled = write
-        self.engine.on_frame(arbitration_id, data, is_extended_id, stamp)
-
-    def finish(self, stamp: float) -> None:
-        """Write the last /diagnostics at the end of the log: the replay finished."""
-        self.now = stamp
-        self.state = BusState.REPLAY_FINISHED
-        self.sink.enabled = True
-        self.engine.publish_diagnostics()
 
 
 class Progress:
