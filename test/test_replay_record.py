@@ -197,6 +197,48 @@ def test_record_while_replaying_and_send_during_replay(tmp_path):
     assert tx == [(0x005, b'\x10\x01')]
 
 
+class FullDisk:
+    """A can.Logger stand-in whose disk fills after the first frame (and fails its close)."""
+
+    def __init__(self, path):
+        self.written, self.stops = [], 0
+
+    def on_message_received(self, msg):
+        if self.written:
+            raise OSError(28, 'No space left on device')
+        self.written.append(msg.arbitration_id)
+
+    def stop(self):
+        self.stops += 1
+        raise OSError(28, 'No space left on device')
+
+
+def test_a_failing_recording_ends_itself_and_the_bus_goes_on(tmp_path, monkeypatch, caplog):
+    writers = []
+    monkeypatch.setattr(can, 'Logger', lambda path: writers.append(FullDisk(path))
+                        or writers[-1])
+    channel = f'full_{uuid.uuid4().hex[:8]}'
+    other = can.Bus(interface='virtual', channel=channel)
+    sink = Sink()
+    io = CanIo(BusConfig(interface='virtual', channel=channel,
+                         record=str(tmp_path / 'rec.asc')), sink)
+    io.start()
+    try:
+        wait_for(lambda: io.status().state == 'connected', what='connected')
+        for n in range(3):
+            other.send(can.Message(arbitration_id=0x100 + n, data=b'', is_extended_id=False))
+        wait_for(lambda: len(sink.frames) == 3, what='every frame, recording or not')
+        io.send(Frame(0x222, b'\x02'))  # sent although the recording failed
+        assert other.recv(2.0).arbitration_id == 0x222
+    finally:
+        io.stop()  # the close is not tried again on the failed file: no error raised
+        other.shutdown()
+    assert [w.written for w in writers] == [[0x100]]
+    assert writers[0].stops == 1  # closed once, at the failure, to keep what was written
+    stopped = [r for r in caplog.records if 'CAN recording to' in r.getMessage()]
+    assert len(stopped) == 1 and 'No space left' in stopped[0].getMessage()
+
+
 def test_bad_record_path_fails_at_start(tmp_path):
     io = CanIo(BusConfig(interface='virtual', channel='x',
                          record=str(tmp_path / 'no_dir' / 'rec.asc')), Sink())

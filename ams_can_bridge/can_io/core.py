@@ -11,7 +11,8 @@ import can
 from ams_can_bridge.bus_state import (
     BusState, BusStatus, DOWN_STATES, RETRY_STATES, UP_STATES)
 from ams_can_bridge.can_io.config import BusConfig
-from ams_can_bridge.errors import CanIoError, CanSendError, ConfigError
+from ams_can_bridge.can_io.recording import Recording
+from ams_can_bridge.errors import CanIoError, CanSendError
 from ams_can_bridge.can_io.replay import ReplayBus
 from ams_can_bridge.can_io.slcan import open_bulk_slcan
 from ams_can_bridge.protocols.common import Frame
@@ -70,10 +71,9 @@ class CanIo:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._tx_lock = threading.Lock()
-        self._rec_lock = threading.Lock()
         self._state_cv = threading.Condition()  # wakes callers waiting for 'connected'
         self._bus: can.BusABC | ReplayBus | None = None
-        self._recorder: can.Listener | None = None
+        self._recorder: Recording | None = None
         self._state = BusState.STOPPED
         self._reason = ''
         self._ever_connected = False
@@ -107,11 +107,7 @@ class CanIo:
                                  'driver call that does not return): not started again')
             self._thread = None
         if self.config.record:
-            try:
-                self._recorder = can.Logger(self.config.record)
-            except Exception as exc:
-                raise ConfigError(f'can.record = {self.config.record!r}: cannot record there: '
-                                  f'{exc}') from exc
+            self._recorder = Recording(self.config.record, self._log)
         self._stop.clear()
         self._set_state(BusState.CONNECTING, '')
         self._thread = threading.Thread(target=self._run, name='can_io-rx', daemon=True)
@@ -130,14 +126,9 @@ class CanIo:
             else:
                 self._thread = None
         self._close_bus()
-        with self._rec_lock:
-            recorder, self._recorder = self._recorder, None
+        recorder, self._recorder = self._recorder, None
         if recorder is not None:
-            try:
-                recorder.stop()
-            except Exception as exc:  # a full disk must not turn shutdown into a traceback
-                self._log.error('CAN recording %s not closed cleanly: %s',
-                                self.config.record, exc)
+            recorder.close()
         self._set_state(BusState.STOPPED, '', logging.DEBUG)
 
     def wait_connected(self, timeout: float) -> BusStatus:
@@ -192,9 +183,10 @@ class CanIo:
                 raise CanSendError(f'CAN bus {self.config.hardware_id}: sending '
                                    f'0x{frame.arbitration_id:X} failed: {exc}') from exc
             self.frames_out += 1
-        if self._recorder is not None:
+        recorder = self._recorder
+        if recorder is not None:
             msg.timestamp = time.time()
-            self._record(msg)
+            recorder.write(msg)
 
     # ---------------------------------------------------------------------------- thread
     def _set_state(self, state: BusState, reason: str, level: int = logging.INFO) -> None:
@@ -319,9 +311,10 @@ class CanIo:
                     # A driver without timestamps leaves 0.0: the host clock is all we have.
                     stamp = msg.timestamp if bus_time and msg.timestamp > 0 else now
                     self.last_stamp = stamp
-                    if self._recorder is not None:
+                    recorder = self._recorder
+                    if recorder is not None:
                         msg.timestamp = stamp
-                        self._record(msg)
+                        recorder.write(msg)
                     if not filtering or msg.arbitration_id in (
                             ext_ids if msg.is_extended_id else std_ids):
                         try:
@@ -360,24 +353,6 @@ class CanIo:
                                 logging.WARNING)
             elif msg.data[1] & _CAN_ERR_CRTL_ACTIVE and self._state == BusState.ERROR_PASSIVE:
                 self._set_state(BusState.CONNECTED, '')
-
-    def _record(self, msg: can.Message) -> None:
-        # One bus, one recording: the driver's channel object (a name, a path, a number)
-        # means nothing in the file, and BLF cannot even store a name with big digits.
-        msg.channel = None
-        with self._rec_lock:
-            recorder = self._recorder
-            if recorder is None:
-                return
-            try:
-                recorder.on_message_received(msg)
-            except Exception as exc:  # disk full: stop recording, keep the bus alive
-                self._recorder = None
-                self._log.error('CAN recording to %s stopped: %s', self.config.record, exc)
-                try:
-                    recorder.stop()  # keep what was written readable
-                except Exception:  # the disk that failed may fail again: nothing to add
-                    pass
 
     def _unreadable(self, exc: Exception, run: int) -> None:
         self.frames_unreadable += 1
