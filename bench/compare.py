@@ -2,7 +2,8 @@
 Before against after: two checkouts' benchmark figures, measured interleaved.
 
     .venv/bin/python bench/compare.py --before /path/to/base [--after .] [--rounds 3]
-        [--only cpu_slcan,cpu_virtual,latency,heartbeat,decode] [--quick]
+        [--only cpu_slcan,cpu_virtual,latency,heartbeat,decode,own_path]
+        [--quick]
         [--before-domain 35 --after-domain 34] [--json bench/compare.json]
 
 One run of each side on a shared machine swings by more than most changes (a heartbeat p99
@@ -12,7 +13,9 @@ first alternating from round to round (so a drift in the machine's load hits bot
 Each side runs its own tree's suite with its own environment: ``<tree>/.venv/bin/python
 <tree>/bench/run.py --only <scenario>`` (the installed bridge of that tree), or
 ``<tree>/bench/bench_decode.py`` for ``decode`` (each codec against cantools in the same
-process). Each tree needs its own ``.venv`` with the package installed editable from it.
+process), ``<tree>/bench/bench_own_path.py`` for ``own_path`` (the bridge's own CPU per
+frame, in one process, python-can left out). Each tree needs its own ``.venv`` with the
+package installed editable from it.
 
 The table gives, per figure, each side's median over the rounds with its [min..max], the
 change (after median / before median), and where the figure has an in-run reference (a
@@ -50,6 +53,12 @@ def run_suite(tree: str, scenario: str, quick: bool, domain: str | None) -> list
                              env=env, cwd=tree, check=True, capture_output=True, text=True,
                              timeout=900).stdout
         return decode_rows(out)
+    if scenario == 'own_path':
+        out = subprocess.run([python, os.path.join(tree, 'bench', 'bench_own_path.py')]
+                             + (['--seconds', '10', '--paced', '5'] if quick else []),
+                             env=env, cwd=tree, check=True, capture_output=True, text=True,
+                             timeout=900).stdout
+        return own_path_rows(out)
     with tempfile.TemporaryDirectory() as work:
         path = os.path.join(work, 'r.json')
         subprocess.run([python, os.path.join(tree, 'bench', 'run.py'), '--only', scenario,
@@ -72,6 +81,23 @@ def decode_rows(out: str) -> list[dict]:
                          'unit': 'f/s'})
     if not rows:
         raise RuntimeError(f'no rows in bench_decode.py output:\n{out}')
+    return rows
+
+
+def own_path_rows(out: str) -> list[dict]:
+    """Turn bench_own_path.py's lines into rows (CPU us per frame, periodic thread)."""
+    rows = []
+    for figure, pattern, unit in (
+            ('tight loop, best pass', r'tight loop:\s+([\d.]+) us/frame best', 'us'),
+            ('tight loop, median pass', r'best,\s+([\d.]+) median', 'us'),
+            ('paced at the real rate', r'own path, paced:\s+([\d.]+) us/frame', 'us'),
+            ('periodic thread', r'periodic thread:\s+([\d.]+) us/s', 'us/s')):
+        m = re.search(pattern, out)
+        if not m:
+            raise RuntimeError(f'no {figure!r} in bench_own_path.py output:\n{out}')
+        rows.append({'scenario': 'own path (in process)', 'figure': figure,
+                     'bridge': float(m.group(1)), 'reference': None, 'ratio': None,
+                     'unit': unit})
     return rows
 
 
@@ -165,15 +191,16 @@ def fmt(s: dict) -> str:
 
 def markdown(lines: list[dict], meta: dict) -> str:
     """Return the table as Markdown."""
-    out = [f"Taken {meta['date']}, {meta['rounds']} interleaved rounds per side"
+    out = [f"Taken {meta['date']}, at least {meta['rounds']} interleaved rounds per side"
            f"{' (--quick)' if meta['quick'] else ''}; before = {meta['before_commit']}, "
            f"after = {meta['after_commit']}. Each cell: median [min..max] over the rounds.",
-           '', '| scenario | figure | unit | before | after | after/before | spread '
+           '', '| scenario | figure | rounds | unit | before | after | after/before | spread '
            '| ratio to reference: before | after | spread |',
-           '|---|---|---|---|---|---|---|---|---|---|']
+           '|---|---|---|---|---|---|---|---|---|---|---|']
     for ln in lines:
         b = ln['bridge']
-        cells = [ln['scenario'], ln['figure'], ln['unit'], fmt(b['before']), fmt(b['after']),
+        cells = [ln['scenario'], ln['figure'], str(min(ln['rounds'])), ln['unit'],
+                 fmt(b['before']), fmt(b['after']),
                  '' if b['change'] is None else f"{b['change']:.2f}", b['spread']]
         r = ln.get('ratio')
         cells += ([fmt(r['before']), fmt(r['after']), r['spread']] if r else ['', '', ''])
@@ -194,16 +221,36 @@ def commit(tree: str) -> str:
 
 
 def save(args: argparse.Namespace, trees: dict, runs: dict, scenarios: list[str],
-         rounds: int, started: float) -> tuple[dict, list[dict]]:
+         started: float) -> tuple[dict, list[dict]]:
     """Write the JSON of the runs so far; return its meta and table."""
+    done = min(len(r) for side in runs.values() for r in side.values())
     meta = {'date': time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime()),
-            'rounds': rounds, 'quick': args.quick,
+            'rounds': done, 'quick': args.quick,
             'before_commit': commit(trees['before']), 'after_commit': commit(trees['after']),
             'duration_s': round(time.monotonic() - started, 1), 'scenarios': scenarios}
     lines = table(runs)
     with open(args.json, 'w', encoding='utf-8') as stream:
         json.dump({'meta': meta, 'table': lines, 'runs': runs}, stream, indent=1)
     return meta, lines
+
+
+def merge(paths: list[str]) -> dict:
+    """Pool the rounds of earlier comparisons (same trees); recompute the table."""
+    runs: dict = {'before': {}, 'after': {}}
+    metas = []
+    for path in paths:
+        with open(path, encoding='utf-8') as stream:
+            saved = json.load(stream)
+        metas.append(saved['meta'])
+        for side in runs:
+            for scenario, rounds in saved['runs'][side].items():
+                runs[side].setdefault(scenario, []).extend(rounds)
+    meta = dict(metas[-1])
+    meta['rounds'] = min(len(r) for side in runs.values() for r in side.values())
+    meta['duration_s'] = sum(m['duration_s'] for m in metas)
+    meta['scenarios'] = list(runs['after'])
+    meta['pooled'] = paths
+    return {'meta': meta, 'table': table(runs), 'runs': runs}
 
 
 def main() -> None:
@@ -213,18 +260,21 @@ def main() -> None:
     parser.add_argument('--after', default=os.path.dirname(HERE), help='tree to compare')
     parser.add_argument('--rounds', type=int, default=3)
     parser.add_argument('--only', default=DEFAULT, help=f'scenarios (default {DEFAULT}); '
-                        "run.py's names, and decode (bench_decode.py)")
+                        "run.py's names, decode (bench_decode.py) and own_path "
+                        '(bench_own_path.py)')
     parser.add_argument('--quick', action='store_true', help="run.py's shorter runs")
     parser.add_argument('--before-domain', default=None, help='ROS_DOMAIN_ID of the before runs')
     parser.add_argument('--after-domain', default=None, help='ROS_DOMAIN_ID of the after runs')
     parser.add_argument('--json', default=os.path.join(HERE, 'compare.json'))
-    parser.add_argument('--from-json', action='store_true',
-                        help='only print the table (Markdown) of an earlier --json')
+    parser.add_argument('--from-json', nargs='*', metavar='FILE', default=None,
+                        help='no run: print the table of earlier --json files (their rounds '
+                        'pooled, e.g. extra rounds of one scenario) and write it to --json')
     args = parser.parse_args()
-    if args.from_json:
-        with open(args.json, encoding='utf-8') as stream:
-            saved = json.load(stream)
-        print(markdown(saved['table'], saved['meta']))
+    if args.from_json is not None:
+        merged = merge(args.from_json or [args.json])
+        with open(args.json, 'w', encoding='utf-8') as stream:
+            json.dump(merged, stream, indent=1)
+        print(markdown(merged['table'], merged['meta']))
         return
     trees = {'before': os.path.abspath(args.before), 'after': os.path.abspath(args.after)}
     domains = {'before': args.before_domain, 'after': args.after_domain}
@@ -241,7 +291,7 @@ def main() -> None:
                 print(f'round {n + 1}/{args.rounds} {scenario:<12} {side:<6} '
                       f'{time.monotonic() - t0:5.0f} s', flush=True)
                 # written after every run, so an interrupted comparison keeps its rounds
-                meta, lines = save(args, trees, runs, scenarios, n + 1, started)
+                meta, lines = save(args, trees, runs, scenarios, started)
     print(markdown(lines, meta))
     print(f'wrote {args.json} ({meta["duration_s"]} s)')
 
