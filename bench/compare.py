@@ -256,7 +256,7 @@ def merge(paths: list[str]) -> dict:
 def main() -> None:
     """Run both trees interleaved; print the table; write the JSON."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0].strip())
-    parser.add_argument('--before', required=True, help='tree of the base commit (.venv in it)')
+    parser.add_argument('--before', help='tree of the base commit (.venv in it); needed to run')
     parser.add_argument('--after', default=os.path.dirname(HERE), help='tree to compare')
     parser.add_argument('--rounds', type=int, default=3)
     parser.add_argument('--only', default=DEFAULT, help=f'scenarios (default {DEFAULT}); '
@@ -276,6 +276,8 @@ def main() -> None:
             json.dump(merged, stream, indent=1)
         print(markdown(merged['table'], merged['meta']))
         return
+    if not args.before:
+        parser.error('--before is needed to run (only --from-json works without it)')
     trees = {'before': os.path.abspath(args.before), 'after': os.path.abspath(args.after)}
     domains = {'before': args.before_domain, 'after': args.after_domain}
     scenarios = [s for s in args.only.split(',') if s]
