@@ -30,7 +30,8 @@ def setting(name: str, byte: int, field: str, low: float | None, high: float | N
     range and unit, description; kind bool makes a 0/1 flag (range 0..1).
     """
     return Signal(name, 8 * byte + bit, length, LITTLE, False, scale, offset, low, high, unit,
-                  field, kind is bool, None, lookup, description, kind, sentinel)
+                  field, flag=kind is bool, lookup=lookup, description=description, kind=kind,
+                  sentinel=sentinel)
 
 
 def raw_fault(s: Signal, raw: int, value: Any) -> str:
