@@ -253,12 +253,18 @@ class Layout:
         value = var if plain else self.scaled_expression(s, var)
         if s.check and tables is not None:
             # The range test is on the raw integer (exact); the message shows the value.
+            # A bound the bits cannot pass is not tested (every AMS cell frame's group ID).
             name, (lo, hi) = f'B{len(tables)}', s.raw_limits()
-            tables[name] = functools.partial(self._refuse, s, self._scale_function(s))
+            bits_lo = -(1 << (s.length - 1)) if s.signed else 0
+            bits_hi = (1 << (s.length - 1 if s.signed else s.length)) - 1
             tested = var if s.invalid is not None else f'({var} := {raw})'
-            value = f'{value} if {lo} <= {tested} <= {hi} else {name}({var})'
-            if s.invalid is None:
-                return f'({value})'
+            test = (f'{lo} <= ' if lo > bits_lo else '') + tested + (
+                f' <= {hi}' if hi < bits_hi else '')
+            if test != tested:
+                tables[name] = functools.partial(self._refuse, s, self._scale_function(s))
+                value = f'{value} if {test} else {name}({var})'
+                if s.invalid is None:
+                    return f'({value})'
         if s.invalid is not None:
             return f'(None if ({var} := {raw}) == {s.invalid} else {value})'
         if plain:
