@@ -1,0 +1,104 @@
+"""
+Latency before against after, every sample pooled: the ``latency`` scenario, many turns.
+
+``compare.py`` takes the p99 of each 20 s run (about 1000 samples, so its 10 worst) and
+reports the median over rounds: on this 2-core machine one run's p99 moves between 1.2 and
+6.5 ms. Here each turn runs ``run.latency_run`` of the before tree, of the after tree and of
+the reference pipeline (python-can recv -> rclpy publish, from the after tree), the order
+rotating every round, and every latency sample of a side goes into one pool. The table gives
+the pooled p50, p99, p99.9 and max of each side, how many samples were slower than 2 and 5
+ms, and the p99 of each turn, so a tail that one noisy turn made is told apart from one that
+every turn shows.
+
+Run (after a ``git worktree`` of the before commit with its own .venv, see README.md):
+``.venv/bin/python bench/latency_ab.py --before /tmp/base --rounds 6 [--seconds 30]
+[--background 1000] [--json bench/latency_ab.json]``. Each side runs its own tree's
+``bench/run.py`` with its own .venv (so its own installed bridge), on a ROS domain of its own.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import harness  # noqa: E402  (network rule)
+
+HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+# What each side runs, in its own tree: one latency_run, the samples (ms) as JSON.
+DRIVER = """
+import json, sys
+sys.path.insert(0, sys.argv[1] + '/bench')
+import run
+samples = run.latency_run(sys.argv[2], float(sys.argv[3]), 50.0, float(sys.argv[4]))
+with open(sys.argv[5], 'w', encoding='utf-8') as stream:
+    json.dump(samples, stream)
+"""
+
+
+def turn(tree: str, pipeline: str, seconds: float, background: float, domain: str) -> list:
+    """Run one latency_run in tree (its .venv); return its samples in ms."""
+    env = harness.env()
+    env['ROS_DOMAIN_ID'] = domain
+    with tempfile.TemporaryDirectory() as work:
+        out = os.path.join(work, 'samples.json')
+        subprocess.run([os.path.join(tree, '.venv', 'bin', 'python'), '-c', DRIVER, tree,
+                        pipeline, str(seconds), str(background), out], env=env, check=True,
+                       cwd=tree, timeout=seconds + 120, stdout=subprocess.DEVNULL,
+                       stderr=subprocess.DEVNULL)
+        with open(out, encoding='utf-8') as stream:
+            return json.load(stream)
+
+
+def summary(pool: list[float], per_turn: list[float]) -> dict:
+    """Return the pooled figures of one side."""
+    q = harness.percentile
+    return {'samples': len(pool), 'p50': q(pool, 0.5), 'p99': q(pool, 0.99),
+            'p99.9': q(pool, 0.999), 'max': max(pool, default=float('nan')),
+            'over_2ms': sum(v > 2.0 for v in pool), 'over_5ms': sum(v > 5.0 for v in pool),
+            'turn_p99': per_turn}
+
+
+def main() -> None:
+    """Run the turns and print one table."""
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('--before', required=True, help='the before tree (with its .venv)')
+    parser.add_argument('--after', default=HERE, help='the after tree (default: this one)')
+    parser.add_argument('--rounds', type=int, default=6)
+    parser.add_argument('--seconds', type=float, default=30.0, help='s of frames per turn')
+    parser.add_argument('--background', type=float, default=1000.0,
+                        help='other frames/s beside the 50 tagged IVT-S frames/s')
+    parser.add_argument('--json', default=None, help='write every sample here')
+    args = parser.parse_args()
+    sides = {'before': (args.before, 'bridge', '36'), 'after': (args.after, 'bridge', '37'),
+             'reference': (args.after, 'reference', '38')}
+    pools: dict[str, list[float]] = {name: [] for name in sides}
+    turns: dict[str, list[float]] = {name: [] for name in sides}
+    order = list(sides)
+    for r in range(args.rounds):
+        for name in order[r % 3:] + order[:r % 3]:  # each side goes first in turn
+            tree, pipeline, domain = sides[name]
+            got = turn(tree, pipeline, args.seconds, args.background, domain)
+            pools[name] += got
+            turns[name].append(round(harness.percentile(got, 0.99), 2))
+            print(f'round {r + 1} {name}: p99 {turns[name][-1]:.2f} ms ({len(got)} samples)',
+                  flush=True)
+    table = {name: summary(pools[name], turns[name]) for name in sides}
+    print(f'\nlatency, {args.background:g} other frames/s, {args.rounds} rounds of '
+          f'{args.seconds:g} s, samples pooled (ms)')
+    print('| side | samples | p50 | p99 | p99.9 | max | >2 ms | >5 ms | p99 of each turn |')
+    print('|---|---|---|---|---|---|---|---|---|')
+    for name, s in table.items():
+        print(f"| {name} | {s['samples']} | {s['p50']:.2f} | {s['p99']:.2f} | "
+              f"{s['p99.9']:.2f} | {s['max']:.2f} | {s['over_2ms']} | {s['over_5ms']} | "
+              + ', '.join(f'{v:.2f}' for v in s['turn_p99']) + ' |')
+    if args.json:
+        with open(args.json, 'w', encoding='utf-8') as stream:
+            json.dump({'meta': vars(args), 'table': table, 'samples': pools}, stream)
+
+
+if __name__ == '__main__':
+    main()
