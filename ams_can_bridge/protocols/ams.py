@@ -1,10 +1,8 @@
 """
 Formula-Student AMS protocol: frames <-> typed readings (docs/protocols.md section 1).
 
-Section 1 holds the frames, enums, DLC rule and the decisions on the vendor document's
-garbled parts. The bits are the ``LAYOUTS`` table below, also checked against cantools in
-the tests; every value is checked before it is encoded, so a bad command fails loudly
-instead of being clamped. Readings are frozen dataclasses; enums carry the vendor's names.
+The bits are the ``LAYOUTS`` table below (checked against msg_defs/ams.dbc); every value is
+checked before it is encoded, so a bad command fails loudly instead of being clamped.
 """
 from __future__ import annotations
 
@@ -245,9 +243,7 @@ _SERIES = (CELL_VOLTAGES, CELL_TEMPERATURES, DISCHARGE_TEMPERATURES)
 # --- the wire layout: one table, checked against msg_defs/ams.dbc ----------------------------
 # Every AMS signal is big-endian with offset 0. The ranges are what the encoder accepts and,
 # where a row has a check, what a decoded frame may carry (the DBC cannot say that a status
-# word counts 0..5 banks and the car status 1..5, nor which enum values exist); decoders and
-# encoders are generated from the same rows, and the DBC must have the same bits at the
-# first codec. A value outside a check makes the frame malformed with the check's text.
+# word counts 0..5 banks and the car status 1..5, nor which enum values exist).
 _ALLOWED = ' {value} (allowed {low:g}..{high:g})'
 _UNKNOWN = ' {value} (known {low}..{high})'
 _WORD = tuple(Signal(dbc, 7 - bit, 1, field=attr.name, flag=True)
