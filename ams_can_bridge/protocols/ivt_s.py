@@ -14,7 +14,7 @@ from typing import Any
 
 from ams_can_bridge.errors import ConfigError, EncodeRangeError, MalformedFrameError
 from ams_can_bridge.protocols.common import check_dlc, Frame, load_dbc
-from ams_can_bridge.protocols.layout import BIG, compile_function, Layout, LITTLE, Signal
+from ams_can_bridge.protocols.layout import compile_function, Layout, LITTLE, Signal
 
 COMMAND_ID = 0x411
 RESPONSE_ID = 0x511
@@ -93,13 +93,13 @@ def _layout(kind: IvtMux) -> Layout:
     name = DBC_NAME[kind]
     result = f'IVT_Result_{name}'
     return Layout(f'IVT_Msg_Result_{name}', DLC, (
-        Signal(f'IVT_ID_Result_{name}', 7, 8, BIG, field='IVT-S MuxID'),
-        Signal(f'IVT_MsgCount_Result_{name}', 11, 4, BIG, field='IVT-S counter'),
-        Signal(f'{result}_OCS', 12, 1, BIG, field='ocs', flag=True),
-        Signal(f'{result}_Result_Error', 13, 1, BIG, field='result_error', flag=True),
-        Signal(f'{result}_Measurement_Error', 14, 1, BIG, field='measurement_error', flag=True),
-        Signal(f'{result}_System_Error', 15, 1, BIG, field='system_error', flag=True),
-        Signal(result, 23, 32, BIG, True, 1 / DIVISOR[kind] if kind == IvtMux.T else 1,
+        Signal(f'IVT_ID_Result_{name}', 7, 8, field='IVT-S MuxID'),
+        Signal(f'IVT_MsgCount_Result_{name}', 11, 4, field='IVT-S counter'),
+        Signal(f'{result}_OCS', 12, 1, field='ocs', flag=True),
+        Signal(f'{result}_Result_Error', 13, 1, field='result_error', flag=True),
+        Signal(f'{result}_Measurement_Error', 14, 1, field='measurement_error', flag=True),
+        Signal(f'{result}_System_Error', 15, 1, field='system_error', flag=True),
+        Signal(result, 23, 32, signed=True, scale=1 / DIVISOR[kind] if kind == IvtMux.T else 1,
                unit=SI_UNIT[kind] if kind == IvtMux.T else RAW_UNIT[kind],
                field=f'IVT-S {kind.name} raw value')))  # the DBC scales only T
 
