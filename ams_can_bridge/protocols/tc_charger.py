@@ -101,12 +101,6 @@ _D_STATUS = _STATUS.decoder()
 _E_STATUS = _STATUS.encoder()
 
 
-def _check_charger(charger: object) -> int:
-    if isinstance(charger, bool) or charger not in range(1, CHARGERS + 1):
-        raise EncodeRangeError('charger', charger, '1, 2 or 3')
-    return int(charger)  # type: ignore[call-overload]
-
-
 class TcChargerCodec:
     """Decode and encode the command and status frames of TC chargers 1..3."""
 
@@ -132,13 +126,15 @@ class TcChargerCodec:
         """Encode a reading as an 8-byte frame (reserved bytes 0); EncodeRangeError else."""
         if not isinstance(message, (ChargerCommand, ChargerStatus)):
             raise EncodeRangeError('message', message, 'a TC charger message')
-        charger = _check_charger(message.charger)
+        if isinstance(message.charger, bool) or message.charger not in range(1, CHARGERS + 1):
+            raise EncodeRangeError('charger', message.charger, '1, 2 or 3')
+        index = int(message.charger) - 1  # 2.0 is charger 2
         if isinstance(message, ChargerCommand):
             data = _E_COMMAND(message.target_voltage_v, message.current_limit_a,
                               1 if message.stop else 0)
-            return Frame(COMMAND_IDS[charger - 1], data, True)
+            return Frame(COMMAND_IDS[index], data, True)
         temperature = message.temperature_raw  # None: not sent, DLC 5
         data = _E_STATUS(message.output_voltage_v, message.output_current_a, message.status,
                          0 if temperature is None else temperature)
-        return Frame(STATUS_IDS[charger - 1], data[:5] if temperature is None
+        return Frame(STATUS_IDS[index], data[:5] if temperature is None
                      else data + bytes(2), True)
