@@ -309,7 +309,6 @@ _MESSAGES: tuple[tuple[int, type, str, int, tuple[Signal, ...]], ...] = (
         Signal('Bank_Count', 7, 8, **_BANKS, check='override bank count' + _ALLOWED),)),
 )
 LAYOUTS = {offset: Layout(name, length, signals) for offset, _, name, length, signals in _MESSAGES}
-READINGS = {offset: reading for offset, reading, *_ in _MESSAGES}
 
 
 @functools.cache
@@ -345,7 +344,7 @@ def _decoder(offset: int, reading: type) -> Callable[[bytes], Any]:
     return layout.decoder(into=reading, tail=len(layout.signals) - 2 if offset in _SERIES else 0)
 
 
-_DECODERS = {offset: _decoder(offset, reading) for offset, reading in READINGS.items()}
+_DECODERS = {offset: _decoder(offset, reading) for offset, reading, *_ in _MESSAGES}
 
 
 # --- encoding: the generated encoder checks every value (enum members, ranges, steps) --------
@@ -366,7 +365,7 @@ def _values(offset: int, message: Any) -> list[Any]:
 
 
 _ENCODE = {offset: layout.encoder() for offset, layout in LAYOUTS.items()}
-_OFFSET_OF = {reading: offset for offset, reading in READINGS.items()}
+_OFFSET_OF = {reading: offset for offset, reading, *_ in _MESSAGES}
 
 
 class AmsCodec:
