@@ -212,7 +212,8 @@ class IvtSSimulator(SimDevice):
             system = mux == cmd.GET_SYSTEM_ERROR
             active = (self.faults.error_code is not None if system
                       else bool(self.faults.extra.get('measurement_error')))
-            self._answer(ErrorAnswer(system, *_ERROR_ITEM(data), int(active)), now)
+            (item,) = _ERROR_ITEM(data)
+            self._answer(ErrorAnswer(system, item, int(active)), now)
         elif mux == cmd.RESET_ERR_LOG:
             item, serial = _RESET(data)
             if serial == self.serial:
