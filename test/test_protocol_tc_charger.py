@@ -76,6 +76,9 @@ def test_encoder_refuses_what_the_wire_cannot_carry():
         CODEC.encode(ChargerCommand(1, 7000.0, 1.0, False))
     with pytest.raises(EncodeRangeError, match='current_limit_a'):
         CODEC.encode(ChargerCommand(1, 100.0, 0.05, False))
+    # a foreign message is refused as such (not an AttributeError on its missing .charger)
+    with pytest.raises(EncodeRangeError, match='a TC charger message'):
+        CODEC.encode(Frame(0x1806E5F4, COMMAND_GOLDEN, True))
 
 
 def test_status_byte_and_temperature_are_checked_before_sending():

@@ -8,7 +8,9 @@ import pytest
 from ams_can_bridge import registry
 from ams_can_bridge.devices.ivt_s import IvtSDevice
 from ams_can_bridge.errors import MalformedFrameError
+from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.ivt_s import IvtMux, IvtSCodec
+from ams_can_bridge.protocols.ivt_s_commands import decode_answer, ErrorAnswer
 from ams_can_bridge.sim.ivt_s import IvtSSimulator
 
 
@@ -139,3 +141,13 @@ def test_frames_cross_a_real_python_can_virtual_bus():
     assert device.frames_received == 8 and device.frames_malformed == 0
     assert device.current_a() == pytest.approx(20.0)  # charging: positive in ROS
     assert not math.isnan(device.voltage_v())
+
+
+def test_error_queries_answer_the_item_asked():
+    """0x40 / 0x41 b1 is the item (IVT-DBC _40_/_41_*_Item); the answer 0x80 / 0x81 echoes it."""
+    sim = IvtSSimulator()
+    sim.faults.error_code = 1
+    sim.on_frame(Frame(0x411, bytes([0x41, 0x05, 0, 0, 0, 0, 0, 0])), 0.0)
+    sim.on_frame(Frame(0x411, bytes([0x40, 0x07, 0, 0, 0, 0, 0, 0])), 0.0)
+    answers = [decode_answer(f.data) for f in sim.tick(0.0) if f.arbitration_id == 0x511]
+    assert answers == [ErrorAnswer(True, 5, 1), ErrorAnswer(False, 7, 0)]

@@ -1,10 +1,8 @@
 """
 Formula-Student AMS protocol: frames <-> typed readings (docs/protocols.md section 1).
 
-Section 1 holds the frames, enums, DLC rule and the decisions on the vendor document's
-garbled parts. The bits are the ``LAYOUTS`` table below, also checked against cantools in
-the tests; every value is checked before it is encoded, so a bad command fails loudly
-instead of being clamped. Readings are frozen dataclasses; enums carry the vendor's names.
+The bits are the ``LAYOUTS`` table below (checked against msg_defs/ams.dbc); every value is
+checked before it is encoded, so a bad command fails loudly instead of being clamped.
 """
 from __future__ import annotations
 
@@ -245,9 +243,7 @@ _SERIES = (CELL_VOLTAGES, CELL_TEMPERATURES, DISCHARGE_TEMPERATURES)
 # --- the wire layout: one table, checked against msg_defs/ams.dbc ----------------------------
 # Every AMS signal is big-endian with offset 0. The ranges are what the encoder accepts and,
 # where a row has a check, what a decoded frame may carry (the DBC cannot say that a status
-# word counts 0..5 banks and the car status 1..5, nor which enum values exist); decoders and
-# encoders are generated from the same rows, and the DBC must have the same bits at the
-# first codec. A value outside a check makes the frame malformed with the check's text.
+# word counts 0..5 banks and the car status 1..5, nor which enum values exist).
 _ALLOWED = ' {value} (allowed {low:g}..{high:g})'
 _UNKNOWN = ' {value} (known {low}..{high})'
 _WORD = tuple(Signal(dbc, 7 - bit, 1, field=attr.name, flag=True)
@@ -313,7 +309,6 @@ _MESSAGES: tuple[tuple[int, type, str, int, tuple[Signal, ...]], ...] = (
         Signal('Bank_Count', 7, 8, **_BANKS, check='override bank count' + _ALLOWED),)),
 )
 LAYOUTS = {offset: Layout(name, length, signals) for offset, _, name, length, signals in _MESSAGES}
-READINGS = {offset: reading for offset, reading, *_ in _MESSAGES}
 
 
 @functools.cache
@@ -349,7 +344,7 @@ def _decoder(offset: int, reading: type) -> Callable[[bytes], Any]:
     return layout.decoder(into=reading, tail=len(layout.signals) - 2 if offset in _SERIES else 0)
 
 
-_DECODERS = {offset: _decoder(offset, reading) for offset, reading in READINGS.items()}
+_DECODERS = {offset: _decoder(offset, reading) for offset, reading, *_ in _MESSAGES}
 
 
 # --- encoding: the generated encoder checks every value (enum members, ranges, steps) --------
@@ -370,7 +365,7 @@ def _values(offset: int, message: Any) -> list[Any]:
 
 
 _ENCODE = {offset: layout.encoder() for offset, layout in LAYOUTS.items()}
-_OFFSET_OF = {reading: offset for offset, reading in READINGS.items()}
+_OFFSET_OF = {reading: offset for offset, reading, *_ in _MESSAGES}
 
 
 class AmsCodec:

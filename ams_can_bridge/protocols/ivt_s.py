@@ -1,26 +1,20 @@
 """
-Isabellenhuette IVT-S current shunt: result frames <-> typed readings (docs/protocols.md s. 2).
+Isabellenhuette IVT-S current shunt: result frames <-> typed readings (docs/protocols.md 2.1).
 
-Section 2.1 holds the eight result frames (MuxID, counter, status bits, the value in the
-vendor unit, big- or little-endian: ``byte_order``) and the decisions on them. The command
-(0x411) and answer (0x511) frames are in protocols/ivt_s_commands.py: the bridge sends
-commands only from its services, behind the transmit gate.
-
-Speed: the bus thread decodes every frame (8 results x up to 100 Hz each), so ``decode``
-reads the value with code generated from ``LAYOUTS`` and the counter and status bits from
-tables precomputed per byte 1. The DBC can describe only the big-endian value; the
-little-endian variant is the same table with that one signal changed.
+The command (0x411) and answer (0x511) frames are in protocols/ivt_s_commands.py. The DBC can
+describe only the big-endian value; the little-endian variant is the same table with that one
+signal changed.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import astuple, dataclass
 import enum
 import functools
 from typing import Any
 
 from ams_can_bridge.errors import ConfigError, EncodeRangeError, MalformedFrameError
-from ams_can_bridge.protocols.common import Frame, load_dbc
-from ams_can_bridge.protocols.layout import BIG, compile_function, Layout, LITTLE, Signal
+from ams_can_bridge.protocols.common import check_dlc, Frame, load_dbc
+from ams_can_bridge.protocols.layout import compile_function, Layout, LITTLE, Signal
 
 COMMAND_ID = 0x411
 RESPONSE_ID = 0x511
@@ -99,13 +93,13 @@ def _layout(kind: IvtMux) -> Layout:
     name = DBC_NAME[kind]
     result = f'IVT_Result_{name}'
     return Layout(f'IVT_Msg_Result_{name}', DLC, (
-        Signal(f'IVT_ID_Result_{name}', 7, 8, BIG, field='IVT-S MuxID'),
-        Signal(f'IVT_MsgCount_Result_{name}', 11, 4, BIG, field='IVT-S counter'),
-        Signal(f'{result}_OCS', 12, 1, BIG, field='ocs', flag=True),
-        Signal(f'{result}_Result_Error', 13, 1, BIG, field='result_error', flag=True),
-        Signal(f'{result}_Measurement_Error', 14, 1, BIG, field='measurement_error', flag=True),
-        Signal(f'{result}_System_Error', 15, 1, BIG, field='system_error', flag=True),
-        Signal(result, 23, 32, BIG, True, 1 / DIVISOR[kind] if kind == IvtMux.T else 1,
+        Signal(f'IVT_ID_Result_{name}', 7, 8, field='IVT-S MuxID'),
+        Signal(f'IVT_MsgCount_Result_{name}', 11, 4, field='IVT-S counter'),
+        Signal(f'{result}_OCS', 12, 1, field='ocs', flag=True),
+        Signal(f'{result}_Result_Error', 13, 1, field='result_error', flag=True),
+        Signal(f'{result}_Measurement_Error', 14, 1, field='measurement_error', flag=True),
+        Signal(f'{result}_System_Error', 15, 1, field='system_error', flag=True),
+        Signal(result, 23, 32, signed=True, scale=1 / DIVISOR[kind] if kind == IvtMux.T else 1,
                unit=SI_UNIT[kind] if kind == IvtMux.T else RAW_UNIT[kind],
                field=f'IVT-S {kind.name} raw value')))  # the DBC scales only T
 
@@ -129,8 +123,9 @@ def _check_dbc() -> None:
                          'msg_defs/ivt_s.dbc', 'IVT-S')
 
 
-# A frozen dataclass __init__ pays object.__setattr__ per field (half the decode time);
-# filling __dict__ directly gives the identical object at a third the cost.
+# The bus thread decodes every frame (8 results x up to 100 Hz): the value's bits are read
+# inline, counter and status bits come from tables per byte 1, and a frozen dataclass
+# __init__ (object.__setattr__ per field, half the time) is replaced by filling __dict__.
 _DECODE_SOURCE = '''def decode(self, arbitration_id, data):
     entry = self._by_id.get(arbitration_id)
     if entry is None or len(data) != {dlc} or data[0] != entry[0]:
@@ -197,9 +192,7 @@ class IvtSCodec:
             raise MalformedFrameError(
                 arbitration_id, data,
                 f'not an IVT-S result ID (0x{self.base_id:X}..0x{self.base_id + 7:X})')
-        if len(data) != DLC:
-            raise MalformedFrameError(arbitration_id, data,
-                                      f'DLC {len(data)}, expected {DLC}')
+        check_dlc(arbitration_id, data, DLC)
         kind = entry[0]
         raise MalformedFrameError(
             arbitration_id, data,
@@ -209,6 +202,5 @@ class IvtSCodec:
     def encode(self, result: IvtResult) -> Frame:
         """Build the frame of one result (the simulator's side of the codec)."""
         kind = IvtMux(result.kind)
-        data = self._encoders[kind](int(kind), result.counter, result.ocs, result.result_error,
-                                    result.measurement_error, result.system_error, result.raw)
+        data = self._encoders[kind](*astuple(result)[:-1])  # the layout's order, raw last
         return Frame(self.base_id + kind, data, False)

@@ -1,11 +1,9 @@
 """
-IVT-S commands (0x411, host -> sensor) and answers (0x511, sensor -> host).
+IVT-S commands (0x411, host -> sensor) and answers (0x511), as docs/protocols.md 2.2-2.3 says.
 
-docs/protocols.md sections 2.2 and 2.3 hold the frames, their public sources, which
-commands the bridge sends and the decisions; answers to the commands it does not send
-decode as ``OtherAnswer``. Each message is a layout table (protocols/layout.py) with the
-vendor DBC's start bits, checked against hand-typed golden frames (msg_defs/ivt_s.dbc has
-no layout for these two IDs).
+Answers to the commands the bridge does not send decode as ``OtherAnswer``. msg_defs/ivt_s.dbc
+has no layout for these two IDs: the tables below (the vendor DBC's start bits) are checked
+against hand-typed golden frames.
 """
 from __future__ import annotations
 
@@ -15,7 +13,7 @@ import enum
 from typing import Any, Callable
 
 from ams_can_bridge.errors import MalformedFrameError
-from ams_can_bridge.protocols.common import Frame
+from ams_can_bridge.protocols.common import check_dlc, Frame
 from ams_can_bridge.protocols.ivt_s import COMMAND_ID, IvtMux, RESPONSE_ID
 from ams_can_bridge.protocols.layout import BadValue, Layout, Signal
 
@@ -235,9 +233,8 @@ def _command(data: bytes) -> Frame:
 # --- commands ---------------------------------------------------------------------------
 def set_config(config: ResultConfig) -> Frame:
     """0x2n: a result's trigger mode, byte order, sign and cycle time (stop mode only)."""
-    return _command(_E_CONFIG[config.kind](
-        SET_CONFIG_RESULT + config.kind, config.mode, config.cycle_ms, config.little_endian,
-        config.sign_inverted))
+    kind, *values = dataclasses.astuple(config)  # the layout's order
+    return _command(_E_CONFIG[kind](SET_CONFIG_RESULT + kind, *values))
 
 
 def _empty(mux: int, doc: str) -> Callable[[], Frame]:
@@ -280,8 +277,7 @@ def _decoded(decode: Callable[[bytes], Any], arbitration_id: int, data: bytes) -
 
 def decode_answer(data: bytes) -> IvtAnswer:
     """Decode one 0x511 frame; MalformedFrameError for a wrong DLC or impossible value."""
-    if len(data) != DLC:
-        raise MalformedFrameError(RESPONSE_ID, data, f'DLC {len(data)}, expected {DLC}')
+    check_dlc(RESPONSE_ID, data, DLC)
     decode = _DECODE.get(data[0])
     if decode is None:
         return OtherAnswer(data[0], bytes(data))
@@ -295,8 +291,7 @@ def decode_config(arbitration_id: int, data: bytes) -> ResultConfig:
 
 def decode_command(data: bytes) -> tuple[int, bytes]:
     """Split a 0x411 frame into (mux, data) for the simulator; MalformedFrameError if not 8."""
-    if len(data) != DLC:
-        raise MalformedFrameError(COMMAND_ID, data, f'DLC {len(data)}, expected {DLC}')
+    check_dlc(COMMAND_ID, data, DLC)
     return data[0], bytes(data)
 
 
@@ -305,7 +300,7 @@ def encode_answer(answer: IvtAnswer) -> Frame:
     if isinstance(answer, OtherAnswer):
         data = answer.data + bytes(DLC - len(answer.data))
     else:
-        values = [getattr(answer, f.name) for f in dataclasses.fields(answer)]
+        values = dataclasses.astuple(answer)
         known = _KNOWN[type(answer)]  # the first fields, carried in the mux ID
         mux = _MUX[type(answer), tuple(values[:known])]
         data = _ENCODE[mux](mux, *values[known:])

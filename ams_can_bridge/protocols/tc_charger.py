@@ -1,10 +1,7 @@
 """
-TC / Elcon chargers as a ZEVA EVMS3 drives them (docs/protocols.md section 7).
+TC / Elcon chargers 1..3 as a ZEVA EVMS3 drives them (IDs, fields, decisions: docs/protocols.md 7).
 
-Section 7 holds the IDs of chargers 1..3, the fields, their sources and the decisions (DLC
-5..8, byte 4 required, byte 5 optional, status bits 5..7 kept). The bits are ``LAYOUTS``
-(checked against msg_defs/evms3.dbc by evms3.check_dbc); ``ChargerStatus.status`` is the raw
-status byte, so that bits the DBC does not name still warn.
+``ChargerStatus.status`` is the raw status byte, so that bits the DBC does not name still warn.
 """
 from __future__ import annotations
 
@@ -33,9 +30,9 @@ class ChargerStatusBit(enum.IntFlag):
     """Status byte 4 of the charger's answer."""
 
     HARDWARE_FAILURE = 0x01
-    OVER_TEMPERATURE = 0x02  # over-temperature shutdown
+    OVER_TEMPERATURE = 0x02
     INPUT_VOLTAGE_ERROR = 0x04  # input (AC) voltage wrong or missing
-    BATTERY_FAULT = 0x08  # battery fault / no battery (reverse or not connected)
+    BATTERY_FAULT = 0x08  # reverse or not connected
     COMMUNICATION_TIMEOUT = 0x10  # no command from the EVMS in time
 
 
@@ -104,12 +101,6 @@ _D_STATUS = _STATUS.decoder()
 _E_STATUS = _STATUS.encoder()
 
 
-def _check_charger(charger: object) -> int:
-    if isinstance(charger, bool) or charger not in range(1, CHARGERS + 1):
-        raise EncodeRangeError('charger', charger, '1, 2 or 3')
-    return int(charger)  # type: ignore[call-overload]
-
-
 class TcChargerCodec:
     """Decode and encode the command and status frames of TC chargers 1..3."""
 
@@ -133,15 +124,17 @@ class TcChargerCodec:
 
     def encode(self, message: ChargerReading) -> Frame:
         """Encode a reading as an 8-byte frame (reserved bytes 0); EncodeRangeError else."""
-        charger = _check_charger(message.charger)
+        if not isinstance(message, (ChargerCommand, ChargerStatus)):
+            raise EncodeRangeError('message', message, 'a TC charger message')
+        if isinstance(message.charger, bool) or message.charger not in range(1, CHARGERS + 1):
+            raise EncodeRangeError('charger', message.charger, '1, 2 or 3')
+        index = int(message.charger) - 1  # 2.0 is charger 2
         if isinstance(message, ChargerCommand):
             data = _E_COMMAND(message.target_voltage_v, message.current_limit_a,
                               1 if message.stop else 0)
-            return Frame(COMMAND_IDS[charger - 1], data, True)
-        if isinstance(message, ChargerStatus):
-            temperature = message.temperature_raw  # None: not sent, DLC 5
-            data = _E_STATUS(message.output_voltage_v, message.output_current_a, message.status,
-                             0 if temperature is None else temperature)
-            return Frame(STATUS_IDS[charger - 1], data[:5] if temperature is None
-                         else data + bytes(2), True)
-        raise EncodeRangeError('message', message, 'a TC charger message')
+            return Frame(COMMAND_IDS[index], data, True)
+        temperature = message.temperature_raw  # None: not sent, DLC 5
+        data = _E_STATUS(message.output_voltage_v, message.output_current_a, message.status,
+                         0 if temperature is None else temperature)
+        return Frame(STATUS_IDS[index], data[:5] if temperature is None
+                     else data + bytes(2), True)

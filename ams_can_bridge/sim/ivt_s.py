@@ -39,6 +39,7 @@ SERIAL = 0x00012345
 # DBC's _34_* / _30_* signals): decoded by the protocol's layouts, not by hand here.
 _MODE = cmd.MODE.decoder('Actual_Mode', 'Startup_Mode')  # -> (running, startup_running)
 _RESET = cmd.RESET.decoder('Reset_Item', 'Reset_Device_SN')  # -> (item, serial)
+_ERROR_ITEM = cmd.ERROR.decoder('Error_Item')  # -> (item,): 0x40 / 0x41 b1, as in 0x80 / 0x81
 
 
 class IvtSSimulator(SimDevice):
@@ -211,7 +212,8 @@ class IvtSSimulator(SimDevice):
             system = mux == cmd.GET_SYSTEM_ERROR
             active = (self.faults.error_code is not None if system
                       else bool(self.faults.extra.get('measurement_error')))
-            self._answer(ErrorAnswer(system, data[1], int(active)), now)
+            (item,) = _ERROR_ITEM(data)
+            self._answer(ErrorAnswer(system, item, int(active)), now)
         elif mux == cmd.RESET_ERR_LOG:
             item, serial = _RESET(data)
             if serial == self.serial:
