@@ -1,15 +1,12 @@
 """
 A team's own DBC, compiled: frames -> tuples of physical values, checked against [min|max].
 
-docs/protocols.md section 8 holds what the package decides on top of a DBC (strict reading,
-ranges, multiplexing, DLC). cantools stays the reference; the bus thread does not call it
-per frame. A cantools ``Message.decode`` builds a dict of every signal and costs several
-microseconds; here each message becomes one generated Python function that pulls its
-signals out of one frame with the shifts and masks of protocols/layout.py and returns a
-tuple in the order of ``CompiledMessage.signals``. Messages the generator does not cover
-(float signals, nested multiplexers) fall back to cantools, still returning the same tuple.
-A value outside its range comes back NaN with its index reported; a multiplexed signal
-outside the frame's branch is None.
+Each message becomes one generated function (the shifts and masks of protocols/layout.py;
+cantools' Message.decode, the reference, builds a dict per frame at several microseconds)
+returning a tuple in the order of ``CompiledMessage.signals``: a value out of range is NaN
+with its index reported, a multiplexed signal outside the frame's branch None. Float signals
+and nested multiplexers fall back to cantools, into the same tuple. docs/protocols.md section
+8 holds what the package decides on top of a DBC.
 """
 from __future__ import annotations
 
