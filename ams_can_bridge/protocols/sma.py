@@ -1,12 +1,10 @@
 """
 SMA Sunny Island BMS protocol: frames <-> typed readings (docs/protocols.md section 5).
 
-Section 5 holds the frames, the "not available" markers, the accepted DLCs and the
-decisions on what real devices send (the high-resolution SoC, the missing discharge voltage
-limit, the online status in 0x35A). The bits are ``LAYOUTS`` here and ``DIALECT_LAYOUTS``
-in sma_dialects (Pylontech, Victron), both checked against msg_defs/sma.dbc by the first
-codec. The module adds the readings, the DLC ranges, the rules a DBC cannot say (0x351's
-zero limit, 0x35A's online pair, ``SmaSoc.percent``) and one codec for the whole family.
+Section 5 holds the frames, markers, accepted DLCs and the decisions on what real devices
+send. ``MESSAGES`` states each frame once (reading, DLCs, bits; the dialects' rows come from
+sma_dialects), checked against msg_defs/sma.dbc by the first codec, with the rules a DBC
+cannot say (0x351's zero limit, 0x35A's online pair); SmaCodec runs the whole family.
 """
 from __future__ import annotations
 

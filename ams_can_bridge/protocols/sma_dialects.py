@@ -2,11 +2,9 @@
 The SMA protocol's dialects (Pylontech, Victron): frames sent next to, or instead of, 0x35A.
 
 docs/protocols.md section 5.4 holds the frames, their public sources, the accepted DLCs
-and the decisions (0x359 takes the 0x35A condition names, the bits and bytes left
-uninterpreted, the cell temperature bound). The bits are ``DIALECT_LAYOUTS``, checked
-against msg_defs/sma.dbc by sma.check_dbc; sma.SmaCodec runs the tables of this module.
-It also holds what the whole SMA family shares: ``sma_field`` (a little-endian field with
-the "not available" marker), the ASCII helpers and ``pad_unsent``.
+and the decisions. ``DIALECTS`` states each frame once, as sma.MESSAGES does the SMA ones
+(checked against msg_defs/sma.dbc by sma.check_dbc, run by sma.SmaCodec). Here too is what
+the whole family shares: ``Message``, ``sma_field``, the ASCII helpers and ``pad_unsent``.
 """
 from __future__ import annotations
 
@@ -22,14 +20,10 @@ PYLONTECH_KEEPALIVE_ID = 0x305  # inverter -> BMS, "every second", 8 zero bytes
 PYLONTECH_ALARMS_ID = 0x359
 PYLONTECH_REQUEST_ID = 0x35C
 # Victron
-VICTRON_BMS_NAME1_ID = 0x370
-VICTRON_BMS_NAME2_ID = 0x371
+VICTRON_BMS_NAME1_ID = 0x370  # part 2: 0x371
 VICTRON_MODULES_ID = 0x372
 VICTRON_CELL_EXTREMES_ID = 0x373
-VICTRON_MIN_VOLTAGE_CELL_ID = 0x374
-VICTRON_MAX_VOLTAGE_CELL_ID = 0x375
-VICTRON_MIN_TEMPERATURE_CELL_ID = 0x376
-VICTRON_MAX_TEMPERATURE_CELL_ID = 0x377
+VICTRON_MIN_VOLTAGE_CELL_ID = 0x374  # 0x374..0x377: the cell ids of CELL_ID_KINDS
 VICTRON_ENERGY_ID = 0x378
 VICTRON_INSTALLED_CAPACITY_ID = 0x379
 VICTRON_PRODUCT_NAME_ID = 0x382
