@@ -196,15 +196,13 @@ class Layout:
         if s.byte_order == BIG:
             msb = (s.start // 8) * 8 + (7 - s.start % 8)  # bit from the frame's first MSB
             first, last = msb // 8, (msb + s.length - 1) // 8
-            shift = 7 - (msb + s.length - 1) % 8
-            parts = [f'data[{k}] << {8 * (last - k)}' if k < last else f'data[{k}]'
-                     for k in range(first, last + 1)]
+            shift, lsb_byte = 7 - (msb + s.length - 1) % 8, last
         else:
             first, last = s.start // 8, (s.start + s.length - 1) // 8
-            shift = s.start % 8
-            parts = [f'data[{k}] << {8 * (k - first)}' if k > first else f'data[{k}]'
-                     for k in range(first, last + 1)]
-        expr = ' | '.join(parts)
+            shift, lsb_byte = s.start % 8, first
+        # the byte of the LSB as it is, each byte further from it 8 bits higher
+        expr = ' | '.join(f'data[{k}] << {8 * abs(k - lsb_byte)}' if k != lsb_byte
+                          else f'data[{k}]' for k in range(first, last + 1))
         if shift:
             expr = f'({expr}) >> {shift}'
         if shift or s.length != 8 * (last - first + 1):
