@@ -103,11 +103,10 @@ def _malformed(message: Message, data: bytes, mux: object) -> MalformedFrameErro
 
 def _generate(message: Message, infos: tuple[SignalInfo, ...]) -> Callable | None:
     """Build the decoder of a message; None when cantools must do it."""
-    signals = list(message.signals)
-    if any(s.is_float for s in signals):
+    if any(s.is_float for s in message.signals):
         return None
-    muxes = [i for i, s in enumerate(signals) if s.is_multiplexer]
-    if len(muxes) > 1 or any(s.is_multiplexer and s.multiplexer_ids for s in signals):
+    muxes = [i for i, info in enumerate(infos) if info.is_multiplexer]
+    if len(muxes) > 1 or any(infos[i].mux_ids for i in muxes):
         return None  # nested multiplexing
     # The bits and scaling as protocols/layout.py reads them (data[k], shifts and masks).
     layout = Layout.from_dbc(message)
@@ -139,7 +138,7 @@ def _generate(message: Message, infos: tuple[SignalInfo, ...]) -> Callable | Non
             for i in members:
                 value(i, '        ')
         lines += ['    else:', '        raise malformed(message, data, mux)']
-    names = ''.join(f'v{i}, ' for i in range(len(signals)))  # () for a message of no signal
+    names = ''.join(f'v{i}, ' for i in range(len(infos)))  # () for a message of no signal
     lines.append(f'    return ({names}), bad')
     return compile_function('\n'.join(lines) + '\n', f'dbc {message.name}', 'decode', scope)
 
