@@ -25,11 +25,10 @@ def check_value(field: str, value: Any, low: float, high: float, step: float | N
     """
     Return value if it is a number in low..high (on the step grid from low), else raise.
 
-    The one tolerance of the package: float noise of a billionth of a step (of the range if
-    there is no step) at the ends (255 * 0.02 = 5.1000000000000005 is 5.1, and comes back as
-    5.1) and of a millionth of a step on the grid. bool, NaN and non-numbers are refused;
-    integer=True also refuses a fraction (3.0 is fine, YAML spells numbers either way) and
-    returns an int.
+    Float noise is forgiven: tolerance() at the ends (255 * 0.02 = 5.1000000000000005 is 5.1,
+    and comes back as 5.1), a millionth of a step on the grid. bool, NaN and non-numbers are
+    refused; integer=True also refuses a fraction (3.0 is fine, YAML spells numbers either
+    way) and returns an int.
     """
     suffix = f' {unit}' if unit else ''
     allowed = f'{low:g}..{high:g}{suffix}' + (
@@ -125,11 +124,10 @@ class Signal:
     description: str = ''
     kind: type | None = None
     sentinel: tuple[float, str] | None = None
-    # A rule of the protocol (not of the bits): decoding refuses a value outside low..high,
-    # or with a lookup a raw value without a member, raising BadValue with this text
-    # formatted with value, low and high ('bank ID {value} (allowed {low}..{high})'; for a
-    # lookup low..high are the known raw values). With a lookup, encoding then takes only a
-    # member (or its int value).
+    # A rule of the protocol (not of the bits): decoding refuses a value outside low..high
+    # (with a lookup: a raw value without a member, low..high then the known raw values),
+    # raising BadValue with this text formatted with value, low and high ('bank ID {value}
+    # (allowed {low}..{high})'); encoding a lookup then takes only a member (or its int).
     check: str = ''
 
     def raw_range(self) -> tuple[int, int]:

@@ -162,9 +162,8 @@ ABSOLUTE_ZERO_C = -273.15
 
 
 # --- the SMA frames, one row per ID; the dialects' rows are in sma_dialects ------------------
-# A frame cut short (DLC range) is padded with 0xFF first, so the fields not sent read as
-# not available (sma_field's marker). divide: 1234 -> 12.34. A row's check is a value no BMS
-# may send: the frame is malformed (docs/protocols.md section 5.2).
+# divide: 1234 -> 12.34. A row's check is a value no BMS may send: the frame is malformed
+# (docs/protocols.md section 5.2).
 def _camel(name: str) -> str:
     return ''.join(part.capitalize() for part in name.split('_'))
 
