@@ -164,10 +164,6 @@ ABSOLUTE_ZERO_C = -273.15
 # --- the SMA frames, one row per ID; the dialects' rows are in sma_dialects ------------------
 # divide: 1234 -> 12.34. A row's check is a value no BMS may send: the frame is malformed
 # (docs/protocols.md section 5.2).
-def _camel(name: str) -> str:
-    return ''.join(part.capitalize() for part in name.split('_'))
-
-
 def _limits(data: bytes) -> SmaLimits:
     limits = _D_LIMITS(data)
     if limits.discharge_voltage_v == 0:  # no limit sent, not 0 V
@@ -231,7 +227,7 @@ MESSAGES = {
     ALARMS_ID: Message(SmaAlarms, DLC_1_TO_8, Layout('SMA_AlarmsWarnings', 8, tuple(
         sma_field('SystemOnline', first + 2 * k, 2, lookup=ONLINE_CODES)
         if (kind, name) == ('Warning', ONLINE_CONDITION) else
-        sma_field(f'{kind}_{_camel(name)}', first + 2 * k, 2, lookup=_FLAGS)
+        sma_field(f'{kind}_{name.title().replace("_", "")}', first + 2 * k, 2, lookup=_FLAGS)
         for kind, first in (('Alarm', 0), ('Warning', 32))
         for k, name in enumerate(SMA_CONDITIONS))), decode=_alarms, encode=_encode_flags),
     MANUFACTURER_ID: ascii_message('sma.manufacturer', SmaManufacturer, 'SMA_Manufacturer'),
