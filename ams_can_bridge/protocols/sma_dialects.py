@@ -190,9 +190,9 @@ class Message:
     One frame of the SMA family: its reading, accepted DLCs (section 5.2) and bits.
 
     By default the reading is decoded and built by code generated from the layout, a frame
-    cut short first padded by pad_unsent (``pad``). ``text``: an ASCII frame (1..8 bytes),
-    the reading's values before the text in ``lead``, errors naming ``text``. ``decode`` /
-    ``encode``: a rule a DBC cannot say.
+    cut short padded by pad_unsent first (pad=False: ``decode`` sees the DLC as sent).
+    ``text``: an ASCII frame, the reading's values before the text in ``lead``, errors
+    naming ``text``. ``decode`` / ``encode``: a rule a DBC cannot say.
     """
 
     reading: type
@@ -206,7 +206,7 @@ class Message:
 
 
 def ascii_message(field: str, reading: type, name: str, *lead: Any) -> Message:
-    """Return an ASCII frame of 1..8 bytes (DBC message name: its signal's after '_')."""
+    """Return an ASCII frame of 1..8 bytes; name: the DBC message's (its signal's after '_')."""
     return Message(reading, DLC_1_TO_8, Layout(name, 8, (sma_field(name.split('_')[1], 0, 64),)),
                    field, lead)
 
