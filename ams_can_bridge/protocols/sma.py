@@ -99,10 +99,6 @@ class SmaBattery:
     temperature_c: float | None
 
 
-def _all_not_supported() -> dict[str, SmaFlag]:
-    return {name: SmaFlag.NOT_SUPPORTED for name in SMA_CONDITIONS}
-
-
 @dataclass(frozen=True)
 class SmaAlarms:
     """
@@ -112,8 +108,8 @@ class SmaAlarms:
     not sent); that pair is never the 'reserved1' warning.
     """
 
-    alarms: dict[str, SmaFlag] = field(default_factory=_all_not_supported)
-    warnings: dict[str, SmaFlag] = field(default_factory=_all_not_supported)
+    alarms: dict[str, SmaFlag] = field(default_factory=dict)  # completed by __post_init__
+    warnings: dict[str, SmaFlag] = field(default_factory=dict)
     online: bool | None = None
 
     def __post_init__(self) -> None:
