@@ -1,15 +1,12 @@
 """
 A team's own DBC, compiled: frames -> tuples of physical values, checked against [min|max].
 
-docs/protocols.md section 8 holds what the package decides on top of a DBC (strict reading,
-ranges, multiplexing, DLC). cantools stays the reference; the bus thread does not call it
-per frame. A cantools ``Message.decode`` builds a dict of every signal and costs several
-microseconds; here each message becomes one generated Python function that pulls its
-signals out of one frame with the shifts and masks of protocols/layout.py and returns a
-tuple in the order of ``CompiledMessage.signals``. Messages the generator does not cover
-(float signals, nested multiplexers) fall back to cantools, still returning the same tuple.
-A value outside its range comes back NaN with its index reported; a multiplexed signal
-outside the frame's branch is None.
+Each message becomes one generated function (the shifts and masks of protocols/layout.py;
+cantools' Message.decode, the reference, builds a dict per frame at several microseconds)
+returning a tuple in the order of ``CompiledMessage.signals``: a value out of range is NaN
+with its index reported, a multiplexed signal outside the frame's branch None. Float signals
+and nested multiplexers fall back to cantools, into the same tuple. docs/protocols.md section
+8 holds what the package decides on top of a DBC.
 """
 from __future__ import annotations
 
@@ -106,11 +103,10 @@ def _malformed(message: Message, data: bytes, mux: object) -> MalformedFrameErro
 
 def _generate(message: Message, infos: tuple[SignalInfo, ...]) -> Callable | None:
     """Build the decoder of a message; None when cantools must do it."""
-    signals = list(message.signals)
-    if any(s.is_float for s in signals):
+    if any(s.is_float for s in message.signals):
         return None
-    muxes = [i for i, s in enumerate(signals) if s.is_multiplexer]
-    if len(muxes) > 1 or any(s.is_multiplexer and s.multiplexer_ids for s in signals):
+    muxes = [i for i, info in enumerate(infos) if info.is_multiplexer]
+    if len(muxes) > 1 or any(infos[i].mux_ids for i in muxes):
         return None  # nested multiplexing
     # The bits and scaling as protocols/layout.py reads them (data[k], shifts and masks).
     layout = Layout.from_dbc(message)
@@ -142,7 +138,7 @@ def _generate(message: Message, infos: tuple[SignalInfo, ...]) -> Callable | Non
             for i in members:
                 value(i, '        ')
         lines += ['    else:', '        raise malformed(message, data, mux)']
-    names = ''.join(f'v{i}, ' for i in range(len(signals)))  # () for a message of no signal
+    names = ''.join(f'v{i}, ' for i in range(len(infos)))  # () for a message of no signal
     lines.append(f'    return ({names}), bad')
     return compile_function('\n'.join(lines) + '\n', f'dbc {message.name}', 'decode', scope)
 

@@ -1,24 +1,10 @@
 """
 One table format for every wire layout, compiled once into straight-line code.
 
-A protocol module states each message once, as a :class:`Layout` of :class:`Signal` rows
-(start bit in DBC numbering, length, byte order, sign, scale, offset, range, unit), written
-in Python or read from a DBC message (:meth:`Layout.from_dbc`). From that table come:
-
-* ``decoder()``: one generated function ``data -> tuple`` (or straight into a reading) of
-  the physical values, with no loop and no call per signal: each signal reads its bytes
-  ``data[k]`` with shifts and masks, a scaled byte is a table lookup, "not available" raw
-  values (``invalid``) become None, enum codes come from a ``lookup`` column, and a signal
-  with a ``check`` refuses a value the protocol does not allow (:class:`BadValue`). The bus
-  thread runs it for every frame.
-* ``encoder()``: one generated function ``(*values) -> bytes`` that validates every value with
-  :func:`check_value` (range and step of its signal) before packing it.
-* ``check_dbc(message)``: raises :class:`LayoutError` at the first codec if the installed DBC
-  no longer describes the same bits, so the Python table and msg_defs/ cannot drift apart.
-
-The module keeps what a DBC cannot say (enum values, IDs that must match, special raw
-values, readings); this file only moves bits. :func:`check_value` is the one number / range /
-step validator of the package (the encoders here, the protocol modules, ``parameters``).
+A protocol states each message once, as a :class:`Layout` of :class:`Signal` rows; from it come
+``decoder()`` and ``encoder()`` (generated functions, no loop and no call per signal) and
+``check_dbc()`` (the table against msg_defs/). docs/architecture.md, "Protocols", says how.
+:func:`check_value` is the one number / range / step validator of the package.
 """
 from __future__ import annotations
 
@@ -39,11 +25,10 @@ def check_value(field: str, value: Any, low: float, high: float, step: float | N
     """
     Return value if it is a number in low..high (on the step grid from low), else raise.
 
-    The one tolerance of the package: float noise of a billionth of a step (of the range if
-    there is no step) at the ends (255 * 0.02 = 5.1000000000000005 is 5.1, and comes back as
-    5.1) and of a millionth of a step on the grid. bool, NaN and non-numbers are refused;
-    integer=True also refuses a fraction (3.0 is fine, YAML spells numbers either way) and
-    returns an int.
+    Float noise is forgiven: tolerance() at the ends (255 * 0.02 = 5.1000000000000005 is 5.1,
+    and comes back as 5.1), a millionth of a step on the grid. bool, NaN and non-numbers are
+    refused; integer=True also refuses a fraction (3.0 is fine, YAML spells numbers either
+    way) and returns an int.
     """
     suffix = f' {unit}' if unit else ''
     allowed = f'{low:g}..{high:g}{suffix}' + (
@@ -91,12 +76,7 @@ def check_flag(field: str, value: Any) -> int:
 
 
 class BadValue(ProtocolError):
-    """
-    A decoded value a signal's ``check`` refuses (its message is the check's text).
-
-    The decoder knows only the bytes: the codec catches it and raises MalformedFrameError
-    with the frame's ID and this message.
-    """
+    """A value a row's ``check`` refuses; the codec raises MalformedFrameError (it has the ID)."""
 
 
 class _Known(dict):
@@ -144,11 +124,10 @@ class Signal:
     description: str = ''
     kind: type | None = None
     sentinel: tuple[float, str] | None = None
-    # A rule of the protocol (not of the bits): decoding refuses a value outside low..high,
-    # or with a lookup a raw value without a member, raising BadValue with this text
-    # formatted with value, low and high ('bank ID {value} (allowed {low}..{high})'; for a
-    # lookup low..high are the known raw values). With a lookup, encoding then takes only a
-    # member (or its int value).
+    # A rule of the protocol (not of the bits): decoding refuses a value outside low..high
+    # (with a lookup: a raw value without a member, low..high then the known raw values),
+    # raising BadValue with this text formatted with value, low and high ('bank ID {value}
+    # (allowed {low}..{high})'); encoding a lookup then takes only a member (or its int).
     check: str = ''
 
     def raw_range(self) -> tuple[int, int]:
@@ -215,15 +194,13 @@ class Layout:
         if s.byte_order == BIG:
             msb = (s.start // 8) * 8 + (7 - s.start % 8)  # bit from the frame's first MSB
             first, last = msb // 8, (msb + s.length - 1) // 8
-            shift = 7 - (msb + s.length - 1) % 8
-            parts = [f'data[{k}] << {8 * (last - k)}' if k < last else f'data[{k}]'
-                     for k in range(first, last + 1)]
+            shift, lsb_byte = 7 - (msb + s.length - 1) % 8, last
         else:
             first, last = s.start // 8, (s.start + s.length - 1) // 8
-            shift = s.start % 8
-            parts = [f'data[{k}] << {8 * (k - first)}' if k > first else f'data[{k}]'
-                     for k in range(first, last + 1)]
-        expr = ' | '.join(parts)
+            shift, lsb_byte = s.start % 8, first
+        # the byte of the LSB as it is, each byte further from it 8 bits higher
+        expr = ' | '.join(f'data[{k}] << {8 * abs(k - lsb_byte)}' if k != lsb_byte
+                          else f'data[{k}]' for k in range(first, last + 1))
         if shift:
             expr = f'({expr}) >> {shift}'
         if shift or s.length != 8 * (last - first + 1):
@@ -254,12 +231,10 @@ class Layout:
         if s.check and tables is not None:
             # The range test is on the raw integer (exact); the message shows the value.
             # A bound the bits cannot pass is not tested (every AMS cell frame's group ID).
-            name, (lo, hi) = f'B{len(tables)}', s.raw_limits()
-            bits_lo = -(1 << (s.length - 1)) if s.signed else 0
-            bits_hi = (1 << (s.length - 1 if s.signed else s.length)) - 1
+            name, (lo, hi), carried = f'B{len(tables)}', s.raw_limits(), s.raw_range()
             tested = var if s.invalid is not None else f'({var} := {raw})'
-            test = (f'{lo} <= ' if lo > bits_lo else '') + tested + (
-                f' <= {hi}' if hi < bits_hi else '')
+            test = (f'{lo} <= ' if lo > carried[0] else '') + tested + (
+                f' <= {hi}' if hi < carried[1] else '')
             if test != tested:
                 tables[name] = functools.partial(self._refuse, s, self._scale_function(s))
                 value = f'{value} if {test} else {name}({var})'
@@ -345,15 +320,16 @@ class Layout:
         scope: dict[str, Any] = {'check': check_value, 'flag': check_flag}
         for i, s in enumerate(self.signals):
             low, high = s.bounds()
+            field = s.field or s.name
             integer = exact and s.scale == 1 and s.offset == 0 and float(low).is_integer()
             step = None if integer or not exact else abs(s.scale)
             scope[f'S{i}'] = (low, high, step, s.unit, integer)
-            checked = f'check({s.field or s.name!r}, v{i}, *S{i})'
+            checked = f'check({field!r}, v{i}, *S{i})'
             if s.flag:  # 0/1 or a bool; 2 or 'yes' is refused
-                checked = f'flag({s.field or s.name!r}, v{i})'
+                checked = f'flag({field!r}, v{i})'
             if s.check and s.lookup is not None:  # a member of the lookup, nothing else
                 scope[f'S{i}'] = _Known(s)
-                checked = f'S{i}.encode({s.field or s.name!r}, v{i})'
+                checked = f'S{i}.encode({field!r}, v{i})'
             raw = checked if integer else f'round(({checked} - {s.offset!r}) / {s.scale!r})'
             if not exact and s.scale == 1 and s.offset == 0:
                 raw = f'round({checked})'
@@ -361,13 +337,10 @@ class Layout:
                 raw = f'{s.invalid} if v{i} is None else {raw}'
             if s.signed:
                 raw = f'({raw}) & {(1 << s.length) - 1:#x}'
-            lsb = s.lsb(self.length)
-            if s.byte_order == LITTLE:
-                lines.append(f'    n |= ({raw}) << {lsb}')
-            else:
-                lines.append(f'    n |= ({raw}) << {lsb + 8 * self.length}')  # 2nd half
-        # Little-endian signals fill the low half, big-endian ones a high half read
-        # big-endian; both halves are folded into one frame below.
+            # Little-endian signals fill the low half of n, big-endian ones a high half read
+            # big-endian; both halves are folded into one frame below.
+            half = 0 if s.byte_order == LITTLE else 8 * self.length
+            lines.append(f'    n |= ({raw}) << {s.lsb(self.length) + half}')
         lines += [f'    lo = (n & {(1 << 8 * self.length) - 1:#x}).to_bytes('
                   f"{self.length}, 'little')",
                   f"    hi = (n >> {8 * self.length}).to_bytes({self.length}, 'big')",

@@ -1,12 +1,10 @@
 """
 SMA Sunny Island BMS protocol: frames <-> typed readings (docs/protocols.md section 5).
 
-Section 5 holds the frames, the "not available" markers, the accepted DLCs and the
-decisions on what real devices send (the high-resolution SoC, the missing discharge voltage
-limit, the online status in 0x35A). The bits are ``LAYOUTS`` here and ``DIALECT_LAYOUTS``
-in sma_dialects (Pylontech, Victron), both checked against msg_defs/sma.dbc by the first
-codec. The module adds the readings, the DLC ranges, the rules a DBC cannot say (0x351's
-zero limit, 0x35A's online pair, ``SmaSoc.percent``) and one codec for the whole family.
+Section 5 holds the frames, markers, accepted DLCs and the decisions on what real devices
+send. ``MESSAGES`` states each frame once (reading, DLCs, bits; the dialects' rows come from
+sma_dialects), checked against msg_defs/sma.dbc by the first codec, with the rules a DBC
+cannot say (0x351's zero limit, 0x35A's online pair); SmaCodec runs the whole family.
 """
 from __future__ import annotations
 
@@ -19,9 +17,8 @@ from ams_can_bridge.errors import EncodeRangeError, MalformedFrameError
 from ams_can_bridge.protocols.common import check_dlc, Frame, load_dbc
 from ams_can_bridge.protocols.layout import BadValue, Layout
 from ams_can_bridge.protocols.sma_dialects import (
-    ascii_text, DIALECT_DECODERS, DIALECT_IDS, DIALECT_LAYOUTS, DIALECT_NUMBERS, DIALECT_TEXTS,
-    DialectReading, encode_ascii, encode_pylontech_alarms, pad_unsent, PylontechAlarms,
-    sma_field)
+    ascii_message, ascii_text, DIALECT_IDS, DIALECTS, DialectReading, DLC_1_TO_8, encode_ascii,
+    Message, pad_unsent, sma_field)
 
 LIMITS_ID = 0x351
 SOC_ID = 0x355
@@ -102,10 +99,6 @@ class SmaBattery:
     temperature_c: float | None
 
 
-def _all_not_supported() -> dict[str, SmaFlag]:
-    return {name: SmaFlag.NOT_SUPPORTED for name in SMA_CONDITIONS}
-
-
 @dataclass(frozen=True)
 class SmaAlarms:
     """
@@ -115,8 +108,8 @@ class SmaAlarms:
     not sent); that pair is never the 'reserved1' warning.
     """
 
-    alarms: dict[str, SmaFlag] = field(default_factory=_all_not_supported)
-    warnings: dict[str, SmaFlag] = field(default_factory=_all_not_supported)
+    alarms: dict[str, SmaFlag] = field(default_factory=dict)  # completed by __post_init__
+    warnings: dict[str, SmaFlag] = field(default_factory=dict)
     online: bool | None = None
 
     def __post_init__(self) -> None:
@@ -164,73 +157,11 @@ SmaReading = Union[SmaLimits, SmaSoc, SmaBattery, SmaAlarms, SmaManufacturer, Sm
 ABSOLUTE_ZERO_C = -273.15
 
 
-# --- the wire layout, one table checked against msg_defs/sma.dbc ------------------------------
-# A frame cut short (DLC range) is padded with 0xFF first, so the fields not sent read as
-# not available (sma_field's marker). divide: 1234 -> 12.34. A row's check is a value no BMS
-# may send: the frame is malformed (docs/protocols.md section 5.2).
-def _camel(name: str) -> str:
-    return ''.join(part.capitalize() for part in name.split('_'))
-
-
-LAYOUTS = {
-    LIMITS_ID: Layout('SMA_Limits', 8, (
-        sma_field('ChargeVoltageLimit', 0, scale=0.1, unit='V', field='charge_voltage_v'),
-        sma_field('ChargeCurrentLimit', 16, scale=0.1, signed=True, unit='A',
-                  field='charge_current_a'),
-        sma_field('DischargeCurrentLimit', 32, scale=0.1, signed=True, unit='A',
-                  field='discharge_current_a'),
-        sma_field('DischargeVoltageLimit', 48, scale=0.1, unit='V', field='discharge_voltage_v')),
-        divide=True),
-    SOC_ID: Layout('SMA_SoC', 6, (
-        sma_field('SoC', 0, unit='%', field='soc_pct', high=100,
-                  check='SoC {value} % is above {high:g} %'),
-        sma_field('SoH', 16, unit='%', field='soh_pct', high=100),
-        sma_field('SoCHighRes', 32, scale=0.01, unit='%', field='soc_hires_pct', high=100,
-                  check='high-resolution SoC {value:g} % is above {high:g} %')),
-        divide=True),
-    BATTERY_ID: Layout('SMA_Battery', 6, (
-        sma_field('Voltage', 0, scale=0.01, signed=True, unit='V', field='voltage_v'),
-        sma_field('Current', 16, scale=0.1, signed=True, unit='A', field='current_a'),
-        sma_field('Temperature', 32, scale=0.1, signed=True, unit='degC', field='temperature_c',
-                  low=ABSOLUTE_ZERO_C, check='temperature {value:g} degC is below absolute zero')),
-        divide=True),
-    ALARMS_ID: Layout('SMA_AlarmsWarnings', 8, tuple(
-        sma_field('SystemOnline', first + 2 * k, 2, lookup=ONLINE_CODES)
-        if (kind, name) == ('Warning', ONLINE_CONDITION) else
-        sma_field(f'{kind}_{_camel(name)}', first + 2 * k, 2, lookup=_FLAGS)
-        for kind, first in (('Alarm', 0), ('Warning', 32))
-        for k, name in enumerate(SMA_CONDITIONS))),
-    MANUFACTURER_ID: Layout('SMA_Manufacturer', 8, (sma_field('Manufacturer', 0, 64),)),
-    INFO_ID: Layout('SMA_BatteryInfo', 6, (
-        sma_field('BatteryType', 0, field='battery_type'),
-        sma_field('BmsVersion', 16, field='bms_version'),
-        sma_field('Capacity', 32, unit='Ah', field='capacity_ah'))),
-}
-_ONLINE = 16 + SMA_CONDITIONS.index(ONLINE_CONDITION)  # SystemOnline among the pairs
-_LAYOUTS = {**LAYOUTS, **DIALECT_LAYOUTS}
-
-
-@functools.cache
-def check_dbc() -> None:
-    """Raise LayoutError unless msg_defs/sma.dbc has the bits of LAYOUTS and the dialects'."""
-    db = load_dbc('sma')
-    for frame_id, layout in _LAYOUTS.items():
-        layout.check_dbc(db.get_message_by_frame_id(frame_id), 'msg_defs/sma.dbc', 'SMA')
-
-
-# --- how each frame is decoded and built: the SMA tables, then the dialects' -----------------
-# Frames of numbers: ID -> (reading, accepted DLCs of section 5.2).
-_NUMBERS = {
-    LIMITS_ID: (SmaLimits, (6, 7, 8)), SOC_ID: (SmaSoc, (2, 4, 5, 6, 7, 8)),
-    BATTERY_ID: (SmaBattery, (6, 7, 8)), INFO_ID: (SmaBatteryInfo, (6, 7, 8)),
-    **DIALECT_NUMBERS}
-_TEXTS = {MANUFACTURER_ID: ('sma.manufacturer', SmaManufacturer), **DIALECT_TEXTS}
-_D = {frame_id: _LAYOUTS[frame_id].decoder(into=reading)
-      for frame_id, (reading, _) in _NUMBERS.items()}
-
-
+# --- the SMA frames, one row per ID; the dialects' rows are in sma_dialects ------------------
+# divide: 1234 -> 12.34. A row's check is a value no BMS may send: the frame is malformed
+# (docs/protocols.md section 5.2).
 def _limits(data: bytes) -> SmaLimits:
-    limits = _D[LIMITS_ID](data)
+    limits = _D_LIMITS(data)
     if limits.discharge_voltage_v == 0:  # no limit sent, not 0 V
         return replace(limits, discharge_voltage_v=None)
     return limits
@@ -246,24 +177,6 @@ def _alarms(data: bytes) -> SmaAlarms:
     object.__setattr__(alarms, 'warnings', warnings)
     object.__setattr__(alarms, 'online', pairs[_ONLINE])
     return alarms
-
-
-def _text_decoder(reading: type, lead: tuple) -> Callable[[bytes], SmaReading]:
-    return lambda data: reading(*lead, ascii_text(data))
-
-
-_D_ALARMS = LAYOUTS[ALARMS_ID].decoder()
-_TEXT_DLC = tuple(range(1, 9))
-# ID -> (accepted DLCs, layout a frame cut short is padded to or None, decoder)
-_DECODERS: dict[int, tuple[tuple[int, ...], Layout | None, Callable[[bytes], SmaReading]]] = {
-    **{frame_id: (dlcs, _LAYOUTS[frame_id], _D[frame_id])
-       for frame_id, (_, dlcs) in _NUMBERS.items()},
-    **{frame_id: (_TEXT_DLC, None, _text_decoder(reading, tuple(lead)))
-       for frame_id, (_, reading, *lead) in _TEXTS.items()},
-    LIMITS_ID: (_NUMBERS[LIMITS_ID][1], LAYOUTS[LIMITS_ID], _limits),
-    ALARMS_ID: (_TEXT_DLC, LAYOUTS[ALARMS_ID], _alarms),
-    **{frame_id: (dlcs, None, decode) for frame_id, (dlcs, decode) in DIALECT_DECODERS.items()},
-}
 
 
 def _encode_flags(message: SmaAlarms) -> Frame:
@@ -284,14 +197,78 @@ def _encode_flags(message: SmaAlarms) -> Frame:
     return Frame(ALARMS_ID, _E_ALARMS(*pairs))
 
 
-def _numbers_encoder(frame_id: int) -> Callable[[SmaReading], Frame]:
-    encode = _LAYOUTS[frame_id].encoder(exact=False)  # telemetry: rounded to the step
+MESSAGES = {
+    LIMITS_ID: Message(SmaLimits, (6, 7, 8), Layout('SMA_Limits', 8, (
+        sma_field('ChargeVoltageLimit', 0, scale=0.1, unit='V', field='charge_voltage_v'),
+        sma_field('ChargeCurrentLimit', 16, scale=0.1, signed=True, unit='A',
+                  field='charge_current_a'),
+        sma_field('DischargeCurrentLimit', 32, scale=0.1, signed=True, unit='A',
+                  field='discharge_current_a'),
+        sma_field('DischargeVoltageLimit', 48, scale=0.1, unit='V', field='discharge_voltage_v')),
+        divide=True), decode=_limits),
+    # encoded always 6 bytes (0xFFFF = no high-resolution SoC, as the DBC); SmaCodec.encode_soc
+    SOC_ID: Message(SmaSoc, (2, 4, 5, 6, 7, 8), Layout('SMA_SoC', 6, (
+        sma_field('SoC', 0, unit='%', field='soc_pct', high=100,
+                  check='SoC {value} % is above {high:g} %'),
+        sma_field('SoH', 16, unit='%', field='soh_pct', high=100),
+        sma_field('SoCHighRes', 32, scale=0.01, unit='%', field='soc_hires_pct', high=100,
+                  check='high-resolution SoC {value:g} % is above {high:g} %')),
+        divide=True)),
+    BATTERY_ID: Message(SmaBattery, (6, 7, 8), Layout('SMA_Battery', 6, (
+        sma_field('Voltage', 0, scale=0.01, signed=True, unit='V', field='voltage_v'),
+        sma_field('Current', 16, scale=0.1, signed=True, unit='A', field='current_a'),
+        sma_field('Temperature', 32, scale=0.1, signed=True, unit='degC', field='temperature_c',
+                  low=ABSOLUTE_ZERO_C, check='temperature {value:g} degC is below absolute zero')),
+        divide=True)),
+    ALARMS_ID: Message(SmaAlarms, DLC_1_TO_8, Layout('SMA_AlarmsWarnings', 8, tuple(
+        sma_field('SystemOnline', first + 2 * k, 2, lookup=ONLINE_CODES)
+        if (kind, name) == ('Warning', ONLINE_CONDITION) else
+        sma_field(f'{kind}_{name.title().replace("_", "")}', first + 2 * k, 2, lookup=_FLAGS)
+        for kind, first in (('Alarm', 0), ('Warning', 32))
+        for k, name in enumerate(SMA_CONDITIONS))), decode=_alarms, encode=_encode_flags),
+    MANUFACTURER_ID: ascii_message('sma.manufacturer', SmaManufacturer, 'SMA_Manufacturer'),
+    INFO_ID: Message(SmaBatteryInfo, (6, 7, 8), Layout('SMA_BatteryInfo', 6, (
+        sma_field('BatteryType', 0, field='battery_type'),
+        sma_field('BmsVersion', 16, field='bms_version'),
+        sma_field('Capacity', 32, unit='Ah', field='capacity_ah')))),
+    **DIALECTS,
+}
+_ONLINE = 16 + SMA_CONDITIONS.index(ONLINE_CONDITION)  # SystemOnline among the pairs
+_D_LIMITS = MESSAGES[LIMITS_ID].layout.decoder(into=SmaLimits)
+_D_ALARMS = MESSAGES[ALARMS_ID].layout.decoder()
+_E_ALARMS = MESSAGES[ALARMS_ID].layout.encoder()
+
+
+@functools.cache
+def check_dbc() -> None:
+    """Raise LayoutError unless msg_defs/sma.dbc has the bits of every row of MESSAGES."""
+    db = load_dbc('sma')
+    for frame_id, message in MESSAGES.items():
+        message.layout.check_dbc(db.get_message_by_frame_id(frame_id), 'msg_defs/sma.dbc', 'SMA')
+
+
+# --- what SmaCodec runs, built from the rows ---------------------------------------------------
+def _decoder(m: Message) -> Callable[[bytes], SmaReading]:
+    if m.decode is not None:
+        return m.decode
+    if m.text:
+        reading, lead = m.reading, m.lead
+        return lambda data: reading(*lead, ascii_text(data))
+    return m.layout.decoder(into=m.reading)
+
+
+def _encoder(frame_id: int, m: Message) -> Callable[[Any], Frame]:
+    if m.encode is not None:
+        return m.encode
+    if m.text:
+        return _encode_text
+    encode = m.layout.encoder(exact=False)  # telemetry: rounded to the step
     return lambda message: Frame(frame_id, encode(*astuple(message)))
 
 
 # (reading, its values before the text) -> (ID, field name)
-_TEXT_IDS = {(reading, *lead): (frame_id, field)
-             for frame_id, (field, reading, *lead) in _TEXTS.items()}
+_TEXT_IDS = {(m.reading, *m.lead): (frame_id, m.text)
+             for frame_id, m in MESSAGES.items() if m.text}
 
 
 def _encode_text(message: SmaReading) -> Frame:
@@ -306,13 +283,10 @@ def _encode_text(message: SmaReading) -> Frame:
     return Frame(frame_id, encode_ascii(field, text))
 
 
-_E_ALARMS = LAYOUTS[ALARMS_ID].encoder()
-# reading -> its encoder (SoC: always 6 bytes, 0xFFFF = no high-resolution SoC, as the DBC)
-_ENCODERS: dict[type, Callable[[Any], Frame]] = {
-    **{reading: _numbers_encoder(frame_id) for frame_id, (reading, _) in _NUMBERS.items()},
-    **{reading: _encode_text for _, reading, *_ in _TEXTS.values()},
-    SmaAlarms: _encode_flags, PylontechAlarms: encode_pylontech_alarms,
-}
+# ID -> (accepted DLCs, length a shorter frame is padded to (0: never), its layout, decoder)
+_DECODERS = {frame_id: (m.dlcs, m.layout.length if m.pad and not m.text else 0, m.layout,
+                        _decoder(m)) for frame_id, m in MESSAGES.items()}
+_ENCODERS = {m.reading: _encoder(frame_id, m) for frame_id, m in MESSAGES.items()}
 
 
 class SmaCodec:
@@ -329,10 +303,10 @@ class SmaCodec:
         entry = _DECODERS.get(arbitration_id)
         if entry is None:
             raise MalformedFrameError(arbitration_id, data, 'not an SMA BMS ID')
-        dlcs, layout, decode = entry
+        dlcs, length, layout, decode = entry
         if len(data) not in dlcs:
             check_dlc(arbitration_id, data, dlcs)
-        if layout is not None and len(data) < layout.length:
+        if len(data) < length:
             data = pad_unsent(data, layout)
         try:
             return decode(data)

@@ -2,11 +2,9 @@
 The SMA protocol's dialects (Pylontech, Victron): frames sent next to, or instead of, 0x35A.
 
 docs/protocols.md section 5.4 holds the frames, their public sources, the accepted DLCs
-and the decisions (0x359 takes the 0x35A condition names, the bits and bytes left
-uninterpreted, the cell temperature bound). The bits are ``DIALECT_LAYOUTS``, checked
-against msg_defs/sma.dbc by sma.check_dbc; sma.SmaCodec runs the tables of this module.
-It also holds what the whole SMA family shares: ``sma_field`` (a little-endian field with
-the "not available" marker), the ASCII helpers and ``pad_unsent``.
+and the decisions. ``DIALECTS`` states each frame once, as sma.MESSAGES does the SMA ones
+(checked against msg_defs/sma.dbc by sma.check_dbc, run by sma.SmaCodec). Here too is what
+the whole family shares: ``Message``, ``sma_field``, the ASCII helpers and ``pad_unsent``.
 """
 from __future__ import annotations
 
@@ -22,14 +20,10 @@ PYLONTECH_KEEPALIVE_ID = 0x305  # inverter -> BMS, "every second", 8 zero bytes
 PYLONTECH_ALARMS_ID = 0x359
 PYLONTECH_REQUEST_ID = 0x35C
 # Victron
-VICTRON_BMS_NAME1_ID = 0x370
-VICTRON_BMS_NAME2_ID = 0x371
+VICTRON_BMS_NAME1_ID = 0x370  # part 2: 0x371
 VICTRON_MODULES_ID = 0x372
 VICTRON_CELL_EXTREMES_ID = 0x373
-VICTRON_MIN_VOLTAGE_CELL_ID = 0x374
-VICTRON_MAX_VOLTAGE_CELL_ID = 0x375
-VICTRON_MIN_TEMPERATURE_CELL_ID = 0x376
-VICTRON_MAX_TEMPERATURE_CELL_ID = 0x377
+VICTRON_MIN_VOLTAGE_CELL_ID = 0x374  # 0x374..0x377: the cell ids of CELL_ID_KINDS
 VICTRON_ENERGY_ID = 0x378
 VICTRON_INSTALLED_CAPACITY_ID = 0x379
 VICTRON_PRODUCT_NAME_ID = 0x382
@@ -176,7 +170,7 @@ def encode_ascii(field: str, text: str) -> bytes:
     return text.encode('ascii').ljust(8, b'\x00')
 
 
-# --- the wire layout of the dialects' frames (checked against msg_defs/sma.dbc by sma.py) ---
+# --- the dialects' frames, one row per ID (sma.SmaCodec runs them with the SMA frames') -------
 def sma_field(name: str, start: int, length: int = 16, scale: float = 1, signed: bool = False,
               unit: str = '', field: str = '', **rules: Any) -> Signal:
     """
@@ -190,66 +184,35 @@ def sma_field(name: str, start: int, length: int = 16, scale: float = 1, signed:
                   field=f'sma.{field}', invalid=marker, **rules)
 
 
-_TOO_HOT = 'cell temperature {value} K is above {high:g} K'
-DIALECT_LAYOUTS = {
-    PYLONTECH_ALARMS_ID: Layout('Pylontech_AlarmsWarnings', 8, tuple(
-        sma_field(f'{kind}_{dbc_name}', first + 8 * byte + bit, 1)
-        for kind, first in (('Alarm', 0), ('Warning', 16))
-        for _, dbc_name, byte, bit in PYLONTECH_CONDITIONS)
-        + (sma_field('ModuleCount', 32, 8),)),
-    PYLONTECH_REQUEST_ID: Layout('Pylontech_Request', 2, tuple(
-        Signal(name, bit, 1, LITTLE, field=f'sma.pylontech.{field.name}', flag=True)
-        for (name, bit), field in zip(PYLONTECH_REQUEST_BITS, fields(PylontechRequest)))),
-    VICTRON_BMS_NAME1_ID: Layout('Victron_BmsName1', 8, (sma_field('BmsName1', 0, 64),)),
-    VICTRON_BMS_NAME2_ID: Layout('Victron_BmsName2', 8, (sma_field('BmsName2', 0, 64),)),
-    VICTRON_MODULES_ID: Layout('Victron_Modules', 8, tuple(
-        sma_field(f'NumberOfModules{name}', 16 * k, field=f'victron.modules_{field}')
-        for k, (name, field) in enumerate((
-            ('Ok', 'ok'), ('BlockingCharge', 'blocking_charge'),
-            ('BlockingDischarge', 'blocking_discharge'), ('Offline', 'offline'))))),
-    VICTRON_CELL_EXTREMES_ID: Layout('Victron_CellExtremes', 8, (
-        sma_field('MinCellVoltage', 0, 16, 0.001, unit='V', field='victron.min_cell_v'),
-        sma_field('MaxCellVoltage', 16, 16, 0.001, unit='V', field='victron.max_cell_v'),
-        sma_field('LowestCellTemperature', 32, unit='K', field='victron.min_temperature_k',
-                  high=MAX_TEMPERATURE_K, check=_TOO_HOT),
-        sma_field('HighestCellTemperature', 48, unit='K', field='victron.max_temperature_k',
-                  high=MAX_TEMPERATURE_K, check=_TOO_HOT)), divide=True),
-    **{VICTRON_MIN_VOLTAGE_CELL_ID + k: Layout(f'Victron_{name}CellId', 8, (
-        sma_field(f'{name}CellId', 0, 64),)) for k, name in enumerate(
-            ('MinVoltage', 'MaxVoltage', 'MinTemperature', 'MaxTemperature'))},
-    VICTRON_ENERGY_ID: Layout('Victron_Energy', 8, (
-        sma_field('ChargedEnergy', 0, 32, 0.1, unit='kWh', field='victron.charged_kwh'),
-        sma_field('DischargedEnergy', 32, 32, 0.1, unit='kWh',
-                  field='victron.discharged_kwh')), divide=True),
-    VICTRON_INSTALLED_CAPACITY_ID: Layout('Victron_InstalledCapacity', 2, (
-        sma_field('InstalledCapacity', 0, unit='Ah', field='victron.installed_capacity_ah'),)),
-    VICTRON_PRODUCT_NAME_ID: Layout('Victron_ProductName', 8, (sma_field('ProductName', 0, 64),)),
-}
-DIALECT_IDS = frozenset(DIALECT_LAYOUTS)  # Pylontech's 0x359, 0x35C; Victron's 0x370..0x382
+@dataclass(frozen=True)
+class Message:
+    """
+    One frame of the SMA family: its reading, accepted DLCs (section 5.2) and bits.
+
+    By default the reading is decoded and built by code generated from the layout, a frame
+    cut short padded by pad_unsent first (pad=False: ``decode`` sees the DLC as sent).
+    ``text``: an ASCII frame, the reading's values before the text in ``lead``, errors
+    naming ``text``. ``decode`` / ``encode``: a rule a DBC cannot say.
+    """
+
+    reading: type
+    dlcs: tuple[int, ...]
+    layout: Layout
+    text: str = ''
+    lead: tuple = ()
+    decode: Callable[[bytes], Any] | None = None
+    encode: Callable[[Any], Frame] | None = None
+    pad: bool = True
 
 
-# --- how each frame is decoded and built (SmaCodec runs these tables) ------------------------
-# Frames of numbers, decoded and built by code generated from the table (a frame cut short
-# padded by pad_unsent): ID -> (reading, accepted DLCs).
-DIALECT_NUMBERS: dict[int, tuple[type, tuple[int, ...]]] = {
-    PYLONTECH_REQUEST_ID: (PylontechRequest, tuple(range(1, 9))),
-    VICTRON_MODULES_ID: (VictronModules, (2, 4, 6, 8)),  # odd: would split a count
-    VICTRON_CELL_EXTREMES_ID: (VictronCellExtremes, (8,)),
-    VICTRON_ENERGY_ID: (VictronEnergy, tuple(range(4, 9))),
-    VICTRON_INSTALLED_CAPACITY_ID: (VictronInstalledCapacity, tuple(range(2, 9))),
-}
-# Frames of ASCII text (DLC 1..8): ID -> (field name, reading, its values before the text).
-DIALECT_TEXTS: dict[int, tuple] = {
-    VICTRON_BMS_NAME1_ID: ('sma.victron.bms_name', VictronBmsName, 1),
-    VICTRON_BMS_NAME2_ID: ('sma.victron.bms_name', VictronBmsName, 2),
-    **{VICTRON_MIN_VOLTAGE_CELL_ID + k: ('sma.victron.cell_id', VictronCellId, kind)
-       for k, kind in enumerate(CELL_ID_KINDS)},
-    VICTRON_PRODUCT_NAME_ID: ('sma.victron.product_name', VictronProductName),
-}
+def ascii_message(field: str, reading: type, name: str, *lead: Any) -> Message:
+    """Return an ASCII frame of 1..8 bytes; name: the DBC message's (its signal's after '_')."""
+    return Message(reading, DLC_1_TO_8, Layout(name, 8, (sma_field(name.split('_')[1], 0, 64),)),
+                   field, lead)
 
 
 def _pylontech_alarms(data: bytes) -> PylontechAlarms:
-    *flags, count = _D_ALARMS(pad_unsent(data, DIALECT_LAYOUTS[PYLONTECH_ALARMS_ID]))
+    *flags, count = _D_ALARMS(pad_unsent(data, DIALECTS[PYLONTECH_ALARMS_ID].layout))
     return PylontechAlarms(
         frozenset(n for n, on in zip(PYLONTECH_CONDITION_NAMES, flags) if on),
         frozenset(n for n, on in zip(PYLONTECH_CONDITION_NAMES, flags[7:]) if on),
@@ -265,15 +228,73 @@ def _cell_extremes(data: bytes) -> VictronCellExtremes:
     return _D_EXTREMES(data)
 
 
-_D_ALARMS = DIALECT_LAYOUTS[PYLONTECH_ALARMS_ID].decoder()
-_D_RAW = DIALECT_LAYOUTS[VICTRON_CELL_EXTREMES_ID].decoder(raw=True)
-_D_EXTREMES = DIALECT_LAYOUTS[VICTRON_CELL_EXTREMES_ID].decoder(into=VictronCellExtremes)
-# Frames decoded by hand (rules a DBC cannot say): ID -> (accepted DLCs, decoder); the
-# decoder gets the frame as sent.
-DIALECT_DECODERS: dict[int, tuple[tuple[int, ...], Callable[[bytes], DialectReading]]] = {
-    PYLONTECH_ALARMS_ID: (tuple(range(4, 9)), _pylontech_alarms),
-    VICTRON_CELL_EXTREMES_ID: ((8,), _cell_extremes),
+def encode_pylontech_alarms(message: PylontechAlarms) -> Frame:
+    """0x359: the active conditions' bits, then the module count (DLC 4 if None)."""
+    for kind in ('alarms', 'warnings'):
+        unknown = set(getattr(message, kind)) - set(PYLONTECH_CONDITION_NAMES)
+        if unknown:
+            raise EncodeRangeError(f'sma.pylontech.{kind}', sorted(unknown),
+                                   'condition names ' + ', '.join(PYLONTECH_CONDITION_NAMES))
+    count = message.module_count
+    if count is not None:
+        count = check_value('sma.pylontech.module_count', count, 0, 255, integer=True)
+    data = _E_ALARMS(*(int(name in names) for names in (message.alarms, message.warnings)
+                       for name in PYLONTECH_CONDITION_NAMES), count or 0)
+    return Frame(PYLONTECH_ALARMS_ID, data if count is not None else data[:4])
+
+
+DLC_1_TO_8 = tuple(range(1, 9))
+_TOO_HOT = 'cell temperature {value} K is above {high:g} K'
+DIALECTS = {
+    # decoded from the frame as sent: DLC 4 says the module count is not sent
+    PYLONTECH_ALARMS_ID: Message(PylontechAlarms, tuple(range(4, 9)), Layout(
+        'Pylontech_AlarmsWarnings', 8, tuple(
+            sma_field(f'{kind}_{dbc_name}', first + 8 * byte + bit, 1)
+            for kind, first in (('Alarm', 0), ('Warning', 16))
+            for _, dbc_name, byte, bit in PYLONTECH_CONDITIONS)
+        + (sma_field('ModuleCount', 32, 8),)),
+        decode=_pylontech_alarms, encode=encode_pylontech_alarms, pad=False),
+    PYLONTECH_REQUEST_ID: Message(PylontechRequest, DLC_1_TO_8, Layout(
+        'Pylontech_Request', 2, tuple(
+            Signal(name, bit, 1, LITTLE, field=f'sma.pylontech.{field.name}', flag=True)
+            for (name, bit), field in zip(PYLONTECH_REQUEST_BITS, fields(PylontechRequest))))),
+    **{VICTRON_BMS_NAME1_ID + part - 1: ascii_message(
+        'sma.victron.bms_name', VictronBmsName, f'Victron_BmsName{part}', part)
+       for part in (1, 2)},
+    # odd DLCs would split a count
+    VICTRON_MODULES_ID: Message(VictronModules, (2, 4, 6, 8), Layout('Victron_Modules', 8, tuple(
+        sma_field(f'NumberOfModules{name}', 16 * k, field=f'victron.modules_{field}')
+        for k, (name, field) in enumerate((
+            ('Ok', 'ok'), ('BlockingCharge', 'blocking_charge'),
+            ('BlockingDischarge', 'blocking_discharge'), ('Offline', 'offline')))))),
+    VICTRON_CELL_EXTREMES_ID: Message(VictronCellExtremes, (8,), Layout(
+        'Victron_CellExtremes', 8, (
+            sma_field('MinCellVoltage', 0, 16, 0.001, unit='V', field='victron.min_cell_v'),
+            sma_field('MaxCellVoltage', 16, 16, 0.001, unit='V', field='victron.max_cell_v'),
+            sma_field('LowestCellTemperature', 32, unit='K', field='victron.min_temperature_k',
+                      high=MAX_TEMPERATURE_K, check=_TOO_HOT),
+            sma_field('HighestCellTemperature', 48, unit='K', field='victron.max_temperature_k',
+                      high=MAX_TEMPERATURE_K, check=_TOO_HOT)), divide=True),
+        decode=_cell_extremes),
+    **{VICTRON_MIN_VOLTAGE_CELL_ID + k: ascii_message(
+        'sma.victron.cell_id', VictronCellId, f'Victron_{name}CellId', kind)
+       for k, (name, kind) in enumerate(zip(
+           ('MinVoltage', 'MaxVoltage', 'MinTemperature', 'MaxTemperature'), CELL_ID_KINDS))},
+    VICTRON_ENERGY_ID: Message(VictronEnergy, tuple(range(4, 9)), Layout('Victron_Energy', 8, (
+        sma_field('ChargedEnergy', 0, 32, 0.1, unit='kWh', field='victron.charged_kwh'),
+        sma_field('DischargedEnergy', 32, 32, 0.1, unit='kWh',
+                  field='victron.discharged_kwh')), divide=True)),
+    VICTRON_INSTALLED_CAPACITY_ID: Message(VictronInstalledCapacity, tuple(range(2, 9)), Layout(
+        'Victron_InstalledCapacity', 2, (sma_field(
+            'InstalledCapacity', 0, unit='Ah', field='victron.installed_capacity_ah'),))),
+    VICTRON_PRODUCT_NAME_ID: ascii_message('sma.victron.product_name', VictronProductName,
+                                           'Victron_ProductName'),
 }
+DIALECT_IDS = frozenset(DIALECTS)  # Pylontech's 0x359, 0x35C; Victron's 0x370..0x382
+_D_ALARMS = DIALECTS[PYLONTECH_ALARMS_ID].layout.decoder()
+_E_ALARMS = DIALECTS[PYLONTECH_ALARMS_ID].layout.encoder()  # alarms, warnings, module count
+_D_RAW = DIALECTS[VICTRON_CELL_EXTREMES_ID].layout.decoder(raw=True)
+_D_EXTREMES = DIALECTS[VICTRON_CELL_EXTREMES_ID].layout.decoder(into=VictronCellExtremes)
 
 
 def pad_unsent(data: bytes, layout: Layout) -> bytes:
@@ -297,21 +318,3 @@ def pad_unsent(data: bytes, layout: Layout) -> bytes:
 def keepalive_frame() -> Frame:
     """Build the inverter's keep-alive 0x305: eight zero bytes (Pylontech CAN protocol)."""
     return Frame(PYLONTECH_KEEPALIVE_ID, bytes(8))
-
-
-def encode_pylontech_alarms(message: PylontechAlarms) -> Frame:
-    """0x359: the active conditions' bits, then the module count (DLC 4 if None)."""
-    for kind in ('alarms', 'warnings'):
-        unknown = set(getattr(message, kind)) - set(PYLONTECH_CONDITION_NAMES)
-        if unknown:
-            raise EncodeRangeError(f'sma.pylontech.{kind}', sorted(unknown),
-                                   'condition names ' + ', '.join(PYLONTECH_CONDITION_NAMES))
-    count = message.module_count
-    if count is not None:
-        count = check_value('sma.pylontech.module_count', count, 0, 255, integer=True)
-    data = _E_ALARMS(*(int(name in names) for names in (message.alarms, message.warnings)
-                       for name in PYLONTECH_CONDITION_NAMES), count or 0)
-    return Frame(PYLONTECH_ALARMS_ID, data if count is not None else data[:4])
-
-
-_E_ALARMS = DIALECT_LAYOUTS[PYLONTECH_ALARMS_ID].encoder()  # alarms, warnings, module count
