@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import enum
 import functools
-from dataclasses import dataclass
-from typing import Union
+from dataclasses import astuple, dataclass
+from typing import Callable, Union
 
 from ams_can_bridge.errors import EncodeRangeError, MalformedFrameError
 from ams_can_bridge.protocols.common import check_dlc, ConfigField, Frame, load_dbc
@@ -181,14 +181,37 @@ LAYOUTS: tuple[Layout, ...] = (  # by offset from base_id; divide: 523 -> 52.3 V
     Layout('BMS16_PowerOff', 0, ()),
 )
 _DLC = tuple(layout.length for layout in LAYOUTS)
-_STATUS = LAYOUTS[STATUS].decoder(into=Bms16Status)
-_E_STATUS = LAYOUTS[STATUS].encoder(exact=False)  # telemetry: rounded to the resolution
-_D_CELLS = tuple(layout.decoder() for layout in LAYOUTS[CELLS_1:CELLS_3 + 1])
-_NINTH = tuple(tuple(256 * (bits >> k & 1) for k in range(8)) for bits in range(256))
-# The readings sent as a whole frame: configuration parts and the commands without data
-_OFFSET = {Bms16ConfigPart1: CONFIG_1, Bms16ConfigPart2: CONFIG_2, AcknowledgeError: ACK_ERROR,
-           ResetSoc: RESET_SOC, PowerOff: POWER_OFF}
+# The readings sent as a whole frame, by offset from base_id (a cell frame is one of three)
+_OFFSET = {Bms16Status: STATUS, Bms16ConfigPart1: CONFIG_1, Bms16ConfigPart2: CONFIG_2,
+           AcknowledgeError: ACK_ERROR, ResetSoc: RESET_SOC, PowerOff: POWER_OFF}
 _CLASS = {offset: cls for cls, offset in _OFFSET.items()}
+_COMMANDS = (ACK_ERROR, RESET_SOC, POWER_OFF)  # DLC 0
+# Status and commands: their rows in the reading's order, one generated call each way;
+# telemetry (the simulator's status) is rounded to the resolution.
+_ENCODE = {offset: LAYOUTS[offset].encoder(exact=False) for offset in (STATUS, *_COMMANDS)}
+_D_CELLS = tuple(layout.decoder() for layout in LAYOUTS[CELLS_1:CELLS_3 + 1])
+_E_CELLS = tuple(layout.encoder() for layout in LAYOUTS[CELLS_1:CELLS_3 + 1])
+_NINTH = tuple(tuple(256 * (bits >> k & 1) for k in range(8)) for bits in range(256))
+
+
+def _cells(index: int, data: bytes) -> Bms16Cells:
+    """Return cell frame index (0..2); the 9th bit of cell k is bit k of NinthBits."""
+    *lows, ninth = _D_CELLS[index](data)  # a split the DBC cannot describe
+    return Bms16Cells(CELL_FRAME_FIRST[index], tuple(
+        [(low + high) / 100 for low, high in zip(lows, _NINTH[ninth])]))
+
+
+def _config(k: int, data: bytes) -> Bms16Reading:
+    """Return configuration part k + 1; a byte outside the BMS16's range is a BadValue."""
+    return _CLASS[CONFIG_1 + k](**SETTINGS.decode(k, data, BadValue))
+
+
+# data -> reading by offset; a refused value raises BadValue (the codec names the frame)
+_DECODE: tuple[Callable[[bytes], Bms16Reading], ...] = (
+    LAYOUTS[STATUS].decoder(into=Bms16Status),  # the error code and SoC are checked there
+    *(functools.partial(_cells, index) for index in range(3)),
+    *(functools.partial(_config, k) for k in range(2)),
+    *(LAYOUTS[offset].decoder(into=_CLASS[offset]) for offset in _COMMANDS))
 
 
 @functools.cache
@@ -212,9 +235,6 @@ class Bms16Codec:
         check_dbc()
         self.base_id = base_id
         self.arbitration_ids = frozenset(range(base_id, base_id + ID_COUNT))
-        self._decoders = (self._status, self._cells, self._cells, self._cells,
-                          self._config, self._config, self._command, self._command,
-                          self._command)
 
     # --- decode ---------------------------------------------------------------------
     def decode(self, arbitration_id: int, data: bytes) -> Bms16Reading:
@@ -224,32 +244,10 @@ class Bms16Codec:
             raise MalformedFrameError(arbitration_id, data, 'not a BMS16 ID')
         if len(data) != _DLC[offset]:
             check_dlc(arbitration_id, data, _DLC[offset])
-        return self._decoders[offset](arbitration_id, offset, data)
-
-    @staticmethod
-    def _status(arbitration_id: int, offset: int, data: bytes) -> Bms16Status:
-        try:  # the reading in one generated call; the error code and SoC are checked there
-            return _STATUS(data)
+        try:
+            return _DECODE[offset](data)
         except BadValue as exc:
             raise MalformedFrameError(arbitration_id, data, str(exc)) from None
-
-    @staticmethod
-    def _cells(arbitration_id: int, offset: int, data: bytes) -> Bms16Cells:
-        index = offset - CELLS_1
-        *lows, ninth = _D_CELLS[index](data)
-        # The 9th bit of cell k is bit k of NinthBits (a split the DBC cannot describe).
-        return Bms16Cells(CELL_FRAME_FIRST[index], tuple(
-            [(low + high) / 100 for low, high in zip(lows, _NINTH[ninth])]))
-
-    @staticmethod
-    def _config(arbitration_id: int, offset: int, data: bytes) -> Bms16Reading:
-        values = SETTINGS.decode(offset - CONFIG_1, data,
-                                 lambda why: MalformedFrameError(arbitration_id, data, why))
-        return _CLASS[offset](**values)
-
-    @staticmethod
-    def _command(arbitration_id: int, offset: int, data: bytes) -> Bms16Reading:
-        return _CLASS[offset]()
 
     # --- encode ---------------------------------------------------------------------
     def frame(self, offset: int, data: bytes) -> Frame:
@@ -258,10 +256,6 @@ class Bms16Codec:
 
     def encode(self, message: Bms16Reading) -> Frame:
         """Encode any BMS16 message; EncodeRangeError for a value the wire cannot carry."""
-        if isinstance(message, Bms16Status):
-            return self.frame(STATUS, _E_STATUS(
-                message.error, message.soc_pct, message.voltage_v, message.current_a,
-                message.temperature_c))
         if isinstance(message, Bms16Cells):
             return self._encode_cells(message)
         offset = _OFFSET.get(type(message))
@@ -269,7 +263,7 @@ class Bms16Codec:
             raise EncodeRangeError('message', message, 'a BMS16 message')
         if offset in (CONFIG_1, CONFIG_2):  # each value checked
             return self.frame(offset, SETTINGS.payload(offset - CONFIG_1, message))
-        return self.frame(offset, b'')  # a command without data
+        return self.frame(offset, _ENCODE[offset](*astuple(message)))
 
     def config_frames(self, config: Bms16Config) -> list[Frame]:
         """Build the two configuration frames [base + 4, base + 5] (EncodeRangeError first)."""
@@ -283,10 +277,7 @@ class Bms16Codec:
         if len(cells.voltages_v) != count:
             raise EncodeRangeError(f'cells[{cells.first_cell}:].count',
                                    len(cells.voltages_v), f'exactly {count} voltages')
-        data = bytearray(7)
-        for k, volts in enumerate(cells.voltages_v):
-            raw = round(check_value(f'cell{cells.first_cell + k + 1}_v', volts, 0, 5.11,
-                                    unit='V') * 100)
-            data[k] = raw & 0xFF
-            data[6] |= (raw >> 8) << k
-        return self.frame(CELLS_1 + index, bytes(data))
+        raws = [round(check_value(f'cell{cells.first_cell + k + 1}_v', volts, 0, 5.11,
+                                  unit='V') * 100) for k, volts in enumerate(cells.voltages_v)]
+        ninth = sum((raw >> 8) << k for k, raw in enumerate(raws))  # as decoded above
+        return self.frame(CELLS_1 + index, _E_CELLS[index](*(raw & 0xFF for raw in raws), ninth))
