@@ -202,9 +202,9 @@ _GENERATED = {STATUS: (Evms3Status, 'EVMS3_Status'),
 _LAYOUT_OF = {cls: (offset, name) for offset, (cls, name) in _GENERATED.items()}
 
 
-def _generated(layout: Layout, into: type) -> Callable[[int, bytes], Any]:
-    """Return decode(aid, data) of a reading one layout states: DLC, values, checks."""
-    decode, length = layout.decoder(into=into), layout.length
+def generated(layout: Layout, into: Callable, *names: str) -> Callable[[int, bytes], Any]:
+    """Return decode(aid, data) of a reading one layout states: its DLC, values and checks."""
+    decode, length = layout.decoder(*names, into=into), layout.length
 
     def run(aid: int, data: bytes) -> Any:
         if len(data) != length:
@@ -214,6 +214,12 @@ def _generated(layout: Layout, into: type) -> Callable[[int, bytes], Any]:
         except BadValue as exc:
             raise MalformedFrameError(aid, data, str(exc)) from None
     return run
+
+
+def payload(msg: Any) -> tuple[int, bytes]:
+    """Return (offset, data) of a reading of _GENERATED, each value checked by its row."""
+    offset, name = _LAYOUT_OF[type(msg)]
+    return offset, _ENCODERS[name](*astuple(msg))
 
 
 # --- the codec -------------------------------------------------------------------------------
@@ -258,7 +264,7 @@ class Evms3Codec:
         self.frame_ids = frozenset({(i, self.is_extended_id) for i in own | set(self._bms12)}
                                    | {(i, True) for i in CHARGER_IDS})
         b = base_id
-        self._decoders = {b + offset: _generated(LAYOUTS[name], cls)
+        self._decoders = {b + offset: generated(LAYOUTS[name], cls)
                           for offset, (cls, name) in _GENERATED.items()}
         self._decoders.update({
             b + SET_STATE: self._decode_set_state,
@@ -317,10 +323,8 @@ class Evms3Codec:
 
     def encode(self, msg: Any) -> Frame:
         """Reading/command -> Frame; EncodeRangeError names the field and allowed range."""
-        generated = _LAYOUT_OF.get(type(msg))
-        if generated is not None:  # each value checked by the layout encoder
-            offset, name = generated
-            return self._frame(offset, _ENCODERS[name](*astuple(msg)))
+        if type(msg) in _LAYOUT_OF:
+            return self._frame(*payload(msg))
         if isinstance(msg, SetState):
             if msg.request is not None:  # the Monitor's gauge edit (DLC 2)
                 return self._frame(SET_STATE, bytes([
