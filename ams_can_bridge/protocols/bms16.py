@@ -1,13 +1,10 @@
 """
 ZEVA BMS16, 11-bit / 500 kbit/s inverter form: frames <-> typed readings.
 
-docs/protocols.md section 4 holds the frames, the codes, their source and the decisions
-(unused cell bits ignored; an unknown code or a configuration byte out of range malformed;
-values refused, never clamped). The bits are ``LAYOUTS``, checked against msg_defs/bms16.dbc
-at the first codec; the configuration rows carry each setting's range, step, unit and
-description (protocols/settings.py). The module adds the 9th bits of the cells. Telemetry
-encoders (the simulator's) round to the wire resolution. The SMA frames a BMS16 also sends
-are ``protocols.sma``'s.
+docs/protocols.md section 4 holds the frames, codes, source and decisions. The bits are
+``LAYOUTS``, checked against msg_defs/bms16.dbc at the first codec; the configuration rows
+carry each setting's range, step, unit and description (protocols/settings.py); this module
+adds the 9th bits of the cells. The SMA frames a BMS16 also sends are ``protocols.sma``'s.
 """
 from __future__ import annotations
 

@@ -1,11 +1,9 @@
 """
 ZEVA BMS16 in its standard form: the EVMS3 protocol, 29-bit, 250 kbit/s.
 
-docs/protocols.md section 6 holds which frames and setting slots a BMS16 fills, the marker
-that tells it from an EVMS3, the order of a write and their sources (ZEVA's BMS16v2 document
-and EVMS Monitor firmware). The frames are the EVMS3's (``protocols.evms3``, whose codec
-reads the cell frames and ID 40 here); the settings are the EVMS3's rows under BMS16 names,
-plus the slots a BMS16 reassigns. The status is read here: its bytes 5 and 6 differ.
+docs/protocols.md section 6 holds the frames and setting slots a BMS16 fills, its marker, the
+order of a write and their sources. The frames are the EVMS3's (``protocols.evms3``); the
+settings are the EVMS3's rows under BMS16 names, plus the slots a BMS16 reassigns.
 """
 from __future__ import annotations
 

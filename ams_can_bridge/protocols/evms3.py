@@ -1,14 +1,10 @@
 """
 ZEVA EVMS3 and its BMS12 cell modules: 29-bit frames <-> typed readings and commands.
 
-docs/protocols.md section 3 holds the frames (IDs ``base_id + 0..11``, the fixed read-back
-51..56, BMS12 ``300 + 10 m + t``), the codes, their sources and the decisions (a Monitor's
-ID 31 and 52 traffic is never malformed; the BMS16 marker). This codec owns every ID on the
-bus: the BMS12 frames (``protocols.bms12``), the TC chargers (``protocols.tc_charger``,
-always 29-bit) and the configuration (``protocols.evms3_config``, whose names are importable
-from here too). The bits are ``LAYOUTS``, checked with the others against msg_defs/evms3.dbc
-at the first codec; decoders and encoders are generated from them (a few microseconds a
-frame, no cantools).
+docs/protocols.md section 3 holds the frames, codes, sources and decisions. This codec owns
+every ID on the bus: the BMS12 frames (``protocols.bms12``), the TC chargers
+(``protocols.tc_charger``) and the configuration (``protocols.evms3_config``, re-exported
+here). The bits are ``LAYOUTS``, checked with the others against msg_defs/evms3.dbc.
 """
 from __future__ import annotations
 
