@@ -105,20 +105,16 @@ _ENCODERS = {name: layout.encoder() for name, layout in LAYOUTS.items()}
 def check_dbc() -> None:
     """Raise LayoutError unless msg_defs/evms3.dbc has the bits of LAYOUTS."""
     db = load_dbc('evms3')
-    for name, layout in {**LAYOUTS, **bms12.LAYOUTS}.items():
+    # the configuration is sent on 32..36 and read back on 52..56 in the same layout
+    readback = [f'EVMS3_SendConfig{k}' for k in range(1, 5)] + ['EVMS3_SendCellNumbers']
+    for name, layout in [*LAYOUTS.items(), *bms12.LAYOUTS.items(), *zip(readback, CONFIG_LAYOUTS),
+                         *((layout.name, layout) for layout in CONFIG_LAYOUTS)]:
         layout.check_dbc(db.get_message_by_name(name), 'msg_defs/evms3.dbc', 'EVMS3')
     for n in range(1, 4):  # the TC chargers 1..3 the EVMS drives: one layout each way
         for kind in ('Command', 'Status'):
             TC_LAYOUTS[f'TC_Charger1_{kind}'].check_dbc(
                 db.get_message_by_name(f'TC_Charger{n}_{kind}'), 'msg_defs/evms3.dbc',
                 'TC charger')
-    # the configuration, sent on 32..36 and read back on 52..56 in the same layout
-    pairs = [(f'EVMS3_Config{k}', f'EVMS3_SendConfig{k}') for k in range(1, 5)] + [
-        ('EVMS3_BmsCellNumbers', 'EVMS3_SendCellNumbers')]
-    for layout, names in zip(CONFIG_LAYOUTS, pairs):
-        for name in names:
-            layout.check_dbc(db.get_message_by_name(name), 'msg_defs/evms3.dbc',
-                             'EVMS3 configuration')
 
 
 # --- readings and commands ------------------------------------------------------------------
