@@ -19,8 +19,7 @@ from ams_can_bridge.protocols.evms3 import (
     AcknowledgeError, BatteryCurrent, Bms12Cells, BMS16_MARKER, CELL_NUMBERS, CONFIG1,
     Evms3Codec, Evms3Error, Evms3State, generated, LAYOUTS, payload, PowerOff, ResetSoc, STATUS)
 from ams_can_bridge.protocols.evms3_config import (
-    balance_byte, BALANCE_FIELDS, BALANCE_NAMES, BALANCE_ROW, balance_values, check_balance,
-    CONFIG_LAYOUTS)
+    balance_byte, BALANCE_FIELDS, BALANCE_ROW, balance_values, check_setting, CONFIG_LAYOUTS)
 from ams_can_bridge.protocols.layout import Layout, Signal
 from ams_can_bridge.protocols.settings import setting, Settings
 
@@ -128,9 +127,7 @@ CONFIG_FIELD = {f.name: f for f in CONFIG_FIELDS}
 
 def check_config_value(name: str, value: Any) -> Any:
     """Validate one value (physical units) and return it normalized; EncodeRangeError if not."""
-    if name in BALANCE_NAMES:
-        return check_balance(name, value)
-    return SETTINGS.check(name, value)
+    return check_setting(SETTINGS, name, value)
 
 
 def config_from_mapping(values: Mapping[str, Any]) -> Bms16StdConfig:

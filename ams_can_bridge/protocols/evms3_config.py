@@ -181,6 +181,11 @@ BALANCE_FIELDS = (
 BALANCE_NAMES = ('balance_v', 'balance_mode')
 
 
+def check_setting(settings: Settings, name: str, value: Any) -> Any:
+    """Validate one value of settings or of the balance byte; return it normalized."""
+    return check_balance(name, value) if name in BALANCE_NAMES else settings.check(name, value)
+
+
 def check_balance(name: str, value: Any) -> Any:
     """Validate balance_mode (a choice) or balance_v (a voltage); EncodeRangeError if not."""
     if name == 'balance_mode':
@@ -323,9 +328,7 @@ def check_config_value(name: str, value: Any, multiplier: int = 1) -> Any:
         return cells
     if name in _CHARGE:
         return int(check_value(name, value, 0, 511 * multiplier, multiplier, 'V'))
-    if name in BALANCE_NAMES:
-        return check_balance(name, value)
-    return _SETTINGS[multiplier].check(name, value)
+    return check_setting(_SETTINGS[multiplier], name, value)
 
 
 def config_payloads(cfg: Evms3Config, multiplier: int = 1) -> list[bytes]:
