@@ -18,7 +18,7 @@ from ams_can_bridge.protocols.common import check_dlc, Frame, load_dbc
 from ams_can_bridge.protocols.evms3_config import (  # noqa: F401 (some re-exported)
     BMS12_MAX_MODULES, BmsCellNumbers, cell_numbers_payload, check_config_value, CONFIG_FIELDS,
     CONFIG_FILLER, CONFIG_LAYOUTS, config_payloads, ConfigReadback, ConfigReport,
-    CORE_REQUEST_CONFIG, CORE_SEND_CELL_NUMS, CORE_SEND_CONFIG1, decode_cell_numbers,
+    CORE_REQUEST_CONFIG, CORE_SEND_CELL_NUMS, decode_cell_numbers,
     decode_config_packet, decode_report, Evms3Config, Evms3ConfigPart, OtherTraffic,
     READBACK_IDS, READBACK_NAMES)
 from ams_can_bridge.protocols import bms12
@@ -307,11 +307,9 @@ class Evms3Codec:
                 for i, p in enumerate(config_payloads(cfg, self.voltage_multiplier))]
 
     def report_frames(self, cfg: Evms3Config, cells_per_module: Sequence[int]) -> list[Frame]:
-        """Build the EVMS's answer to ID 51: IDs 52..55 (config) and 56 (cell numbers)."""
-        frames = [Frame(CORE_SEND_CONFIG1 + i, bytes(p), self.is_extended_id)
-                  for i, p in enumerate(config_payloads(cfg, self.voltage_multiplier))]
-        cells = self.encode(BmsCellNumbers(tuple(cells_per_module)))
-        return frames + [Frame(CORE_SEND_CELL_NUMS, cells.data, self.is_extended_id)]
+        """Build the EVMS's answer to ID 51: the frames of 32..36 at the fixed IDs 52..56."""
+        frames = self.config_frames(cfg) + [self.encode(BmsCellNumbers(tuple(cells_per_module)))]
+        return [frame._replace(arbitration_id=aid) for aid, frame in zip(READBACK_IDS, frames)]
 
     def encode(self, msg: Any) -> Frame:
         """Reading/command -> Frame; EncodeRangeError names the field and allowed range."""
