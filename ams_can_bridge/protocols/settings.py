@@ -110,7 +110,8 @@ class Settings:
 
     def raw(self, name: str, value: Any) -> int:
         """Return the wire value of one setting (checked: EncodeRangeError)."""
-        s, value = self.rows[name], self.check(name, value)
+        s = self.rows[name]
+        value = self.check(name, value)
         if s.lookup is not None:
             return s.lookup.index(value)
         return int(value) if s.flag else round((value - s.offset) / s.scale)
