@@ -43,7 +43,6 @@ class Bms16Error(enum.IntEnum):
 
 # The vehicle may go on with these; every other non-zero code is an error.
 BMS16_WARNINGS = frozenset({Bms16Error.LOW_SOC, Bms16Error.OVERCURRENT_WARNING})
-_ERRORS = tuple(Bms16Error)
 
 
 @dataclass(frozen=True)
@@ -161,7 +160,7 @@ check_config_value = SETTINGS.check  # one value -> normalized (EncodeRangeError
 
 LAYOUTS: tuple[Layout, ...] = (  # by offset from base_id; divide: 523 -> 52.3 V exactly
     Layout('BMS16_Status', 7, (
-        Signal('Error', 0, 8, LITTLE, field='error', lookup=_ERRORS,
+        Signal('Error', 0, 8, LITTLE, field='error', lookup=tuple(Bms16Error),
                check='error code {value}, known codes are {low}..{high}'),
         Signal('SoC', 8, 8, LITTLE, high=100, unit='%', field='soc_pct',
                check='SoC {value} %, above 100 %'),

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import enum
 import functools
-from dataclasses import astuple, dataclass
+from dataclasses import astuple, dataclass, replace
 from typing import Any, Callable, Sequence
 
 from ams_can_bridge.errors import ConfigError, EncodeRangeError, MalformedFrameError
@@ -68,7 +68,8 @@ class Evms3Error(enum.IntEnum):
 
 
 EVMS3_WARNINGS = frozenset({2, 4, 6, 10})
-_ERRORS = tuple(Evms3Error)
+_ERROR_CODE = Signal('ErrorCode', 3, 5, LITTLE, field='error', lookup=tuple(Evms3Error),
+                     check='unknown error code {value} ({low}..{high})')
 
 
 # --- the wire layout: one table, checked against msg_defs/evms3.dbc --------------------------
@@ -78,8 +79,7 @@ LAYOUTS = {
     'EVMS3_Status': Layout('EVMS3_Status', 8, (
         Signal('State', 0, 3, LITTLE, field='state', lookup=tuple(Evms3State),
                check='unknown state {value} ({low}..{high})'),
-        Signal('ErrorCode', 3, 5, LITTLE, field='error', lookup=_ERRORS,
-               check='unknown error code {value} ({low}..{high})'),
+        _ERROR_CODE,
         Signal('AmpHoursRemaining', 15, 16, scale=0.1, unit='Ah', field='amp_hours_ah'),
         Signal('BatteryVoltage', 31, 16, scale=0.1, unit='V', field='pack_voltage_v'),
         Signal('AuxVoltage', 40, 8, LITTLE, scale=0.1, unit='V', field='aux_voltage_v'),
@@ -90,8 +90,7 @@ LAYOUTS = {
                invalid=0)),  # raw 0: no sensor
         divide=True),
     'EVMS3_AcknowledgeError': Layout('EVMS3_AcknowledgeError', 1, (
-        Signal('ErrorCode', 0, 8, LITTLE, field='error', lookup=_ERRORS,
-               check='unknown error code {value} ({low}..{high})'),)),
+        replace(_ERROR_CODE, start=0, length=8),)),  # the same codes, a whole byte
     'EVMS3_BatteryCurrent': Layout('EVMS3_BatteryCurrent', 3, (
         Signal('BatteryCurrent', 7, 24, scale=0.001, offset=-8388.608, unit='A',
                field='current_a'),), divide=True),
