@@ -113,9 +113,10 @@ Bms16Reading = Union[Bms16Status, Bms16Cells, Bms16ConfigPart1, Bms16ConfigPart2
 
 
 # --- the wire layout: one table, checked against msg_defs/bms16.dbc --------------------------
-def _cell_frame(first: int, count: int) -> tuple[Signal, ...]:
-    return tuple(Signal(f'Cell{first + k + 1}_Low', 8 * k, 8, LITTLE) for k in range(count)) + (
-        Signal('NinthBits', 48, 8, LITTLE),)
+def _cell_frame(first: int, count: int) -> Layout:
+    return Layout(f'BMS16_Cells_{first + 1}_{first + count}', 7, tuple(
+        Signal(f'Cell{first + k + 1}_Low', 8 * k, 8, LITTLE) for k in range(count)) + (
+        Signal('NinthBits', 48, 8, LITTLE),))
 
 
 # The configuration frames: each byte a setting, with the range and step the BMS16 accepts
@@ -168,13 +169,9 @@ LAYOUTS: tuple[Layout, ...] = (  # by offset from base_id; divide: 523 -> 52.3 V
         Signal('Current', 32, 16, LITTLE, scale=0.1, offset=-3276.8, unit='A',
                field='current_a'),
         Signal('Temperature', 48, 8, LITTLE, unit='degC', field='temperature_c')), divide=True),
-    Layout('BMS16_Cells_1_6', 7, _cell_frame(0, 6)),
-    Layout('BMS16_Cells_7_12', 7, _cell_frame(6, 6)),
-    Layout('BMS16_Cells_13_16', 7, _cell_frame(12, 4)),
+    *map(_cell_frame, CELL_FRAME_FIRST, CELL_FRAME_COUNT),
     _CONFIG_1, _CONFIG_2,
-    Layout('BMS16_AcknowledgeError', 0, ()),
-    Layout('BMS16_ResetSoc', 0, ()),
-    Layout('BMS16_PowerOff', 0, ()),
+    *(Layout(f'BMS16_{name}', 0, ()) for name in ('AcknowledgeError', 'ResetSoc', 'PowerOff')),
 )
 _DLC = tuple(layout.length for layout in LAYOUTS)
 # The readings sent as a whole frame, by offset from base_id (a cell frame is one of three)
