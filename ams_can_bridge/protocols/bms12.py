@@ -61,11 +61,11 @@ LAYOUTS = {
                field=f'temperatures_c[{k}]', invalid=0) for k in range(2)), divide=True),
 }
 _D_REQUEST = LAYOUTS['BMS12_M0_Request'].decoder(raw=True)  # the firmware's mV
-_D_CELLS = LAYOUTS['BMS12_M0_Cells1to4'].decoder()  # the same bits for the three frames
 _E_CELLS = LAYOUTS['BMS12_M0_Cells1to4'].encoder()
 _D_TEMPS = LAYOUTS['BMS12_M0_Temperatures'].decoder()
 _E_TEMPS = LAYOUTS['BMS12_M0_Temperatures'].encoder()
-# The bulk of an EVMS3 bus: a cell frame in one generated call (module, first cell, values)
+# The bulk of an EVMS3 bus: a cell frame in one generated call (module, first cell, values);
+# the same bits for the three frames
 decode_cells = LAYOUTS['BMS12_M0_Cells1to4'].decoder(into=Bms12Cells, pack=2)
 
 
@@ -81,7 +81,7 @@ def decode(aid: int, data: bytes, module: int, t: int) -> Any:
         return Bms12Temperatures(module, _D_TEMPS(data))
     if len(data) != 8:
         check_dlc(aid, data, 8)
-    return Bms12Cells(module, 4 * (t - 1), _D_CELLS(data))
+    return decode_cells(data, module, 4 * (t - 1))
 
 
 def encode(msg: Bms12Request | Bms12Cells | Bms12Temperatures, base_id: int,

@@ -1,20 +1,17 @@
 """
 ZEVA BMS16, 11-bit / 500 kbit/s inverter form: frames <-> typed readings.
 
-docs/protocols.md section 4 holds the frames, the codes, their source and the decisions
-(unused cell bits ignored; an unknown code or a configuration byte out of range malformed;
-values refused, never clamped). The bits are ``LAYOUTS``, checked against msg_defs/bms16.dbc
-at the first codec; the configuration rows carry each setting's range, step, unit and
-description (protocols/settings.py). The module adds the 9th bits of the cells. Telemetry
-encoders (the simulator's) round to the wire resolution. The SMA frames a BMS16 also sends
-are ``protocols.sma``'s.
+docs/protocols.md section 4 holds the frames, codes, source and decisions. The bits are
+``LAYOUTS``, checked against msg_defs/bms16.dbc at the first codec; the configuration rows
+carry each setting's range, step, unit and description (protocols/settings.py); this module
+adds the 9th bits of the cells. The SMA frames a BMS16 also sends are ``protocols.sma``'s.
 """
 from __future__ import annotations
 
 import enum
 import functools
-from dataclasses import dataclass
-from typing import Union
+from dataclasses import astuple, dataclass
+from typing import Callable, Union
 
 from ams_can_bridge.errors import EncodeRangeError, MalformedFrameError
 from ams_can_bridge.protocols.common import check_dlc, ConfigField, Frame, load_dbc
@@ -46,7 +43,6 @@ class Bms16Error(enum.IntEnum):
 
 # The vehicle may go on with these; every other non-zero code is an error.
 BMS16_WARNINGS = frozenset({Bms16Error.LOW_SOC, Bms16Error.OVERCURRENT_WARNING})
-_ERRORS = tuple(Bms16Error)
 
 
 @dataclass(frozen=True)
@@ -117,9 +113,10 @@ Bms16Reading = Union[Bms16Status, Bms16Cells, Bms16ConfigPart1, Bms16ConfigPart2
 
 
 # --- the wire layout: one table, checked against msg_defs/bms16.dbc --------------------------
-def _cell_frame(first: int, count: int) -> tuple[Signal, ...]:
-    return tuple(Signal(f'Cell{first + k + 1}_Low', 8 * k, 8, LITTLE) for k in range(count)) + (
-        Signal('NinthBits', 48, 8, LITTLE),)
+def _cell_frame(first: int, count: int) -> Layout:
+    return Layout(f'BMS16_Cells_{first + 1}_{first + count}', 7, tuple(
+        Signal(f'Cell{first + k + 1}_Low', 8 * k, 8, LITTLE) for k in range(count)) + (
+        Signal('NinthBits', 48, 8, LITTLE),))
 
 
 # The configuration frames: each byte a setting, with the range and step the BMS16 accepts
@@ -164,7 +161,7 @@ check_config_value = SETTINGS.check  # one value -> normalized (EncodeRangeError
 
 LAYOUTS: tuple[Layout, ...] = (  # by offset from base_id; divide: 523 -> 52.3 V exactly
     Layout('BMS16_Status', 7, (
-        Signal('Error', 0, 8, LITTLE, field='error', lookup=_ERRORS,
+        Signal('Error', 0, 8, LITTLE, field='error', lookup=tuple(Bms16Error),
                check='error code {value}, known codes are {low}..{high}'),
         Signal('SoC', 8, 8, LITTLE, high=100, unit='%', field='soc_pct',
                check='SoC {value} %, above 100 %'),
@@ -172,23 +169,42 @@ LAYOUTS: tuple[Layout, ...] = (  # by offset from base_id; divide: 523 -> 52.3 V
         Signal('Current', 32, 16, LITTLE, scale=0.1, offset=-3276.8, unit='A',
                field='current_a'),
         Signal('Temperature', 48, 8, LITTLE, unit='degC', field='temperature_c')), divide=True),
-    Layout('BMS16_Cells_1_6', 7, _cell_frame(0, 6)),
-    Layout('BMS16_Cells_7_12', 7, _cell_frame(6, 6)),
-    Layout('BMS16_Cells_13_16', 7, _cell_frame(12, 4)),
+    *map(_cell_frame, CELL_FRAME_FIRST, CELL_FRAME_COUNT),
     _CONFIG_1, _CONFIG_2,
-    Layout('BMS16_AcknowledgeError', 0, ()),
-    Layout('BMS16_ResetSoc', 0, ()),
-    Layout('BMS16_PowerOff', 0, ()),
+    *(Layout(f'BMS16_{name}', 0, ()) for name in ('AcknowledgeError', 'ResetSoc', 'PowerOff')),
 )
 _DLC = tuple(layout.length for layout in LAYOUTS)
-_STATUS = LAYOUTS[STATUS].decoder(into=Bms16Status)
-_E_STATUS = LAYOUTS[STATUS].encoder(exact=False)  # telemetry: rounded to the resolution
-_D_CELLS = tuple(layout.decoder() for layout in LAYOUTS[CELLS_1:CELLS_3 + 1])
-_NINTH = tuple(tuple(256 * (bits >> k & 1) for k in range(8)) for bits in range(256))
-# The readings sent as a whole frame: configuration parts and the commands without data
-_OFFSET = {Bms16ConfigPart1: CONFIG_1, Bms16ConfigPart2: CONFIG_2, AcknowledgeError: ACK_ERROR,
-           ResetSoc: RESET_SOC, PowerOff: POWER_OFF}
+# The readings sent as a whole frame, by offset from base_id (a cell frame is one of three)
+_OFFSET = {Bms16Status: STATUS, Bms16ConfigPart1: CONFIG_1, Bms16ConfigPart2: CONFIG_2,
+           AcknowledgeError: ACK_ERROR, ResetSoc: RESET_SOC, PowerOff: POWER_OFF}
 _CLASS = {offset: cls for cls, offset in _OFFSET.items()}
+_COMMANDS = (ACK_ERROR, RESET_SOC, POWER_OFF)  # DLC 0
+# Status and commands: their rows in the reading's order, one generated call each way;
+# telemetry (the simulator's status) is rounded to the resolution.
+_ENCODE = {offset: LAYOUTS[offset].encoder(exact=False) for offset in (STATUS, *_COMMANDS)}
+_D_CELLS = tuple(layout.decoder() for layout in LAYOUTS[CELLS_1:CELLS_3 + 1])
+_E_CELLS = tuple(layout.encoder() for layout in LAYOUTS[CELLS_1:CELLS_3 + 1])
+_NINTH = tuple(tuple(256 * (bits >> k & 1) for k in range(8)) for bits in range(256))
+
+
+def _cells(index: int, data: bytes) -> Bms16Cells:
+    """Return cell frame index (0..2); the 9th bit of cell k is bit k of NinthBits."""
+    *lows, ninth = _D_CELLS[index](data)  # a split the DBC cannot describe
+    return Bms16Cells(CELL_FRAME_FIRST[index], tuple(
+        [(low + high) / 100 for low, high in zip(lows, _NINTH[ninth])]))
+
+
+def _config(k: int, data: bytes) -> Bms16Reading:
+    """Return configuration part k + 1; a byte outside the BMS16's range is a BadValue."""
+    return _CLASS[CONFIG_1 + k](**SETTINGS.decode(k, data, BadValue))
+
+
+# data -> reading by offset; a refused value raises BadValue (the codec names the frame)
+_DECODE: tuple[Callable[[bytes], Bms16Reading], ...] = (
+    LAYOUTS[STATUS].decoder(into=Bms16Status),  # the error code and SoC are checked there
+    *(functools.partial(_cells, index) for index in range(3)),
+    *(functools.partial(_config, k) for k in range(2)),
+    *(LAYOUTS[offset].decoder(into=_CLASS[offset]) for offset in _COMMANDS))
 
 
 @functools.cache
@@ -212,9 +228,6 @@ class Bms16Codec:
         check_dbc()
         self.base_id = base_id
         self.arbitration_ids = frozenset(range(base_id, base_id + ID_COUNT))
-        self._decoders = (self._status, self._cells, self._cells, self._cells,
-                          self._config, self._config, self._command, self._command,
-                          self._command)
 
     # --- decode ---------------------------------------------------------------------
     def decode(self, arbitration_id: int, data: bytes) -> Bms16Reading:
@@ -224,32 +237,10 @@ class Bms16Codec:
             raise MalformedFrameError(arbitration_id, data, 'not a BMS16 ID')
         if len(data) != _DLC[offset]:
             check_dlc(arbitration_id, data, _DLC[offset])
-        return self._decoders[offset](arbitration_id, offset, data)
-
-    @staticmethod
-    def _status(arbitration_id: int, offset: int, data: bytes) -> Bms16Status:
-        try:  # the reading in one generated call; the error code and SoC are checked there
-            return _STATUS(data)
+        try:
+            return _DECODE[offset](data)
         except BadValue as exc:
             raise MalformedFrameError(arbitration_id, data, str(exc)) from None
-
-    @staticmethod
-    def _cells(arbitration_id: int, offset: int, data: bytes) -> Bms16Cells:
-        index = offset - CELLS_1
-        *lows, ninth = _D_CELLS[index](data)
-        # The 9th bit of cell k is bit k of NinthBits (a split the DBC cannot describe).
-        return Bms16Cells(CELL_FRAME_FIRST[index], tuple(
-            [(low + high) / 100 for low, high in zip(lows, _NINTH[ninth])]))
-
-    @staticmethod
-    def _config(arbitration_id: int, offset: int, data: bytes) -> Bms16Reading:
-        values = SETTINGS.decode(offset - CONFIG_1, data,
-                                 lambda why: MalformedFrameError(arbitration_id, data, why))
-        return _CLASS[offset](**values)
-
-    @staticmethod
-    def _command(arbitration_id: int, offset: int, data: bytes) -> Bms16Reading:
-        return _CLASS[offset]()
 
     # --- encode ---------------------------------------------------------------------
     def frame(self, offset: int, data: bytes) -> Frame:
@@ -258,10 +249,6 @@ class Bms16Codec:
 
     def encode(self, message: Bms16Reading) -> Frame:
         """Encode any BMS16 message; EncodeRangeError for a value the wire cannot carry."""
-        if isinstance(message, Bms16Status):
-            return self.frame(STATUS, _E_STATUS(
-                message.error, message.soc_pct, message.voltage_v, message.current_a,
-                message.temperature_c))
         if isinstance(message, Bms16Cells):
             return self._encode_cells(message)
         offset = _OFFSET.get(type(message))
@@ -269,7 +256,7 @@ class Bms16Codec:
             raise EncodeRangeError('message', message, 'a BMS16 message')
         if offset in (CONFIG_1, CONFIG_2):  # each value checked
             return self.frame(offset, SETTINGS.payload(offset - CONFIG_1, message))
-        return self.frame(offset, b'')  # a command without data
+        return self.frame(offset, _ENCODE[offset](*astuple(message)))
 
     def config_frames(self, config: Bms16Config) -> list[Frame]:
         """Build the two configuration frames [base + 4, base + 5] (EncodeRangeError first)."""
@@ -283,10 +270,7 @@ class Bms16Codec:
         if len(cells.voltages_v) != count:
             raise EncodeRangeError(f'cells[{cells.first_cell}:].count',
                                    len(cells.voltages_v), f'exactly {count} voltages')
-        data = bytearray(7)
-        for k, volts in enumerate(cells.voltages_v):
-            raw = round(check_value(f'cell{cells.first_cell + k + 1}_v', volts, 0, 5.11,
-                                    unit='V') * 100)
-            data[k] = raw & 0xFF
-            data[6] |= (raw >> 8) << k
-        return self.frame(CELLS_1 + index, bytes(data))
+        raws = [round(check_value(f'cell{cells.first_cell + k + 1}_v', volts, 0, 5.11,
+                                  unit='V') * 100) for k, volts in enumerate(cells.voltages_v)]
+        ninth = sum((raw >> 8) << k for k, raw in enumerate(raws))  # as decoded above
+        return self.frame(CELLS_1 + index, _E_CELLS[index](*(raw & 0xFF for raw in raws), ninth))

@@ -1,11 +1,9 @@
 """
 ZEVA BMS16 in its standard form: the EVMS3 protocol, 29-bit, 250 kbit/s.
 
-docs/protocols.md section 6 holds which frames and setting slots a BMS16 fills, the marker
-that tells it from an EVMS3, the order of a write and their sources (ZEVA's BMS16v2 document
-and EVMS Monitor firmware). The frames are the EVMS3's (``protocols.evms3``, whose codec
-reads the cell frames and ID 40 here); the settings are the EVMS3's rows under BMS16 names,
-plus the slots a BMS16 reassigns. The status is read here: its bytes 5 and 6 differ.
+docs/protocols.md section 6 holds the frames and setting slots a BMS16 fills, its marker, the
+order of a write and their sources. The frames are the EVMS3's (``protocols.evms3``); the
+settings are the EVMS3's rows under BMS16 names, plus the slots a BMS16 reassigns.
 """
 from __future__ import annotations
 
@@ -16,15 +14,13 @@ from ams_can_bridge.errors import (
     BadConfigBytes, ConfigError, EncodeRangeError, MalformedFrameError)
 from ams_can_bridge.protocols.bms12 import BMS12_BASE_ID
 from ams_can_bridge.protocols.bms16 import SHUNT_SIZES_A  # slot 7: code 0..3
-from ams_can_bridge.protocols.common import check_dlc, ConfigField, Frame
+from ams_can_bridge.protocols.common import ConfigField, Frame
 from ams_can_bridge.protocols.evms3 import (
-    ACK_ERROR, AcknowledgeError, BatteryCurrent, Bms12Cells, BMS16_MARKER, CELL_NUMBERS,
-    CONFIG1, Evms3Codec, Evms3Error, Evms3State, LAYOUTS, POWER_OFF, PowerOff, RESET_SOC,
-    ResetSoc, STATUS)
+    AcknowledgeError, BatteryCurrent, Bms12Cells, BMS16_MARKER, CELL_NUMBERS, CONFIG1,
+    Evms3Codec, Evms3Error, Evms3State, generated, LAYOUTS, payload, PowerOff, ResetSoc, STATUS)
 from ams_can_bridge.protocols.evms3_config import (
-    balance_byte, BALANCE_FIELDS, BALANCE_NAMES, BALANCE_ROW, balance_values, check_balance,
-    CONFIG_LAYOUTS)
-from ams_can_bridge.protocols.layout import BadValue, check_value, Layout, Signal
+    balance_byte, BALANCE_FIELDS, BALANCE_ROW, balance_values, check_setting, CONFIG_LAYOUTS)
+from ams_can_bridge.protocols.layout import Layout, Signal
 from ams_can_bridge.protocols.settings import setting, Settings
 
 DEFAULT_BASE_ID = 30                  # Common.h CAN_BASE_ID
@@ -37,13 +33,15 @@ CELL_FRAMES = {(0, 1): 0, (0, 2): 4, (1, 1): 8, (1, 2): 12}
 CELL_IDS = {BMS12_BASE_ID + 10 * m + t: first for (m, t), first in CELL_FRAMES.items()}
 CONFIG_GAP_S = 0.02                   # the Monitor waits 20 ms after each settings frame
 SLOTS = 32                            # setting bytes in IDs 32..35
-_COMMANDS = {ResetSoc: RESET_SOC, PowerOff: POWER_OFF}  # without data
 
 
-# ID 30 has the EVMS3 layout (protocols.evms3.LAYOUTS, checked against its DBC).
-_D_STATUS = LAYOUTS['EVMS3_Status'].decoder(  # byte 6 (isolation on an EVMS3) is unused
-    'State', 'ErrorCode', 'AmpHoursRemaining', 'BatteryVoltage', 'Temperature',
-    into=lambda *values: Bms16StdStatus(*values))
+# ID 30 has the EVMS3 layout (protocols.evms3.LAYOUTS, checked against its DBC); byte 5 (aux
+# voltage on an EVMS3) must be the marker, byte 6 (isolation) is unused.
+_D_STATUS = generated(LAYOUTS['EVMS3_Status'].replace(
+    'AuxVoltage', scale=1, low=BMS16_MARKER, check='byte 5 = {value}, not the BMS16 marker '
+    '255: the status of another device (an EVMS3 sends its aux voltage there), not decoded'),
+    lambda _marker, *values: Bms16StdStatus(*values),
+    'AuxVoltage', 'State', 'ErrorCode', 'AmpHoursRemaining', 'BatteryVoltage', 'Temperature')
 _E_STATUS = LAYOUTS['EVMS3_Status'].encoder(exact=False)  # telemetry: rounded to 0.1
 
 
@@ -129,9 +127,7 @@ CONFIG_FIELD = {f.name: f for f in CONFIG_FIELDS}
 
 def check_config_value(name: str, value: Any) -> Any:
     """Validate one value (physical units) and return it normalized; EncodeRangeError if not."""
-    if name in BALANCE_NAMES:
-        return check_balance(name, value)
-    return SETTINGS.check(name, value)
+    return check_setting(SETTINGS, name, value)
 
 
 def config_from_mapping(values: Mapping[str, Any]) -> Bms16StdConfig:
@@ -189,22 +185,10 @@ class Bms16StdCodec:
     def decode(self, arbitration_id: int, data: bytes) -> Any:
         """Frame -> Bms16StdStatus / Bms12Cells / BatteryCurrent; MalformedFrameError if bad."""
         if arbitration_id == self.base_id + STATUS:
-            return self._status(arbitration_id, data)
+            return _D_STATUS(arbitration_id, data)  # the marker first, then state and error
         if arbitration_id in self._evms3_ids:
             return self._evms3.decode(arbitration_id, data)
         raise MalformedFrameError(arbitration_id, data, 'not an ID of this BMS16')
-
-    @staticmethod
-    def _status(aid: int, data: bytes) -> Bms16StdStatus:
-        check_dlc(aid, data, 8)
-        if data[5] != BMS16_MARKER:
-            raise MalformedFrameError(
-                aid, data, f'byte 5 = {data[5]}, not the BMS16 marker 255: the status of '
-                'another device (an EVMS3 sends its aux voltage there), not decoded')
-        try:  # the EVMS3's rows refuse an unknown state or error code
-            return _D_STATUS(data)
-        except BadValue as exc:
-            raise MalformedFrameError(aid, data, str(exc)) from None
 
     # --- encode ---------------------------------------------------------------------------
     def _frame(self, offset: int, data: bytes) -> Frame:
@@ -220,11 +204,8 @@ class Bms16StdCodec:
 
     def encode(self, msg: Any) -> Frame:
         """Command or (for the simulator) reading -> Frame; EncodeRangeError if out of range."""
-        if isinstance(msg, AcknowledgeError):
-            return self._frame(ACK_ERROR, bytes([
-                check_value('error', msg.error, 0, 16, integer=True)]))
-        if type(msg) in _COMMANDS:
-            return self._frame(_COMMANDS[type(msg)], b'')
+        if isinstance(msg, (AcknowledgeError, ResetSoc, PowerOff)):  # the EVMS3's rows
+            return self._frame(*payload(msg))
         if isinstance(msg, Bms16StdStatus):
             # The EVMS3 status layout (its rows check state and error): byte 5 the marker
             # (aux voltage 25.5 V), byte 6 unused.

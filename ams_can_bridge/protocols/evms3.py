@@ -1,28 +1,24 @@
 """
 ZEVA EVMS3 and its BMS12 cell modules: 29-bit frames <-> typed readings and commands.
 
-docs/protocols.md section 3 holds the frames (IDs ``base_id + 0..11``, the fixed read-back
-51..56, BMS12 ``300 + 10 m + t``), the codes, their sources and the decisions (a Monitor's
-ID 31 and 52 traffic is never malformed; the BMS16 marker). This codec owns every ID on the
-bus: the BMS12 frames (``protocols.bms12``), the TC chargers (``protocols.tc_charger``,
-always 29-bit) and the configuration (``protocols.evms3_config``, whose names are importable
-from here too). The bits are ``LAYOUTS``, checked with the others against msg_defs/evms3.dbc
-at the first codec; decoders and encoders are generated from them (a few microseconds a
-frame, no cantools).
+docs/protocols.md section 3 holds the frames, codes, sources and decisions. This codec owns
+every ID on the bus: the BMS12 frames (``protocols.bms12``), the TC chargers
+(``protocols.tc_charger``) and the configuration (``protocols.evms3_config``, re-exported
+here). The bits are ``LAYOUTS``, checked with the others against msg_defs/evms3.dbc.
 """
 from __future__ import annotations
 
 import enum
 import functools
-from dataclasses import dataclass
-from typing import Any, Sequence
+from dataclasses import astuple, dataclass, replace
+from typing import Any, Callable, Sequence
 
 from ams_can_bridge.errors import ConfigError, EncodeRangeError, MalformedFrameError
 from ams_can_bridge.protocols.common import check_dlc, Frame, load_dbc
 from ams_can_bridge.protocols.evms3_config import (  # noqa: F401 (some re-exported)
     BMS12_MAX_MODULES, BmsCellNumbers, cell_numbers_payload, check_config_value, CONFIG_FIELDS,
     CONFIG_FILLER, CONFIG_LAYOUTS, config_payloads, ConfigReadback, ConfigReport,
-    CORE_REQUEST_CONFIG, CORE_SEND_CELL_NUMS, CORE_SEND_CONFIG1, decode_cell_numbers,
+    CORE_REQUEST_CONFIG, CORE_SEND_CELL_NUMS, decode_cell_numbers,
     decode_config_packet, decode_report, Evms3Config, Evms3ConfigPart, OtherTraffic,
     READBACK_IDS, READBACK_NAMES)
 from ams_can_bridge.protocols import bms12
@@ -72,53 +68,52 @@ class Evms3Error(enum.IntEnum):
 
 
 EVMS3_WARNINGS = frozenset({2, 4, 6, 10})
-_ERRORS = tuple(Evms3Error)
+_ERROR_CODE = Signal('ErrorCode', 3, 5, LITTLE, field='error', lookup=tuple(Evms3Error),
+                     check='unknown error code {value} ({low}..{high})')
 
 
 # --- the wire layout: one table, checked against msg_defs/evms3.dbc --------------------------
-# ZEVA's firmware divides (1234 -> 123.4 V): divide=True keeps those values exact.
+# ZEVA's firmware divides (1234 -> 123.4 V): divide=True keeps those values exact. The rows
+# are in the order of their reading's fields: one generated call each way.
 LAYOUTS = {
     'EVMS3_Status': Layout('EVMS3_Status', 8, (
         Signal('State', 0, 3, LITTLE, field='state', lookup=tuple(Evms3State),
                check='unknown state {value} ({low}..{high})'),
-        Signal('ErrorCode', 3, 5, LITTLE, field='error', lookup=_ERRORS,
-               check='unknown error code {value} ({low}..{high})'),
+        _ERROR_CODE,
         Signal('AmpHoursRemaining', 15, 16, scale=0.1, unit='Ah', field='amp_hours_ah'),
         Signal('BatteryVoltage', 31, 16, scale=0.1, unit='V', field='pack_voltage_v'),
         Signal('AuxVoltage', 40, 8, LITTLE, scale=0.1, unit='V', field='aux_voltage_v'),
+        Signal('Headlights', 55, 1, LITTLE, field='headlights', flag=True),
         Signal('IsolationIntegrity', 48, 7, LITTLE, high=100, unit='%', field='isolation_pct',
                invalid=101, check='isolation {value} % (0..100, 101 = n/a)'),  # 101: n/a
-        Signal('Headlights', 55, 1, LITTLE, field='headlights', flag=True),
         Signal('Temperature', 56, 8, LITTLE, offset=-40, unit='degC', field='temperature_c',
                invalid=0)),  # raw 0: no sensor
         divide=True),
+    'EVMS3_AcknowledgeError': Layout('EVMS3_AcknowledgeError', 1, (
+        replace(_ERROR_CODE, start=0, length=8),)),  # the same codes, a whole byte
     'EVMS3_BatteryCurrent': Layout('EVMS3_BatteryCurrent', 3, (
         Signal('BatteryCurrent', 7, 24, scale=0.001, offset=-8388.608, unit='A',
                field='current_a'),), divide=True),
+    **{name: Layout(name, 0, ()) for name in (  # the commands without data (DLC 0)
+        'EVMS3_ResetSoc', 'EVMS3_PowerOff', 'EVMS3_ZeroCurrentSensor')},
 }
-_E_STATUS = LAYOUTS['EVMS3_Status'].encoder()
-_D_CURRENT = LAYOUTS['EVMS3_BatteryCurrent'].decoder()
-_E_CURRENT = LAYOUTS['EVMS3_BatteryCurrent'].encoder()
+_ENCODERS = {name: layout.encoder() for name, layout in LAYOUTS.items()}
 
 
 @functools.cache
 def check_dbc() -> None:
     """Raise LayoutError unless msg_defs/evms3.dbc has the bits of LAYOUTS."""
     db = load_dbc('evms3')
-    for name, layout in {**LAYOUTS, **bms12.LAYOUTS}.items():
+    # the configuration is sent on 32..36 and read back on 52..56 in the same layout
+    readback = [f'EVMS3_SendConfig{k}' for k in range(1, 5)] + ['EVMS3_SendCellNumbers']
+    for name, layout in [*LAYOUTS.items(), *bms12.LAYOUTS.items(), *zip(readback, CONFIG_LAYOUTS),
+                         *((layout.name, layout) for layout in CONFIG_LAYOUTS)]:
         layout.check_dbc(db.get_message_by_name(name), 'msg_defs/evms3.dbc', 'EVMS3')
     for n in range(1, 4):  # the TC chargers 1..3 the EVMS drives: one layout each way
         for kind in ('Command', 'Status'):
             TC_LAYOUTS[f'TC_Charger1_{kind}'].check_dbc(
                 db.get_message_by_name(f'TC_Charger{n}_{kind}'), 'msg_defs/evms3.dbc',
                 'TC charger')
-    # the configuration, sent on 32..36 and read back on 52..56 in the same layout
-    pairs = [(f'EVMS3_Config{k}', f'EVMS3_SendConfig{k}') for k in range(1, 5)] + [
-        ('EVMS3_BmsCellNumbers', 'EVMS3_SendCellNumbers')]
-    for layout, names in zip(CONFIG_LAYOUTS, pairs):
-        for name in names:
-            layout.check_dbc(db.get_message_by_name(name), 'msg_defs/evms3.dbc',
-                             'EVMS3 configuration')
 
 
 # --- readings and commands ------------------------------------------------------------------
@@ -189,13 +184,33 @@ class ZeroCurrentSensor:
     """ID 41: zero the current sensor."""
 
 
-# The commands without data (DLC 0) by offset from base_id: one path each way.
-_EMPTY: dict[int, type] = {RESET_SOC: ResetSoc, POWER_OFF: PowerOff,
-                           ZERO_CURRENT: ZeroCurrentSensor}
-_EMPTY_OFFSET = {command: offset for offset, command in _EMPTY.items()}
-_STATUS = LAYOUTS['EVMS3_Status'].decoder(  # in the order of the reading's fields
-    'State', 'ErrorCode', 'AmpHoursRemaining', 'BatteryVoltage', 'AuxVoltage', 'Headlights',
-    'IsolationIntegrity', 'Temperature', into=Evms3Status)
+# The readings one layout states, by offset from base_id: one generated call each way
+_GENERATED = {STATUS: (Evms3Status, 'EVMS3_Status'),
+              ACK_ERROR: (AcknowledgeError, 'EVMS3_AcknowledgeError'),
+              RESET_SOC: (ResetSoc, 'EVMS3_ResetSoc'), POWER_OFF: (PowerOff, 'EVMS3_PowerOff'),
+              BATTERY_CURRENT: (BatteryCurrent, 'EVMS3_BatteryCurrent'),
+              ZERO_CURRENT: (ZeroCurrentSensor, 'EVMS3_ZeroCurrentSensor')}
+_LAYOUT_OF = {cls: (offset, name) for offset, (cls, name) in _GENERATED.items()}
+
+
+def generated(layout: Layout, into: Callable, *names: str) -> Callable[[int, bytes], Any]:
+    """Return decode(aid, data) of a reading one layout states: its DLC, values and checks."""
+    decode, length = layout.decoder(*names, into=into), layout.length
+
+    def run(aid: int, data: bytes) -> Any:
+        if len(data) != length:
+            check_dlc(aid, data, length)
+        try:  # the reading built in one generated call; its rows refuse an unknown code
+            return decode(data)
+        except BadValue as exc:
+            raise MalformedFrameError(aid, data, str(exc)) from None
+    return run
+
+
+def payload(msg: Any) -> tuple[int, bytes]:
+    """Return (offset, data) of a reading of _GENERATED, each value checked by its row."""
+    offset, name = _LAYOUT_OF[type(msg)]
+    return offset, _ENCODERS[name](*astuple(msg))
 
 
 # --- the codec -------------------------------------------------------------------------------
@@ -240,15 +255,14 @@ class Evms3Codec:
         self.frame_ids = frozenset({(i, self.is_extended_id) for i in own | set(self._bms12)}
                                    | {(i, True) for i in CHARGER_IDS})
         b = base_id
-        self._decoders = {
-            b + STATUS: self._decode_status, b + SET_STATE: self._decode_set_state,
+        self._decoders = {b + offset: generated(LAYOUTS[name], cls)
+                          for offset, (cls, name) in _GENERATED.items()}
+        self._decoders.update({
+            b + SET_STATE: self._decode_set_state,
             b + CELL_NUMBERS: lambda aid, data: BmsCellNumbers(decode_cell_numbers(aid, data)),
-            b + ACK_ERROR: self._decode_ack,
-            b + POWER_OFF: self._decode_empty, b + ZERO_CURRENT: self._decode_empty,
-            b + BATTERY_CURRENT: self._decode_current,
             # any DLC: ZEVA's 2021 firmware reads a SoC byte, older firmware none
             b + RESET_SOC: lambda aid, data: ResetSoc(),
-        }
+        })
         for packet in range(4):
             self._decoders[b + CONFIG1 + packet] = functools.partial(
                 decode_config_packet, packet, multiplier=voltage_multiplier)
@@ -271,14 +285,6 @@ class Evms3Codec:
             return decode_cells(data, module, 4 * (t - 1))
         return bms12.decode(arbitration_id, data, module, t)
 
-    def _decode_status(self, aid: int, data: bytes) -> Evms3Status:
-        if len(data) != 8:
-            check_dlc(aid, data, 8)
-        try:  # the reading built in one generated call; its rows refuse an unknown code
-            return _STATUS(data)
-        except BadValue as exc:
-            raise MalformedFrameError(aid, data, str(exc)) from None
-
     def _decode_set_state(self, aid: int, data: bytes) -> SetState:
         check_dlc(aid, data, (1, 2))
         if len(data) == 2:  # the Monitor's TransmitGaugeState
@@ -290,21 +296,6 @@ class Evms3Codec:
             raise MalformedFrameError(aid, data, f'set state {data[0]}, expected 0 or 1')
         return SetState(bool(data[0]))
 
-    def _decode_ack(self, aid: int, data: bytes) -> AcknowledgeError:
-        check_dlc(aid, data, 1)
-        if data[0] > 16:
-            raise MalformedFrameError(aid, data, f'unknown error code {data[0]} (0..16)')
-        return AcknowledgeError(_ERRORS[data[0]])
-
-    def _decode_empty(self, aid: int, data: bytes) -> Any:
-        check_dlc(aid, data, 0)
-        return _EMPTY[aid - self.base_id]()
-
-    def _decode_current(self, aid: int, data: bytes) -> BatteryCurrent:
-        if len(data) != 3:
-            check_dlc(aid, data, 3)
-        return BatteryCurrent(*_D_CURRENT(data))
-
     # --- encode ---------------------------------------------------------------------------
     def _frame(self, offset: int, data: bytes | bytearray) -> Frame:
         return Frame(self.base_id + offset, bytes(data), self.is_extended_id)
@@ -315,21 +306,14 @@ class Evms3Codec:
                 for i, p in enumerate(config_payloads(cfg, self.voltage_multiplier))]
 
     def report_frames(self, cfg: Evms3Config, cells_per_module: Sequence[int]) -> list[Frame]:
-        """Build the EVMS's answer to ID 51: IDs 52..55 (config) and 56 (cell numbers)."""
-        frames = [Frame(CORE_SEND_CONFIG1 + i, bytes(p), self.is_extended_id)
-                  for i, p in enumerate(config_payloads(cfg, self.voltage_multiplier))]
-        cells = self.encode(BmsCellNumbers(tuple(cells_per_module)))
-        return frames + [Frame(CORE_SEND_CELL_NUMS, cells.data, self.is_extended_id)]
+        """Build the EVMS's answer to ID 51: the frames of 32..36 at the fixed IDs 52..56."""
+        frames = self.config_frames(cfg) + [self.encode(BmsCellNumbers(tuple(cells_per_module)))]
+        return [frame._replace(arbitration_id=aid) for aid, frame in zip(READBACK_IDS, frames)]
 
     def encode(self, msg: Any) -> Frame:
         """Reading/command -> Frame; EncodeRangeError names the field and allowed range."""
-        offset = _EMPTY_OFFSET.get(type(msg))
-        if offset is not None:  # a command without data
-            return self._frame(offset, b'')
-        if isinstance(msg, Evms3Status):
-            return self._frame(STATUS, _E_STATUS(  # each value checked by the layout encoder
-                msg.state, msg.error, msg.amp_hours_ah, msg.pack_voltage_v, msg.aux_voltage_v,
-                msg.isolation_pct, msg.headlights, msg.temperature_c))
+        if type(msg) in _LAYOUT_OF:
+            return self._frame(*payload(msg))
         if isinstance(msg, SetState):
             if msg.request is not None:  # the Monitor's gauge edit (DLC 2)
                 return self._frame(SET_STATE, bytes([
@@ -342,13 +326,8 @@ class Evms3Codec:
             return self.config_frames(cfg)[msg.part - 1]
         if isinstance(msg, BmsCellNumbers):
             return self._frame(CELL_NUMBERS, cell_numbers_payload(msg.cells_per_module))
-        if isinstance(msg, AcknowledgeError):
-            return self._frame(ACK_ERROR, bytes([
-                check_value('error', msg.error, 0, len(_ERRORS) - 1, integer=True)]))
         if isinstance(msg, RequestConfig):  # DLC 0 too, at a fixed ID
             return Frame(CORE_REQUEST_CONFIG, b'', self.is_extended_id)
-        if isinstance(msg, BatteryCurrent):
-            return self._frame(BATTERY_CURRENT, _E_CURRENT(msg.current_a))
         if isinstance(msg, (Bms12Request, Bms12Cells, Bms12Temperatures)):
             return bms12.encode(msg, self.bms12_base, self.is_extended_id)
         if isinstance(msg, (ChargerCommand, ChargerStatus)):

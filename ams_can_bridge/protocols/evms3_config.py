@@ -1,11 +1,9 @@
 """
 ZEVA EVMS3 configuration: the typed config, its frames (IDs 32..36) and the read-back 51..56.
 
-docs/protocols.md sections 3.4..3.6 hold the settings, their ranges and off/never ends, the
-800 V multiplier, the read-back and their sources. The settings are rows of the layout table
-(protocols/settings.py derives the fields, the checks and the payloads; a value the EVMS would
-clamp is refused); this module adds the balance byte, the 9-bit charge voltages and the cell
-nibbles. ``protocols.evms3`` builds the frames and re-exports every name here.
+docs/protocols.md 3.4..3.6 hold the settings, ranges, off/never ends, the 800 V multiplier and
+the read-back. The settings are layout rows (protocols/settings.py); this module adds the
+balance byte, the 9-bit charge voltages and the cell nibbles.
 """
 from __future__ import annotations
 
@@ -81,10 +79,7 @@ class Evms3Config:
     @classmethod
     def from_parts(cls, parts: Iterable[Evms3ConfigPart | ConfigReport]) -> Evms3Config:
         """Join the four decoded packets or reports (any order) into one configuration."""
-        values: dict[str, Any] = {}
-        for part in parts:
-            values.update(part.values)
-        return cls(**values)
+        return cls(**{name: value for part in parts for name, value in part.values.items()})
 
     @classmethod
     def from_mapping(cls, values: Mapping[str, Any]) -> 'Evms3Config':
@@ -184,6 +179,11 @@ BALANCE_FIELDS = (
     ConfigField('balance_mode', str, description='balancing: static (at balance_v), dynamic '
                 'or off', choices=BALANCE_MODES))
 BALANCE_NAMES = ('balance_v', 'balance_mode')
+
+
+def check_setting(settings: Settings, name: str, value: Any) -> Any:
+    """Validate one value of settings or of the balance byte; return it normalized."""
+    return check_balance(name, value) if name in BALANCE_NAMES else settings.check(name, value)
 
 
 def check_balance(name: str, value: Any) -> Any:
@@ -308,11 +308,10 @@ CONFIG_FIELDS: tuple[ConfigField, ...] = _build_fields()
 
 def check_config_value(name: str, value: Any, multiplier: int = 1) -> Any:
     """
-    Validate one configuration value; return it normalized (int/float/bool/str/tuple).
+    Validate one value; return it normalized, else EncodeRangeError (nothing is clamped).
 
-    Raises EncodeRangeError naming the field, the value and what is allowed. Numbers may be
-    written as int or float (3 and 3.0 are the same); nothing is clamped. ``multiplier``
-    is the EVMS build's PACK_VOLTAGE_MULTIPLIER (1 or 2): full and charge voltages scale.
+    ``multiplier``: the build's PACK_VOLTAGE_MULTIPLIER (1 or 2) scales the full and charge
+    voltages.
     """
     if multiplier not in (1, 2):  # Common.h PACK_VOLTAGE_MULTIPLIER
         raise ConfigError(f'voltage multiplier {multiplier!r}: allowed 1 or 2')
@@ -329,9 +328,7 @@ def check_config_value(name: str, value: Any, multiplier: int = 1) -> Any:
         return cells
     if name in _CHARGE:
         return int(check_value(name, value, 0, 511 * multiplier, multiplier, 'V'))
-    if name in BALANCE_NAMES:
-        return check_balance(name, value)
-    return _SETTINGS[multiplier].check(name, value)
+    return check_setting(_SETTINGS[multiplier], name, value)
 
 
 def config_payloads(cfg: Evms3Config, multiplier: int = 1) -> list[bytes]:

@@ -1,14 +1,11 @@
 """
 Device configuration from the layout table: one mechanism for every ZEVA settings frame.
 
-A configuration frame is a :class:`Layout` whose :class:`Signal` rows name a setting
-(``field``) and carry what the parameters declare: range, step (the scale), unit,
-``description``, ``kind`` (int or float; a ``flag`` is a bool), enum codes (``lookup``) and a
-``sentinel`` end (EVMS3: 1210 A = off). :class:`Settings` derives from them the ConfigFields
-(``fields``), the check of one value (:func:`check_value`: EncodeRangeError, nothing clamped
-or rounded), a frame's payload and a frame's values (``decode``: a raw value the device could
-not have sent makes the frame malformed). Rows without a field (the EVMS3 balance byte, a
-charge voltage's 9th bit) are bits the protocol module reads and writes itself.
+A setting is a :class:`Signal` row with a ``field`` and what its parameter declares (range,
+step = scale, unit, description, kind, enum codes, a ``sentinel`` end: EVMS3 1210 A = off).
+:class:`Settings` derives from the rows the ConfigFields, the check of a value (nothing
+clamped or rounded), the payloads and the values of a payload (a raw value the device could
+not have sent is malformed). Rows without a field are bits the protocol module handles itself.
 """
 from __future__ import annotations
 
@@ -23,12 +20,7 @@ def setting(name: str, byte: int, field: str, low: float | None, high: float | N
             unit: str, description: str, kind: type = int, scale: float = 1,
             offset: float = 0, length: int = 8, bit: int = 0,
             sentinel: tuple[float, str] | None = None, lookup: tuple | None = None) -> Signal:
-    """
-    Return the row of a little-endian setting in byte (bit) of its frame.
-
-    The columns a settings table reads best in: signal name (the DBC's), byte, field, physical
-    range and unit, description; kind bool makes a 0/1 flag (range 0..1).
-    """
+    """Return the row of a little-endian setting in byte (bit) of its frame (bool: a flag)."""
     return Signal(name, 8 * byte + bit, length, LITTLE, False, scale, offset, low, high, unit,
                   field, flag=kind is bool, lookup=lookup, description=description, kind=kind,
                   sentinel=sentinel)
@@ -120,11 +112,9 @@ class Settings:
         """Return the wire value of one setting (checked: EncodeRangeError)."""
         s = self.rows[name]
         value = self.check(name, value)
-        if s.flag:
-            return int(value)
         if s.lookup is not None:
             return s.lookup.index(value)
-        return round((value - s.offset) / s.scale)
+        return int(value) if s.flag else round((value - s.offset) / s.scale)
 
     def payload(self, k: int, values: Mapping[str, Any] | Any,
                 raws: Mapping[str, int] | None = None) -> bytes:
@@ -143,16 +133,6 @@ class Settings:
         return n.to_bytes(layout.length, 'little')
 
     # --- decode -------------------------------------------------------------------------
-    @staticmethod
-    def physical(s: Signal, raw: int) -> Any:
-        """Return a setting's value of one raw value, in its kind (exact decimals)."""
-        if s.flag:
-            return bool(raw)
-        if s.lookup is not None:
-            return s.lookup[raw]
-        value = raw * s.scale + s.offset
-        return int(round(value)) if s.kind is int else round(value, 6)
-
     def decode(self, k: int, data: bytes,
                fail: Callable[[str], Exception] | None = None) -> dict[str, Any]:
         """
@@ -169,12 +149,18 @@ class Settings:
             values[name] = value[raw]
         return values
 
-    def _values(self, s: Signal) -> tuple:
-        """Return the value of each raw value of a setting (None past its enum codes)."""
+    @staticmethod
+    def _values(s: Signal) -> tuple:
+        """Return the value of each raw value of a setting in its kind (exact decimals)."""
         if s.length > 8:
             raise LayoutError(f'{s.name}: a setting is a byte or less, not {s.length} bits')
-        return tuple(None if s.lookup is not None and raw >= len(s.lookup)
-                     else self.physical(s, raw) for raw in range(1 << s.length))
+        raws = range(1 << s.length)
+        if s.flag:
+            return tuple(raw != 0 for raw in raws)
+        if s.lookup is not None:  # None past the enum codes
+            return tuple(s.lookup) + (None,) * (len(raws) - len(s.lookup))
+        values = [raw * s.scale + s.offset for raw in raws]
+        return tuple(int(round(v)) if s.kind is int else round(v, 6) for v in values)
 
     def fields(self) -> tuple[ConfigField, ...]:
         """Return the ConfigField of every setting, in frame order."""

@@ -14,11 +14,11 @@ import random
 from typing import Any, Callable
 
 from ams_can_bridge.protocols.bms16_std import (
-    ACK_ERROR, Bms16StdCodec, Bms16StdStatus, CELL_FRAMES, CELLS_PER_MODULE, CONFIG1,
-    decode_config, DEFAULT_BASE_ID, POWER_OFF, RESET_SOC)
+    Bms16StdCodec, Bms16StdStatus, CELL_FRAMES, CELLS_PER_MODULE, CONFIG1, decode_config,
+    DEFAULT_BASE_ID)
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import (
-    BatteryCurrent, Bms12Cells, Evms3Error, Evms3State)
+    ACK_ERROR, BatteryCurrent, Bms12Cells, Evms3Error, Evms3State, POWER_OFF, RESET_SOC)
 from ams_can_bridge.sim.base import Periodic, SimDevice
 from ams_can_bridge.sim.bms16 import pack_cells
 from ams_can_bridge.sim.pack import Elapsed, four, integrate_soc, thermal_lag
