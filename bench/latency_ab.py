@@ -12,7 +12,8 @@ every turn shows.
 
 Run (after a ``git worktree`` of the before commit with its own .venv, see README.md):
 ``.venv/bin/python bench/latency_ab.py --before /tmp/base --rounds 6 [--seconds 30]
-[--background 1000] [--json bench/latency_ab.json]``. Each side runs its own tree's
+[--background 1000] [--json bench/latency_ab.json]``; ``--from-json A.json B.json`` pools
+the samples of earlier runs into one table. Each side runs its own tree's
 ``bench/run.py`` with its own .venv (so its own installed bridge), on a ROS domain of its own.
 """
 from __future__ import annotations
@@ -20,6 +21,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -59,20 +61,58 @@ def summary(pool: list[float], per_turn: list[float]) -> dict:
     return {'samples': len(pool), 'p50': q(pool, 0.5), 'p99': q(pool, 0.99),
             'p99.9': q(pool, 0.999), 'max': max(pool, default=float('nan')),
             'over_2ms': sum(v > 2.0 for v in pool), 'over_5ms': sum(v > 5.0 for v in pool),
-            'turn_p99': per_turn}
+            'turn_p99': per_turn, 'median_turn_p99': statistics.median(per_turn)}
+
+
+def report(pools: dict[str, list[float]], turns: dict[str, list[float]], title: str) -> dict:
+    """Print the table of the pooled sides; return it."""
+    table = {name: summary(pools[name], turns[name]) for name in pools}
+    print(f'\n{title}')
+    print('| side | samples | p50 | p99 | p99.9 | max | >2 ms | >5 ms | median of the turns\' '
+          'p99 | p99 of each turn |')
+    print('|---|---|---|---|---|---|---|---|---|---|')
+    for name, s in table.items():
+        print(f"| {name} | {s['samples']} | {s['p50']:.2f} | {s['p99']:.2f} | "
+              f"{s['p99.9']:.2f} | {s['max']:.2f} | {s['over_2ms']} | {s['over_5ms']} | "
+              f"{s['median_turn_p99']:.2f} | " + ', '.join(f'{v:.2f}' for v in s['turn_p99'])
+              + ' |')
+    # The same round's turns ran within two minutes of each other: compare them in pairs.
+    wins = sum(a < b for a, b in zip(turns['after'], turns['before']))
+    print(f'after faster than before (p99) in {wins} of {len(turns["after"])} rounds')
+    return table
 
 
 def main() -> None:
     """Run the turns and print one table."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
-    parser.add_argument('--before', required=True, help='the before tree (with its .venv)')
+    parser.add_argument('--before', help='the before tree (with its .venv)')
     parser.add_argument('--after', default=HERE, help='the after tree (default: this one)')
     parser.add_argument('--rounds', type=int, default=6)
     parser.add_argument('--seconds', type=float, default=30.0, help='s of frames per turn')
     parser.add_argument('--background', type=float, default=1000.0,
                         help='other frames/s beside the 50 tagged IVT-S frames/s')
     parser.add_argument('--json', default=None, help='write every sample here')
+    parser.add_argument('--from-json', nargs='+', default=None, metavar='FILE',
+                        help='no runs: pool the samples of earlier --json files')
     args = parser.parse_args()
+    if args.from_json:
+        pools: dict[str, list[float]] = {}
+        turns: dict[str, list[float]] = {}
+        for path in args.from_json:
+            with open(path, encoding='utf-8') as stream:
+                saved = json.load(stream)
+            for name, table in saved['table'].items():
+                pools.setdefault(name, []).extend(saved['samples'][name])
+                turns.setdefault(name, []).extend(table['turn_p99'])
+        table = report(pools, turns,
+                       f'latency, samples pooled from {len(args.from_json)} file(s) (ms)')
+        if args.json:  # the pooled table only: the samples stay in the files given
+            with open(args.json, 'w', encoding='utf-8') as stream:
+                json.dump({'meta': {'from_json': args.from_json}, 'table': table}, stream,
+                          indent=1)
+        return
+    if not args.before:
+        parser.error('--before is needed (or --from-json)')
     sides = {'before': (args.before, 'bridge', '36'), 'after': (args.after, 'bridge', '37'),
              'reference': (args.after, 'reference', '38')}
     pools: dict[str, list[float]] = {name: [] for name in sides}
@@ -86,15 +126,8 @@ def main() -> None:
             turns[name].append(round(harness.percentile(got, 0.99), 2))
             print(f'round {r + 1} {name}: p99 {turns[name][-1]:.2f} ms ({len(got)} samples)',
                   flush=True)
-    table = {name: summary(pools[name], turns[name]) for name in sides}
-    print(f'\nlatency, {args.background:g} other frames/s, {args.rounds} rounds of '
-          f'{args.seconds:g} s, samples pooled (ms)')
-    print('| side | samples | p50 | p99 | p99.9 | max | >2 ms | >5 ms | p99 of each turn |')
-    print('|---|---|---|---|---|---|---|---|---|')
-    for name, s in table.items():
-        print(f"| {name} | {s['samples']} | {s['p50']:.2f} | {s['p99']:.2f} | "
-              f"{s['p99.9']:.2f} | {s['max']:.2f} | {s['over_2ms']} | {s['over_5ms']} | "
-              + ', '.join(f'{v:.2f}' for v in s['turn_p99']) + ' |')
+    table = report(pools, turns, f'latency, {args.background:g} other frames/s, {args.rounds} '
+                   f'rounds of {args.seconds:g} s, samples pooled (ms)')
     if args.json:
         with open(args.json, 'w', encoding='utf-8') as stream:
             json.dump({'meta': vars(args), 'table': table, 'samples': pools}, stream)

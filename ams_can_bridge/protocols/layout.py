@@ -95,8 +95,9 @@ class _Known(dict):
         if isinstance(value, int) and not isinstance(value, bool) and value in self.raws:
             return self.raws[value]
         names = ', '.join(f'{getattr(m, "name", m)}={raw}' for raw, m in self.items())
-        raise EncodeRangeError(field, value,
-                               f'a {type(next(iter(self.values()))).__name__} value ({names})')
+        kind = type(next(iter(self.values()))).__name__
+        article = 'an' if kind[0] in 'AEIOU' else 'a'  # an AmsState, an Evms3Error
+        raise EncodeRangeError(field, value, f'{article} {kind} value ({names})')
 
 
 @dataclass(frozen=True)
