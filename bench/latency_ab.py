@@ -1,5 +1,5 @@
 """
-Latency before against after, every sample pooled: the ``latency`` scenario, many turns.
+Latency and heartbeat before against after, every sample pooled over many turns.
 
 ``compare.py`` takes the p99 of each 20 s run (about 1000 samples, so its 10 worst) and
 reports the median over rounds: on this 2-core machine one run's p99 moves between 1.2 and
@@ -8,7 +8,9 @@ the reference pipeline (python-can recv -> rclpy publish, from the after tree), 
 rotating every round, and every latency sample of a side goes into one pool. The table gives
 the pooled p50, p99, p99.9 and max of each side, how many samples were slower than 2 and 5
 ms, and the p99 of each turn, so a tail that one noisy turn made is told apart from one that
-every turn shows.
+every turn shows. ``--scenario heartbeat-idle`` / ``heartbeat-load`` does the same with
+``run.heartbeat_run`` (the AMS heartbeat's |period - 50 ms| of the suite's ``heartbeat``
+scenario, idle or under the simulators' load with a waiting service call; no reference).
 
 Run (after a ``git worktree`` of the before commit with its own .venv, see README.md):
 ``.venv/bin/python bench/latency_ab.py --before /tmp/base --rounds 6 [--seconds 30]
@@ -30,12 +32,17 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import harness  # noqa: E402  (network rule)
 
 HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-# What each side runs, in its own tree: one latency_run, the samples (ms) as JSON.
+# What each side runs, in its own tree: one latency_run (samples in ms), or one
+# heartbeat_run (|period - 50 ms| of each period), as JSON.
 DRIVER = """
 import json, sys
 sys.path.insert(0, sys.argv[1] + '/bench')
 import run
-samples = run.latency_run(sys.argv[2], float(sys.argv[3]), 50.0, float(sys.argv[4]))
+if sys.argv[2].startswith('heartbeat'):
+    periods = run.heartbeat_run(float(sys.argv[3]), sys.argv[2] == 'heartbeat-load')
+    samples = [abs(p - 50.0) for p in periods]
+else:
+    samples = run.latency_run(sys.argv[2], float(sys.argv[3]), 50.0, float(sys.argv[4]))
 with open(sys.argv[5], 'w', encoding='utf-8') as stream:
     json.dump(samples, stream)
 """
@@ -61,6 +68,7 @@ def summary(pool: list[float], per_turn: list[float]) -> dict:
     return {'samples': len(pool), 'p50': q(pool, 0.5), 'p99': q(pool, 0.99),
             'p99.9': q(pool, 0.999), 'max': max(pool, default=float('nan')),
             'over_2ms': sum(v > 2.0 for v in pool), 'over_5ms': sum(v > 5.0 for v in pool),
+            'over_25ms': sum(v > 25.0 for v in pool),  # a heartbeat: a missed slot
             'turn_p99': per_turn, 'median_turn_p99': statistics.median(per_turn)}
 
 
@@ -68,14 +76,14 @@ def report(pools: dict[str, list[float]], turns: dict[str, list[float]], title: 
     """Print the table of the pooled sides; return it."""
     table = {name: summary(pools[name], turns[name]) for name in pools}
     print(f'\n{title}')
-    print('| side | samples | p50 | p99 | p99.9 | max | >2 ms | >5 ms | median of the turns\' '
-          'p99 | p99 of each turn |')
-    print('|---|---|---|---|---|---|---|---|---|---|')
+    print('| side | samples | p50 | p99 | p99.9 | max | >2 ms | >5 ms | >25 ms | median of '
+          'the turns\' p99 | p99 of each turn |')
+    print('|---|---|---|---|---|---|---|---|---|---|---|')
     for name, s in table.items():
         print(f"| {name} | {s['samples']} | {s['p50']:.2f} | {s['p99']:.2f} | "
               f"{s['p99.9']:.2f} | {s['max']:.2f} | {s['over_2ms']} | {s['over_5ms']} | "
-              f"{s['median_turn_p99']:.2f} | " + ', '.join(f'{v:.2f}' for v in s['turn_p99'])
-              + ' |')
+              f"{s.get('over_25ms', '')} | {s['median_turn_p99']:.2f} | "
+              + ', '.join(f'{v:.2f}' for v in s['turn_p99']) + ' |')
     # The same round's turns ran within two minutes of each other: compare them in pairs.
     wins = sum(a < b for a, b in zip(turns['after'], turns['before']))
     print(f'after faster than before (p99) in {wins} of {len(turns["after"])} rounds')
@@ -91,6 +99,8 @@ def main() -> None:
     parser.add_argument('--seconds', type=float, default=30.0, help='s of frames per turn')
     parser.add_argument('--background', type=float, default=1000.0,
                         help='other frames/s beside the 50 tagged IVT-S frames/s')
+    parser.add_argument('--scenario', default='latency',
+                        choices=('latency', 'heartbeat-idle', 'heartbeat-load'))
     parser.add_argument('--json', default=None, help='write every sample here')
     parser.add_argument('--from-json', nargs='+', default=None, metavar='FILE',
                         help='no runs: pool the samples of earlier --json files')
@@ -113,21 +123,26 @@ def main() -> None:
         return
     if not args.before:
         parser.error('--before is needed (or --from-json)')
-    sides = {'before': (args.before, 'bridge', '36'), 'after': (args.after, 'bridge', '37'),
-             'reference': (args.after, 'reference', '38')}
+    what = 'bridge' if args.scenario == 'latency' else args.scenario
+    sides = {'before': (args.before, what, '36'), 'after': (args.after, what, '37')}
+    if args.scenario == 'latency':
+        sides['reference'] = (args.after, 'reference', '38')
     pools: dict[str, list[float]] = {name: [] for name in sides}
     turns: dict[str, list[float]] = {name: [] for name in sides}
     order = list(sides)
     for r in range(args.rounds):
-        for name in order[r % 3:] + order[:r % 3]:  # each side goes first in turn
+        k = r % len(order)
+        for name in order[k:] + order[:k]:  # each side goes first in turn
             tree, pipeline, domain = sides[name]
             got = turn(tree, pipeline, args.seconds, args.background, domain)
             pools[name] += got
             turns[name].append(round(harness.percentile(got, 0.99), 2))
             print(f'round {r + 1} {name}: p99 {turns[name][-1]:.2f} ms ({len(got)} samples)',
                   flush=True)
-    table = report(pools, turns, f'latency, {args.background:g} other frames/s, {args.rounds} '
-                   f'rounds of {args.seconds:g} s, samples pooled (ms)')
+    title = (f'latency, {args.background:g} other frames/s' if args.scenario == 'latency'
+             else f'{args.scenario}: |period - 50 ms|')
+    table = report(pools, turns, f'{title}, {args.rounds} rounds of {args.seconds:g} s, '
+                   'samples pooled (ms)')
     if args.json:
         with open(args.json, 'w', encoding='utf-8') as stream:
             json.dump({'meta': vars(args), 'table': table, 'samples': pools}, stream)
