@@ -68,7 +68,7 @@ def summary(pool: list[float], per_turn: list[float]) -> dict:
     return {'samples': len(pool), 'p50': q(pool, 0.5), 'p99': q(pool, 0.99),
             'p99.9': q(pool, 0.999), 'max': max(pool, default=float('nan')),
             'over_2ms': sum(v > 2.0 for v in pool), 'over_5ms': sum(v > 5.0 for v in pool),
-            'over_25ms': sum(v > 25.0 for v in pool),  # a heartbeat: a missed slot
+            'over_25ms': sum(v > 25.0 for v in pool),  # a heartbeat slot late (or after one)
             'turn_p99': per_turn, 'median_turn_p99': statistics.median(per_turn)}
 
 
