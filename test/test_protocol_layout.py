@@ -1,12 +1,14 @@
 """protocols/layout.py: generated decoders and encoders equal cantools; one validator."""
+import contextlib
 import enum
+import importlib
 
 import cantools
 import pytest
 from hypothesis import given, settings, strategies as st
 
 from ams_can_bridge.errors import EncodeRangeError, LayoutError
-from ams_can_bridge.protocols import evms3 as evms3_protocol
+from ams_can_bridge.protocols.ams import AmsCodec
 from ams_can_bridge.protocols.common import load_dbc, msg_defs_dir
 from ams_can_bridge.protocols.evms3 import Evms3Codec
 from ams_can_bridge.protocols.layout import (
@@ -35,17 +37,31 @@ def test_generated_code_equals_cantools_on_every_dbc(which, data):
     assert encoded == message.encode(want, strict=False)
 
 
-def test_the_evms3_codec_refuses_a_dbc_with_other_bits(monkeypatch):
-    text = (msg_defs_dir() / 'evms3.dbc').read_text()
-    changed = cantools.database.load_string(text.replace(
-        'SG_ AuxVoltage : 40|8@1+ (0.1,0)', 'SG_ AuxVoltage : 40|8@1+ (0.2,0)', 1), strict=True)
-    monkeypatch.setattr(evms3_protocol, 'load_dbc', lambda name: changed)
-    evms3_protocol.check_dbc.cache_clear()
+@contextlib.contextmanager
+def dbc_changed(monkeypatch, module: str, dbc: str, old: str, new: str):
+    """Give protocols.<module> msg_defs/<dbc>.dbc with old replaced by new; yield the module."""
+    protocol = importlib.import_module(f'ams_can_bridge.protocols.{module}')
+    text = (msg_defs_dir() / f'{dbc}.dbc').read_text()
+    assert old in text
+    changed = cantools.database.load_string(text.replace(old, new, 1), strict=True)
+    monkeypatch.setattr(protocol, 'load_dbc', lambda name: changed)
+    protocol.check_dbc.cache_clear()
     try:
-        with pytest.raises(LayoutError, match='EVMS3_Status does not match the EVMS3 codec'):
-            Evms3Codec()
+        yield protocol
     finally:
-        evms3_protocol.check_dbc.cache_clear()
+        protocol.check_dbc.cache_clear()  # the next codec checks the real DBC again
+
+
+@pytest.mark.parametrize('module, codec, old, new, message', [
+    ('evms3', Evms3Codec, 'SG_ AuxVoltage : 40|8@1+ (0.1,0)', 'SG_ AuxVoltage : 40|8@1+ (0.2,0)',
+     'EVMS3_Status does not match the EVMS3 codec'),
+    ('ams', AmsCodec, 'SG_ SOC : 39|8@0+ (1,0) [0|100]', 'SG_ SOC : 39|8@0+ (2,0) [0|200]',
+     'AMS_Status does not match the AMS codec layout'),
+])
+def test_a_codec_refuses_a_dbc_with_other_bits(monkeypatch, module, codec, old, new, message):
+    with dbc_changed(monkeypatch, module, module, old, new):
+        with pytest.raises(LayoutError, match=message):
+            codec()
 
 
 @pytest.mark.parametrize('value,kwargs,allowed', [
@@ -104,21 +120,9 @@ def test_value_expression_compiled_beside_the_table_equals_its_decoder():
 ])
 def test_each_codec_checks_its_whole_table_against_its_dbc(monkeypatch, module, dbc, old, new,
                                                            message):
-    import importlib
-    protocol = importlib.import_module(f'ams_can_bridge.protocols.{module}')
-    text = (msg_defs_dir() / f'{dbc}.dbc').read_text()
-    assert old in text
-    changed = cantools.database.load_string(text.replace(old, new, 1), strict=True)
-    monkeypatch.setattr(protocol, 'load_dbc', lambda name: changed)
-    check = getattr(protocol, 'check_dbc', None) or protocol._check_dbc
-    if hasattr(check, 'cache_clear'):
-        check.cache_clear()
-    try:
+    with dbc_changed(monkeypatch, module, dbc, old, new) as protocol:
         with pytest.raises(LayoutError, match=message):
-            check()
-    finally:
-        if hasattr(check, 'cache_clear'):
-            check.cache_clear()
+            protocol.check_dbc()
 
 
 # --- a row's check: the rules of a protocol beside its bits (decode refuses, encode too) -------

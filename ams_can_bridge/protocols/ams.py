@@ -312,7 +312,7 @@ LAYOUTS = {offset: Layout(name, length, signals) for offset, _, name, length, si
 
 
 @functools.cache
-def _check_dbc() -> None:
+def check_dbc() -> None:
     """Fail loudly (LayoutError) if msg_defs/ams.dbc no longer has the layout of LAYOUTS."""
     db = load_dbc('ams')
     for layout in LAYOUTS.values():
@@ -380,7 +380,7 @@ class AmsCodec:
             raise EncodeRangeError('base_id', base_id,
                                    f'0..0x{highest:X} (11-bit IDs up to base + 0x051)')
         self.base_id = base_id
-        _check_dbc()  # once
+        check_dbc()  # once
         # One dict lookup per frame: ID -> (DLC, reading builder).
         self._decode_table: dict[int, tuple[int, Callable[[bytes], Any]]] = {
             base_id + offset: (layout.length, _DECODERS[offset])

@@ -115,7 +115,7 @@ _ENCODE_I = LAYOUTS[IvtMux.I].encoder()
 
 
 @functools.cache
-def _check_dbc() -> None:
+def check_dbc() -> None:
     """Fail loudly (LayoutError) if msg_defs/ivt_s.dbc no longer has the bits of LAYOUTS."""
     db = load_dbc('ivt_s')
     for kind, layout in LAYOUTS.items():
@@ -166,7 +166,7 @@ class IvtSCodec:
         if not 0 <= base_id <= 0x7FF - 7:
             raise ConfigError(f'IVT-S base_id = {base_id!r} (0x{base_id:X}): allowed '
                               f'0..0x{0x7FF - 7:X} (11-bit IDs, 8 results from base_id)')
-        _check_dbc()  # once
+        check_dbc()  # once
         self.base_id = base_id
         self.byte_order = byte_order
         self.arbitration_ids = frozenset(base_id + k for k in IvtMux)
