@@ -37,7 +37,8 @@ from ams_can_bridge.parameters import ParamSpec
 from ams_can_bridge.protocols.ivt_s import (
     BYTE_ORDERS, COMMAND_ID, DBC_NAME, DEFAULT_BASE_ID, IvtMux, IvtResult, IvtSCodec,
     RAW_UNIT, RESPONSE_ID, SI_UNIT)
-from ams_can_bridge.protocols.ivt_s_commands import CYCLE_MAX_MS, decode_answer, TriggerMode
+from ams_can_bridge.protocols.ivt_s_commands import (
+    CYCLE_MAX_MS, decode_answer, ResultConfig, TriggerMode)
 
 NAN = math.nan
 # A counter anomaly keeps the device at WARN until this many good frames of that result
@@ -51,10 +52,15 @@ SYSTEM_ERROR_TEXT = ('system error bit (byte 1 bit 7, System_Error: sensor funct
 
 @dataclass
 class _Track:
-    """Per-result bookkeeping besides the result itself: counter health, frame interval."""
+    """
+    Per-result bookkeeping besides the result itself: counter health, frame interval.
+
+    The counter counts the sensor's measurement cycles, not frames (a real sensor's results
+    sent every 100 ms advance it by 5, docs/protocols.md 2.1): its step is learned.
+    """
 
     counter: CounterHealth = field(
-        default_factory=lambda: CounterHealth(0x10, COUNTER_RECOVERY_FRAMES))
+        default_factory=lambda: CounterHealth(0x10, COUNTER_RECOVERY_FRAMES, step=None))
     interval: float = math.nan  # observed seconds between frames (smoothed)
 
 
@@ -163,8 +169,18 @@ class IvtSDevice(IvtSControl, Device):
             return False
         with self.lock:
             self.frames_received += 1
+            if isinstance(answer, ResultConfig):
+                self._config_answered(answer)
             self.link.offer(answer, self.clock())
         return False
+
+    def _config_answered(self, config: ResultConfig) -> None:
+        """Learn a result's counter step again when its cycle (or mode) is new (lock held)."""
+        track = self._tracks.get(config.kind)
+        known = self.link.configs.get(config.kind)
+        if track is not None and (known is None or (known.mode, known.cycle_ms)
+                                  != (config.mode, config.cycle_ms)):
+            track.counter.restart()
 
     # --- bus thread ------------------------------------------------------------------------
     def _handle(self, reading: IvtResult, stamp: float) -> bool:
@@ -238,8 +254,9 @@ class IvtSDevice(IvtSControl, Device):
         """
         SI value (sensor sign) of a fresh result, else NaN.
 
-        A result with its result-error bit or its system-error bit set is no measurement
-        (the vendor DBC: with System_Error "sensor functionality is not ensured").
+        A result with its result-error bit (Channel_Error in the vendor DBC) or its
+        system-error bit (System_Error) set is no measurement: with the system error "sensor
+        functionality is not ensured" (the IVT-S datasheet, result messages).
         """
         result = self._fresh(kind)
         if result is None or result.result_error or result.system_error:

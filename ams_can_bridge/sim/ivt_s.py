@@ -34,12 +34,26 @@ from ams_can_bridge.sim.profiles import drive_current_a
 AMBIENT_C = 25.0
 HEATING_C_PER_A2 = 0.0008  # steady-state rise: 120 A -> about +11.5 degC
 RESTART_S = 0.05  # the simulated sensor is back (alive message) this long after 0x3F
+# The result counters count measurement cycles of 20 ms, not frames: a real sensor's results
+# sent every 100 ms advance theirs by 5 (foxBMS 2 tools/dbc/test_log.txt), a 20 ms result's
+# by 1 (docs/protocols.md 2.1).
+COUNTER_CYCLE_MS = 20
 SERIAL = 0x00012345
 # The commands 0x34 and 0x30 share the layouts of their answers 0xB4 and 0xB0 (the vendor
 # DBC's _34_* / _30_* signals): decoded by the protocol's layouts, not by hand here.
 _MODE = cmd.MODE.decoder('Actual_Mode', 'Startup_Mode')  # -> (running, startup_running)
 _RESET = cmd.RESET.decoder('Reset_Item', 'Reset_Device_SN')  # -> (item, serial)
 _ERROR_ITEM = cmd.ERROR.decoder('Error_Item')  # -> (item,): 0x40 / 0x41 b1, as in 0x80 / 0x81
+
+
+def counter_step(config: ResultConfig) -> int:
+    """
+    Return how far a result's counter advances per frame: its cycle in 20 ms cycles.
+
+    A cycle that is no whole number of them (unknown on a real sensor) advances by the
+    nearest whole number, at least 1.
+    """
+    return max(1, round(config.cycle_ms / COUNTER_CYCLE_MS))
 
 
 class IvtSSimulator(SimDevice):
@@ -152,7 +166,7 @@ class IvtSSimulator(SimDevice):
                                    result.measurement_error, result.system_error, raw,
                                    raw / DIVISOR[kind])
             if not extra.get('stuck_counter'):
-                self._counters[kind] = (self._counters[kind] + 1) & 0x0F
+                self._counters[kind] = (self._counters[kind] + counter_step(config)) & 0x0F
             frame = self._codecs[config.byte_order].encode(result)
             frames.append(self.corrupt(frame) if self.faults.malformed else frame)
         return frames
