@@ -226,16 +226,63 @@ def test_restart_waits_for_the_alive_message(rig):
     assert device.diagnostic_report().values['alive after restart'].startswith('1 time(s)')
 
 
-def test_reset_errors_uses_the_serial_number(rig):
+def test_reset_errors_stops_resets_with_the_serial_number_and_runs_again(rig):
+    """
+    The datasheet allows 0x30 only in Stop mode and answers it in Run mode too.
+
+    Frames by hand: 0x7B; 0x34 b1 0 (STOP now) b2 1 (RUN after power-up); 0x30 b1..2 the
+    item (0x0000 all measurement errors, 0x0100 all system errors), b3..6 the serial number
+    (74565 = 0x00012345); 0x34 01 01.
+    """
     sim, device, bus = rig()
     sim.faults.error_code = 3  # system error bit on every result
     wait_for(lambda: device.diagnostic_report().level == Level.ERROR, 5.0, 'the error')
     ok, message = device.reset_errors(bus.send)
     assert ok, message
+    assert message == ('ivt_s: reset_errors: stopped, reset all measurement errors, reset all '
+                       'system errors, running (serial 74565)')
     assert bus.commands() == [bytes([0x7B] + [0] * 7),
+                              bytes([0x34, 0x00, 0x01, 0, 0, 0, 0, 0]),
                               bytes([0x30, 0x00, 0x00, 0x00, 0x01, 0x23, 0x45, 0]),
-                              bytes([0x30, 0x01, 0x00, 0x00, 0x01, 0x23, 0x45, 0])]
+                              bytes([0x30, 0x01, 0x00, 0x00, 0x01, 0x23, 0x45, 0]),
+                              bytes([0x34, 0x01, 0x01, 0, 0, 0, 0, 0])]
+    assert sim.running
     wait_for(lambda: device.diagnostic_report().level == Level.OK, 5.0, 'the error cleared')
+
+
+def test_reset_errors_refused_while_stopped_puts_the_sensor_back_into_run(rig):
+    sim, device, bus = rig()
+    sim.faults.error_code = 3
+    send = bus.send
+
+    def refusing(frame):  # a sensor that answers 0x30 "wrong command": FF 30
+        if frame.data[0] == 0x30:
+            device.handle_frame(0x511, bytes([0xFF, 0x30, 0, 0, 0, 0, 0, 0]), time.time())
+            return True, 'sent'
+        return send(frame)
+    ok, message = device.reset_errors(refusing)
+    assert not ok
+    assert message == ('ivt_s: reset the errors failed: the sensor refused reset all '
+                       'measurement errors (0x30): wrong command (0xFF); done before: '
+                       'stopped; the sensor was put back into RUN')
+    assert bus.commands()[-1] == bytes([0x34, 0x01, 0x01, 0, 0, 0, 0, 0]) and sim.running
+    assert sim.faults.error_code == 3  # nothing was reset
+
+
+def test_reset_errors_is_not_sent_when_the_sensor_stays_in_run(rig):
+    sim, device, bus = rig()
+    send = bus.send
+
+    def staying(frame):  # a sensor that answers stop with "RUN": B4 01 01
+        if frame.data[0] == 0x34:
+            device.handle_frame(0x511, bytes([0xB4, 1, 1, 0, 0, 0, 0, 0]), time.time())
+            return True, 'sent'
+        return send(frame)
+    ok, message = device.reset_errors(staying)
+    assert not ok
+    assert message == ('ivt_s: reset the errors failed: the sensor answered stop (0x34) but '
+                       'stays in RUN; done before: nothing')
+    assert [f[0] for f in bus.commands()] == [0x7B]  # no 0x30 went out
 
 
 def test_unknown_and_malformed_answers_are_counted_never_fatal():

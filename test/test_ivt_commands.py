@@ -137,6 +137,8 @@ def test_services_end_to_end_over_slcan(slcan_rig):
     rig.status('ivt_s', lambda s: level(s) == 2 and 'System_Error' in s.message, 10.0)
     reset = rig.call(Trigger, '/ivt_s/reset_errors')
     assert reset.success, reset.message
+    assert reset.message == ('ivt_s: reset_errors: stopped, reset all measurement errors, '
+                             'reset all system errors, running (serial 74565)')
     rig.status('ivt_s', lambda s: level(s) == 0, 10.0)
     # what crossed the adapter, in the order the bridge sent it (golden bytes by hand)
     sent = [data for _, data in sim.received]
@@ -144,9 +146,11 @@ def test_services_end_to_end_over_slcan(slcan_rig):
     assert sent[:9] == reads
     assert sent[9] == bytes([0x34, 0x00, 0x01, 0, 0, 0, 0, 0])
     assert sent[10] == bytes([0x20, 0x42, 0x00, 0x0A, 0, 0, 0, 0])
-    assert sent[-3:] == [bytes([0x7B] + [0] * 7),
+    assert sent[-5:] == [bytes([0x7B] + [0] * 7),
+                         bytes([0x34, 0x00, 0x01, 0, 0, 0, 0, 0]),  # 0x30 only in STOP
                          bytes([0x30, 0x00, 0x00, 0x00, 0x01, 0x23, 0x45, 0]),
-                         bytes([0x30, 0x01, 0x00, 0x00, 0x01, 0x23, 0x45, 0])]
+                         bytes([0x30, 0x01, 0x00, 0x00, 0x01, 0x23, 0x45, 0]),
+                         bytes([0x34, 0x01, 0x01, 0, 0, 0, 0, 0])]
     assert rig.failures == []
 
 

@@ -181,3 +181,24 @@ def test_error_queries_answer_the_item_asked():
     sim.on_frame(Frame(0x411, bytes([0x40, 0x07, 0, 0, 0, 0, 0, 0])), 0.0)
     answers = [decode_answer(f.data) for f in sim.tick(0.0) if f.arbitration_id == 0x511]
     assert answers == [ErrorAnswer(True, 5, 1), ErrorAnswer(False, 7, 0)]
+
+
+def test_reset_is_answered_in_run_but_carried_out_only_in_stop():
+    """
+    The datasheet: 0x30 only in Stop mode; every defined command is answered anyway.
+
+    Frames by hand: 30 01 00 | 00 01 23 45 (all system errors, serial 74565); answer B0 with
+    the same item and serial; 34 00 01 = STOP now, RUN after power-up.
+    """
+    sim = IvtSSimulator()
+    sim.faults.error_code = 1
+    reset = Frame(0x411, bytes([0x30, 0x01, 0x00, 0x00, 0x01, 0x23, 0x45, 0]))
+    sim.on_frame(reset, 0.0)
+    answers = [f.data for f in sim.tick(0.0) if f.arbitration_id == 0x511]
+    assert answers == [bytes([0xB0, 0x01, 0x00, 0x00, 0x01, 0x23, 0x45, 0])]
+    assert sim.faults.error_code == 1  # running: nothing reset
+    sim.on_frame(Frame(0x411, bytes([0x34, 0x00, 0x01, 0, 0, 0, 0, 0])), 0.1)
+    sim.on_frame(reset, 0.1)
+    answers = [f.data for f in sim.tick(0.1) if f.arbitration_id == 0x511]
+    assert answers[-1] == bytes([0xB0, 0x01, 0x00, 0x00, 0x01, 0x23, 0x45, 0])
+    assert sim.faults.error_code is None

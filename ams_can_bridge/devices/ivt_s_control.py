@@ -188,8 +188,8 @@ class IvtSControl:
         return self._run('restart', body)
 
     def reset_errors(self, send: SendFrame) -> tuple[bool, str]:
-        """Reset all measurement and system errors (0x30, with the serial number)."""
+        """Stop, reset all measurement and system errors (0x30, with the serial number), run."""
         def body() -> str:
-            serial = seq.reset_errors(self.link, send, self._timeout_s())
-            return f'reset_errors: all measurement and system errors reset (serial {serial})'
+            serial, steps = seq.reset_errors(self.link, send, self._timeout_s())
+            return f'reset_errors: {", ".join(steps)} (serial {serial})'
         return self._run('reset the errors', body)

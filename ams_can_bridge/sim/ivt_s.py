@@ -11,8 +11,9 @@ Commands on 0x411 are answered on 0x511 as docs/protocols.md section 2 describes
 (0x34, 0x74), each result's configuration (0x2n, 0x6n: trigger mode, cycle time, byte order
 and sign, applied to the frames sent; changed only while stopped), STORE (0x32), restart
 (0x3F: the stored configuration and start-up mode, As/Wh from 0, alive message 0xBF),
-restore defaults (0x3D), serial number (0x7B), error items (0x40, 0x41) and reset (0x30).
-Any other command is answered "wrong command" (0xFF).
+restore defaults (0x3D), serial number (0x7B), error items (0x40, 0x41) and reset (0x30,
+carried out only while stopped, answered either way, as the sensor does). Any other command
+is answered "wrong command" (0xFF).
 """
 from __future__ import annotations
 
@@ -228,9 +229,9 @@ class IvtSSimulator(SimDevice):
                       else bool(self.faults.extra.get('measurement_error')))
             (item,) = _ERROR_ITEM(data)
             self._answer(ErrorAnswer(system, item, int(active)), now)
-        elif mux == cmd.RESET_ERR_LOG:
+        elif mux == cmd.RESET_ERR_LOG:  # Stop mode only; answered in RUN too (datasheet)
             item, serial = _RESET(data)
-            if serial == self.serial:
+            if stopped and serial == self.serial:
                 if item == cmd.RESET_ALL_SYSTEM_ERRORS:
                     self.faults.error_code = None
                 elif item == cmd.RESET_ALL_MEASUREMENT_ERRORS:
