@@ -30,7 +30,7 @@ from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, Level, PowerSupplyHealth)
 from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.ivt_s_commands import CommandLink
-from ams_can_bridge.devices.ivt_s_control import CYCLE_KEYS, IvtSControl
+from ams_can_bridge.devices.ivt_s_control import CYCLE_KEYS, ERROR_MASKS_KEY, IvtSControl
 from ams_can_bridge.devices.timed import CounterHealth, TimedStore
 from ams_can_bridge.errors import ParamError, ProtocolError
 from ams_can_bridge.parameters import ParamSpec
@@ -112,6 +112,12 @@ class IvtSDevice(IvtSControl, Device):
                   f'(0 = off); no default: write_config refuses while one is unset',
                   low=0, high=CYCLE_MAX_MS, step=1, read_only=False)
         for kind, key in CYCLE_KEYS.items()] + [
+        ParamSpec(ERROR_MASKS_KEY, bool, None,
+                  'configuration bit 5, global: true = the sensor sets the measurement / '
+                  'system-error status bits (byte 1 bits 6, 7) from its error masks, false = '
+                  'only for CRC and Vref errors (factory); write_config writes it to every '
+                  'result; unset: write_config keeps what the sensor has (asks it first)',
+                  read_only=False),
         ParamSpec('command_timeout', float, 2.0,
                   's each command waits for its answer on 0x511 (STORE at least 2 s)',
                   low=0.1, high=60.0, read_only=False),

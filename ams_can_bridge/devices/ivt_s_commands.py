@@ -47,7 +47,7 @@ class ReadBack:
     configs: dict[IvtMux, ResultConfig]
 
     def summary(self) -> str:
-        """Describe as 'RUN; I 10 ms, U1 60 ms, U2 off, ...; big-endian; sign normal'."""
+        """Describe as 'RUN; I 10 ms, U1 60 ms, ...; big-endian; sign normal; error masks off'."""
         results = []
         for kind in IvtMux:
             config = self.configs[kind]
@@ -60,7 +60,9 @@ class ReadBack:
         return '; '.join([mode, ', '.join(results),
                           _grouped(self.configs, lambda c: f'{c.byte_order}-endian'),
                           _grouped(self.configs, lambda c: 'sign inverted' if c.sign_inverted
-                                   else 'sign normal')])
+                                   else 'sign normal'),
+                          _grouped(self.configs, lambda c: 'error masks '
+                                   + ('on' if c.error_masks else 'off'))])
 
 
 def _grouped(configs: dict[IvtMux, ResultConfig], label: Callable[[ResultConfig], str]) -> str:
@@ -222,13 +224,17 @@ def is_config(kind: IvtMux) -> Callable[[IvtAnswer], bool]:
     return lambda answer: isinstance(answer, ResultConfig) and answer.kind == kind
 
 
+def read_result(link: CommandLink, send: SendFrame, kind: IvtMux,
+                timeout: float) -> ResultConfig:
+    """Ask for one result's configuration (0x6n, answer 0xAn)."""
+    return link.exchange(send, cmd.get_config(kind), is_config(kind),  # type: ignore
+                         f'get the {DBC_NAME[kind]} configuration', timeout)
+
+
 def read_config(link: CommandLink, send: SendFrame, timeout: float, now: float) -> ReadBack:
     """Ask for the mode (0x74) and each result's configuration (0x60..0x67)."""
     mode = link.exchange(send, cmd.get_mode(), is_mode, 'GET_MODE', timeout)
-    configs = {}
-    for kind in IvtMux:
-        configs[kind] = link.exchange(send, cmd.get_config(kind), is_config(kind),
-                                      f'get the {DBC_NAME[kind]} configuration', timeout)
+    configs = {kind: read_result(link, send, kind, timeout) for kind in IvtMux}
     read = ReadBack(mode, configs)  # type: ignore[arg-type]
     link.remember(read, now)
     return read

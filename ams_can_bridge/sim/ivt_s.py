@@ -205,6 +205,9 @@ class IvtSSimulator(SimDevice):
             if stopped and wanted.cycle_ms:  # time 0 is ignored; RUN: no change
                 self.configs[kind] = wanted
                 self._periodic[kind] = Periodic(wanted.cycle_ms / 1000.0)
+                # bit 5 is global: the last configuration written holds for every result
+                self.configs = {k: dataclasses.replace(c, error_masks=wanted.error_masks)
+                                for k, c in self.configs.items()}
             self._answer(self.configs[kind], now)
         elif cmd.GET_CONFIG_RESULT <= mux <= cmd.GET_CONFIG_RESULT + 7:
             self._answer(self.configs[IvtMux(mux - cmd.GET_CONFIG_RESULT)], now)
