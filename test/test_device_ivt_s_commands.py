@@ -292,16 +292,20 @@ def test_reset_errors_stops_resets_with_the_serial_number_and_runs_again(rig):
     wait_for(lambda: device.diagnostic_report().level == Level.OK, 5.0, 'the error cleared')
 
 
+def answering(bus, device, mux, answer):
+    """Return a send that answers commands ``mux`` with ``answer`` (hex) instead of the sim."""
+    def send(frame):
+        if frame.data[0] == mux:
+            device.handle_frame(0x511, bytes.fromhex(answer), time.time())
+            return True, 'sent'
+        return bus.send(frame)
+    return send
+
+
 def test_reset_errors_refused_while_stopped_puts_the_sensor_back_into_run(rig):
     sim, device, bus = rig()
     sim.faults.error_code = 3
-    send = bus.send
-
-    def refusing(frame):  # a sensor that answers 0x30 "wrong command": FF 30
-        if frame.data[0] == 0x30:
-            device.handle_frame(0x511, bytes([0xFF, 0x30, 0, 0, 0, 0, 0, 0]), time.time())
-            return True, 'sent'
-        return send(frame)
+    refusing = answering(bus, device, 0x30, 'FF 30 00 00 00 00 00 00')  # "wrong command"
     ok, message = device.reset_errors(refusing)
     assert not ok
     assert message == ('ivt_s: reset the errors failed: the sensor refused reset all '
@@ -313,13 +317,7 @@ def test_reset_errors_refused_while_stopped_puts_the_sensor_back_into_run(rig):
 
 def test_reset_errors_is_not_sent_when_the_sensor_stays_in_run(rig):
     sim, device, bus = rig()
-    send = bus.send
-
-    def staying(frame):  # a sensor that answers stop with "RUN": B4 01 01
-        if frame.data[0] == 0x34:
-            device.handle_frame(0x511, bytes([0xB4, 1, 1, 0, 0, 0, 0, 0]), time.time())
-            return True, 'sent'
-        return send(frame)
+    staying = answering(bus, device, 0x34, 'B4 01 01 00 00 00 00 00')  # stop answered RUN
     ok, message = device.reset_errors(staying)
     assert not ok
     assert message == ('ivt_s: reset the errors failed: the sensor answered stop (0x34) but '
