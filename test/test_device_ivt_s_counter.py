@@ -60,6 +60,7 @@ def test_wh_every_100_ms_advancing_by_5_is_a_healthy_counter(clock):
     values = device.diagnostic_report().values
     assert values['Wh counter'] == '0' and values['Wh (Wh)'] == '52'
     assert values['Wh counter stuck'] == '0' and values['Wh counter jumps'] == '0'
+    assert values['Wh counter step'] == '5'
     assert 'counter' not in device.diagnostic_report().message
 
 
@@ -90,9 +91,9 @@ def test_frames_missing_from_the_trace_are_jumps_of_two_and_three_steps(clock):
     # W (0x526): 0b 00 | 0a 0f 04 09 0e 03 08 0d 02 07: one +10 (132.364 missing)
     assert values['W counter jumps'] == '1' and values['W counter stuck'] == '0'
     assert values['Wh counter jumps'] == '0'
+    assert values['T counter step'] == values['W counter step'] == '5'
     counters = {kind: track.counter for kind, track in device._tracks.items()}
     assert counters[IvtMux.T].lost == 4 and counters[IvtMux.W].lost == 1  # 1 + 1 + 2, 1
-    assert counters[IvtMux.T].step == counters[IvtMux.W].step == 5
 
 
 def feed(device, clock, kind, counters, period=0.1):
@@ -134,10 +135,10 @@ def test_a_new_cycle_from_the_sensor_restarts_the_step_without_a_warning(clock):
     values = device.diagnostic_report().values
     assert values['T counter jumps'] == '0' and values['T config'] == 'cyclic 20 ms, ' \
         'big-endian, sign normal'
-    assert device._tracks[IvtMux.T].counter.step == 1
+    assert values['T counter step'] == '1'
     # the same configuration answered again (read_config) keeps the step learned
     device.handle_frame(0x511, answer, clock.now)
-    assert device._tracks[IvtMux.T].counter.step == 1
+    assert device.diagnostic_report().values['T counter step'] == '1'
     assert device.link.configs[IvtMux.T] == ResultConfig(IvtMux.T, TriggerMode.CYCLIC, 20)
 
 

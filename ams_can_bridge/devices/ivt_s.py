@@ -351,6 +351,8 @@ class IvtSDevice(IvtSControl, Device):
                 (r.measurement_error, 'measurement error'), (r.system_error, 'system error'))
                 if flag]
             values[f'{name} status'] = ', '.join(flags) or 'ok'
+            step = track.counter.step
+            values[f'{name} counter step'] = 'not learned yet' if step is None else str(step)
             values[f'{name} counter stuck'] = str(track.counter.repeats)
             values[f'{name} counter jumps'] = str(track.counter.jumps)
             values[f'{name} age (s)'] = f'{self.clock() - self._results.seen(kind):.2f}'
