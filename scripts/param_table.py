@@ -10,6 +10,8 @@ from ams_can_bridge.parameters import allowed_text, BUS_PARAMS, format_number, N
 
 
 COMMON = ('frame_id', 'location', 'serial_number', 'stale_timeout', 'base_id')
+CONFIG_NOTES = {'ivt_s': '`write_config` needs every cycle time; `error_masks` unset keeps the '
+                         "sensor's"}
 
 
 def device_specs(device_type: str) -> list:
@@ -77,7 +79,8 @@ def main() -> None:
     for device_type in registry.COMMANDERS:
         config = [s for s in device_specs(device_type) if s.key.startswith('config.')]
         if config:
-            print(f'\n`{device_type}.config.*` (no defaults; `write_config` needs them all):\n')
+            note = CONFIG_NOTES.get(device_type, '`write_config` needs them all')
+            print(f'\n`{device_type}.config.*` (no defaults; {note}):\n')
             print(head)
             for spec in config:
                 print(row(f'{device_type}.{spec.key}', spec))

@@ -76,7 +76,7 @@ def test_read_config_of_a_factory_sensor_matches(rig):
     assert ok, message
     assert message == ('ivt_s: read_config: RUN; I 20 ms, U1 20 ms, U2 20 ms, U3 20 ms, '
                        'T 20 ms, W 20 ms, As 20 ms, Wh 20 ms; big-endian; sign normal; '
-                       'matches the bridge')
+                       'error masks off; matches the bridge')
     assert bus.commands() == [bytes([0x74] + [0] * 7)] + [
         bytes([0x60 + k] + [0] * 7) for k in range(8)]
     diag = device.diagnostic_report()
@@ -90,8 +90,9 @@ def test_little_endian_sensor_is_an_error_naming_byte_order(rig):
     sim, device, bus = rig(sim)  # the bridge expects big (factory) by default
     ok, message = device.read_config(bus.send)
     assert not ok
-    assert 'little-endian; sign normal; MISMATCH: the sensor sends its results ' \
-           'little-endian, ivt_s.byte_order is big: set ivt_s.byte_order to little' in message
+    assert ('little-endian; sign normal; error masks off; MISMATCH: the sensor sends its '
+            'results little-endian, ivt_s.byte_order is big: set ivt_s.byte_order to little'
+            in message)
     diag = device.diagnostic_report()
     assert diag.level == Level.ERROR and 'set ivt_s.byte_order to little' in diag.message
 
@@ -128,8 +129,10 @@ def test_write_config_then_read_back_reports_what_was_written(rig):
     assert message == (
         'ivt_s: write_config: stopped, wrote 8 results, stored, running; read back: RUN; '
         'I 10 ms, U1 20 ms, U2 off, U3 off, T 100 ms, W off, As 1000 ms, Wh off; '
-        'little-endian; sign normal')
+        'little-endian; sign normal; error masks off')
     commands = bus.commands()
+    assert commands[0] == bytes([0x60] + [0] * 7)  # error_masks unset: the sensor's kept
+    commands = commands[1:]
     assert commands[:11] == [
         bytes([0x34, 0x00, 0x01, 0, 0, 0, 0, 0]),
         bytes([0x20, 0x42, 0x00, 0x0A, 0, 0, 0, 0]),  # I cyclic 10 ms little-endian
@@ -157,7 +160,46 @@ def test_write_config_with_discharge_negative_inverts_the_directional_results(ri
     ok, message = device.write_config(bus.send)
     assert ok, message
     assert 'sign inverted (I, W, As, Wh) / sign normal (U1, U2, U3, T)' in message
-    assert bus.commands()[1] == bytes([0x20, 0x82, 0x00, 0x0A, 0, 0, 0, 0])
+    assert bus.commands()[2] == bytes([0x20, 0x82, 0x00, 0x0A, 0, 0, 0, 0])
+
+
+def test_write_config_keeps_the_sensors_error_masks_when_unset(rig):
+    """
+    Bit 5 of the configuration byte is global (the datasheet): kept unless configured.
+
+    Frames by hand: 0x60 asks the I configuration; A0 22 00 14 = cyclic (2) | bit 5 (0x20),
+    20 ms; then 0x20.. with byte 1 = 0x62: cyclic | bit 5 | little-endian (0x40).
+    """
+    sim = IvtSSimulator(period=0.02)
+    sim.misconfigure(error_masks=True)  # set up so by another tool
+    sim, device, bus = rig(sim, byte_order='little', **CYCLES)
+    ok, message = device.read_config(bus.send)
+    assert 'big-endian; sign normal; error masks on; MISMATCH' in message
+    assert device.diagnostic_report().values['I config'] == (
+        'cyclic 20 ms, big-endian, sign normal, error masks in the result state')
+    mark = len(bus.commands())
+    ok, message = device.write_config(bus.send)
+    assert ok, message
+    assert message.endswith('little-endian; sign normal; error masks on')
+    commands = bus.commands()[mark:]
+    assert commands[:3] == [bytes([0x60] + [0] * 7), bytes([0x34, 0x00, 0x01, 0, 0, 0, 0, 0]),
+                            bytes([0x20, 0x62, 0x00, 0x0A, 0, 0, 0, 0])]
+    assert commands[3] == bytes([0x21, 0x62, 0x00, 0x14, 0, 0, 0, 0])
+    assert all(config.error_masks for config in sim.stored.values())
+
+
+@pytest.mark.parametrize('masks, byte1, shown', [(False, 0x42, 'off'), (True, 0x62, 'on')])
+def test_write_config_sets_the_error_masks_when_configured(rig, masks, byte1, shown):
+    sim = IvtSSimulator(period=0.02)
+    sim.misconfigure(error_masks=not masks)
+    sim, device, bus = rig(sim, byte_order='little', **CYCLES, **{'config.error_masks': masks})
+    ok, message = device.write_config(bus.send)
+    assert ok, message
+    assert message.endswith(f'little-endian; sign normal; error masks {shown}')
+    commands = bus.commands()
+    assert commands[:2] == [bytes([0x34, 0x00, 0x01, 0, 0, 0, 0, 0]),
+                            bytes([0x20, byte1, 0x00, 0x0A, 0, 0, 0, 0])]
+    assert {config.error_masks for config in sim.configs.values()} == {masks}
 
 
 def test_write_config_refuses_unset_values_and_sends_nothing(rig):
@@ -195,7 +237,7 @@ def test_no_answer_fails_within_command_timeout_naming_the_step(rig):
 
 
 def test_write_stopped_then_silent_tries_to_run_again(rig):
-    sim, device, bus = rig(command_timeout=0.5, **CYCLES)
+    sim, device, bus = rig(command_timeout=0.5, **CYCLES, **{'config.error_masks': False})
     sim.faults.extra['mute_commands'] = True
     ok, message = device.write_config(bus.send)
     assert not ok
@@ -226,16 +268,61 @@ def test_restart_waits_for_the_alive_message(rig):
     assert device.diagnostic_report().values['alive after restart'].startswith('1 time(s)')
 
 
-def test_reset_errors_uses_the_serial_number(rig):
+def test_reset_errors_stops_resets_with_the_serial_number_and_runs_again(rig):
+    """
+    The datasheet allows 0x30 only in Stop mode and answers it in Run mode too.
+
+    Frames by hand: 0x7B; 0x34 b1 0 (STOP now) b2 1 (RUN after power-up); 0x30 b1..2 the
+    item (0x0000 all measurement errors, 0x0100 all system errors), b3..6 the serial number
+    (74565 = 0x00012345); 0x34 01 01.
+    """
     sim, device, bus = rig()
     sim.faults.error_code = 3  # system error bit on every result
     wait_for(lambda: device.diagnostic_report().level == Level.ERROR, 5.0, 'the error')
     ok, message = device.reset_errors(bus.send)
     assert ok, message
+    assert message == ('ivt_s: reset_errors: stopped, reset all measurement errors, reset all '
+                       'system errors, running (serial 74565)')
     assert bus.commands() == [bytes([0x7B] + [0] * 7),
+                              bytes([0x34, 0x00, 0x01, 0, 0, 0, 0, 0]),
                               bytes([0x30, 0x00, 0x00, 0x00, 0x01, 0x23, 0x45, 0]),
-                              bytes([0x30, 0x01, 0x00, 0x00, 0x01, 0x23, 0x45, 0])]
+                              bytes([0x30, 0x01, 0x00, 0x00, 0x01, 0x23, 0x45, 0]),
+                              bytes([0x34, 0x01, 0x01, 0, 0, 0, 0, 0])]
+    assert sim.running
     wait_for(lambda: device.diagnostic_report().level == Level.OK, 5.0, 'the error cleared')
+
+
+def answering(bus, device, mux, answer):
+    """Return a send that answers commands ``mux`` with ``answer`` (hex) instead of the sim."""
+    def send(frame):
+        if frame.data[0] == mux:
+            device.handle_frame(0x511, bytes.fromhex(answer), time.time())
+            return True, 'sent'
+        return bus.send(frame)
+    return send
+
+
+def test_reset_errors_refused_while_stopped_puts_the_sensor_back_into_run(rig):
+    sim, device, bus = rig()
+    sim.faults.error_code = 3
+    refusing = answering(bus, device, 0x30, 'FF 30 00 00 00 00 00 00')  # "wrong command"
+    ok, message = device.reset_errors(refusing)
+    assert not ok
+    assert message == ('ivt_s: reset the errors failed: the sensor refused reset all '
+                       'measurement errors (0x30): wrong command (0xFF); done before: '
+                       'stopped; the sensor was put back into RUN')
+    assert bus.commands()[-1] == bytes([0x34, 0x01, 0x01, 0, 0, 0, 0, 0]) and sim.running
+    assert sim.faults.error_code == 3  # nothing was reset
+
+
+def test_reset_errors_is_not_sent_when_the_sensor_stays_in_run(rig):
+    sim, device, bus = rig()
+    staying = answering(bus, device, 0x34, 'B4 01 01 00 00 00 00 00')  # stop answered RUN
+    ok, message = device.reset_errors(staying)
+    assert not ok
+    assert message == ('ivt_s: reset the errors failed: the sensor answered stop (0x34) but '
+                       'stays in RUN; done before: nothing')
+    assert [f[0] for f in bus.commands()] == [0x7B]  # no 0x30 went out
 
 
 def test_unknown_and_malformed_answers_are_counted_never_fatal():

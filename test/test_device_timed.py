@@ -58,3 +58,21 @@ def test_a_counter_restart_after_a_silence_is_no_anomaly():
     assert health.repeat_run == 0 and health.jumps == 0 and health.lost == 0
     health.observe(4, continuous=True)
     assert health.jumps == 0
+
+
+def test_a_learned_step_counts_lost_frames_and_steps_out_of_it():
+    health = CounterHealth(0x10, recovery=2, step=None)  # counts 20 ms cycles, frames 100 ms
+    for counter in (3, 8, 13):
+        health.observe(counter, continuous=True)
+    assert health.step == 5 and health.confirmed and not health.in_trouble
+    health.observe(7, continuous=True)  # +10: one frame lost
+    assert health.jumps == 1 and health.lost == 1 and health.in_trouble
+    health.observe(9, continuous=True)  # +2: out of step, nothing lost
+    assert health.jumps == 2 and health.lost == 1 and health.step == 5
+    for counter in (14, 3):
+        health.observe(counter, continuous=True)
+    assert not health.in_trouble
+    health.restart()  # the sender's rate changed: a new step is learned, no anomaly
+    for counter in (4, 5, 6):
+        health.observe(counter, continuous=True)
+    assert health.step == 1 and health.jumps == 2 and not health.in_trouble

@@ -113,12 +113,12 @@ def test_services_end_to_end_over_slcan(slcan_rig):
     assert write.success, write.message
     assert write.message.endswith(
         'read back: RUN; I 10 ms, U1 20 ms, U2 off, U3 off, T 100 ms, W off, As 1000 ms, '
-        'Wh off; little-endian; sign normal')
+        'Wh off; little-endian; sign normal; error masks off')
     read = rig.call(Trigger, '/ivt_s/read_config')
     assert read.success, read.message
     assert read.message == ('ivt_s: read_config: RUN; I 10 ms, U1 20 ms, U2 off, U3 off, '
                             'T 100 ms, W off, As 1000 ms, Wh off; little-endian; sign normal; '
-                            'matches the bridge')
+                            'error masks off; matches the bridge')
     status = rig.status('ivt_s', lambda s: level(s) == 0 and '-12.50 A' in s.message, 10.0)
     values = {kv.key: kv.value for kv in status.values}
     assert values['config check'].startswith('ok')
@@ -137,16 +137,21 @@ def test_services_end_to_end_over_slcan(slcan_rig):
     rig.status('ivt_s', lambda s: level(s) == 2 and 'System_Error' in s.message, 10.0)
     reset = rig.call(Trigger, '/ivt_s/reset_errors')
     assert reset.success, reset.message
+    assert reset.message == ('ivt_s: reset_errors: stopped, reset all measurement errors, '
+                             'reset all system errors, running (serial 74565)')
     rig.status('ivt_s', lambda s: level(s) == 0, 10.0)
     # what crossed the adapter, in the order the bridge sent it (golden bytes by hand)
     sent = [data for _, data in sim.received]
     reads = [bytes([0x74] + [0] * 7)] + [bytes([0x60 + k] + [0] * 7) for k in range(8)]
     assert sent[:9] == reads
-    assert sent[9] == bytes([0x34, 0x00, 0x01, 0, 0, 0, 0, 0])
-    assert sent[10] == bytes([0x20, 0x42, 0x00, 0x0A, 0, 0, 0, 0])
-    assert sent[-3:] == [bytes([0x7B] + [0] * 7),
+    assert sent[9] == bytes([0x60] + [0] * 7)  # error_masks unset: the sensor's is kept
+    assert sent[10] == bytes([0x34, 0x00, 0x01, 0, 0, 0, 0, 0])
+    assert sent[11] == bytes([0x20, 0x42, 0x00, 0x0A, 0, 0, 0, 0])
+    assert sent[-5:] == [bytes([0x7B] + [0] * 7),
+                         bytes([0x34, 0x00, 0x01, 0, 0, 0, 0, 0]),  # 0x30 only in STOP
                          bytes([0x30, 0x00, 0x00, 0x00, 0x01, 0x23, 0x45, 0]),
-                         bytes([0x30, 0x01, 0x00, 0x00, 0x01, 0x23, 0x45, 0])]
+                         bytes([0x30, 0x01, 0x00, 0x00, 0x01, 0x23, 0x45, 0]),
+                         bytes([0x34, 0x01, 0x01, 0, 0, 0, 0, 0])]
     assert rig.failures == []
 
 
@@ -222,5 +227,8 @@ def test_parameters_are_declared_with_ranges(rig_factory):
     assert rig.node.get_parameter('ivt_s.config.as_cycle_ms').value is None
     assert rig.node.get_parameter('ivt_s.command_timeout').value == 2.0
     assert rig.node.get_parameter('ivt_s.check_config_at_start').value is False
+    assert rig.node.devices['ivt_s'].config.value('config.error_masks') is None  # kept
+    assert rig.set_param('ivt_s.config.error_masks', True).successful
+    assert rig.node.devices['ivt_s'].config.value('config.error_masks') is True
     assert rig.set_param('ivt_s.config.i_cycle_ms', 70000).successful is False
     assert rig.set_param('ivt_s.config.i_cycle_ms', 10).successful is True

@@ -6,7 +6,7 @@ import pytest
 
 from ams_can_bridge.errors import EncodeRangeError, MalformedFrameError
 from ams_can_bridge.protocols.common import Frame, load_dbc
-from ams_can_bridge.protocols.ivt_s import IvtMux, IvtResult, IvtSCodec
+from ams_can_bridge.protocols.ivt_s import IvtMux, IvtResult, IvtSCodec, LAYOUTS
 
 BE = IvtSCodec()
 LE = IvtSCodec(byte_order='little')
@@ -152,10 +152,29 @@ def test_big_endian_codec_agrees_with_the_dbc(offset, tail):
     name = ['I', 'U1', 'U2', 'U3', 'T', 'W', 'As', 'Wh'][offset]
     assert theirs[f'IVT_MsgCount_Result_{name}'] == ours.counter
     assert theirs[f'IVT_Result_{name}_OCS'] == ours.ocs
-    assert theirs[f'IVT_Result_{name}_Result_Error'] == ours.result_error
+    assert theirs[f'IVT_Result_{name}_Channel_Error'] == ours.result_error
     assert theirs[f'IVT_Result_{name}_Measurement_Error'] == ours.measurement_error
     assert theirs[f'IVT_Result_{name}_System_Error'] == ours.system_error
     # The DBC keeps vendor units (T in 0.1 degC steps); ours.value is SI.
     dbc_value = theirs[f'IVT_Result_{name}']
     expected = ours.value * (1000 if offset <= 3 else 1)
     assert dbc_value == pytest.approx(expected, rel=1e-9, abs=1e-6)
+
+
+def test_the_result_state_bits_are_named_as_the_vendor_dbc_names_them():
+    """
+    Name and place the status bits as Isabellenhuette's DBC does.
+
+    IVT-S_12082020.dbc (foxBMS 2 tools/dbc/third-party), message 1313:
+    IVT_Result_I_System_Error 15|1, IVT_Result_I_Measurement_Error 14|1,
+    IVT_Result_I_Channel_Error 13|1, IVT_Result_I_OCS 12|1, IVT_MsgCount_Result_I 11|4.
+    """
+    message = load_dbc('ivt_s').get_message_by_frame_id(0x521)
+    bits = {s.name: (s.start, s.length) for s in message.signals}
+    assert {name: bits[name] for name in (
+        'IVT_Result_I_System_Error', 'IVT_Result_I_Measurement_Error',
+        'IVT_Result_I_Channel_Error', 'IVT_Result_I_OCS', 'IVT_MsgCount_Result_I')} == {
+        'IVT_Result_I_System_Error': (15, 1), 'IVT_Result_I_Measurement_Error': (14, 1),
+        'IVT_Result_I_Channel_Error': (13, 1), 'IVT_Result_I_OCS': (12, 1),
+        'IVT_MsgCount_Result_I': (11, 4)}
+    assert [s.name for s in LAYOUTS[IvtMux.WH].signals][3] == 'IVT_Result_Wh_Channel_Error'

@@ -55,6 +55,20 @@ def test_sign_bit_and_big_endian_from_the_dbc_layout():
     assert cmd.set_config(triggered) == frame(0x27, 0xC1, 0x00, 0x01, 0, 0, 0, 0)
 
 
+def test_error_masks_bit_5_from_the_datasheet():
+    # IVT-S datasheet, set config result, byte 1: bits 1..0 mode, bit 4 reserved, bit 5 = 1:
+    # the error masks set the result state bits, bit 6 endianness, bit 7 sign
+    config = ResultConfig(IvtMux.I, TriggerMode.CYCLIC, 20, error_masks=True)
+    assert cmd.set_config(config) == frame(0x20, 0x22, 0x00, 0x14, 0, 0, 0, 0)
+    every = ResultConfig(IvtMux.WH, TriggerMode.CYCLIC, 30, True, True, True)
+    assert cmd.set_config(every) == frame(0x27, 0xE2, 0x00, 0x1E, 0, 0, 0, 0)
+    answer = bytes([0xA4, 0x20, 0x00, 0x64, 0, 0, 0, 0])  # T disabled 100 ms, masks on
+    assert cmd.decode_answer(answer) == ResultConfig(IvtMux.T, TriggerMode.DISABLED, 100,
+                                                     error_masks=True)
+    assert cmd.decode_answer(answer).text() == ('disabled, big-endian, sign normal, error '
+                                                'masks in the result state')
+
+
 def test_getters_and_reset_frames():
     assert cmd.get_config(IvtMux.I) == frame(0x60, 0, 0, 0, 0, 0, 0, 0)
     assert cmd.get_config(IvtMux.WH) == frame(0x67, 0, 0, 0, 0, 0, 0, 0)

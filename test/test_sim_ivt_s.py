@@ -32,15 +32,45 @@ def test_registry_and_type():
     assert IvtSSimulator().name == 'ivt_s'
 
 
-def test_all_eight_results_once_per_period_with_wrapping_counters():
+def test_all_eight_results_once_per_period_with_counters_like_a_real_sensor():
+    """
+    Every 100 ms, and each counter advances by 5 per frame, as a real IVT-S's do.
+
+    Golden: the Wh counters of foxBMS 2's trace (test/fixtures/foxbms2, 0x528, one frame
+    every 100 ms): 05 0a 0f 04 09 0e 03 08 0d 02 07 0c 01 06 0b 00.
+    """
     sim = IvtSSimulator()
     codec = IvtSCodec()
     periods = run(sim, codec, 2.0)
     assert len(periods) == 21  # t = 0, 0.1, ..., 2.0; nothing at the 0.05 s ticks
-    for n, (_, results) in enumerate(periods):
+    for _, results in periods:
         assert set(results) == set(IvtMux)
-        assert {r.counter for r in results.values()} == {n % 16}
+        assert len({r.counter for r in results.values()}) == 1  # every result alike here
+    trace_wh = [0x05, 0x0A, 0x0F, 0x04, 0x09, 0x0E, 0x03, 0x08, 0x0D, 0x02, 0x07, 0x0C, 0x01,
+                0x06, 0x0B, 0x00]
+    assert [p[1][IvtMux.WH].counter for p in periods[1:17]] == trace_wh
+
+
+def test_a_20_ms_result_advances_its_counter_by_1():
+    sim = IvtSSimulator(period=0.02)
+    periods = run(sim, IvtSCodec(), 0.4, step=0.02)
     assert [p[1][IvtMux.I].counter for p in periods[14:18]] == [14, 15, 0, 1]
+
+
+def test_the_device_finds_the_simulated_counters_healthy():
+    sim = IvtSSimulator()
+    for command in ('34 00 01', '26 02 03 E8', '34 01 01'):  # stop, As cyclic 1000 ms, run
+        sim.on_frame(Frame(0x411, bytes.fromhex(command).ljust(8, b'\0'), False), 0.0)
+    assert sim.configs[IvtMux.AS].cycle_ms == 1000
+    now = [0.0]
+    device = IvtSDevice('ivt_s', {}, clock=lambda: now[0])
+    for n in range(201):  # 20 s: As every second (+50 = +2 on the 4-bit counter)
+        now[0] = n * 0.1
+        for frame in sim.tick(now[0]):
+            device.handle_frame(frame.arbitration_id, frame.data, now[0])
+    values = device.diagnostic_report().values
+    assert [values[f'{name} counter jumps'] for name in ('I', 'T', 'As')] == ['0'] * 3
+    assert values['As counter step'] == '2' and values['I counter step'] == '5'
 
 
 @pytest.mark.parametrize('order', ['big', 'little'])
@@ -151,3 +181,24 @@ def test_error_queries_answer_the_item_asked():
     sim.on_frame(Frame(0x411, bytes([0x40, 0x07, 0, 0, 0, 0, 0, 0])), 0.0)
     answers = [decode_answer(f.data) for f in sim.tick(0.0) if f.arbitration_id == 0x511]
     assert answers == [ErrorAnswer(True, 5, 1), ErrorAnswer(False, 7, 0)]
+
+
+def test_reset_is_answered_in_run_but_carried_out_only_in_stop():
+    """
+    The datasheet: 0x30 only in Stop mode; every defined command is answered anyway.
+
+    Frames by hand: 30 01 00 | 00 01 23 45 (all system errors, serial 74565); answer B0 with
+    the same item and serial; 34 00 01 = STOP now, RUN after power-up.
+    """
+    sim = IvtSSimulator()
+    sim.faults.error_code = 1
+    reset = Frame(0x411, bytes([0x30, 0x01, 0x00, 0x00, 0x01, 0x23, 0x45, 0]))
+    sim.on_frame(reset, 0.0)
+    answers = [f.data for f in sim.tick(0.0) if f.arbitration_id == 0x511]
+    assert answers == [bytes([0xB0, 0x01, 0x00, 0x00, 0x01, 0x23, 0x45, 0])]
+    assert sim.faults.error_code == 1  # running: nothing reset
+    sim.on_frame(Frame(0x411, bytes([0x34, 0x00, 0x01, 0, 0, 0, 0, 0])), 0.1)
+    sim.on_frame(reset, 0.1)
+    answers = [f.data for f in sim.tick(0.1) if f.arbitration_id == 0x511]
+    assert answers[-1] == bytes([0xB0, 0x01, 0x00, 0x00, 0x01, 0x23, 0x45, 0])
+    assert sim.faults.error_code is None

@@ -30,14 +30,15 @@ from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, Level, PowerSupplyHealth)
 from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.ivt_s_commands import CommandLink
-from ams_can_bridge.devices.ivt_s_control import CYCLE_KEYS, IvtSControl
+from ams_can_bridge.devices.ivt_s_control import CYCLE_KEYS, ERROR_MASKS_KEY, IvtSControl
 from ams_can_bridge.devices.timed import CounterHealth, TimedStore
 from ams_can_bridge.errors import ParamError, ProtocolError
 from ams_can_bridge.parameters import ParamSpec
 from ams_can_bridge.protocols.ivt_s import (
     BYTE_ORDERS, COMMAND_ID, DBC_NAME, DEFAULT_BASE_ID, IvtMux, IvtResult, IvtSCodec,
     RAW_UNIT, RESPONSE_ID, SI_UNIT)
-from ams_can_bridge.protocols.ivt_s_commands import CYCLE_MAX_MS, decode_answer, TriggerMode
+from ams_can_bridge.protocols.ivt_s_commands import (
+    CYCLE_MAX_MS, decode_answer, ResultConfig, TriggerMode)
 
 NAN = math.nan
 # A counter anomaly keeps the device at WARN until this many good frames of that result
@@ -51,10 +52,15 @@ SYSTEM_ERROR_TEXT = ('system error bit (byte 1 bit 7, System_Error: sensor funct
 
 @dataclass
 class _Track:
-    """Per-result bookkeeping besides the result itself: counter health, frame interval."""
+    """
+    Per-result bookkeeping besides the result itself: counter health, frame interval.
+
+    The counter counts the sensor's measurement cycles, not frames (a real sensor's results
+    sent every 100 ms advance it by 5, docs/protocols.md 2.1): its step is learned.
+    """
 
     counter: CounterHealth = field(
-        default_factory=lambda: CounterHealth(0x10, COUNTER_RECOVERY_FRAMES))
+        default_factory=lambda: CounterHealth(0x10, COUNTER_RECOVERY_FRAMES, step=None))
     interval: float = math.nan  # observed seconds between frames (smoothed)
 
 
@@ -106,6 +112,12 @@ class IvtSDevice(IvtSControl, Device):
                   f'(0 = off); no default: write_config refuses while one is unset',
                   low=0, high=CYCLE_MAX_MS, step=1, read_only=False)
         for kind, key in CYCLE_KEYS.items()] + [
+        ParamSpec(ERROR_MASKS_KEY, bool, None,
+                  'configuration bit 5, global: true = the sensor sets the measurement / '
+                  'system-error status bits (byte 1 bits 6, 7) from its error masks, false = '
+                  'only for CRC and Vref errors (factory); write_config writes it to every '
+                  'result; unset: write_config keeps what the sensor has (asks it first)',
+                  read_only=False),
         ParamSpec('command_timeout', float, 2.0,
                   's each command waits for its answer on 0x511 (STORE at least 2 s)',
                   low=0.1, high=60.0, read_only=False),
@@ -163,8 +175,18 @@ class IvtSDevice(IvtSControl, Device):
             return False
         with self.lock:
             self.frames_received += 1
+            if isinstance(answer, ResultConfig):
+                self._config_answered(answer)
             self.link.offer(answer, self.clock())
         return False
+
+    def _config_answered(self, config: ResultConfig) -> None:
+        """Learn a result's counter step again when its cycle (or mode) is new (lock held)."""
+        track = self._tracks.get(config.kind)
+        known = self.link.configs.get(config.kind)
+        if track is not None and (known is None or (known.mode, known.cycle_ms)
+                                  != (config.mode, config.cycle_ms)):
+            track.counter.restart()
 
     # --- bus thread ------------------------------------------------------------------------
     def _handle(self, reading: IvtResult, stamp: float) -> bool:
@@ -238,8 +260,9 @@ class IvtSDevice(IvtSControl, Device):
         """
         SI value (sensor sign) of a fresh result, else NaN.
 
-        A result with its result-error bit or its system-error bit set is no measurement
-        (the vendor DBC: with System_Error "sensor functionality is not ensured").
+        A result with its result-error bit (Channel_Error in the vendor DBC) or its
+        system-error bit (System_Error) set is no measurement: with the system error "sensor
+        functionality is not ensured" (the IVT-S datasheet, result messages).
         """
         result = self._fresh(kind)
         if result is None or result.result_error or result.system_error:
@@ -328,6 +351,8 @@ class IvtSDevice(IvtSControl, Device):
                 (r.measurement_error, 'measurement error'), (r.system_error, 'system error'))
                 if flag]
             values[f'{name} status'] = ', '.join(flags) or 'ok'
+            step = track.counter.step
+            values[f'{name} counter step'] = 'not learned yet' if step is None else str(step)
             values[f'{name} counter stuck'] = str(track.counter.repeats)
             values[f'{name} counter jumps'] = str(track.counter.jumps)
             values[f'{name} age (s)'] = f'{self.clock() - self._results.seen(kind):.2f}'

@@ -26,9 +26,13 @@ from ams_can_bridge.protocols.ivt_s_commands import (
 
 # The results whose sign follows the current's direction (discharge_positive applies).
 DIRECTIONAL = (IvtMux.I, IvtMux.W, IvtMux.AS, IvtMux.WH)
-# s: at least this long for the STORE answer (sectioncritical/ivts waits 2 s after STORE,
-# "plenty of time to complete the store operation"; docs/protocols.md section 2)
+# s: at least this long for the STORE answer (the datasheet: up to about 1000 ms;
+# sectioncritical/ivts waits 2 s after STORE, "plenty of time to complete the store
+# operation"; docs/protocols.md section 2)
 STORE_TIMEOUT = 2.0
+# s: at least this long for each reset answer (the datasheet: 0x30 is answered at least
+# +1200 ms after the command; docs/protocols.md section 2)
+RESET_TIMEOUT = 1.5
 
 
 class NoAnswer(AmsCanBridgeError):
@@ -43,7 +47,7 @@ class ReadBack:
     configs: dict[IvtMux, ResultConfig]
 
     def summary(self) -> str:
-        """Describe as 'RUN; I 10 ms, U1 60 ms, U2 off, ...; big-endian; sign normal'."""
+        """Describe as 'RUN; I 10 ms, U1 60 ms, ...; big-endian; sign normal; error masks off'."""
         results = []
         for kind in IvtMux:
             config = self.configs[kind]
@@ -56,7 +60,9 @@ class ReadBack:
         return '; '.join([mode, ', '.join(results),
                           _grouped(self.configs, lambda c: f'{c.byte_order}-endian'),
                           _grouped(self.configs, lambda c: 'sign inverted' if c.sign_inverted
-                                   else 'sign normal')])
+                                   else 'sign normal'),
+                          _grouped(self.configs, lambda c: 'error masks '
+                                   + ('on' if c.error_masks else 'off'))])
 
 
 def _grouped(configs: dict[IvtMux, ResultConfig], label: Callable[[ResultConfig], str]) -> str:
@@ -218,25 +224,29 @@ def is_config(kind: IvtMux) -> Callable[[IvtAnswer], bool]:
     return lambda answer: isinstance(answer, ResultConfig) and answer.kind == kind
 
 
+def read_result(link: CommandLink, send: SendFrame, kind: IvtMux,
+                timeout: float) -> ResultConfig:
+    """Ask for one result's configuration (0x6n, answer 0xAn)."""
+    return link.exchange(send, cmd.get_config(kind), is_config(kind),  # type: ignore
+                         f'get the {DBC_NAME[kind]} configuration', timeout)
+
+
 def read_config(link: CommandLink, send: SendFrame, timeout: float, now: float) -> ReadBack:
     """Ask for the mode (0x74) and each result's configuration (0x60..0x67)."""
     mode = link.exchange(send, cmd.get_mode(), is_mode, 'GET_MODE', timeout)
-    configs = {}
-    for kind in IvtMux:
-        configs[kind] = link.exchange(send, cmd.get_config(kind), is_config(kind),
-                                      f'get the {DBC_NAME[kind]} configuration', timeout)
+    configs = {kind: read_result(link, send, kind, timeout) for kind in IvtMux}
     read = ReadBack(mode, configs)  # type: ignore[arg-type]
     link.remember(read, now)
     return read
 
 
-def write_config(link: CommandLink, send: SendFrame, wanted: list[ResultConfig],
-                 timeout: float) -> list[str]:
+def while_stopped(link: CommandLink, send: SendFrame, timeout: float,
+                  body: Callable[[list[str]], None]) -> list[str]:
     """
-    Stop, write each result (0x2n), store (0x32), run: return the steps done.
+    Stop (0x34 00 01), run ``body`` (it appends its steps), run again (0x34 01 01).
 
-    Raises NoAnswer naming the step that failed, after trying to put the sensor back into
-    RUN when it had been stopped.
+    Returns the steps done. Raises NoAnswer naming the step that failed; once the sensor
+    reported STOP it is first put back into RUN, and the text says whether that worked.
     """
     done: list[str] = []
     stopped = False
@@ -246,17 +256,7 @@ def write_config(link: CommandLink, send: SendFrame, wanted: list[ResultConfig],
             raise NoAnswer('the sensor answered stop (0x34) but stays in RUN')
         stopped = True
         done.append('stopped')
-        for config in wanted:
-            echo = link.exchange(send, cmd.set_config(config), is_config(config.kind),
-                                 f'set the {DBC_NAME[config.kind]} configuration', timeout)
-            if echo != config:
-                raise NoAnswer(f'the sensor answered the {DBC_NAME[config.kind]} '
-                               f'configuration with "{echo.text()}" instead of '  # type: ignore
-                               f'"{config.text()}"')
-        done.append(f'wrote {len(wanted)} results')
-        link.exchange(send, cmd.store(), lambda a: isinstance(a, StoreAnswer), 'STORE',
-                      max(timeout, STORE_TIMEOUT))
-        done.append('stored')
+        body(done)
         mode = link.exchange(send, cmd.set_mode(True), is_mode, 'run (SET_MODE)', timeout)
         if not mode.running:  # type: ignore[union-attr]
             raise NoAnswer('the sensor answered run (0x34) but stays in STOP')
@@ -272,6 +272,29 @@ def write_config(link: CommandLink, send: SendFrame, wanted: list[ResultConfig],
                 tail = f'putting it back into RUN failed too ({again}): it may stay stopped'
             raise NoAnswer(f'{exc}; done before: {", ".join(done)}; {tail}') from None
         raise NoAnswer(f'{exc}; done before: {", ".join(done) or "nothing"}') from None
+
+
+def write_config(link: CommandLink, send: SendFrame, wanted: list[ResultConfig],
+                 timeout: float) -> list[str]:
+    """
+    Stop, write each result (0x2n), store (0x32), run: return the steps done.
+
+    The sensor takes a configuration and STORE only in STOP (docs/protocols.md section 2).
+    Raises NoAnswer naming the step that failed (see ``while_stopped``).
+    """
+    def body(done: list[str]) -> None:
+        for config in wanted:
+            echo = link.exchange(send, cmd.set_config(config), is_config(config.kind),
+                                 f'set the {DBC_NAME[config.kind]} configuration', timeout)
+            if echo != config:
+                raise NoAnswer(f'the sensor answered the {DBC_NAME[config.kind]} '
+                               f'configuration with "{echo.text()}" instead of '  # type: ignore
+                               f'"{config.text()}"')
+        done.append(f'wrote {len(wanted)} results')
+        link.exchange(send, cmd.store(), lambda a: isinstance(a, StoreAnswer), 'STORE',
+                      max(timeout, STORE_TIMEOUT))
+        done.append('stored')
+    return while_stopped(link, send, timeout, body)
 
 
 def set_running(link: CommandLink, send: SendFrame, running: bool, timeout: float) -> ModeAnswer:
@@ -291,12 +314,26 @@ def _is_reset_answer(item: int, answer: IvtAnswer) -> bool:
     return isinstance(answer, ResetAnswer) and answer.item == item
 
 
-def reset_errors(link: CommandLink, send: SendFrame, timeout: float) -> int:
-    """Read the serial number (0x7B), then reset all measurement and system errors (0x30)."""
+def reset_errors(link: CommandLink, send: SendFrame, timeout: float) -> tuple[int, list[str]]:
+    """
+    Read the serial number (0x7B); stop, reset all measurement and system errors (0x30), run.
+
+    The sensor resets only in STOP and answers 0x30 in RUN too, resetting nothing
+    (docs/protocols.md section 2): hence the stop. Each answer (0xB0) must name the item and
+    the serial number sent. Returns the serial number and the steps done; raises NoAnswer
+    as ``while_stopped`` does.
+    """
     serial = link.exchange(send, cmd.get_serial(), lambda a: isinstance(a, SerialAnswer),
                            'GET_SERIAL_NR', timeout).serial  # type: ignore[union-attr]
-    for item, what in ((cmd.RESET_ALL_MEASUREMENT_ERRORS, 'reset all measurement errors'),
-                       (cmd.RESET_ALL_SYSTEM_ERRORS, 'reset all system errors')):
-        link.exchange(send, cmd.reset_errors(item, serial),
-                      partial(_is_reset_answer, item), what, timeout)
-    return serial
+
+    def body(done: list[str]) -> None:
+        for item, what in ((cmd.RESET_ALL_MEASUREMENT_ERRORS, 'reset all measurement errors'),
+                           (cmd.RESET_ALL_SYSTEM_ERRORS, 'reset all system errors')):
+            answer = link.exchange(send, cmd.reset_errors(item, serial),
+                                   partial(_is_reset_answer, item), what,
+                                   max(timeout, RESET_TIMEOUT))
+            if answer.serial != serial:  # type: ignore[union-attr]
+                raise NoAnswer(f'the sensor answered {what} (0x30) for serial '
+                               f'{answer.serial}, not {serial}')  # type: ignore[union-attr]
+            done.append(what)
+    return serial, while_stopped(link, send, timeout, body)

@@ -7,6 +7,7 @@ services in ros/ivt_commands.py call these methods with a ``send`` that applies 
 """
 from __future__ import annotations
 
+from dataclasses import replace
 import threading
 from typing import Any, Callable, Iterable
 
@@ -20,6 +21,7 @@ from ams_can_bridge.protocols.ivt_s_commands import CYCLE_MAX_MS, ResultConfig, 
 
 # The config.<result>_cycle_ms parameter of each result (DBC result names, lower case).
 CYCLE_KEYS = {kind: f'config.{DBC_NAME[kind].lower()}_cycle_ms' for kind in IvtMux}
+ERROR_MASKS_KEY = 'config.error_masks'  # byte 1 bit 5 of every result (global); unset: kept
 # ivts' example writes a disabled result with a non-zero time ("must have some non-zero
 # value to avoid message error"): a result switched off keeps this cycle time.
 DISABLED_CYCLE_MS = 60
@@ -121,7 +123,7 @@ class IvtSControl:
             wanted.append(ResultConfig(
                 kind, TriggerMode.CYCLIC if cycle else TriggerMode.DISABLED,
                 cycle or DISABLED_CYCLE_MS, self.byte_order == 'little',
-                inverted and kind in seq.DIRECTIONAL))
+                inverted and kind in seq.DIRECTIONAL, bool(config.value(ERROR_MASKS_KEY))))
         return wanted
 
     def _timeout_s(self) -> float:
@@ -151,16 +153,26 @@ class IvtSControl:
         return ok and not problems, message
 
     def write_config(self, send: SendFrame) -> tuple[bool, str]:
-        """Stop, write, store, run, read back and compare; refuse unset values first."""
+        """
+        Stop, write, store, run, read back and compare; refuse unset cycle times first.
+
+        With config.error_masks unset the sensor's bit 5 is asked first (0x60) and kept.
+        """
         try:
             wanted = self.wanted_configs()
         except RefusedCommand as exc:
             return False, f'{self.name}: write_config refused: {exc}; nothing was sent'
 
+        keep_masks = self.config.value(ERROR_MASKS_KEY) is None
+
         def body() -> str:
-            steps = seq.write_config(self.link, send, wanted, self._timeout_s())
+            configs = wanted
+            if keep_masks:  # bit 5 is global: the I result's answer shows the sensor's
+                masks = seq.read_result(self.link, send, IvtMux.I, self._timeout_s())
+                configs = [replace(c, error_masks=masks.error_masks) for c in wanted]
+            steps = seq.write_config(self.link, send, configs, self._timeout_s())
             read = seq.read_config(self.link, send, self._timeout_s(), self.clock())
-            differ = [DBC_NAME[c.kind] for c in wanted if read.configs[c.kind] != c]
+            differ = [DBC_NAME[c.kind] for c in configs if read.configs[c.kind] != c]
             if differ:
                 raise NoAnswer(f'{", ".join(steps)}, but the read-back differs for '
                                f'{", ".join(differ)}: {read.summary()}')
@@ -188,8 +200,8 @@ class IvtSControl:
         return self._run('restart', body)
 
     def reset_errors(self, send: SendFrame) -> tuple[bool, str]:
-        """Reset all measurement and system errors (0x30, with the serial number)."""
+        """Stop, reset all measurement and system errors (0x30, with the serial number), run."""
         def body() -> str:
-            serial = seq.reset_errors(self.link, send, self._timeout_s())
-            return f'reset_errors: all measurement and system errors reset (serial {serial})'
+            serial, steps = seq.reset_errors(self.link, send, self._timeout_s())
+            return f'reset_errors: {", ".join(steps)} (serial {serial})'
         return self._run('reset the errors', body)

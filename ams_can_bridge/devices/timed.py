@@ -7,8 +7,9 @@ never as the last number, so a stopped frame shows as a gap and not as a live fl
 Before this module every device wrote that rule by hand, in six slightly different shapes.
 
 ``CounterHealth`` is the rolling-counter check of the AMS status (8 bit) and of each IVT-S
-result (4 bit): a repeated counter is a stuck sender, a skipped one lost frames; an anomaly
-stays visible until enough good frames followed it. After a silence longer than the value's
+result (4 bit, advancing by a step learned per result): a repeated counter is a stuck
+sender, a skipped one lost frames; an anomaly stays visible until enough good frames
+followed it. After a silence longer than the value's
 maximum age a restarted counter is no anomaly (the sender may have been power-cycled).
 
 No locking here: the owning device calls these with its lock held.
@@ -140,18 +141,36 @@ class CounterHealth:
 
     ``modulus`` is the counter's range (256 for 8 bits, 16 for 4 bits); an anomaly stays
     ``in_trouble`` until ``recovery`` frames with the expected counter followed it.
+
+    ``step`` is how far the counter advances from one frame to the next: 1 for a counter of
+    frames (the AMS), None for one that counts something else at a constant rate (the
+    IVT-S counts its measurement cycles, so a result sent every 100 ms advances by 5): the
+    step is then learned from the counter itself. An advance of whole steps (within one turn
+    of the counter) is frames lost, any other advance is out of step; both are anomalies.
+    The first advance is the step until the next frame advancing by it confirms it; before
+    that an advance out of step replaces it, after that only ``RELEARN`` consecutive frames
+    with one new advance do. A counter that does not advance is always an anomaly, as is
+    one that keeps changing its advance.
     """
 
-    __slots__ = ('modulus', 'recovery', 'last', 'repeat_run', 'repeats', 'jumps', 'lost',
+    RELEARN = 3  # consecutive frames with one new advance that replace a confirmed step
+
+    __slots__ = ('modulus', 'recovery', 'learn', 'step', 'confirmed', 'candidate',
+                 'candidate_run', 'last', 'repeat_run', 'repeats', 'jumps', 'lost',
                  'good_streak')
 
-    def __init__(self, modulus: int, recovery: int) -> None:
+    def __init__(self, modulus: int, recovery: int, step: int | None = 1) -> None:
         self.modulus = modulus
         self.recovery = recovery
+        self.learn = step is None
+        self.step = step  # the advance per frame (None: not learned yet)
+        self.confirmed = not self.learn  # a fixed step needs no confirmation
+        self.candidate: int | None = None  # a new advance seen after a confirmed step
+        self.candidate_run = 0  # consecutive frames with that new advance
         self.last: int | None = None  # the previous counter (None before the first)
         self.repeat_run = 0  # consecutive frames repeating the counter now
         self.repeats = 0  # frames that repeated the previous counter, in total
-        self.jumps = 0  # frames whose counter skipped
+        self.jumps = 0  # frames whose counter skipped, or advanced by another step
         self.lost = 0  # frames the skips say were lost, in total
         self.good_streak = recovery  # frames with the expected counter since an anomaly
 
@@ -166,19 +185,52 @@ class CounterHealth:
         if last is None or not continuous:
             self.repeat_run = 0
             return
-        if counter == last:
+        advance = (counter - last) % self.modulus
+        if advance == 0:
             self.repeat_run += 1
             self.repeats += 1
             self.good_streak = 0
             return
         self.repeat_run = 0
-        skipped = (counter - last - 1) % self.modulus
-        if skipped:
-            self.jumps += 1
-            self.lost += skipped
-            self.good_streak = 0
-        else:
+        if self.step is None:  # the first advance: the step until the next frame says
+            self.step = advance
             self.good_streak += 1
+        elif advance == self.step:
+            self.confirmed = True
+            self.candidate, self.candidate_run = None, 0
+            self.good_streak += 1
+        else:
+            self._jump(advance, self.step)
+
+    def _jump(self, advance: int, step: int) -> None:
+        """Count an advance other than the step: frames lost, or a counter out of step."""
+        whole = advance % step == 0  # whole steps: frames lost
+        self.jumps += 1
+        self.lost += advance // step - 1 if whole else 0
+        self.good_streak = 0
+        if not self.learn:
+            return
+        if not self.confirmed:
+            if not whole:  # the first advance was no step of this counter
+                self.step = advance
+            return
+        if advance == self.candidate:
+            self.candidate_run += 1
+        else:
+            self.candidate, self.candidate_run = advance, 1
+        if self.candidate_run >= self.RELEARN:  # the sender changed its rate
+            self.step, self.candidate, self.candidate_run = advance, None, 0
+
+    def restart(self) -> None:
+        """
+        Forget the last counter and a learned step (the sender's rate was changed).
+
+        The totals and the recovery of an earlier anomaly stay.
+        """
+        self.last = None
+        self.repeat_run = 0
+        if self.learn:
+            self.step, self.confirmed, self.candidate, self.candidate_run = None, False, None, 0
 
     @property
     def recovering(self) -> bool:

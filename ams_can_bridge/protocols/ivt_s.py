@@ -96,7 +96,7 @@ def _layout(kind: IvtMux) -> Layout:
         Signal(f'IVT_ID_Result_{name}', 7, 8, field='IVT-S MuxID'),
         Signal(f'IVT_MsgCount_Result_{name}', 11, 4, field='IVT-S counter'),
         Signal(f'{result}_OCS', 12, 1, field='ocs', flag=True),
-        Signal(f'{result}_Result_Error', 13, 1, field='result_error', flag=True),
+        Signal(f'{result}_Channel_Error', 13, 1, field='result_error', flag=True),
         Signal(f'{result}_Measurement_Error', 14, 1, field='measurement_error', flag=True),
         Signal(f'{result}_System_Error', 15, 1, field='system_error', flag=True),
         Signal(result, 23, 32, signed=True, scale=1 / DIVISOR[kind] if kind == IvtMux.T else 1,

@@ -77,13 +77,20 @@ ERROR_ITEMS = {  # DBC _80_Resp_MeasError_Item / _81_Resp_SystemError_Item value
 
 @dataclass(frozen=True)
 class ResultConfig:
-    """One result's configuration (command 0x2n, answer 0xAn)."""
+    """
+    One result's configuration (command 0x2n, answer 0xAn).
+
+    error_masks is byte 1 bit 5, a global setting of the sensor (the last one written holds
+    for every result): the measurement and system error masks set the result state bits 6
+    and 7 (off, the factory setting: only CRC and Vref errors set them).
+    """
 
     kind: IvtMux
     mode: TriggerMode
     cycle_ms: int
     little_endian: bool = False
     sign_inverted: bool = False
+    error_masks: bool = False
 
     @property
     def byte_order(self) -> str:
@@ -95,7 +102,8 @@ class ResultConfig:
         mode = (f'cyclic {self.cycle_ms} ms' if self.mode is TriggerMode.CYCLIC
                 else self.mode.name.lower())
         return (f'{mode}, {self.byte_order}-endian, sign '
-                + ('inverted' if self.sign_inverted else 'normal'))
+                + ('inverted' if self.sign_inverted else 'normal')
+                + (', error masks in the result state' if self.error_masks else ''))
 
 
 @dataclass(frozen=True)
@@ -175,15 +183,16 @@ def _layout(name: str, *signals: Signal) -> Layout:
     return Layout(name, DLC, (Signal('IVT_ID', 7, 8, field='IVT-S mux ID'),) + signals)
 
 
-# 0x2n / 0xAn (_2n_Conf_*, _An_Resp_*), in the order of ResultConfig; byte 1 bits 5..4 are
-# not in the DBC and stay 0 (section 2.3).
+# 0x2n / 0xAn (_2n_Conf_*, _An_Resp_*), in the order of ResultConfig. Byte 1 bit 5 is not in
+# the DBC: the datasheet's set config result (section 2.3); bit 4 is reserved and stays 0.
 CONFIG = _layout(
     'Conf_Result',
     Signal('Conf_TriggerMode', 9, 2, lookup=tuple(TriggerMode), field='IVT-S trigger mode',
            check='trigger mode {value} (allowed {low}..{high})'),  # 3 is not defined
     Signal('Conf_CycleTime', 23, 16, unit='ms', field='IVT-S cycle time'),
     Signal('Conf_Endianess', 14, 1, flag=True, field='little_endian'),
-    Signal('Conf_Sign', 15, 1, flag=True, field='sign_inverted'))
+    Signal('Conf_Sign', 15, 1, flag=True, field='sign_inverted'),
+    Signal('Conf_Error_Masks', 13, 1, flag=True, field='error_masks'))
 EMPTY = _layout('Dummy')  # get, store, restart: the DBC's *_dummy byte is 0
 MODE = _layout('Mode', Signal('Actual_Mode', 8, 1, flag=True, field='running'),
                Signal('Startup_Mode', 16, 1, flag=True, field='startup_running'))

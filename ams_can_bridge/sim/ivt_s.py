@@ -11,8 +11,9 @@ Commands on 0x411 are answered on 0x511 as docs/protocols.md section 2 describes
 (0x34, 0x74), each result's configuration (0x2n, 0x6n: trigger mode, cycle time, byte order
 and sign, applied to the frames sent; changed only while stopped), STORE (0x32), restart
 (0x3F: the stored configuration and start-up mode, As/Wh from 0, alive message 0xBF),
-restore defaults (0x3D), serial number (0x7B), error items (0x40, 0x41) and reset (0x30).
-Any other command is answered "wrong command" (0xFF).
+restore defaults (0x3D), serial number (0x7B), error items (0x40, 0x41) and reset (0x30,
+carried out only while stopped, answered either way, as the sensor does). Any other command
+is answered "wrong command" (0xFF).
 """
 from __future__ import annotations
 
@@ -34,12 +35,26 @@ from ams_can_bridge.sim.profiles import drive_current_a
 AMBIENT_C = 25.0
 HEATING_C_PER_A2 = 0.0008  # steady-state rise: 120 A -> about +11.5 degC
 RESTART_S = 0.05  # the simulated sensor is back (alive message) this long after 0x3F
+# The result counters count measurement cycles of 20 ms, not frames: a real sensor's results
+# sent every 100 ms advance theirs by 5 (foxBMS 2 tools/dbc/test_log.txt), a 20 ms result's
+# by 1 (docs/protocols.md 2.1).
+COUNTER_CYCLE_MS = 20
 SERIAL = 0x00012345
 # The commands 0x34 and 0x30 share the layouts of their answers 0xB4 and 0xB0 (the vendor
 # DBC's _34_* / _30_* signals): decoded by the protocol's layouts, not by hand here.
 _MODE = cmd.MODE.decoder('Actual_Mode', 'Startup_Mode')  # -> (running, startup_running)
 _RESET = cmd.RESET.decoder('Reset_Item', 'Reset_Device_SN')  # -> (item, serial)
 _ERROR_ITEM = cmd.ERROR.decoder('Error_Item')  # -> (item,): 0x40 / 0x41 b1, as in 0x80 / 0x81
+
+
+def counter_step(config: ResultConfig) -> int:
+    """
+    Return how far a result's counter advances per frame: its cycle in 20 ms cycles.
+
+    A cycle that is no whole number of them (unknown on a real sensor) advances by the
+    nearest whole number, at least 1.
+    """
+    return max(1, round(config.cycle_ms / COUNTER_CYCLE_MS))
 
 
 class IvtSSimulator(SimDevice):
@@ -152,7 +167,7 @@ class IvtSSimulator(SimDevice):
                                    result.measurement_error, result.system_error, raw,
                                    raw / DIVISOR[kind])
             if not extra.get('stuck_counter'):
-                self._counters[kind] = (self._counters[kind] + 1) & 0x0F
+                self._counters[kind] = (self._counters[kind] + counter_step(config)) & 0x0F
             frame = self._codecs[config.byte_order].encode(result)
             frames.append(self.corrupt(frame) if self.faults.malformed else frame)
         return frames
@@ -190,6 +205,9 @@ class IvtSSimulator(SimDevice):
             if stopped and wanted.cycle_ms:  # time 0 is ignored; RUN: no change
                 self.configs[kind] = wanted
                 self._periodic[kind] = Periodic(wanted.cycle_ms / 1000.0)
+                # bit 5 is global: the last configuration written holds for every result
+                self.configs = {k: dataclasses.replace(c, error_masks=wanted.error_masks)
+                                for k, c in self.configs.items()}
             self._answer(self.configs[kind], now)
         elif cmd.GET_CONFIG_RESULT <= mux <= cmd.GET_CONFIG_RESULT + 7:
             self._answer(self.configs[IvtMux(mux - cmd.GET_CONFIG_RESULT)], now)
@@ -214,9 +232,9 @@ class IvtSSimulator(SimDevice):
                       else bool(self.faults.extra.get('measurement_error')))
             (item,) = _ERROR_ITEM(data)
             self._answer(ErrorAnswer(system, item, int(active)), now)
-        elif mux == cmd.RESET_ERR_LOG:
+        elif mux == cmd.RESET_ERR_LOG:  # Stop mode only; answered in RUN too (datasheet)
             item, serial = _RESET(data)
-            if serial == self.serial:
+            if stopped and serial == self.serial:
                 if item == cmd.RESET_ALL_SYSTEM_ERRORS:
                     self.faults.error_code = None
                 elif item == cmd.RESET_ALL_MEASUREMENT_ERRORS:
