@@ -1,4 +1,5 @@
 """SimRunner on python-can's virtual bus, and the ``simulator`` executable as a process."""
+import contextlib
 import fcntl
 import os
 from pathlib import Path
@@ -306,6 +307,19 @@ def test_simulator_help_lists_every_model_specific_fault():
     assert by_name['ivt_s'].faults.extra['mute_commands'] is True
 
 
+@contextlib.contextmanager
+def ended_at_exit(proc, *fds):
+    """Kill proc if it still runs at the end of the block; close the pty fds."""
+    try:
+        yield
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout=10)
+        for fd in fds:
+            os.close(fd)
+
+
 def _queued(fd):
     """Bytes waiting in a pty master that nobody reads."""
     return struct.unpack('i', fcntl.ioctl(fd, termios.FIONREAD, b'\0\0\0\0'))[0]
@@ -327,12 +341,11 @@ def test_simulator_stops_when_the_other_end_of_its_pty_stops_reading(how):
         [SIMULATOR, '--interface', 'slcan', '--channel', path, '--option',
          'sleep_after_open=0', '--devices', 'ams,ivt_s', '--status-period', '0.2', *duration],
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    filler = None
-    try:
+    filler = os.open(path, os.O_WRONLY | os.O_NOCTTY | os.O_NONBLOCK)  # the other writer
+    with ended_at_exit(proc, master, slave, filler):
         assert 'device(s) on slcan:' in proc.stderr.readline()  # the bus is open
         started = time.monotonic()
         # The bridge side stops reading: fill what the pty buffers, so each write waits.
-        filler = os.open(path, os.O_WRONLY | os.O_NOCTTY | os.O_NONBLOCK)
         with pytest.raises(BlockingIOError):
             for _ in range(10000):
                 os.write(filler, b'x' * 512)
@@ -350,13 +363,6 @@ def test_simulator_stops_when_the_other_end_of_its_pty_stops_reading(how):
             proc.send_signal(getattr(signal, how))
             proc.wait(timeout=10)
             assert time.monotonic() - asked < 1.0
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait(timeout=10)
-        for fd in (filler, master, slave):
-            if fd is not None:
-                os.close(fd)
     err = proc.stderr.read()
     assert proc.returncode == 0, err
     assert 'Traceback' not in err and 'stopped:' in err
@@ -369,7 +375,7 @@ def test_ctrl_c_while_the_simulator_opens_an_slcan_port_ends_it_without_tracebac
     proc = subprocess.Popen([SIMULATOR, '--interface', 'slcan', '--channel', path,
                              '--devices', 'ams'], stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE, text=True)
-    try:
+    with ended_at_exit(proc, master, slave):
         fds = Path(f'/proc/{proc.pid}/fd')
 
         def port_open():
@@ -382,12 +388,6 @@ def test_ctrl_c_while_the_simulator_opens_an_slcan_port_ends_it_without_tracebac
         proc.send_signal(signal.SIGINT)
         proc.wait(timeout=10)
         assert time.monotonic() - asked < 1.0
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait(timeout=10)
-        os.close(master)
-        os.close(slave)
     err = proc.stderr.read()
     assert proc.returncode == 0 and 'Traceback' not in err, err
     assert 'stopped before the bus was open' in err

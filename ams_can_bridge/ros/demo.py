@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
 import sys
 import threading
 import time
@@ -153,25 +152,13 @@ def main(argv: list[str] | None = None) -> int:
     # Network rule: DDS stays on this machine and on a domain of the demo's own.
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     os.environ.setdefault('ROS_DOMAIN_ID', str(100 + os.getpid() % 100))
-    import rclpy
-    from rclpy.signals import SignalHandlerOptions
     from rclpy.utilities import remove_ros_args
+
+    from ams_can_bridge.ros.watcher import run_with_ros
 
     raw = sys.argv if argv is None else ['demo'] + list(argv)
     args = parse_args(remove_ros_args(raw)[1:])
-    stop = threading.Event()
-
-    def on_signal(signum: int, frame: Any) -> None:
-        stop.set()
-
-    old_handlers = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
-    rclpy.init(args=raw, signal_handler_options=SignalHandlerOptions.NO)
-    try:
-        return _run(args, stop)
-    finally:
-        rclpy.try_shutdown()
-        for sig, handler in old_handlers.items():
-            signal.signal(sig, handler)
+    return run_with_ros(raw, lambda stop: _run(args, stop))
 
 
 def _run(args: argparse.Namespace, stop: threading.Event) -> int:

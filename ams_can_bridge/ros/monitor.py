@@ -19,10 +19,9 @@ from __future__ import annotations
 
 import argparse
 import re
-import signal
 import sys
 import threading
-from typing import Any, Sequence
+from typing import Sequence
 
 # The bridge's node name (bridge_node.NODE_NAME): importing that module here would load
 # rclpy for `monitor --help`; a test keeps the two equal.
@@ -78,26 +77,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the monitor; return the process exit code."""
     raw = sys.argv[1:] if argv is None else list(argv)
     args = parse_args(_own_args(raw))  # --help and mistakes end here, before ROS starts
-    import rclpy
-    from rclpy.signals import SignalHandlerOptions
-
-    stop = threading.Event()
-
-    def on_signal(signum: int, frame: Any) -> None:
-        stop.set()
-
-    old_handlers = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        try:
-            rclpy.init(args=['monitor', *raw], signal_handler_options=SignalHandlerOptions.NO)
-        except Exception as exc:  # rcl's words for a bad --ros-args part
-            print(f'monitor: cannot start ROS: {str(exc).splitlines()[0]}', file=sys.stderr)
-            return 2
-        return _run(args, stop)
-    finally:
-        rclpy.try_shutdown()
-        for sig, handler in old_handlers.items():
-            signal.signal(sig, handler)
+    from ams_can_bridge.ros.watcher import run_with_ros
+    return run_with_ros(['monitor', *raw], lambda stop: _run(args, stop))
 
 
 def _run(args: argparse.Namespace, stop: threading.Event) -> int:

@@ -12,9 +12,11 @@ from __future__ import annotations
 from functools import partial
 import os
 import re
+import signal
+import sys
 import threading
 import time
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
@@ -172,3 +174,32 @@ def spin_in_thread(executor: Any, name: str) -> threading.Thread:
     thread = threading.Thread(target=spin, name=name, daemon=True)
     thread.start()
     return thread
+
+
+def run_with_ros(argv: Sequence[str], run: Callable[[threading.Event], int]) -> int:
+    """
+    Start rclpy with argv (the program's name first), return run(stop), shut rclpy down.
+
+    Ctrl-C and SIGTERM set ``stop`` (rclpy's own handlers stay off), so a view ends between
+    two draws and tears down in order; a bad ``--ros-args`` part is one line and exit 2.
+    """
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+
+    stop = threading.Event()
+
+    def on_signal(signum: int, frame: Any) -> None:
+        stop.set()
+
+    old_handlers = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        try:
+            rclpy.init(args=list(argv), signal_handler_options=SignalHandlerOptions.NO)
+        except Exception as exc:  # rcl's words for a bad --ros-args part
+            print(f'{argv[0]}: cannot start ROS: {str(exc).splitlines()[0]}', file=sys.stderr)
+            return 2
+        return run(stop)
+    finally:
+        rclpy.try_shutdown()
+        for sig, handler in old_handlers.items():
+            signal.signal(sig, handler)
