@@ -196,7 +196,9 @@ def run_with_ros(argv: Sequence[str], run: Callable[[threading.Event], int]) -> 
         try:
             rclpy.init(args=list(argv), signal_handler_options=SignalHandlerOptions.NO)
         except Exception as exc:  # rcl's words for a bad --ros-args part
-            print(f'{argv[0]}: cannot start ROS: {str(exc).splitlines()[0]}', file=sys.stderr)
+            reason = str(exc).splitlines()[0] if str(exc) else ''
+            print(f'{argv[0]}: cannot start ROS ({type(exc).__name__}): {reason}',
+                  file=sys.stderr)
             return 2
         return run(stop)
     finally:
