@@ -31,6 +31,7 @@ setup(
             'bridge = ams_can_bridge.ros.bridge_main:main',
             'simulator = ams_can_bridge.sim.main:main',
             'demo = ams_can_bridge.ros.demo:main',
+            'monitor = ams_can_bridge.ros.monitor:main',
             'log2bag = ams_can_bridge.offline.log2bag:main',
         ],
     },

@@ -8,7 +8,8 @@ import sys
 import pytest
 
 from ams_can_bridge.ros.demo_view import (
-    cell_range, COLUMNS, DeviceRow, fmt_uptime, level_name, render, View)
+    cell_range, COLUMNS, device_row, DeviceRow, fmt_uptime, level_name, render, View,
+    without_readings)
 
 NAN = math.nan
 ANSI = re.compile(r'\033\[[0-9;?]*[A-Za-z]')
@@ -105,6 +106,52 @@ def test_helpers():
     assert fmt_uptime(59.9) == '0:00:59' and fmt_uptime(3600) == '1:00:00'
 
 
+def currents(text: str, name: str) -> list[str]:
+    """Return every current shown for one device: in its row and in its summary line."""
+    return [value for line in text.splitlines()
+            if line.startswith(f'{name} ') or line.startswith(f'  {name}: ')
+            for value in re.findall(r'[-+]?\d+\.\d+ A\b', line)]
+
+
+def test_one_device_shows_one_current_though_its_diagnostics_lag():
+    """
+    Issue 31: the row's current (battery_state) and the summary's (diagnostics) differed.
+
+    Real messages as the bridge publishes them: battery_state with every frame, the
+    diagnostics message of the IVT-S ('<I> A, <U> V') and BMS16 ('OK; SoC .., .. V, .. A')
+    from the last diagnostics period, when the current was another.
+    """
+    from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+    from sensor_msgs.msg import BatteryState
+
+    def status(message, level=b'\x00', **values):
+        return DiagnosticStatus(level=level, name='ams_can_bridge: x', message=message,
+                                values=[KeyValue(key=k, value=v) for k, v in values.items()])
+    battery = BatteryState(voltage=222.1, current=-27.7, percentage=0.8, temperature=25.0)
+    view = View(rows=[
+        device_row('ivt_s', battery, status('-30.05 A, 222.9 V')),
+        device_row('bms16', battery, status('error LOW_CELL; SoC 80 %, 52.9 V, -40.7 A',
+                                            b'\x02')),
+        device_row('ams', battery, status('DRIVE; AIR+ closed, AIR- closed, precharge open',
+                                          state='DRIVE')),
+        device_row('shunt', battery, status('over-current (OCS) tripped (I); -30.05 A, 222.9 V',
+                                            b'\x01')),
+    ])
+    text = render(view, unicode=False)
+    for name in ('ivt_s', 'bms16', 'ams', 'shunt'):
+        assert currents(text, name) == ['-27.7 A'], (name, text)
+    # what the table does not show stays: in the STATE column or the summary line
+    assert 'ivt_s:' not in text and 'bms16:' not in text  # nothing beyond the row
+    assert table(text)[2].split()[1:3] == ['error', 'LOW_CELL']
+    assert '  ams: DRIVE; AIR+ closed, AIR- closed, precharge open' in text
+    assert '  shunt: over-current (OCS) tripped (I)\n' in text
+    assert without_readings('OK; SoC 80 %, 52.9 V, -40.7 A') == 'OK'
+    assert without_readings('result stopped (U2); nan A, nan V') == 'result stopped (U2)'
+    assert without_readings('BMS error 3; 12.5 A') == 'BMS error 3'  # a dbc level message
+    assert without_readings('stale: no frame for 1.25 s (stale_timeout 1 s)') == (
+        'stale: no frame for 1.25 s (stale_timeout 1 s)')
+
+
 def demo_executable() -> str:
     path = os.path.join(os.path.dirname(sys.executable), 'demo')
     assert os.access(path, os.X_OK), f'the demo console script is not installed at {path}'
@@ -140,6 +187,9 @@ def test_installed_demo_runs_drives_the_ams_and_exits_cleanly():
         numbers = [w for w in words[2:] if re.fullmatch(r'-?\d+\.\d+', w)]
         assert numbers, f'{name} shows no numbers: {words}'
     assert 'OK (connected)' in shots[-1]
+    for shot in shots:  # issue 31: one current per device, not one more in its summary
+        for name in DEVICES:
+            assert len(currents(shot, name)) <= 1, shot
     # The AMS state column over time: it reached DRIVE, and IDLE after the abort.
     states = [rows_of(shot).get('ams', ['', ''])[1] for shot in shots]
     assert 'DRIVE' in states, states

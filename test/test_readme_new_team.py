@@ -96,6 +96,15 @@ def test_simulator_and_bridge_as_two_processes_over_the_bundled_link(tmp_path):
             out.wait_for(text, timeout=30)
         assert not any('bank' in line.lower() and 'mismatch' in line.lower()
                        for line in out.lines)
+        # "In another shell ... monitor": the demo's table of this bridge (a bounded run)
+        watch, = commands(block_after('In another shell', 'bash'))
+        assert watch == ['monitor']
+        shown = subprocess.run([str(BIN / 'monitor'), '--plain', '--duration', '4'],
+                               capture_output=True, text=True, timeout=60)
+        assert shown.returncode == 0, shown.stderr
+        last = shown.stdout.split('--- t = ')[-1]
+        for name in ('ams', 'ivt_s'):
+            assert re.search(rf'^{name} .* V .* OK$', last, re.M), last
     finally:
         for proc in reversed(procs):
             if proc.poll() is None:
@@ -160,9 +169,9 @@ def test_the_parameters_that_change_at_run_time_are_the_nodes_writable_ones():
 @pytest.mark.parametrize('title', ['**1. The executables.**'])
 def test_the_executables_are_where_the_readme_says(title):
     for argv in commands(block_after(title, 'bash'))[1:]:
-        if argv[0] in ('bridge', 'simulator', 'log2bag'):
+        if argv[0] in ('bridge', 'simulator', 'log2bag', 'monitor'):
             assert os.access(BIN / argv[0], os.X_OK), argv[0]
-    for exe in ('simulator', 'log2bag'):
+    for exe in ('simulator', 'log2bag', 'monitor'):
         done = subprocess.run([str(BIN / exe), '--help'], capture_output=True, text=True,
                               timeout=60)
         assert done.returncode == 0 and 'usage:' in done.stdout, done.stderr

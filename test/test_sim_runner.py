@@ -1,9 +1,15 @@
 """SimRunner on python-can's virtual bus, and the ``simulator`` executable as a process."""
+import contextlib
+import fcntl
 import os
 from pathlib import Path
+import pty
+import re
 import signal
+import struct
 import subprocess
 import sys
+import termios
 import time
 import uuid
 
@@ -265,3 +271,123 @@ def test_simulator_defaults_match_the_example_configs():
                                                 args.bms12_modules)}
     assert devices['ams'].bank_count == params('ams_ivt.yaml')['ams']['bank_count'] == 5
     assert args.bms12_modules == params('evms3.yaml')['evms3']['bms12_modules']
+
+
+def test_simulator_start_line_lists_every_id_of_a_dbc_device():
+    """Issue 31: the start line listed only a dbc device's primary ID (0x222)."""
+    from dbc_fixtures import OUR_BMS_DBC_FILE, OUR_MAPPING_FILE
+    result = run_simulator('--dbc', str(OUR_BMS_DBC_FILE), '--mapping', str(OUR_MAPPING_FILE),
+                           '--duration', '1', '--channel', f'test_sim_{uuid.uuid4().hex[:8]}')
+    assert result.returncode == 0, result.stderr
+    # every message the mapping reads, from the BO_ lines of our_bms.dbc: 544 BMS_State,
+    # 546 BMS_PackValues, 561 BMS_MinMax, 565 BMS_StateEstimation, 576 BMS_CellVoltages,
+    # 592 BMS_CellTemperatures
+    assert '1 device(s) on virtual:' in result.stderr
+    assert 'dbc[0x220,0x222,0x231,0x235,0x240,0x250]' in result.stderr, result.stderr
+
+
+def test_simulator_help_lists_every_model_specific_fault():
+    """Issue 31: --help named no model-specific fault; each listed one is accepted."""
+    result = run_simulator('--help')
+    assert result.returncode == 0, result.stderr
+    listed = re.findall(r'^    (\w+):(\w+)(=\w+)?  ', result.stdout, re.M)
+    # the faults of the simulators' docstrings (sim/ams.py, ivt_s.py, evms3.py, sma.py)
+    assert {f'{d}:{k}' for d, k, _ in listed} == {
+        'ams:stuck_counter', 'ams:imd_error', 'ivt_s:ocs', 'ivt_s:result_error',
+        'ivt_s:measurement_error', 'ivt_s:stuck_counter', 'ivt_s:mute_commands',
+        'evms3:config_answer', 'evms3:charger_status', 'sma:alarm', 'sma:warning'}
+    for word in ('silent', 'malformed', 'error=CODE', 'drift=VOLTS', 'drift_cell=INDEX',
+                 'high_voltage', 'cell_imbalance'):
+        assert word in result.stdout, word
+    devices = build_devices(list(registry.SIMULATORS))
+    samples = {'=ID': 52, '=BITS': 1, '=CONDITION': 'high_voltage'}
+    apply_faults(devices, [(d, k, samples[v] if v else True) for d, k, v in listed])
+    by_name = {d.name: d for d in devices}
+    assert by_name['sma'].faults.extra == {'alarm': 'high_voltage', 'warning': 'high_voltage'}
+    assert by_name['ivt_s'].faults.extra['mute_commands'] is True
+
+
+@contextlib.contextmanager
+def ended_at_exit(proc, *fds):
+    """Kill proc if it still runs at the end of the block; close the pty fds."""
+    try:
+        yield
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout=10)
+        for fd in fds:
+            os.close(fd)
+
+
+def _queued(fd):
+    """Bytes waiting in a pty master that nobody reads."""
+    return struct.unpack('i', fcntl.ioctl(fd, termios.FIONREAD, b'\0\0\0\0'))[0]
+
+
+@pytest.mark.parametrize('how', ['SIGINT', 'SIGTERM', '--duration'])
+def test_simulator_stops_when_the_other_end_of_its_pty_stops_reading(how):
+    """
+    Issue 31: blocked in a serial write, the simulator ignored Ctrl-C, SIGTERM, --duration.
+
+    A real pty whose master nobody reads (a bridge that stopped reading): once its buffer
+    is full every write waits; each is bounded (SEND_TIMEOUT), so it counts send errors and
+    stops within a second.
+    """
+    master, slave = pty.openpty()
+    path = os.ttyname(slave)
+    duration = ['--duration', '4'] if how == '--duration' else []
+    proc = subprocess.Popen(
+        [SIMULATOR, '--interface', 'slcan', '--channel', path, '--option',
+         'sleep_after_open=0', '--devices', 'ams,ivt_s', '--status-period', '0.2', *duration],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    filler = os.open(path, os.O_WRONLY | os.O_NOCTTY | os.O_NONBLOCK)  # the other writer
+    with ended_at_exit(proc, master, slave, filler):
+        assert 'device(s) on slcan:' in proc.stderr.readline()  # the bus is open
+        started = time.monotonic()
+        # The bridge side stops reading: fill what the pty buffers, so each write waits.
+        with pytest.raises(BlockingIOError):
+            for _ in range(10000):
+                os.write(filler, b'x' * 512)
+        assert _queued(master) > 0
+        deadline = time.monotonic() + 20
+        while True:  # the runner's writes now time out: counted, not blocking for ever
+            line = proc.stderr.readline()
+            if re.search(r' [1-9]\d* send errors', line):
+                break
+            assert line and time.monotonic() < deadline, 'no send error counted'
+        if how == '--duration':
+            proc.wait(timeout=max(1.0, 4 + 1.0 - (time.monotonic() - started)))
+        else:
+            asked = time.monotonic()
+            proc.send_signal(getattr(signal, how))
+            proc.wait(timeout=10)
+            assert time.monotonic() - asked < 1.0
+    err = proc.stderr.read()
+    assert proc.returncode == 0, err
+    assert 'Traceback' not in err and 'stopped:' in err
+
+
+def test_ctrl_c_while_the_simulator_opens_an_slcan_port_ends_it_without_traceback():
+    """python-can waits 2 s after opening a serial port: Ctrl-C then ends it at once."""
+    master, slave = pty.openpty()
+    path = os.ttyname(slave)
+    proc = subprocess.Popen([SIMULATOR, '--interface', 'slcan', '--channel', path,
+                             '--devices', 'ams'], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
+    with ended_at_exit(proc, master, slave):
+        fds = Path(f'/proc/{proc.pid}/fd')
+
+        def port_open():
+            try:
+                return any(os.path.realpath(fd) == path for fd in fds.iterdir())
+            except FileNotFoundError:  # an fd closed while listing: look again
+                return False
+        wait_for(port_open, timeout=20, what='the simulator to open the port')
+        asked = time.monotonic()
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=10)
+        assert time.monotonic() - asked < 1.0
+    err = proc.stderr.read()
+    assert proc.returncode == 0 and 'Traceback' not in err, err
+    assert 'stopped before the bus was open' in err

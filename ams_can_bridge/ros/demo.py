@@ -12,9 +12,7 @@ Exit code 0 after Ctrl-C, SIGTERM or --duration; 2 when the bridge cannot start.
 from __future__ import annotations
 
 import argparse
-import math
 import os
-import signal
 import sys
 import threading
 import time
@@ -154,103 +152,69 @@ def main(argv: list[str] | None = None) -> int:
     # Network rule: DDS stays on this machine and on a domain of the demo's own.
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     os.environ.setdefault('ROS_DOMAIN_ID', str(100 + os.getpid() % 100))
-    import rclpy
-    from rclpy.signals import SignalHandlerOptions
     from rclpy.utilities import remove_ros_args
+
+    from ams_can_bridge.ros.watcher import run_with_ros
 
     raw = sys.argv if argv is None else ['demo'] + list(argv)
     args = parse_args(remove_ros_args(raw)[1:])
-    stop = threading.Event()
-
-    def on_signal(signum: int, frame: Any) -> None:
-        stop.set()
-
-    old_handlers = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
-    rclpy.init(args=raw, signal_handler_options=SignalHandlerOptions.NO)
-    try:
-        return _run(args, stop)
-    finally:
-        rclpy.try_shutdown()
-        for sig, handler in old_handlers.items():
-            signal.signal(sig, handler)
+    return run_with_ros(raw, lambda stop: _run(args, stop))
 
 
 def _run(args: argparse.Namespace, stop: threading.Event) -> int:
     """Build everything, show the view until stopped, then tear down in reverse order."""
     from rclpy.executors import MultiThreadedExecutor
 
-    from ams_can_bridge.ros.demo_rig import DemoMonitor, DemoRig
-    from ams_can_bridge.ros.demo_view import render
-    from ams_can_bridge.ros.bridge_node import ConfigError
+    from ams_can_bridge.ros.bridge_node import ConfigError, NODE_NAME
+    from ams_can_bridge.ros.demo_rig import DemoRig, DEVICES
+    from ams_can_bridge.ros.demo_view import Screen, show, View
+    from ams_can_bridge.ros.watcher import BridgeWatcher, spin_in_thread
 
-    tty = sys.stdout.isatty() and not args.plain
-    interval = args.interval or (0.25 if tty else 1.0)
-    unicode = tty and 'utf' in (sys.stdout.encoding or '').lower()
     try:
         rig = DemoRig(banks=args.banks, commands=not args.no_commands,
                       misconfigured_ivt=args.misconfigured_ivt)
     except ConfigError as exc:
         print(f'demo: the bridge cannot start: {exc}', file=sys.stderr)
         return 2
-    monitor = DemoMonitor(rig)
+    watcher = BridgeWatcher(bridge_node=NODE_NAME, devices=DEVICES,
+                            title='ams_can_bridge demo', node_name='ams_can_bridge_demo_view')
     executor = MultiThreadedExecutor(num_threads=4)
     executor.add_node(rig.bridge)
-    executor.add_node(monitor)
-    spinner = threading.Thread(target=_spin, args=(executor,), name='demo-executor',
-                               daemon=True)
-    spinner.start()
+    executor.add_node(watcher)
+    spinner = spin_in_thread(executor, 'demo-executor')
     driver = None
     if not args.no_commands:
-        driver = CommandDriver(monitor, 'ams', args.hold)
+        driver = CommandDriver(watcher, 'ams', args.hold)
         driver.start()
-    started = time.monotonic()
     faulted = False
-    if tty:
-        sys.stdout.write('\033[?25l\033[2J')  # hide the cursor, clear once
+
+    def view(uptime: float) -> View:
+        nonlocal faulted
+        if args.fault and not faulted and uptime >= args.fault_after:
+            rig.silence('bms16')
+            faulted = True
+        shown = watcher.view(uptime)
+        shown.bus = shown.bus or rig.hardware_id
+        shown.last_command, shown.last_answer = driver.last() if driver else ('', '')
+        if args.misconfigured_ivt:
+            shown.notes.append('IVT-S set up little-endian, the bridge expects big-endian: '
+                               'see the ivt_s status')
+        if args.fault:
+            shown.notes.append(f'fault injection: bms16 silent from {args.fault_after:g} s'
+                               + (' (now)' if faulted else ''))
+        return shown
     try:
-        while True:
-            uptime = time.monotonic() - started
-            if args.fault and not faulted and uptime >= args.fault_after:
-                rig.silence('bms16')
-                faulted = True
-            view = monitor.view(uptime, driver.last() if driver else ('', ''))
-            if args.misconfigured_ivt:
-                view.notes.append('IVT-S set up little-endian, the bridge expects big-endian: '
-                                  'see the ivt_s status')
-            if args.fault:
-                view.notes.append(f'fault injection: bms16 silent from {args.fault_after:g} s'
-                                  + (' (now)' if faulted else ''))
-            text = render(view, colour=tty, unicode=unicode)
-            if tty:
-                sys.stdout.write('\033[H' + text.replace('\n', '\033[K\n') + '\033[K\033[J')
-            else:
-                sys.stdout.write(f'--- t = {uptime:.1f} s ---\n{text}\n\n')
-            sys.stdout.flush()
-            remaining = args.duration - uptime if args.duration else math.inf
-            if remaining <= 0 or stop.wait(min(interval, max(remaining, 0.01))):
-                break
+        show(Screen(sys.stdout, plain=args.plain), view, stop, args.duration, args.interval)
     finally:
-        if tty:
-            sys.stdout.write('\033[?25h\n')
-            sys.stdout.flush()
         if driver is not None:
             driver.stop()
             command, answer = driver.last()
             print(f'demo stopped; last command: {command} -> {answer}', flush=True)
         executor.shutdown(timeout_sec=2.0)
         spinner.join(timeout=3.0)
-        monitor.destroy_node()
+        watcher.destroy_node()
         rig.close()
     return 0
-
-
-def _spin(executor: Any) -> None:
-    """Spin until the executor is shut down (shutdown during spin is the normal exit)."""
-    from rclpy.executors import ExternalShutdownException
-    try:
-        executor.spin()
-    except (ExternalShutdownException, KeyboardInterrupt):
-        pass
 
 
 if __name__ == '__main__':

@@ -1,33 +1,25 @@
 """
-What the demo runs: simulated devices and the bridge on one virtual bus, and a view node.
+What the demo runs: simulated devices and the bridge on one virtual bus.
 
-``DemoRig`` owns the simulators, their SimRunner, the virtual bus and the bridge node;
-``DemoMonitor`` is an ordinary ROS node that subscribes to the bridge's topics and turns the
-latest messages into a ``demo_view.View``. Nothing in the view is read from the simulators
-or the bridge object directly: the numbers took the same path as for any ROS subscriber.
+``DemoRig`` owns the simulators, their SimRunner, the virtual bus and the bridge node. The
+demo's view comes from ``watcher.BridgeWatcher``, the monitor's node: nothing in it is read
+from the simulators or the bridge object directly, the numbers took the same path as for any
+ROS subscriber.
 """
 from __future__ import annotations
 
-from functools import partial
 import os
-import threading
 from typing import Any
 
-from diagnostic_msgs.msg import DiagnosticArray
-from rclpy.node import Node
 from rclpy.parameter import Parameter
-from sensor_msgs.msg import BatteryState
 
-from ams_can_bridge.ros.demo_view import cell_range, DeviceRow, level_name, View
 from ams_can_bridge.registry import load, SIMULATORS
-from ams_can_bridge.ros.bridge_node import BridgeNode, NODE_NAME
+from ams_can_bridge.ros.bridge_node import BridgeNode
 
 DEVICES = ('ams', 'ivt_s', 'evms3', 'bms16', 'sma')
 BMS12_MODULES = 2
 PRECHARGE_S = 1.5
 EVMS3_CAPACITY_AH = 100.0  # the SoC of the EVMS3 needs the pack capacity configured
-# Keys of diagnostics values that hold a device's state or status name, best first.
-STATE_KEYS = ('state', 'ams state', 'evms state', 'status')
 
 
 def device_parameters(banks: int = 2) -> dict[str, Any]:
@@ -119,91 +111,3 @@ class DemoRig:
         self.runner.stop()
         self.bridge.destroy_node()
         self.sim_bus.shutdown()
-
-
-class DemoMonitor(Node):
-    """Subscribe to the bridge's battery_state topics and /diagnostics; build the view."""
-
-    def __init__(self, rig: DemoRig, node_name: str = 'ams_can_bridge_demo_view') -> None:
-        super().__init__(node_name)
-        self.rig = rig
-        self.lock = threading.Lock()
-        self.battery: dict[str, BatteryState] = {}
-        self.diagnostics: dict[str, Any] = {}
-        for name in DEVICES:
-            self.create_subscription(
-                BatteryState, f'{name}/battery_state',
-                partial(self._on_battery, name), 10)
-        self.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics, 10)
-
-    def _on_battery(self, name: str, msg: BatteryState) -> None:
-        with self.lock:
-            self.battery[name] = msg
-
-    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
-        prefix = f'{NODE_NAME}: '
-        with self.lock:
-            for status in msg.status:
-                if status.name.startswith(prefix):
-                    self.diagnostics[status.name[len(prefix):]] = status
-
-    def view(self, uptime: float, last: tuple[str, str]) -> View:
-        """Return the view of the latest messages received."""
-        with self.lock:
-            battery = dict(self.battery)
-            diagnostics = dict(self.diagnostics)
-        view = View(bus=self.rig.hardware_id, uptime_s=uptime,
-                    last_command=last[0], last_answer=last[1])
-        bus = diagnostics.get('CAN bus')
-        if bus is not None:
-            values = {kv.key: kv.value for kv in bus.values}
-            view.bus_state = values.get('state', bus.message)
-            view.bus_level = level_name(bus.level)
-            view.frames_in = _int(values.get('frames in'))
-            view.frames_out = _int(values.get('frames out'))
-        for name in DEVICES:
-            view.rows.append(device_row(name, battery.get(name), diagnostics.get(name)))
-        return view
-
-
-def device_row(name: str, msg: BatteryState | None, status: Any) -> DeviceRow:
-    """Build one device's row from its last BatteryState and DiagnosticStatus (either None)."""
-    row = DeviceRow(name=name, type=name)
-    values: dict[str, str] = {}
-    if status is not None:
-        values = {kv.key: kv.value for kv in status.values}
-        row.level = level_name(status.level)
-        row.message = status.message
-        row.state = state_of(values, status.message, row.level)
-    if msg is not None:
-        row.voltage = msg.voltage
-        row.current = msg.current
-        row.percentage = msg.percentage
-        row.temperature = msg.temperature
-        row.cell_min, row.cell_max = cell_range(list(msg.cell_voltage))
-    return row
-
-
-def state_of(values: dict[str, str], message: str, level: str = '') -> str:
-    """
-    Return the state or status name a device reports, from its diagnostics.
-
-    AMS and EVMS3 report a 'state' value; the others lead their message with their status
-    ('OK', 'error LOW_CELL', 'alarms ...'); the IVT-S has no state: it is measuring.
-    """
-    for key, value in values.items():
-        if key.lower() in STATE_KEYS and value:
-            return value
-    if level == 'STALE':
-        return 'silent'
-    head = message.split(';')[0].strip()
-    if head[:1] in tuple('-+0123456789'):
-        return 'measuring'
-    return head if len(head) <= 16 else head[:15] + '.'
-
-
-def _int(text: str | None) -> int | None:
-    try:
-        return int(text) if text is not None else None
-    except ValueError:
-        return None

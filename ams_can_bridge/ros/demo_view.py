@@ -1,15 +1,20 @@
 """
-Terminal view of the demo: plain data in, text out (no ROS, no curses).
+Terminal view of the demo and of ``monitor``: plain data in, text out (no ROS, no curses).
 
-The demo fills a ``View`` from the bridge's real ROS topics; ``render`` turns it into aligned
-text with units, NaN shown as a dash (or 'n/a' without Unicode), and the diagnostics level in
-colour when the output is a terminal. Keeping the renderer free of ROS lets it be tested with
-known data and reused by anything that wants a one-screen summary of a pack.
+Both fill a ``View`` from a bridge's real ROS topics (``device_row`` merges one device's
+BatteryState and DiagnosticStatus into its row); ``render`` turns it into aligned text with
+units, NaN shown as a dash (or 'n/a' without Unicode), and the diagnostics level in colour
+when the output is a terminal; ``show`` draws it on a ``Screen`` until stopped. Keeping this
+free of ROS lets it be tested with known data: one table for the demo and the monitor.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 import math
+import re
+import threading
+import time
+from typing import Any, Callable, TextIO
 
 NAN = math.nan
 
@@ -28,6 +33,8 @@ STATE_COLOURS = {
     'SC_ENABLED': '\033[34m', 'ERROR': '\033[31;1m', 'CHARGE_ERROR': '\033[31;1m',
 }
 LEVELS = ('OK', 'WARN', 'ERROR', 'STALE')
+# Keys of diagnostics values that hold a device's state or status name, best first.
+STATE_KEYS = ('state', 'ams state', 'evms state', 'status')
 
 
 @dataclass
@@ -49,8 +56,9 @@ class DeviceRow:
 
 @dataclass
 class View:
-    """Everything on one screen of the demo."""
+    """Everything on one screen of the demo or the monitor."""
 
+    title: str = 'ams_can_bridge demo'
     bus: str = ''
     uptime_s: float = 0.0
     frames_in: int | None = None
@@ -58,7 +66,7 @@ class View:
     bus_state: str = ''
     bus_level: str = ''
     rows: list[DeviceRow] = field(default_factory=list)
-    last_command: str = ''
+    last_command: str | None = ''  # None: no command line (the monitor sends none)
     last_answer: str = ''
     notes: list[str] = field(default_factory=list)
 
@@ -107,13 +115,16 @@ def _paint(text: str, code: str | None, colour: bool) -> str:
 # (title, width, right-aligned) of each column; widths fit the largest realistic values
 # ('PRECHARGING', '-109.1 A', '100.0 %', '3.900..3.920 V', '-25.0 °C') and the whole row
 # fits a terminal of 80 columns (WIDTH). The device type is not shown: the demo's device
-# names are their types.
+# names are their types, and a team's own names say more than the type.
 COLUMNS = (
     ('DEVICE', 6, False), ('STATE', 11, False),
     ('VOLTAGE', 7, True), ('CURRENT', 8, True), ('SOC', 7, True),
     ('CELLS', 14, True), ('TEMP', 8, True), ('DIAG', 5, False),
 )
 WIDTH = 80  # columns of a default terminal: every line of the view fits
+# A longer instance name widens the DEVICE column (the row then passes 80 columns) up to
+# this, and is cut beyond it: a column per row would break the alignment.
+DEVICE_WIDTH_MAX = 16
 
 
 def fmt_cells(low: float, high: float, missing: str) -> str:
@@ -123,10 +134,10 @@ def fmt_cells(low: float, high: float, missing: str) -> str:
     return f'{low:.3f}..{high:.3f} V'
 
 
-def _cells(row: DeviceRow, missing: str, degree: str) -> list[str]:
+def _cells(row: DeviceRow, missing: str, degree: str, name_width: int) -> list[str]:
     pct = row.percentage * 100.0 if isinstance(row.percentage, (int, float)) else NAN
     return [
-        row.name, row.state or missing,
+        _cut(row.name, name_width), row.state or missing,
         fmt_value(row.voltage, 'V', 1, missing),
         fmt_value(row.current, 'A', 1, missing),
         fmt_value(pct, '%', 1, missing),
@@ -136,10 +147,12 @@ def _cells(row: DeviceRow, missing: str, degree: str) -> list[str]:
     ]
 
 
-def _line(texts: list[str], colours: list[str | None], colour: bool) -> str:
+def _line(texts: list[str], colours: list[str | None], colour: bool, name_width: int) -> str:
     parts = []
     last = len(COLUMNS) - 1
     for index, ((_, width, right), text, code) in enumerate(zip(COLUMNS, texts, colours)):
+        if index == 0:
+            width = name_width
         # The last column is not padded: trailing blanks inside a colour would survive rstrip.
         width = max(width, len(text)) if index < last else len(text)
         padded = text.rjust(width) if right else text.ljust(width)
@@ -154,14 +167,16 @@ def render(view: View, colour: bool = False, unicode: bool = True,
 
     colour adds ANSI colours (levels, states, header); unicode chooses the em dash and the
     degree sign over their ASCII stand-ins 'n/a' and 'C'. Long texts (the bus name, the
-    messages) are cut to width.
+    messages) are cut to width; only a device name longer than 6 characters widens the
+    table beyond 80 columns.
     """
     missing = '\u2014' if unicode else 'n/a'
     degree = '\u00b0C' if unicode else 'C'
     frames = (f'in {view.frames_in if view.frames_in is not None else missing}'
               f' / out {view.frames_out if view.frames_out is not None else missing}')
     bus_level = view.bus_level or missing
-    title = 'ams_can_bridge demo'
+    title = _cut(view.title, width)
+    name_width = min(DEVICE_WIDTH_MAX, max([COLUMNS[0][1]] + [len(r.name) for r in view.rows]))
     # cut before painting: colour codes take no column but count as characters
     status = _cut(f' ({view.bus_state or "no status yet"})   frames {frames}',
                   width - len('CAN bus: ') - len(bus_level))
@@ -171,22 +186,24 @@ def render(view: View, colour: bool = False, unicode: bool = True,
             width - len(title)),
         f'CAN bus: {_paint(bus_level, COLOURS.get(bus_level), colour)}{status}',
         '',
-        _paint(_line([c[0] for c in COLUMNS], [None] * len(COLUMNS), False), BOLD, colour),
+        _paint(_line([c[0] for c in COLUMNS], [None] * len(COLUMNS), False, name_width),
+               BOLD, colour),
     ]
     for row in view.rows:
-        texts = _cells(row, missing, degree)
+        texts = _cells(row, missing, degree, name_width)
         colours: list[str | None] = [None] * len(COLUMNS)
         colours[1] = STATE_COLOURS.get(row.state)
         colours[-1] = COLOURS.get(row.level)
-        lines.append(_line(texts, colours, colour))
+        lines.append(_line(texts, colours, colour, name_width))
     lines.append('')
     for row in view.rows:
         if row.message:
             text = f'  {row.name}: {row.message}'
             lines.append(_paint(_cut(text, width), DIM, colour))
-    command = view.last_command or 'none yet'
-    answer = f' -> {view.last_answer}' if view.last_answer else ''
-    lines.append(_cut(f'last command: {command}{answer}', width))
+    if view.last_command is not None:
+        command = view.last_command or 'none yet'
+        answer = f' -> {view.last_answer}' if view.last_answer else ''
+        lines.append(_cut(f'last command: {command}{answer}', width))
     for note in view.notes:
         lines.append(_cut(note, width))
     return '\n'.join(lines)
@@ -195,3 +212,113 @@ def render(view: View, colour: bool = False, unicode: bool = True,
 def _cut(text: str, width: int) -> str:
     """Cut text to width characters, marking the cut with '...'."""
     return text if len(text) <= width else text[:max(0, width - 3)] + '...'
+
+
+# --- one device's row, from its last BatteryState and DiagnosticStatus ---------------------
+
+# A reading in a diagnostics message ('-27.71 A', '222.9 V', 'SoC 80 %'). The table shows
+# the same quantity from battery_state, which comes with every frame, while the diagnostics
+# come every diagnostics_period (1 s by default): both on one screen would show two
+# currents for one device at one moment. The summary line keeps the rest of the message.
+_READING = re.compile(r'(SoC )?([-+]?(nan|inf|\d+(\.\d*)?(e[-+]?\d+)?) (V|A|%)|not available)',
+                      re.IGNORECASE)
+
+
+def without_readings(message: str) -> str:
+    """Return a diagnostics message without its parts that are only V / A / % readings."""
+    kept = [part.strip() for part in message.split(';')
+            if not all(_READING.fullmatch(item.strip()) for item in part.split(','))]
+    return '; '.join(part for part in kept if part)
+
+
+def device_row(name: str, msg: Any, status: Any) -> DeviceRow:
+    """
+    Build one device's row from its last BatteryState and DiagnosticStatus (either None).
+
+    The numbers come from the BatteryState only; the message keeps what the table does not
+    show (``without_readings``, and nothing when it only repeats the state).
+    """
+    row = DeviceRow(name=name, type=name)
+    if status is not None:
+        values = {kv.key: kv.value for kv in status.values}
+        row.level = level_name(status.level)
+        row.state = state_of(values, status.message, row.level)
+        message = without_readings(status.message)
+        row.message = message if message != row.state else ''  # 'bms16: OK' says nothing new
+    if msg is not None:
+        row.voltage = msg.voltage
+        row.current = msg.current
+        row.percentage = msg.percentage
+        row.temperature = msg.temperature
+        row.cell_min, row.cell_max = cell_range(list(msg.cell_voltage))
+    return row
+
+
+def state_of(values: dict[str, str], message: str, level: str = '') -> str:
+    """
+    Return the state or status name a device reports, from its diagnostics.
+
+    AMS and EVMS3 report a 'state' value; the others lead their message with their status
+    ('OK', 'error LOW_CELL', 'alarms ...'); the IVT-S has no state: it is measuring.
+    """
+    for key, value in values.items():
+        if key.lower() in STATE_KEYS and value:
+            return value
+    if level == 'STALE':
+        return 'silent'
+    head = message.split(';')[0].strip()
+    if head[:1] in tuple('-+0123456789'):
+        return 'measuring'
+    return head if len(head) <= 16 else head[:15] + '.'
+
+
+def to_int(text: str | None) -> int | None:
+    """Return the int a diagnostics value holds, None when it holds none."""
+    try:
+        return int(text) if text is not None else None
+    except ValueError:
+        return None
+
+
+# --- the screen ------------------------------------------------------------------------------
+
+class Screen:
+    """Where the view is drawn: redrawn in place on a terminal, else text snapshots."""
+
+    def __init__(self, out: TextIO, plain: bool = False) -> None:
+        self.out = out
+        self.tty = out.isatty() and not plain
+        self.unicode = self.tty and 'utf' in (getattr(out, 'encoding', '') or '').lower()
+
+    def interval(self, requested: float | None) -> float:
+        """Return the seconds between draws: 4 redraws a second on a terminal, else 1 s."""
+        return requested or (0.25 if self.tty else 1.0)
+
+    def draw(self, view: View, uptime: float) -> None:
+        """Draw one view (a snapshot headed by its time when not on a terminal)."""
+        text = render(view, colour=self.tty, unicode=self.unicode)
+        if self.tty:
+            self.out.write('\033[H' + text.replace('\n', '\033[K\n') + '\033[K\033[J')
+        else:
+            self.out.write(f'--- t = {uptime:.1f} s ---\n{text}\n\n')
+        self.out.flush()
+
+
+def show(screen: Screen, make_view: Callable[[float], View], stop: threading.Event,
+         duration: float = 0.0, interval: float | None = None) -> None:
+    """Draw make_view(uptime) every interval until stop is set or duration (0: none) passed."""
+    period = screen.interval(interval)
+    started = time.monotonic()
+    if screen.tty:
+        screen.out.write('\033[?25l\033[2J')  # hide the cursor, clear once
+    try:
+        while True:
+            uptime = time.monotonic() - started
+            screen.draw(make_view(uptime), uptime)
+            remaining = duration - uptime if duration else math.inf
+            if remaining <= 0 or stop.wait(min(period, max(remaining, 0.01))):
+                break
+    finally:
+        if screen.tty:
+            screen.out.write('\033[?25h\n')
+            screen.out.flush()

@@ -6,6 +6,7 @@ import inspect
 import logging
 import signal
 import sys
+import textwrap
 import threading
 import time
 from typing import Any, Sequence
@@ -13,10 +14,12 @@ from typing import Any, Sequence
 from ams_can_bridge import registry
 from ams_can_bridge.can_io import parse_options
 from ams_can_bridge.errors import ConfigError
+from ams_can_bridge.protocols.sma import SMA_CONDITIONS
 from ams_can_bridge.sim.base import SimDevice
 from ams_can_bridge.sim.runner import open_bus, SimRunner
 
 DEFAULT_VIRTUAL_CHANNEL = 'ams_can_bridge'
+SUMMARY_AFTER = 0.2  # s of sending before the start line lists each device's IDs
 # The AMS goes first so the IVT-S can measure its pack.
 _ORDER = ('ams', 'ivt_s', 'evms3', 'bms16', 'sma')
 _SORT = _ORDER + ('dbc',)  # dbc: a team's own BMS (--dbc/--mapping), not in the default set
@@ -43,12 +46,23 @@ def _fault(text: str) -> tuple[str, str, Any]:
     return device, kind, parsed
 
 
+class _EpilogAsWritten(argparse.HelpFormatter):
+    """Wrap the description and options as usual; keep the fault table's lines."""
+
+    def _fill_text(self, text: str, width: int, indent: str) -> str:
+        if text.startswith('faults'):
+            return text
+        return super()._fill_text(text, width, indent)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Command-line interface of ``simulator``."""
     p = argparse.ArgumentParser(
         prog='simulator',
-        description='Simulated AMS, IVT-S, EVMS3 (+BMS12), BMS16 and SMA BMS on a CAN bus, '
-                    'for testing the bridge without hardware. Stop with Ctrl-C.')
+        description='Simulated AMS, IVT-S, EVMS3 (+BMS12), BMS16, SMA BMS and a dbc '
+                    "device's BMS on a CAN bus, for testing the bridge without hardware. "
+                    'Stop with Ctrl-C.',
+        epilog=faults_help(), formatter_class=_EpilogAsWritten)
     p.add_argument('--interface', default='virtual',
                    help='python-can interface (virtual, socketcan, slcan, pcan, ...); '
                         'default virtual (in-process only: use the demo for that)')
@@ -93,8 +107,8 @@ def build_parser() -> argparse.ArgumentParser:
                         'byd (zeros after the SoH) or diybms (SoC only, DLC 2); default sma')
     p.add_argument('--fault', type=_fault, action='append', default=[],
                    metavar='DEVICE:KIND[=VALUE]',
-                   help='inject a fault: silent, malformed, error=CODE, drift=VOLTS, '
-                        'drift_cell=INDEX, or KIND=VALUE for model-specific faults')
+                   help='inject a fault (repeatable): silent, malformed, error=CODE, '
+                        "drift=VOLTS, drift_cell=INDEX, or a model's own (listed below)")
     p.add_argument('--duration', type=float, default=None, metavar='S',
                    help='stop after S seconds (default: run until Ctrl-C)')
     p.add_argument('--tick', type=float, default=0.002, metavar='S', help='model tick period')
@@ -164,12 +178,46 @@ _FAULT_FIELDS = {'silent': 'silent', 'malformed': 'malformed', 'error': 'error_c
                  'error_code': 'error_code', 'drift': 'cell_drift_v',
                  'cell_drift_v': 'cell_drift_v', 'drift_cell': 'drift_cell'}
 
-# The model-specific faults each simulator reads from faults.extra (see its docstring); a
-# simulator class may name its own in EXTRA_FAULTS.
-_EXTRA_FAULTS = {'ams': ('stuck_counter', 'imd_error'),
-                 'ivt_s': ('ocs', 'result_error', 'measurement_error', 'stuck_counter'),
-                 'evms3': ('config_answer', 'charger_status'), 'bms16': (),
-                 'sma': ('alarm', 'warning')}
+# The model-specific faults each simulator reads from faults.extra (see its docstring), with
+# what they do for --help; a simulator class may name its own in EXTRA_FAULTS.
+_EXTRA_FAULTS: dict[str, dict[str, str]] = {
+    'ams': {'stuck_counter': 'the status counter stops', 'imd_error': 'the IMD error bit'},
+    'ivt_s': {'ocs': 'the over-current (OCS) bit',
+              'result_error': 'the result error bit on every result',
+              'measurement_error': 'the measurement error bit on every result',
+              'stuck_counter': 'the result counters stop',
+              'mute_commands': 'commands on 0x411 taken but never answered'},
+    'evms3': {'config_answer=ID': 'answers ID 51 with only this one of 52..56',
+              'charger_status=BITS': 'TC charger status bits (a charger with one set '
+                                     'delivers nothing)'},
+    'sma': {'alarm=CONDITION': 'this SMA condition alarm ACTIVE',
+            'warning=CONDITION': 'this SMA condition warning ACTIVE'},
+}
+
+
+def extra_faults(device_type: str, cls: type | None = None) -> tuple[str, ...]:
+    """Return the model-specific fault kinds of a simulator (its class may name its own)."""
+    default = tuple(kind.partition('=')[0] for kind in _EXTRA_FAULTS.get(device_type, ()))
+    return tuple(getattr(cls, 'EXTRA_FAULTS', default))
+
+
+def faults_help() -> str:
+    """Return the --help epilog listing every fault, the model-specific ones per device."""
+    rows = []
+    for kind in registry.SIMULATORS:
+        described = _EXTRA_FAULTS.get(kind, {})
+        for name in extra_faults(kind, registry.simulator_class(kind)):
+            spelled = next((k for k in described if k.partition('=')[0] == name), name)
+            rows.append((f'{kind}:{spelled}', described.get(spelled, '')))
+    width = max(len(fault) for fault, _ in rows)
+    return '\n'.join(
+        ['faults (--fault DEVICE:KIND[=VALUE], repeatable):',
+         '  any device: silent, malformed (wrong DLC), error=CODE (a vendor error code),',
+         '    drift=VOLTS (added to one cell), drift_cell=INDEX (which cell, default 0)',
+         "  a model's own:"]
+        + [f'    {fault.ljust(width)}  {what}'.rstrip() for fault, what in rows]
+        + textwrap.wrap('CONDITION: ' + ', '.join(SMA_CONDITIONS), 88,
+                        initial_indent='    ', subsequent_indent='      '))
 
 
 def apply_faults(devices: Sequence[SimDevice], faults: Sequence[tuple[str, str, Any]]) -> None:
@@ -181,7 +229,7 @@ def apply_faults(devices: Sequence[SimDevice], faults: Sequence[tuple[str, str, 
                               f'(running: {", ".join(by_name)})')
         target = _FAULT_FIELDS.get(kind)
         device = by_name[name]
-        extra = getattr(device, 'EXTRA_FAULTS', _EXTRA_FAULTS.get(device.TYPE, ()))
+        extra = extra_faults(device.TYPE, type(device))
         if target is None and kind not in extra:
             raise ConfigError(f'--fault {name}:{kind}: no such fault of {name}; use one of '
                               + ', '.join(sorted(set(_FAULT_FIELDS) | set(extra))))
@@ -233,6 +281,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     try:
         bus = open_bus(args.interface, channel, args.bitrate, options)
+    except KeyboardInterrupt:  # Ctrl-C in python-can's wait after opening a serial port
+        print('simulator: stopped before the bus was open', file=sys.stderr)
+        return 0
     except Exception as exc:
         print(f'simulator: cannot open CAN bus {args.interface}:{channel}: {exc}',
               file=sys.stderr)
@@ -250,15 +301,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     say = (lambda text: None) if args.quiet else (
         lambda text: print(f'simulator: {text}', file=sys.stderr, flush=True))
     try:
-        runner.step(time.monotonic())  # first frames now, so the summary can list the IDs
+        started = time.monotonic()
         runner.start()
+        # The start line lists the IDs sent so far: every model sends each periodic frame
+        # once within its first SUMMARY_AFTER (a dbc device's messages follow its primary
+        # a millisecond apart), so it lists them all, not only the first tick's.
+        done.wait(min(SUMMARY_AFTER, args.duration if args.duration is not None
+                      else SUMMARY_AFTER))
         say(f'{len(devices)} device(s) on {args.interface}:{channel}'
             + (f' at {args.bitrate} bit/s' if args.bitrate else '') + ': ' + _ids(runner))
         clashes = runner.shared_ids()
         if clashes:
             say('warning: several devices send the same ID(s) '
                 + ', '.join(f'0x{i:X}' for i, _ in clashes) + ': choose --devices')
-        started = time.monotonic()
         end = started + args.duration if args.duration is not None else None
         next_status = started + args.status_period
         while not done.is_set():

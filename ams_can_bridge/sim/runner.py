@@ -14,6 +14,10 @@ from ams_can_bridge.sim.base import SimDevice
 
 _RX_PER_TICK = 500        # frames taken from the bus per tick: bounded, ticks stay on time
 _LOG_EVERY = 5.0          # s: throttle for repeated send / device errors
+# s a send may wait for the adapter. Unbounded, a serial port whose other end stops reading
+# (a bridge that hangs, a pty nobody drains) blocks the runner in a write for ever, and the
+# slcan close at shutdown after it: the simulator could then not be stopped.
+SEND_TIMEOUT = 0.1
 
 
 def open_bus(interface: str, channel: str, bitrate: int = 0,
@@ -29,9 +33,10 @@ class SimRunner:
     """
     Ticks every device each ``tick_period``, sends their frames, feeds them the bus.
 
-    Time is ``time.monotonic()``. Frames a device returns are sent in order; a send error
-    (full TX queue, adapter gone) is counted and logged (throttled), never fatal. Frames
-    read from the bus (at most a bounded number per tick) go to every device's on_frame.
+    Time is ``time.monotonic()``. Frames a device returns are sent in order, each send bounded
+    by SEND_TIMEOUT; a send error (full TX queue, adapter gone, a serial port nobody reads)
+    is counted and logged (throttled), never fatal. Frames read from the bus (at most a
+    bounded number per tick) go to every device's on_frame.
     """
 
     def __init__(self, bus: can.BusABC, devices: Sequence[SimDevice],
@@ -98,10 +103,12 @@ class SimRunner:
         return sorted(k for k, n in seen.items() if n > 1)
 
     def _send(self, frame: Frame) -> None:
+        if self._stop.is_set():  # stopping: the rest of this tick's frames would each wait
+            return
         try:
             self.bus.send(can.Message(arbitration_id=frame.arbitration_id, data=frame.data,
                                       is_extended_id=frame.is_extended_id,
-                                      is_fd=len(frame.data) > 8))
+                                      is_fd=len(frame.data) > 8), timeout=SEND_TIMEOUT)
         except Exception as exc:
             self.send_errors += 1
             self._error(f'send 0x{frame.arbitration_id:X} failed: {exc}')
