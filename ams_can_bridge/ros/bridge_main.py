@@ -190,7 +190,7 @@ def _watch_for_a_namesake(node: Any) -> None:
         if warning:
             node.get_logger().warning(warning)
         if warning or time.monotonic() >= until:
-            node.destroy_timer(timer)
+            timer.cancel()  # checked enough: the timer stays idle until the node goes
 
     timer = node.create_timer(NAME_CHECK_PERIOD, check)
 

@@ -16,7 +16,7 @@ from typing import Any, Iterable
 
 import yaml
 
-from ams_can_bridge.ros.params import section_applies
+from ams_can_bridge.ros.params import ros_flag_values, section_applies
 
 # rcl's reading of a -p value (rcl_yaml_param_parser get_value): these words are booleans,
 # then strtoll (base 0: 0x10, 010 octal), then strtod, else a string; quoted: a string.
@@ -72,17 +72,12 @@ def rcl_value(text: str) -> Any:
 
 def override_rules(argv: Iterable[str]) -> list[tuple[str, str, str]]:
     """Return (node name or '', parameter, value text) of each -p/--param after --ros-args."""
-    rules, ros, args = [], False, list(argv)
-    for i, arg in enumerate(args):
-        if arg == '--ros-args':
-            ros = True
-        elif arg == '--':
-            ros = False
-        elif ros and arg in ('-p', '--param') and i + 1 < len(args):
-            left, separator, text = args[i + 1].partition(':=')
-            if separator:
-                node, _, name = left.rpartition(':')
-                rules.append((node, name, text))
+    rules = []
+    for rule in ros_flag_values(argv, ('-p', '--param')):
+        left, separator, text = rule.partition(':=')
+        if separator:
+            node, _, name = left.rpartition(':')
+            rules.append((node, name, text))
     return rules
 
 
