@@ -53,6 +53,8 @@ class BusStatus:
     frames_unreadable: int = 0         # messages the driver could not parse
     down_for: float | None = None      # s the bus has been down (None while it is up)
     last_outage: float | None = None   # s the last outage lasted, once the bus is back
+    dropped_tx_ago: float | None = None  # s since a frame to send was last dropped (None: never)
+    dropped_tx_reason: str = ''        # why that frame was dropped
 
     @property
     def connected(self) -> bool:

@@ -155,6 +155,9 @@ BUS_PARAMS = [
     ParamSpec('replay_clock', bool, False,
               'replay only: publish /clock from the log timestamps, so nodes with '
               'use_sim_time follow the recording'),
+    ParamSpec('replay_exit', bool, False,
+              'replay only: exit (code 0) once the log has been played and its last messages '
+              'published; false = keep running, STALE, until stopped'),
     ParamSpec('use_bus_time', bool, False,
               "stamp messages with the interface's receive timestamp (python-can "
               'Message.timestamp; the kernel\'s for SocketCAN) instead of the host clock; '
@@ -184,13 +187,20 @@ NODE_PARAMS = [
 
 
 def launch_parameters(params_file: str, commands_allowed: str = '',
-                      autostart: str = '') -> list[Any]:
+                      autostart: str = '', examples: str = '') -> list[Any]:
     """
     Return the ``parameters`` of the bridge's launch Node (launch/bridge.launch.py).
 
-    The launch arguments commands_allowed and autostart replace the params file's value
-    only when given ('true' / 'false'); left empty (their default), the params file decides.
+    A params file is required: without one the bridge would listen on can0 for no device
+    (ConfigError naming params_file and ``examples``, the installed config directory). The
+    launch arguments commands_allowed and autostart replace the params file's value only
+    when given ('true' / 'false'); left empty (their default), the params file decides.
     """
+    if not params_file.strip():
+        where = f' in {examples}' if examples else ''
+        raise ConfigError('params_file is required: ros2 launch ams_can_bridge bridge.launch.py '
+                          'params_file:=/path/to/your.yaml (copy the example for your devices '
+                          f'from the config/*.yaml files{where} and set its can.* values)')
     parameters: list[Any] = [params_file]
     given = {}
     for name, value in (('commands_allowed', commands_allowed), ('autostart', autostart)):

@@ -86,31 +86,48 @@ _BUS_LEVELS = {
 }
 
 
+# s a frame the bridge could not send keeps a connected bus at WARN (a heartbeat, a command)
+DROPPED_TX_WARN_PERIOD = 10.0
+
+
+def _dropped_lately(status: Any) -> bool:
+    ago = getattr(status, 'dropped_tx_ago', None)
+    return ago is not None and ago < DROPPED_TX_WARN_PERIOD
+
+
 def bus_level(status: Any) -> Level:
     """Return the level bus_report() gives a BusStatus, without building the report."""
-    return _BUS_LEVELS.get(status.state, Level.ERROR)  # a BusState is its own text
+    level = _BUS_LEVELS.get(status.state, Level.ERROR)  # a BusState is its own text
+    if level == Level.OK and _dropped_lately(status):
+        return Level.WARN
+    return level
 
 
 def bus_report(status: Any, malformed: int, interface: str) -> DiagnosticReport:
     """
     Build the CAN bus DiagnosticReport from a CanIo BusStatus and the devices' counters.
 
-    OK when connected (or a replay that finished), WARN on error-passive, ERROR otherwise
-    (error, bus-off, reconnecting, cannot open) with the reason in the message.
+    OK when connected (or a replay that finished), WARN on error-passive or while a frame to
+    send was dropped in the last DROPPED_TX_WARN_PERIOD s, ERROR otherwise (error, bus-off,
+    reconnecting, cannot open) with the reason in the message.
     """
     state = BusState(status.state)
     level = bus_level(status)
     reason = str(status.reason or '')
-    message = state + (f': {reason}' if reason and level != Level.OK else '')
+    message = state + (f': {reason}' if reason and _BUS_LEVELS.get(state) != Level.OK else '')
     down_for = getattr(status, 'down_for', None)
     if down_for is not None:
         message += f' (down for {down_for:.1f} s)'
+    if _dropped_lately(status) and state in (BusState.CONNECTED, BusState.ERROR_PASSIVE):
+        message += (f'; {status.frames_dropped_tx} frames dropped (tx), the last '
+                    f'{status.dropped_tx_ago:.1f} s ago: {status.dropped_tx_reason}')
     values = {
         'state': str(state),
         'reason': reason,
         'frames in': str(status.frames_in),
         'frames out': str(status.frames_out),
         'frames dropped (tx)': str(getattr(status, 'frames_dropped_tx', 0)),
+        'last dropped (tx)': str(getattr(status, 'dropped_tx_reason', '') or ''),
         'malformed frames': str(malformed),
         'error frames': str(status.error_frames),
         'reconnects': str(status.reconnects),

@@ -4,8 +4,9 @@ Launch the ams_can_bridge bridge node with a parameter file.
     ros2 launch ams_can_bridge bridge.launch.py params_file:=/path/to/my_pack.yaml
     ros2 launch ams_can_bridge bridge.launch.py params_file:=... commands_allowed:=true
 
-params_file defaults to the installed config/bms16.yaml; namespace (default empty) puts
-the node and its relative topics (<device>/battery_state, ...) under a namespace.
+params_file is required (the examples are the installed config/*.yaml: copy yours and set
+its can.* values); namespace (default empty) puts the node and its relative topics
+(<device>/battery_state, ...) under a namespace.
 commands_allowed is the launch-only first key of the transmit gate: only with it true can
 commands_enabled (the second key, in the params file or set at run time by the supervisor)
 become true. Given here (true or false), it replaces the params file's value; left out, the
@@ -37,7 +38,8 @@ def _bridge(context):
         namespace=LaunchConfiguration('namespace'),
         parameters=launch_parameters(
             LaunchConfiguration('params_file').perform(context),
-            LaunchConfiguration('commands_allowed').perform(context), autostart),
+            LaunchConfiguration('commands_allowed').perform(context), autostart,
+            examples=os.path.join(get_package_share_directory('ams_can_bridge'), 'config')),
         output='screen',
         emulate_tty=True,
     )]
@@ -45,12 +47,11 @@ def _bridge(context):
 
 def generate_launch_description():
     """Declare params_file / namespace / commands_allowed and start the bridge node."""
-    default_params = os.path.join(
-        get_package_share_directory('ams_can_bridge'), 'config', 'bms16.yaml')
     return LaunchDescription([
         DeclareLaunchArgument(
-            'params_file', default_value=default_params,
-            description='YAML parameter file of the bridge (see config/*.yaml)'),
+            'params_file', default_value='',
+            description='YAML parameter file of the bridge, required (examples: the installed '
+                        'config/*.yaml)'),
         DeclareLaunchArgument(
             'namespace', default_value='',
             description='namespace of the node and its topics'),

@@ -63,6 +63,24 @@ def test_the_launch_file_uses_the_helper_and_defaults_to_not_given():
     assert getattr(parameters.func, 'id', '') == 'launch_parameters'
 
 
+def test_without_a_params_file_the_launch_file_refuses_naming_it():
+    """Issue 31: no silent ZEVA BMS16 bridge (the old default) when params_file is left out."""
+    with pytest.raises(ValueError) as refused:
+        launch_parameters('', examples='/opt/share/ams_can_bridge/config')
+    assert str(refused.value) == (
+        'params_file is required: ros2 launch ams_can_bridge bridge.launch.py '
+        'params_file:=/path/to/your.yaml (copy the example for your devices from the '
+        'config/*.yaml files in /opt/share/ams_can_bridge/config and set its can.* values)')
+    tree = ast.parse(LAUNCH.read_text())
+    calls = [n for n in ast.walk(tree) if isinstance(n, ast.Call)]
+    [argument] = [c for c in calls if getattr(c.func, 'id', '') == 'DeclareLaunchArgument'
+                  and c.args and c.args[0].value == 'params_file']
+    assert {k.arg: k.value for k in argument.keywords}['default_value'].value == ''
+    assert 'bms16.yaml' not in LAUNCH.read_text()
+    [helper] = [c for c in calls if getattr(c.func, 'id', '') == 'launch_parameters']
+    assert 'examples' in {k.arg for k in helper.keywords}
+
+
 def command_line(parameters: list) -> list[str]:
     """Return the bridge's arguments for a launch Node's parameters (files, then values)."""
     args = [bridge_executable(), '--ros-args']

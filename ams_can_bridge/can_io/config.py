@@ -19,6 +19,12 @@ INTERFACE_DEFAULTS: dict[str, dict[str, object]] = {
     'slcan': {'timeout': 0.5},
 }
 
+# An slcan adapter keeps no bit rate of the bus's: without can.bitrate no 'S' command is sent.
+SLCAN_NO_BITRATE = (
+    'can.bitrate is 0 with slcan: no bit rate command is sent, so the adapter runs at '
+    'whatever it was last set to (by another program, or its power-up default) and may '
+    'hear nothing or disturb the bus; set can.bitrate to the bus\'s bit rate (e.g. 500000)')
+
 # Interfaces the bridge opens itself rather than through python-can.
 OWN_INTERFACES = ('replay',)
 # Keyword arguments python-can's Bus takes for every interface (can.util turns the timing
@@ -124,7 +130,8 @@ class BusConfig:
         class cannot take (it has no ``**kwargs``: python-can would raise on every attempt),
         and a replay file that does not exist. Those would otherwise be retried forever,
         like an adapter that is not plugged in yet. An option the class does not name but
-        may take through ``**kwargs`` is a warning: python-can may ignore it silently.
+        may take through ``**kwargs`` is a warning: python-can may ignore it silently, and so
+        is slcan without a bit rate (the adapter keeps whatever rate it was last set to).
         """
         import can.interfaces  # python-can's list of interfaces, plugins included
         if self.interface in OWN_INTERFACES:
@@ -139,6 +146,7 @@ class BusConfig:
             hint = f'; did you mean {near[0]!r}?' if near else ''
             raise ConfigError(f'can.interface = {self.interface!r} is not a python-can '
                               f'interface{hint} (known: {", ".join(valid)})')
+        warnings = []
         if self.interface == 'slcan' and self.bitrate:
             from can.interfaces.slcan import slcanBus
             rates = sorted(getattr(slcanBus, '_BITRATES', {}) or ())
@@ -146,7 +154,9 @@ class BusConfig:
                 raise ConfigError(
                     f'can.bitrate = {self.bitrate}: an slcan adapter has no command for it; '
                     f'use one of {", ".join(str(r) for r in rates)} (or 0 = leave it as is)')
-        return self._check_options()
+        elif self.interface == 'slcan':
+            warnings.append(SLCAN_NO_BITRATE)
+        return warnings + self._check_options()
 
     def _check_options(self) -> list[str]:
         import can.interface

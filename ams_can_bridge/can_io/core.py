@@ -1,6 +1,7 @@
 """CanIo: python-can bus lifecycle (open, filters, receive thread, reconnect, send, record)."""
 from __future__ import annotations
 
+import errno
 import logging
 import threading
 import time
@@ -11,7 +12,7 @@ import can
 from ams_can_bridge.bus_state import (
     BusState, BusStatus, DOWN_STATES, RETRY_STATES, UP_STATES)
 from ams_can_bridge.can_io.config import BusConfig
-from ams_can_bridge.can_io.recording import Recording
+from ams_can_bridge.can_io.recording import channel_name, Recording
 from ams_can_bridge.errors import CanIoError, CanSendError
 from ams_can_bridge.can_io.replay import ReplayBus
 from ams_can_bridge.can_io.slcan import open_bulk_slcan
@@ -82,6 +83,7 @@ class CanIo:
         self.frames_in = 0
         self.frames_out = 0
         self.frames_dropped_tx = 0
+        self._last_drop: tuple[float, str] | None = None  # (monotonic, why) of the last one
         self.error_frames = 0
         self.reconnects = 0
         self.callback_errors = 0
@@ -107,7 +109,8 @@ class CanIo:
                                  'driver call that does not return): not started again')
             self._thread = None
         if self.config.record:
-            self._recorder = Recording(self.config.record, self._log)
+            self._recorder = Recording(self.config.record, self._log, channel_name(
+                self.config.interface, self.config.channel))
         self._stop.clear()
         self._set_state(BusState.CONNECTING, '')
         self._thread = threading.Thread(target=self._run, name='can_io-rx', daemon=True)
@@ -150,6 +153,7 @@ class CanIo:
     def status(self) -> BusStatus:
         """Return a snapshot of state and counters."""
         down_since = self._down_since
+        last_drop = self._last_drop
         return BusStatus(
             state=self._state, reason=self._reason, frames_in=self.frames_in,
             frames_out=self.frames_out, frames_dropped_tx=self.frames_dropped_tx,
@@ -157,7 +161,9 @@ class CanIo:
             hardware_id=self.config.hardware_id, callback_errors=self.callback_errors,
             frames_unreadable=self.frames_unreadable,
             down_for=None if down_since is None else time.monotonic() - down_since,
-            last_outage=self._last_outage)
+            last_outage=self._last_outage,
+            dropped_tx_ago=None if last_drop is None else time.monotonic() - last_drop[0],
+            dropped_tx_reason='' if last_drop is None else last_drop[1])
 
     def send(self, frame: Frame) -> None:
         """Send one frame now; raise CanSendError if not connected or the driver refuses."""
@@ -167,26 +173,29 @@ class CanIo:
                               is_fd=len(frame.data) > 8, is_rx=False, check=True)
         except (ValueError, TypeError) as exc:
             with self._tx_lock:
-                self.frames_dropped_tx += 1
-            raise CanSendError(f'invalid frame {frame!r}: {exc}') from exc
+                raise self._dropped(f'invalid frame {frame!r}: {exc}') from exc
         with self._tx_lock:
             bus = self._bus
             if bus is None or self._state not in UP_STATES:
-                self.frames_dropped_tx += 1
-                raise CanSendError(
+                raise self._dropped(
                     f'CAN bus {self.config.hardware_id} is not connected ({self._state}'
                     + (f': {self._reason}' if self._reason else '') + ')')
             try:
                 bus.send(msg, timeout=_SEND_TIMEOUT)
             except Exception as exc:
-                self.frames_dropped_tx += 1
-                raise CanSendError(f'CAN bus {self.config.hardware_id}: sending '
-                                   f'0x{frame.arbitration_id:X} failed: {exc}') from exc
+                raise self._dropped(f'CAN bus {self.config.hardware_id}: sending '
+                                    f'0x{frame.arbitration_id:X} failed: {exc}') from exc
             self.frames_out += 1
         recorder = self._recorder
         if recorder is not None:
             msg.timestamp = time.time()
             recorder.write(msg)
+
+    def _dropped(self, reason: str) -> CanSendError:
+        """Count a frame not sent (self._tx_lock held); return the error to raise."""
+        self.frames_dropped_tx += 1
+        self._last_drop = (time.monotonic(), reason)
+        return CanSendError(reason)
 
     # ---------------------------------------------------------------------------- thread
     def _set_state(self, state: BusState, reason: str, level: int = logging.INFO) -> None:
@@ -211,7 +220,8 @@ class CanIo:
                 bus = self._open()
             except Exception as exc:
                 state = BusState.RECONNECTING if self._ever_connected else BusState.ERROR
-                self._set_state(state, _describe(exc), logging.WARNING)
+                self._set_state(state, _open_failure(self.config.interface, exc),
+                                logging.WARNING)
                 self._stop.wait(self.config.reconnect_period)
                 continue
             try:
@@ -374,6 +384,18 @@ class CanIo:
             self._log.error('frame 0x%X [%s] handler failed (%d so far): %s: %s',
                             msg.arbitration_id, msg.data.hex(' ').upper(),
                             self.callback_errors, type(exc).__name__, exc)
+
+
+def _open_failure(interface: str, exc: BaseException) -> str:
+    """Return why the bus did not open; a kernel without SocketCAN is named as such."""
+    if interface == 'socketcan' and getattr(exc, 'errno', None) == errno.EAFNOSUPPORT:
+        # python-can's socket(PF_CAN) itself fails: no CAN on this machine, not a bad adapter
+        return (f'this machine has no SocketCAN ({_describe(exc)}: the kernel has no CAN '
+                'support, as in WSL, many containers and macOS): load it (sudo modprobe can '
+                'can_raw) or use another can.interface: slcan for a USB-serial adapter '
+                '(can.channel /dev/ttyACM0), pcan, kvaser, ..., or virtual to try the bridge '
+                'without hardware')
+    return _describe(exc)
 
 
 def _describe(exc: BaseException) -> str:

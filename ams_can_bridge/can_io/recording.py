@@ -15,15 +15,35 @@ import can
 from ams_can_bridge.errors import ConfigError
 
 
+def channel_name(interface: str, channel: str) -> str:
+    """
+    Return the bus's name in a candump .log: 'can0' as is, a serial port by its device name.
+
+    A log names its interface by one word (candump, canplayer and python-can split the line
+    on blanks): '/dev/ttyACM0' becomes 'ttyACM0', a replayed log is 'replay'.
+    """
+    if interface == 'replay':
+        return 'replay'
+    name = '_'.join(channel.rstrip('/').rsplit('/', 1)[-1].split())
+    return name or interface
+
+
 class Recording:
     """One open python-can log file (its format from the suffix), closed once."""
 
-    def __init__(self, path: str, log: logging.Logger) -> None:
-        """Open the file; ConfigError (naming can.record) when python-can cannot write there."""
+    def __init__(self, path: str, log: logging.Logger, channel: str = '') -> None:
+        """
+        Open the file; ConfigError (naming can.record) when python-can cannot write there.
+
+        ``channel`` names the bus in a candump .log (python-can writes 'vcan0' otherwise):
+        ``channel_name`` of the bus's can.channel.
+        """
         try:
             self._writer: can.Listener | None = can.Logger(path)
         except Exception as exc:
             raise ConfigError(f'can.record = {path!r}: cannot record there: {exc}') from exc
+        if channel and isinstance(self._writer, can.CanutilsLogWriter):
+            self._writer.channel = channel  # the formats with numbered channels keep theirs
         self.path = path
         self._log = log
         self._lock = threading.Lock()

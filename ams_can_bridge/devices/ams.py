@@ -152,16 +152,18 @@ class AmsDevice(Device):
         self._discharge = _BankArray(proto.DISCHARGE_TEMPS_PER_GROUP, proto.TEMP_GROUPS)
 
     # --- the frames the command services send (built here, on the device's own codec) --------
-    def attach_master(self, send: SendFrame) -> AmsMaster:
+    def attach_master(self, send: SendFrame,
+                      log: Callable[[str], object] | None = None) -> AmsMaster:
         """
         Make this AMS's master (heartbeat, car commands; stopped) sending through ``send``.
 
-        The master follows ``heartbeat_period`` and ``bank_count`` on every configure().
+        The master follows ``heartbeat_period`` and ``bank_count`` on every configure();
+        ``log`` is told when a state command begins to be carried.
         """
         config = self.config
         self.master = AmsMaster(self.heartbeat_frame, send, self.master_view,
                                 period=float(config.heartbeat_period or 0.05),
-                                bank_count=self.bank_count)
+                                bank_count=self.bank_count, log=log, name=self.name)
         return self.master
 
     def attach_charger(self, send: SendFrame,

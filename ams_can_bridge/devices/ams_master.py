@@ -101,6 +101,7 @@ class _Request:
     error_seq_at_start: int = 0
     cancelled: str = ''              # reason when replaced (abort) or stopped (gate)
     done: bool = False
+    timeout: float = 0.0             # s from started the call waits for its answer
 
 
 @dataclass
@@ -151,12 +152,14 @@ class AmsMaster:
     def __init__(self, encode: Callable[[int, int, int], Frame],
                  send: SendFrame,
                  view: Callable[[], AmsView], period: float = 0.05, bank_count: int = 1,
-                 clock: Callable[[], float] = time.monotonic, record: bool = False) -> None:
+                 clock: Callable[[], float] = time.monotonic, record: bool = False,
+                 log: Callable[[str], object] | None = None, name: str = 'ams') -> None:
         """
         Wire the master to its codec, bus and AMS state.
 
         encode(command, bank_count, counter) builds the car status frame; send(frame)
-        returns (ok, message); view() reads the AMS device state.
+        returns (ok, message); view() reads the AMS device state; log(line) is told when
+        the heartbeat starts carrying a state command (the answer is the caller's to log).
         """
         self._encode = encode
         self._send = send
@@ -175,6 +178,8 @@ class AmsMaster:
         self.stats = HeartbeatStats()
         self._record = record
         self._request: _Request | None = None
+        self._log = log
+        self.name = name
 
     # --- heartbeat thread --------------------------------------------------------------
     @property
@@ -273,11 +278,14 @@ class AmsMaster:
                 # still under the send lock: a stop()/start() cannot slip a frame with the
                 # same counter in between this send and its counter increment
                 with self._cond:
-                    self._account(ok, message, request, view, sent_at)
+                    carried = self._account(ok, message, request, view, sent_at)
+            if carried and self._log is not None:  # outside the locks: the next slot waits
+                self._log(carried)
 
     def _account(self, ok: bool, message: str, request: _Request | None,
-                 view: AmsView | None, sent_at: float) -> None:
-        """Book one send attempt (self._cond held)."""
+                 view: AmsView | None, sent_at: float) -> str:
+        """Book one send attempt (self._cond held); return the line when a wait begins."""
+        carried = ''
         if ok:
             self.stats.frames_sent += 1
             if self._record:
@@ -287,6 +295,11 @@ class AmsMaster:
                 if request.carried == 0:
                     request.first_counter = self.counter
                     request.status_seq_at_send = view.status_seq
+                    if request.command in TARGETS:  # a wait of seconds: say it has begun
+                        carried = (f'{self.name}: {request.command.name} carried in the '
+                                   f'heartbeat from counter {self.counter}; waiting for '
+                                   f'{TARGETS[request.command].name} (up to '
+                                   f'{request.started + request.timeout - sent_at:.1f} s)')
                 request.carried += 1
                 if request.command in ONE_SHOT and self._request is request:
                     self._request = None  # exactly one heartbeat carries it
@@ -301,6 +314,7 @@ class AmsMaster:
                                      'the command was dropped and will not be sent later')
                 self._request = None
         self._cond.notify_all()
+        return carried
 
     # --- commands ------------------------------------------------------------------------
     def command(self, command: CarCommand, timeout: float,
@@ -331,7 +345,7 @@ class AmsMaster:
             if current is not None:
                 current.cancelled = 'aborted'
             request = _Request(command, self._clock() if started is None else started,
-                               error_seq_at_start=error_seq)
+                               error_seq_at_start=error_seq, timeout=timeout)
             self._request = request
             self._cond.notify_all()
         return self._wait(request, timeout)

@@ -13,6 +13,8 @@ read-back and the IVT-S exchanges reach the bus only through it (``CommandPort``
 - ``send_periodic`` (the heartbeat, the charger repeat, the keep-alive): the same gate, but
   never waits, neither for the bus nor for a batch (a late heartbeat is a wrong heartbeat),
   and is not logged per frame;
+- ``start_when_connected``: a periodic sender starts once the bus is connected, not before
+  (an slcan adapter opens in ~2 s: a heartbeat started at launch would drop its frames);
 - ``batch()``: hold the batch lock for the frames of one call (and its pacing);
 - ``add_listener``: told at once when commands are enabled or disabled, so everything that
   transmits on its own stops on a disarm.
@@ -34,6 +36,7 @@ from ams_can_bridge.protocols.common import Frame
 # services (disarming) always keep a thread; a further command fails at once instead.
 BUS_WAIT_SLOTS = 2
 WAIT_SLICE = 0.05  # s: a bus wait looks at commands_enabled this often
+START_SLICE = 0.5  # s: a start waiting for a (re)opening bus looks at commands_enabled this often
 
 Listener = Callable[[bool], None]
 
@@ -74,6 +77,9 @@ class CommandPort(Protocol):
 
     def send_periodic(self, frame: Frame) -> tuple[bool, str]:
         """Send one frame of a periodic sender, never waiting: (ok, message)."""
+
+    def start_when_connected(self, start: Callable[[], None]) -> PendingStart:
+        """Call ``start`` once the bus is connected, while commands stay enabled."""
 
     def batch(self) -> AbstractContextManager[None]:
         """Hold the batch lock: no other call's frame goes out meanwhile."""
@@ -286,6 +292,24 @@ class CommandGate:
         """Send one frame of a periodic sender: the gate, no wait, no batch, no log line."""
         return self._send(frame)
 
+    def start_when_connected(self, start: Callable[[], None]) -> PendingStart:
+        """
+        Call ``start`` (a periodic sender's) once the bus is connected; return its hold.
+
+        At once when it is connected, else on a thread of its own as soon as it is; never
+        once commands are disabled or the returned ``PendingStart`` is cancelled.
+        """
+        pending = PendingStart(self, start)
+        if not pending.fire():
+            threading.Thread(target=pending.wait, name='start-when-connected',
+                             daemon=True).start()
+        return pending
+
+    def bus_connected(self) -> bool:
+        """Tell whether the bus is attached and connected now."""
+        bus = self._bus
+        return bus is not None and bus.status().connected
+
     def _transmit(self, frame: Frame, wait: bool) -> tuple[bool, str]:
         if not self._enabled:
             return False, self._disabled()
@@ -312,3 +336,45 @@ class CommandGate:
         except CanSendError as exc:
             return False, f'CAN send failed on {self.hardware_id}: {exc}'
         return True, f'sent 0x{frame.arbitration_id:X} [{frame.data.hex(" ").upper()}]'
+
+
+class PendingStart:
+    """
+    A periodic sender's start held until the bus is connected (``start_when_connected``).
+
+    ``fire`` starts it if the bus is connected and commands are enabled, at most once;
+    after ``cancel`` returns it never starts. Both take one lock, so a disarm (cancel, then
+    stop the sender) can never be followed by a start.
+    """
+
+    def __init__(self, gate: CommandGate, start: Callable[[], None]) -> None:
+        """Hold ``start`` for ``gate``'s bus; nothing runs until ``fire``."""
+        self._gate = gate
+        self._start = start
+        self._lock = threading.Lock()
+        self.done = False  # started or cancelled
+
+    def fire(self) -> bool:
+        """Start now if the bus is connected; True once started, cancelled or disabled."""
+        with self._lock:
+            if not self.done and self._gate.enabled:
+                if not self._gate.bus_connected():
+                    return False
+                self._start()
+            self.done = True
+            return True
+
+    def cancel(self) -> None:
+        """Never start from now on (a start under way has finished when this returns)."""
+        with self._lock:
+            self.done = True
+
+    def wait(self) -> None:
+        """Wait for the bus to connect, then start (the thread of ``start_when_connected``)."""
+        while not self.fire():
+            bus = self._gate._bus
+            status = bus.status() if bus is not None else None
+            if bus is not None and status is not None and status.state in RETRY_STATES:
+                bus.wait_connected(START_SLICE)  # returns as soon as it is connected
+            else:
+                time.sleep(WAIT_SLICE)  # not attached or not started yet (configure)

@@ -81,14 +81,20 @@ class BusView:
 def live_engine(device_set: DeviceSet, sink: Sink, settings: BusSettings, gate: CommandGate,
                 bus: Callable[[], OpenBus | None], *, status_prefix: str,
                 diagnostics_period: float, on_bus_status: Callable[[BusStatus], None],
-                logger: Callable[[str], logging.Logger],
-                thread_name: str) -> tuple[Engine, BusView, Periodic]:
+                logger: Callable[[str], logging.Logger], thread_name: str,
+                on_replay_end: Callable[[], None] | None = None,
+                ) -> tuple[Engine, BusView, Periodic]:
     """
     Return the engine of a live bridge, its view of the bus, its periodic thread (stopped).
 
     ``bus`` returns the open bus (None while closed); ``logger(part)`` returns the stdlib
-    logger a part logs to (the node's, in the node).
+    logger a part logs to (the node's, in the node). ``on_replay_end`` (``can.replay_exit``)
+    is called once, on the periodic thread, when the replay has finished and the last
+    diagnostics (``replay finished``) have been published.
     """
+    if on_replay_end is not None:
+        on_bus_status = _after_replay(on_bus_status, lambda: engine.publish_diagnostics(),
+                                      on_replay_end)
     view = BusView(settings.hardware_id, settings.replaying, gate, bus)
     engine_logger = logger('engine')
     engine_logger.setLevel(logging.DEBUG)  # the node's logger decides what is shown
@@ -101,6 +107,20 @@ def live_engine(device_set: DeviceSet, sink: Sink, settings: BusSettings, gate: 
     if settings.replay_clock:
         periodic.every(CLOCK_PERIOD, lambda: engine.publish_clock(view.clock_stamp()))
     return engine, view, periodic
+
+
+def _after_replay(on_bus_status: Callable[[BusStatus], None], publish: Callable[[], None],
+                  on_end: Callable[[], None]) -> Callable[[BusStatus], None]:
+    """Return ``on_bus_status`` that also publishes and calls ``on_end`` once at the end."""
+    ended: list[bool] = []
+
+    def watch(status: BusStatus) -> None:
+        on_bus_status(status)
+        if status.state == BusState.REPLAY_FINISHED and not ended:
+            ended.append(True)
+            publish()  # every battery_state went out with its frame: the last status now
+            on_end()
+    return watch
 
 
 def open_bus(config: BusConfig, engine: Engine, device_set: DeviceSet, gate: CommandGate,

@@ -34,6 +34,7 @@ class BusSettings:
     hardware_id: str  # '<interface>:<channel>', the diagnostics' hardware_id
     replay_clock: bool
     errors: list[str] = field(default_factory=list)  # stop the bridge, with every other
+    replay_exit: bool = False  # end the process once the replay has finished
     warnings: list[str] = field(default_factory=list)  # logged, the bridge starts
 
     @property
@@ -51,7 +52,12 @@ def bus_settings(bus: Mapping[str, Any]) -> BusSettings:
     (``BusConfig.check``) stops the bridge rather than being retried forever.
     """
     settings = BusSettings(None, bus['interface'], f"{bus['interface']}:{bus['channel']}",
-                           replay_clock=bus['replay_clock'])
+                           replay_clock=bus['replay_clock'],
+                           replay_exit=bool(bus.get('replay_exit')))
+    if settings.replay_exit and not settings.replaying:
+        settings.errors.append(f'can.replay_exit is true but can.interface is '
+                               f"{bus['interface']!r}: only a replayed log ends (set "
+                               "can.interface to 'replay', or replay_exit to false)")
     try:
         options = parse_options(bus['options'])
     except ValueError as exc:
@@ -157,3 +163,21 @@ def start_summary(config: BusConfig, hardware_id: str, devices: Mapping[str, Dev
         lines.append('  no devices configured (set the devices parameter)')
         return '\n'.join(lines), NO_DEVICES_WARNING
     return '\n'.join(lines), None
+
+
+def name_collision(graph: list[tuple[str, str]], name: str, namespace: str) -> str | None:
+    """
+    Return the warning when another node of the graph has this node's name and namespace.
+
+    ``graph``: (name, namespace) of every node discovered, this one included. Two bridges
+    with one name mix their parameters and services, and their /diagnostics statuses are
+    indistinguishable ('ams_can_bridge: CAN bus' from both).
+    """
+    if graph.count((name, namespace)) < 2:
+        return None
+    full = namespace.rstrip('/') + '/' + name
+    return (f'another node is named {full} on this ROS graph: two bridges of one name mix '
+            'their parameters and services, and their /diagnostics statuses '
+            f"('{full.lstrip('/')}: CAN bus', ...) cannot be told apart. Give each bridge a "
+            'name or a namespace of its own: --ros-args -r __node:=bridge_can1, or -r '
+            '__ns:=/car2 (bridge.launch.py namespace:=car2)')

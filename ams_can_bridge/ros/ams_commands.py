@@ -21,7 +21,7 @@ from std_srvs.srv import Trigger
 
 from ams_can_bridge.devices.ams_master import CommandResult
 from ams_can_bridge.devices.ams import AmsDevice
-from ams_can_bridge.engine.gate import CommandPort
+from ams_can_bridge.engine.gate import CommandPort, PendingStart
 from ams_can_bridge.errors import EncodeRangeError, RefusedCommand
 from ams_can_bridge.protocols.ams import CarCommand, ChargerStart
 from ams_can_bridge.protocols.common import Frame
@@ -48,7 +48,7 @@ class AmsCommands(Commander[AmsDevice]):
         self._t0 = time.monotonic()  # origin of the charger-command time tick
         # The heartbeat never waits for the bus (nor for another call's frames): a late
         # heartbeat is a wrong heartbeat. The gate's periodic path does neither.
-        self.master = device.attach_master(gate.send_periodic)
+        self.master = device.attach_master(gate.send_periodic, host.get_logger().info)
         # The repeats never wait either: one that cannot go out ends the request.
         self.charger = device.attach_charger(gate.send_periodic, self.time_tick,
                                              host.get_logger())
@@ -62,22 +62,30 @@ class AmsCommands(Commander[AmsDevice]):
         self._service(Trigger, 'override_bank_count', self._charger(
             'override the bank count', device.bank_count_frame))
         self._heartbeat_logged = False  # the last heartbeat state logged
-        if gate.enabled:
-            self.master.start()
-            self.charger.arm()
-            self._log_heartbeat()  # commands_enabled at launch: the heartbeat runs already
+        self._pending: PendingStart | None = None  # the heartbeat's start, waiting for the bus
+        if gate.enabled:  # commands_enabled at launch: the bus is not even open yet
+            self.on_commands_enabled(True)
 
     # --- hooks for the gate and the node -----------------------------------------------
     def on_commands_enabled(self, enabled: bool) -> None:
-        """Start the heartbeat when commands are enabled; stop it and the charger repeat."""
+        """Start the heartbeat once the bus is connected; stop it and the charger repeat."""
         if enabled:
-            self.master.start()
             self.charger.arm()  # a charging request ended by the disarm is not resumed
-        else:
-            self.charger.disarm('commands_enabled was set to false; no STOP sent')
-            self.master.stop('commands_enabled was set to false while waiting; the heartbeat '
-                             'stopped')
+            self._pending = self.gate.start_when_connected(self._start_heartbeat)
+            if not self._pending.done:
+                self.host.get_logger().info(f'{self.name}: the heartbeat starts when the CAN '
+                                            'bus is connected')
+            return
+        if self._pending is not None:
+            self._pending.cancel()
+        self.charger.disarm('commands_enabled was set to false; no STOP sent')
+        self.master.stop('commands_enabled was set to false while waiting; the heartbeat '
+                         'stopped')
         self._log_heartbeat('commands_enabled is false')
+
+    def _start_heartbeat(self) -> None:
+        self.master.start()
+        self._log_heartbeat()
 
     def _log_heartbeat(self, why: str = '') -> None:
         """Log the heartbeat starting or stopping (once per change, never per frame)."""
@@ -97,6 +105,8 @@ class AmsCommands(Commander[AmsDevice]):
 
     def destroy(self) -> None:
         """Stop the heartbeat, the charger repeat, and remove the services."""
+        if self._pending is not None:
+            self._pending.cancel()
         self.charger.disarm('the bridge is shutting down')
         self.master.stop('the bridge is shutting down')
         if self.host.context.ok():  # after Ctrl-C the logger may be gone with the context
@@ -117,6 +127,8 @@ class AmsCommands(Commander[AmsDevice]):
                 if not ok:
                     result = CommandResult(False, f'{command.name} not sent: {message}')
                 else:
+                    if self._pending is not None:  # the bus has just connected: start it
+                        self._pending.fire()  # now, not when its waiting thread wakes
                     result = self.master.command(command, timeout, started)
             response.success, response.message = result.success, f'{self.name}: {result.message}'
             return response

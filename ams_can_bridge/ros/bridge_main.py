@@ -2,8 +2,9 @@
 Entry point of the ``bridge`` executable: the bridge node on a multi-threaded executor.
 
 ``ros2 run ams_can_bridge bridge --ros-args --params-file config/bms16.yaml``. Exit codes:
-0 after Ctrl-C / SIGTERM (clean shutdown: the CAN thread is joined, the bus closed) and after
-``-h``/``--help`` (usage, ROS is not started), 2 when the parameters cannot work (the error
+0 after Ctrl-C / SIGTERM (clean shutdown: the CAN thread is joined, the bus closed), at the
+end of a replay with ``can.replay_exit``, and after ``-h``/``--help`` (usage, ROS is not
+started), 2 when the parameters cannot work (the error
 names the parameter and what to change) or an argument outside ``--ros-args`` is not known.
 
 The node is a lifecycle node: with ``autostart`` (default true) it configures and activates
@@ -17,6 +18,7 @@ import re
 import signal
 import sys
 import threading
+import time
 import traceback
 from typing import Any
 
@@ -30,6 +32,9 @@ EXECUTOR_THREADS = 4
 # jitter small at a negligible cost (measured in bench/run.py, heartbeat scenario).
 GIL_SWITCH_INTERVAL = 0.001
 STOP_TIMEOUT = 2.0  # s: the longest the executor's callbacks get to finish on a stop
+# Another node of this name is looked for while discovery fills the graph, off the start.
+NAME_CHECK_PERIOD = 0.5  # s
+NAME_CHECK_FOR = 5.0  # s after the start
 
 USAGE = """usage: bridge [-h] --ros-args --params-file PARAMS.yaml [-p NAME:=VALUE ...]
        ros2 run ams_can_bridge bridge --ros-args --params-file PARAMS.yaml
@@ -83,7 +88,12 @@ class StopSignals:
             signal.signal(signum, self._handle)
 
     def _handle(self, signum: int, _frame: object) -> None:
-        self.received = signal.Signals(signum).name
+        self.request(signal.Signals(signum).name)
+
+    def request(self, reason: str) -> None:
+        """Ask for a stop as a signal does (the node's own end: ``can.replay_exit``)."""
+        if not self.stop.is_set():
+            self.received = reason
         self.stop.set()
 
     def wait(self) -> None:
@@ -121,12 +131,13 @@ def main(args: list[str] | None = None) -> int:
     node = None
     try:
         try:
-            node = BridgeNode()
+            node = BridgeNode(argv=argv, on_exit=signals.request)
         except ConfigError as exc:
             rclpy.logging.get_logger(NODE_NAME).error(f'cannot start: {exc}')
             return 2
         for warning in unmatched_params_files(argv, node.get_fully_qualified_name()):
             node.get_logger().warning(warning)
+        _watch_for_a_namesake(node)
         if not signals.stop.is_set():
             failed = _spin_until(node, signals)
             if failed:
@@ -166,6 +177,22 @@ def _spin_until(node: Any, signals: StopSignals) -> str | None:
         executor.shutdown(timeout_sec=STOP_TIMEOUT)
         spinner.join(timeout=STOP_TIMEOUT)
     return failure[0] if failure else None
+
+
+def _watch_for_a_namesake(node: Any) -> None:
+    """Warn once if another node of this name appears within NAME_CHECK_FOR s of the start."""
+    from ams_can_bridge.engine.startup import name_collision
+    until = time.monotonic() + NAME_CHECK_FOR
+
+    def check() -> None:
+        warning = name_collision(node.get_node_names_and_namespaces(), node.get_name(),
+                                 node.get_namespace())
+        if warning:
+            node.get_logger().warning(warning)
+        if warning or time.monotonic() >= until:
+            timer.cancel()  # checked enough: the timer stays idle until the node goes
+
+    timer = node.create_timer(NAME_CHECK_PERIOD, check)
 
 
 def user_arguments(argv: list[str]) -> list[str]:

@@ -14,11 +14,13 @@ the transmit gate (``engine/gate.py``). Here: the lifecycle, the parameter decla
 from __future__ import annotations
 
 import logging
+import time
 import traceback
-from typing import Any
+from typing import Any, Callable
 
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.duration import Duration
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from rclpy.parameter import Parameter
 
@@ -36,10 +38,12 @@ from ams_can_bridge.parameters import AUTOSTART, BUS_PARAMS, NODE_PARAMS
 from ams_can_bridge.ros.bus_log import BusStateLog
 from ams_can_bridge.ros.commander import Commander, make_commander
 from ams_can_bridge.ros.convert import stdlib_logger
+from ams_can_bridge.ros.overrides import unapplied_overrides
 from ams_can_bridge.ros.params import ParamRegistry
 from ams_can_bridge.ros.sink import RosSink
 
 NODE_NAME = 'ams_can_bridge'
+REPLAY_EXIT_ACK_WAIT = 1.0  # s the publishers wait for their subscribers' acks before an exit
 
 __all__ = ['BridgeNode', 'ConfigError', 'NODE_NAME']
 
@@ -47,8 +51,18 @@ __all__ = ['BridgeNode', 'ConfigError', 'NODE_NAME']
 class BridgeNode(LifecycleNode):
     """Bridge battery-management CAN devices to ROS topics and diagnostics."""
 
-    def __init__(self, node_name: str = NODE_NAME, **kwargs: Any) -> None:
+    def __init__(self, node_name: str = NODE_NAME, *, argv: list[str] | None = None,
+                 on_exit: Callable[[str], None] | None = None, **kwargs: Any) -> None:
+        """
+        Declare, configure and activate (autostart); the executable passes two more.
+
+        ``argv``: the command line rclpy was started with, whose ``-p`` values are checked
+        against those the node received; ``on_exit(reason)`` asks the process to end
+        (``can.replay_exit``).
+        """
         super().__init__(node_name, **kwargs)
+        self._argv = argv
+        self._on_exit = on_exit
         self.params = ParamRegistry(self)
         self.service_group = ReentrantCallbackGroup()
         self.devices: dict[str, Device] = {}
@@ -169,6 +183,10 @@ class BridgeNode(LifecycleNode):
 
     # --- configure: parameters declared, the pieces built ---------------------------------
     def _configure(self) -> None:
+        if self._argv is not None:  # a -p rcl dropped in favour of the params file's value
+            self.params.errors += unapplied_overrides(
+                self._argv, self.get_fully_qualified_name(),
+                {name: p.value for name, p in self._parameter_overrides.items()})
         bus = self.params.declare_all('can.', BUS_PARAMS)
         node = self.params.declare_all('', NODE_PARAMS)
         self.diagnostics_period = node['diagnostics_period']
@@ -203,13 +221,26 @@ class BridgeNode(LifecycleNode):
             self.device_set, self.sink, settings, self.gate, lambda: self.can_io,
             status_prefix=self.status_prefix(), diagnostics_period=self.diagnostics_period,
             on_bus_status=bus_log.update, logger=self._stdlib_logger,
-            thread_name=f'{NODE_NAME}-periodic')
+            thread_name=f'{NODE_NAME}-periodic',
+            on_replay_end=self._replay_ended if settings.replay_exit else None)
         for name, device in self.devices.items():
             commander = make_commander(self.gate, device, name, self)
             if commander is not None:
                 self.commanders[name] = commander
         self.can_io = open_bus(self.bus_config, self.engine, self.device_set, self.gate,
                                self._stdlib_logger('can_io'))
+
+    def _replay_ended(self) -> None:
+        """can.replay_exit: let the last messages reach their subscribers, then end."""
+        deadline = time.monotonic() + REPLAY_EXIT_ACK_WAIT  # for all of them together
+        for publisher in self.sink.publishers() if self.sink is not None else ():
+            left = max(0.0, deadline - time.monotonic())
+            publisher.wait_for_all_acked(Duration(seconds=left))
+        reason = 'the replay has finished (can.replay_exit)'
+        if self._on_exit is None:
+            self.get_logger().info(f'{reason}: nothing to end (no process owns this node)')
+        else:
+            self._on_exit(reason)
 
     def _stdlib_logger(self, part: str, level: int = logging.NOTSET) -> logging.Logger:
         """Return a stdlib logger of this node whose records go to the node's rclpy logger."""

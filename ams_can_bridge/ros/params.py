@@ -136,17 +136,22 @@ class ParamRegistry:
         return unknown_parameter_errors(given, self.node._parameters.keys())
 
 
-def params_files(argv: Iterable[str]) -> list[str]:
-    """Return the ``--params-file`` paths of the ``--ros-args`` parts of a command line."""
-    paths, ros, args = [], False, list(argv)
+def ros_flag_values(argv: Iterable[str], flags: tuple[str, ...]) -> list[str]:
+    """Return the argument after each of ``flags`` in the ``--ros-args`` parts of argv."""
+    values, ros, args = [], False, list(argv)
     for i, arg in enumerate(args):
         if arg == '--ros-args':
             ros = True
         elif arg == '--':
             ros = False
-        elif ros and arg == '--params-file' and i + 1 < len(args):
-            paths.append(args[i + 1])
-    return paths
+        elif ros and arg in flags and i + 1 < len(args):
+            values.append(args[i + 1])
+    return values
+
+
+def params_files(argv: Iterable[str]) -> list[str]:
+    """Return the ``--params-file`` paths of the ``--ros-args`` parts of a command line."""
+    return ros_flag_values(argv, ('--params-file',))
 
 
 def section_applies(section: str, fully_qualified_name: str) -> bool:

@@ -9,7 +9,7 @@ at once when either goes false. Its start and stop are logged once each.
 from __future__ import annotations
 
 from ams_can_bridge.devices.sma import SmaDevice
-from ams_can_bridge.engine.gate import CommandPort
+from ams_can_bridge.engine.gate import CommandPort, PendingStart
 from ams_can_bridge.ros.commander import Commander, ServiceHost
 
 
@@ -22,13 +22,23 @@ class SmaCommands(Commander[SmaDevice]):
         super().__init__(gate, device, name, host)
         # A keep-alive never waits for the bus: a late one is a wrong one.
         self.keepalive = device.attach_keepalive(gate.send_periodic, host.get_logger().info)
-        self.keepalive.set_armed(gate.enabled)
+        self._pending: PendingStart | None = None  # the arming, waiting for the bus
+        if gate.enabled:  # commands_enabled at launch: the bus is not even open yet
+            self.on_commands_enabled(True)
 
     def on_commands_enabled(self, enabled: bool) -> None:
-        """Run the keep-alive (if configured) while commands are enabled, stop it at once not."""
-        self.keepalive.set_armed(enabled)
+        """Run the keep-alive (if configured) while commands are enabled and the bus is up."""
+        if enabled:
+            self._pending = self.gate.start_when_connected(
+                lambda: self.keepalive.set_armed(True))
+            return
+        if self._pending is not None:
+            self._pending.cancel()
+        self.keepalive.set_armed(False)
 
     def destroy(self) -> None:
         """Stop the keep-alive."""
+        if self._pending is not None:
+            self._pending.cancel()
         self.keepalive.stop('the bridge is shutting down')
         self._remove_services()
