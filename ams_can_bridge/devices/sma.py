@@ -36,6 +36,7 @@ from ams_can_bridge.devices.base import (
     BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyHealth)
 from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.sma_keepalive import InverterKeepalive, KEEPALIVE_PERIOD
+from ams_can_bridge.devices.sma_values import fmt, sma_values
 from ams_can_bridge.devices.sma_voltage import AUTO, SCALE_CHOICES, ScaleInUse, VoltageScale
 from ams_can_bridge.devices.timed import TimedStore
 from ams_can_bridge.errors import ParamError
@@ -46,7 +47,7 @@ from ams_can_bridge.protocols.sma import (
     ALARMS_ID, BATTERY_ID, INFO_ID, LIMITS_ID, MANUFACTURER_ID, SmaAlarms, SmaBattery,
     SmaBatteryInfo, SmaCodec, SmaLimits, SmaManufacturer, SmaSoc, SOC_ID)
 from ams_can_bridge.protocols.sma_dialects import (
-    CELL_ID_KINDS, PYLONTECH_ALARMS_ID, PYLONTECH_CONDITION_NAMES, PYLONTECH_REQUEST_ID,
+    CELL_ID_KINDS, PYLONTECH_ALARMS_ID, PYLONTECH_REQUEST_ID,
     PylontechAlarms, PylontechCellExtremes, PylontechCellIds, PylontechRequest,
     VICTRON_BMS_NAME1_ID, VICTRON_CELL_EXTREMES_ID,
     VICTRON_ENERGY_ID, VICTRON_INSTALLED_CAPACITY_ID, VICTRON_MIN_VOLTAGE_CELL_ID,
@@ -84,7 +85,6 @@ GROUP_IDS: dict[Hashable, int] = {
 IDENTITY_GROUPS = frozenset({SmaManufacturer, SmaBatteryInfo, (VictronBmsName, 1),
                              (VictronBmsName, 2), VictronEnergy, VictronInstalledCapacity,
                              VictronProductName})
-ONLINE_TEXT = {True: 'online', False: 'offline', None: 'not sent'}
 # What tells the 0x356 voltage scale (devices/sma_voltage.py)
 EVIDENCE = (SmaBattery, SmaLimits, VictronCellExtremes, PylontechCellExtremes)
 ALARM_GROUPS = (SmaAlarms, PylontechAlarms)
@@ -100,118 +100,8 @@ def group_key(reading: Any) -> Hashable:
     return type(reading)  # type: ignore[return-value]
 
 
-def _fmt(value: float | int | None, unit: str = '') -> str:
-    if value is None:
-        return 'not available'
-    return f'{value:g}' + (f' {unit}' if unit else '')
-
-
-def _fixed(value: float | None, decimals: int) -> str:
-    return 'not available' if value is None else f'{value:.{decimals}f}'
-
-
 def _nan(value: float | int | None) -> float:
     return NAN if value is None else float(value)
-
-
-def _yes(flag: bool) -> str:
-    return 'yes' if flag else 'no'
-
-
-def _fixed2(value: float | None) -> str:
-    return _fixed(value, 2)
-
-
-def _fixed3(value: float | None) -> str:
-    return _fixed(value, 3)
-
-
-def _cell_id(value: int | None) -> str:
-    return 'not available' if value is None else f'{value:04X}'  # module, cell: 0206
-
-
-# The plain fields of each message as diagnostics values: (label, attribute, format), per
-# group key, in the order shown. Alarms, names and cell ids follow in sma_values().
-_FIELDS: tuple[tuple[Hashable, tuple[tuple[str, str, Callable[[Any], str]], ...]], ...] = (
-    (SmaLimits, (('charge voltage limit V', 'charge_voltage_v', _fmt),
-                 ('charge current limit A', 'charge_current_a', _fmt),
-                 ('discharge current limit A', 'discharge_current_a', _fmt),
-                 ('discharge voltage limit V', 'discharge_voltage_v', _fmt))),
-    (SmaSoc, (('soc %', 'soc_pct', _fmt), ('soh %', 'soh_pct', _fmt),
-              ('soc high resolution %', 'soc_hires_pct', _fmt))),
-    (SmaBattery, (('voltage V', 'voltage_v', _fmt),
-                  ('current A (positive = charging)', 'current_a', _fmt),
-                  ('temperature degC', 'temperature_c', _fmt))),
-    (SmaManufacturer, (('manufacturer', 'name', str),)),
-    (SmaBatteryInfo, (('battery type', 'battery_type', _fmt),
-                      ('bms version', 'bms_version', _fmt),
-                      ('capacity Ah', 'capacity_ah', _fmt))),
-    (PylontechRequest, (('charge enable', 'charge_enable', _yes),
-                        ('discharge enable', 'discharge_enable', _yes),
-                        ('request charge immediately', 'request_charge_immediately', _yes),
-                        ('force charge request II', 'force_charge_request_ii', _yes),
-                        ('full charge request', 'full_charge_request', _yes))),
-    (VictronModules, (('modules OK', 'ok', _fmt),
-                      ('modules blocking charge', 'blocking_charge', _fmt),
-                      ('modules blocking discharge', 'blocking_discharge', _fmt),
-                      ('modules offline', 'offline', _fmt))),
-    (VictronCellExtremes, (('min cell voltage V', 'min_cell_v', _fixed3),
-                           ('max cell voltage V', 'max_cell_v', _fixed3),
-                           ('min cell temperature degC', 'min_temperature_c', _fixed2),
-                           ('max cell temperature degC', 'max_temperature_c', _fixed2))),
-    (PylontechCellExtremes, (('max cell temperature degC (0x370)', 'max_temperature_c', _fmt),
-                             ('min cell temperature degC (0x370)', 'min_temperature_c', _fmt),
-                             ('max cell voltage V (0x370)', 'max_cell_v', _fixed3),
-                             ('min cell voltage V (0x370)', 'min_cell_v', _fixed3))),
-    (PylontechCellIds, (('max temperature cell (0x371)', 'max_temperature_cell', _cell_id),
-                        ('min temperature cell (0x371)', 'min_temperature_cell', _cell_id),
-                        ('max voltage cell (0x371)', 'max_voltage_cell', _cell_id),
-                        ('min voltage cell (0x371)', 'min_voltage_cell', _cell_id))),
-    (VictronEnergy, (('energy charged kWh', 'charged_kwh', _fmt),
-                     ('energy discharged kWh', 'discharged_kwh', _fmt))),
-    (VictronInstalledCapacity, (('installed capacity Ah', 'capacity_ah', _fmt),)),
-    (VictronProductName, (('product name', 'text', str),)),
-)
-
-
-def sma_values(readings: Mapping[Any, Any], prefix: str = '') -> dict[str, str]:
-    """
-    Diagnostic values of every SMA message in readings (keyed by ``group_key``).
-
-    The readings are of every message type at once: the key (the type) tells which, so the
-    values are typed Any here.
-    """
-    values: dict[str, str] = {}
-    for key, fields in _FIELDS:
-        reading = readings.get(key)
-        if reading is not None:
-            for label, attribute, show in fields:
-                values[prefix + label] = show(getattr(reading, attribute))
-    alarms = readings.get(SmaAlarms)
-    if alarms is not None:
-        values[prefix + 'alarms active'] = ', '.join(alarms.active_alarms) or 'none'
-        values[prefix + 'warnings active'] = ', '.join(alarms.active_warnings) or 'none'
-        values[prefix + 'system status (0x35A byte 7)'] = ONLINE_TEXT[alarms.online]
-        for name, flag in alarms.alarms.items():
-            values[f'{prefix}alarm {name}'] = flag.name
-        for name, flag in alarms.warnings.items():
-            values[f'{prefix}warning {name}'] = flag.name
-    pylon = readings.get(PylontechAlarms)
-    if pylon is not None:
-        values[prefix + 'alarms active (0x359)'] = ', '.join(pylon.active_alarms) or 'none'
-        values[prefix + 'warnings active (0x359)'] = ', '.join(pylon.active_warnings) or 'none'
-        for name in PYLONTECH_CONDITION_NAMES:
-            for kind, active in (('alarm', pylon.alarms), ('warning', pylon.warnings)):
-                values[f'{prefix}{kind} {name} (0x359)'] = 'ACTIVE' if name in active else 'OK'
-        values[prefix + 'module count'] = _fmt(pylon.module_count)
-    parts = [readings.get((VictronBmsName, p)) for p in (1, 2)]
-    if any(parts):
-        values[prefix + 'bms name'] = ''.join(p.text if p else '' for p in parts)
-    for kind in CELL_ID_KINDS:
-        cell_id = readings.get((VictronCellId, kind))
-        if cell_id is not None:
-            values[f'{prefix}{kind.replace("_", " cell ")} id'] = cell_id.text
-    return values
 
 
 VOLTAGE_SCALE = ParamSpec(
@@ -392,7 +282,7 @@ class SmaDevice(Device):
         in_use, voltage = self._scale(readings)
         battery = readings.get(SmaBattery)
         if with_values and battery is not None and battery.voltage_v is not None:
-            values['voltage V'] = 'unknown' if in_use.scale is None else _fmt(voltage)
+            values['voltage V'] = 'unknown' if in_use.scale is None else fmt(voltage)
             values['voltage scale (0x356)'] = in_use.text
         alarms, warnings = self._active(readings)
         if alarms:
@@ -416,9 +306,9 @@ class SmaDevice(Device):
             parts.append('OK')
         soc = readings.get(SmaSoc)
         if battery is not None:
-            shown = 'voltage unknown' if in_use.scale is None else _fmt(voltage, 'V')
-            summary = f'{shown}, {_fmt(battery.current_a, "A")}'
+            shown = 'voltage unknown' if in_use.scale is None else fmt(voltage, 'V')
+            summary = f'{shown}, {fmt(battery.current_a, "A")}'
             if soc is not None:
-                summary = f'SoC {_fmt(soc.soc_pct, "%")}, ' + summary
+                summary = f'SoC {fmt(soc.soc_pct, "%")}, ' + summary
             parts.append(summary)
         return DiagnosticReport(level, '; '.join(parts), values)
