@@ -86,6 +86,19 @@ def _check_range(name: str, spec: ParamSpec, value: float) -> None:
                 from None
 
 
+def numeric_choices(spec: ParamSpec) -> bool:
+    """Tell whether a string parameter has choices a user writes as numbers ('0.1')."""
+    return spec.type is str and any(_is_number(choice) for choice in spec.choices)
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 def coerce(name: str, spec: ParamSpec, value: Any) -> Any:
     """Return value as spec.type (None stays None = unset) or raise ParamError saying why."""
     if value is None:
@@ -106,6 +119,9 @@ def coerce(name: str, spec: ParamSpec, value: Any) -> Any:
             raise ParamError(f'{name} = {value!r} must be true or false')
         return value
     if spec.type is str:
+        if numeric_choices(spec) and isinstance(value, (int, float)) \
+                and not isinstance(value, bool):
+            value = f'{value:g}'  # YAML 0.1 for the choice '0.1' (sma.voltage_scale)
         if not isinstance(value, str):
             raise ParamError(f'{name} = {value!r} must be a string')
         if spec.choices and value not in spec.choices:

@@ -6,9 +6,15 @@ SMA protocol); a real subscriber receives the BatteryState and /diagnostics the 
 """
 from __future__ import annotations
 
+import os
+
+from rclpy.parameter import Parameter
 import pytest
 from sensor_msgs.msg import BatteryState
 
+from ams_can_bridge.errors import ConfigError
+from ams_can_bridge.ros.bridge_node import BridgeNode
+from helpers import ros_context
 from test_bridge_node import level, values
 
 
@@ -19,6 +25,7 @@ def le16(*numbers: int) -> bytes:
 def test_sma_pylontech_dialect_through_the_node(rig_factory):
     h = rig_factory({'devices': ['bms'], 'bms.type': 'sma', 'diagnostics_period': 0.2},
                     topics={'bms/battery_state': BatteryState})
+    h.send(0x351, le16(552, 500, 1000, 480))  # 55.2 / 48.0 V limits: 0x356 is in 0.01 V
     h.send(0x355, le16(64, 98))
     h.send(0x359, bytes([0b0000_0100, 0, 0, 0b0000_0001, 2]))  # under-voltage alarm,
     h.send(0x35C, bytes([0b1000_0000, 0]))  # charge over-current warning; charge enable only
@@ -31,6 +38,28 @@ def test_sma_pylontech_dialect_through_the_node(rig_factory):
     got = values(status)
     assert got['module count'] == '2'
     assert (got['charge enable'], got['discharge enable']) == ('yes', 'no')
+
+
+@pytest.mark.parametrize('setting', [0.1, '0.1'])
+def test_sma_voltage_scale_as_a_yaml_number_or_string(rig_factory, setting):
+    # a Discover Lynx II's 0x356 (ai-republic/bms-to-inverter issue 107): 522 = 52.2 V
+    h = rig_factory({'devices': ['sma'], 'sma.voltage_scale': setting,
+                     'diagnostics_period': 0.2}, topics={'sma/battery_state': BatteryState})
+    h.send(0x356, bytes([0x0A, 0x02, 0x11, 0xFF, 0xBE, 0x00, 0x00, 0x00]))
+    msg = h.last('sma/battery_state', lambda m: m.present)
+    assert msg.voltage == pytest.approx(52.2)  # no 0x351 needed: the parameter says 0.1
+    status = h.status('sma', lambda s: 'voltage scale (0x356)' in values(s))
+    assert values(status)['voltage scale (0x356)'] == '0.1 V/bit (sma.voltage_scale)'
+
+
+def test_a_voltage_scale_that_is_none_of_its_choices_stops_the_bridge():
+    params = {'can.interface': 'virtual', 'can.channel': f'scale-{os.getpid()}',
+              'devices': ['sma'], 'sma.voltage_scale': 0.5}
+    with ros_context() as context:
+        with pytest.raises(ConfigError, match=r"sma.voltage_scale = '0.5' is not allowed: "
+                                              r'use one of auto, 0.01, 0.1'):
+            BridgeNode(context=context, namespace='scale_choice', parameter_overrides=[
+                Parameter(k, value=v) for k, v in params.items()])
 
 
 def test_sma_victron_dialect_through_the_node(rig_factory):

@@ -267,6 +267,7 @@ def le16(value: int) -> bytes:
 def test_sma_battery_state(rig_factory):
     h = rig_factory({'devices': ['sma'], 'diagnostics_period': 0.2},
                     topics={'sma/battery_state': BatteryState})
+    h.send(0x351, le16(552) + le16(500) + le16(1000) + le16(480))  # 55.2 / 48 V: 0.01 V
     h.send(0x355, le16(64) + le16(98))  # SoC 64 %, SoH 98 %
     h.send(0x35A, bytes([0xAA] * 4 + [0xAA] * 4))  # every condition OK
     h.send(0x356, le16(5120) + le16(-153) + le16(231))  # 51.2 V, -15.3 A, 23.1 degC

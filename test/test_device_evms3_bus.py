@@ -98,6 +98,14 @@ def test_balance_target_per_module():
     assert values['module 0 balance target (mV)'] == 'unknown (no request from the EVMS)'
 
 
+def test_a_discharging_charger_shows_a_negative_current():
+    # TC protocol 1430: bit 15 of the output current marks discharging (0x8062: 9.8 A)
+    device = make()
+    device.handle_frame(30, CHARGING, 1.0)
+    device.handle_frame(0x18FF50E5, STATUS_1[:2] + bytes([0x80]) + STATUS_1[3:], 1.0)
+    assert device.diagnostic_report().values['charger 1 output amps (A)'] == '-9.8'
+
+
 def test_dispatch_by_id_and_width_for_an_11_bit_evms3():
     params = {'evms3.extended_id': False, 'evms3.bms12_modules': 1}
     devices = DeviceSet(['evms3'], lambda name, spec: params.get(name, spec.default),

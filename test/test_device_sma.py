@@ -25,6 +25,8 @@ def flags(alarms=(), warnings=()):
 
 # 5123 x 0.01 V, -125 x 0.1 A (discharging), 253 x 0.1 degC
 DISCHARGING = bytes([0x03, 0x14, 0x83, 0xFF, 0xFD, 0x00])
+# 0x351: 55.2 V, 50 A, 100 A, 48 V: tells that 0x356 is in 0.01 V (51.23 V, not 512.3 V)
+LIMITS = bytes([0x28, 0x02, 0xF4, 0x01, 0xE8, 0x03, 0xE0, 0x01])
 
 
 def test_ids_and_constants():
@@ -37,6 +39,7 @@ def test_ids_and_constants():
 
 def test_charge_positive_wire_gives_ros_negative_while_discharging():
     device, _ = make()
+    assert not device.handle_frame(0x351, LIMITS, 98.0)
     assert device.handle_frame(0x356, DISCHARGING, 99.0)
     report = device.battery_report()
     assert report.present and report.stamp == 99.0
@@ -139,6 +142,7 @@ def test_only_the_battery_frame_is_primary_and_stale_follows():
 
 def test_malformed_frames_are_counted_and_change_nothing():
     device, _ = make()
+    device.handle_frame(0x351, LIMITS, 1.0)
     device.handle_frame(0x356, DISCHARGING, 1.0)
     assert not device.handle_frame(0x356, DISCHARGING[:5], 2.0)
     assert not device.handle_frame(0x35A, b'', 2.0)

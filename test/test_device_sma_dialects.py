@@ -14,6 +14,8 @@ BATTERY_NO_TEMP = bytes([0x03, 0x14, 0x83, 0xFF, 0x00, 0x80])
 # 0x373: min 3300 mV, max 3312 mV, min 288 K, max 300 K (U16 LE)
 CELLS = bytes([0xE4, 0x0C, 0xF0, 0x0C, 0x20, 0x01, 0x2C, 0x01])
 ALL_OK_35A = bytes([0xAA] * 8)
+# 0x351: 55.2 V, 50 A, 100 A, 48 V: the 51.23 V above is in 0.01 V
+LIMITS = bytes([0x28, 0x02, 0xF4, 0x01, 0xE8, 0x03, 0xE0, 0x01])
 
 
 def make():
@@ -115,6 +117,7 @@ def test_0x373_fills_temperature_only_where_0x356_has_none():
 
 def test_each_group_expires_on_its_own():
     device, clock = make()
+    device.handle_frame(0x351, LIMITS, 1.0)  # tells the 0x356 voltage scale (kept after)
     device.handle_frame(0x359, bytes([0b0000_0010, 0, 0, 0, 2]), 1.0)
     device.handle_frame(0x355, bytes([0x50, 0x00, 0x62, 0x00]), 1.0)
     device.handle_frame(0x373, CELLS, 1.0)
@@ -134,7 +137,7 @@ def test_each_group_expires_on_its_own():
     assert diag.level == Level.WARN
     assert 'alarm frame 0x359 silent for 5.5 s: alarms unknown' in diag.message
     assert diag.values['frames expired'] == (
-        '0x355 (5.5 s ago), 0x359 (5.5 s ago), 0x373 (5.5 s ago)')
+        '0x351 (5.5 s ago), 0x355 (5.5 s ago), 0x359 (5.5 s ago), 0x373 (5.5 s ago)')
     assert 'alarms active (0x359)' not in diag.values and 'soc %' not in diag.values
     assert diag.values['manufacturer'] == 'PYLON'  # identity frames keep longer
     clock.now += IDENTITY_TIMEOUT

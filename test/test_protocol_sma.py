@@ -30,11 +30,14 @@ def test_ids_are_fixed():
 
 
 def test_limits_golden():
-    # 552 x 0.1 V, 500 x 0.1 A, -1000 x 0.1 A (0xFC18), 480 x 0.1 V
-    data = bytes([0x28, 0x02, 0xF4, 0x01, 0x18, 0xFC, 0xE0, 0x01])
+    # 552 x 0.1 V, 500 x 0.1 A, 1000 x 0.1 A (0x03E8), 480 x 0.1 V
+    data = bytes([0x28, 0x02, 0xF4, 0x01, 0xE8, 0x03, 0xE0, 0x01])
     limits = CODEC.decode(0x351, data)
-    assert limits == SmaLimits(55.2, 50.0, -100.0, 48.0)
+    assert limits == SmaLimits(55.2, 50.0, 100.0, 48.0)
     assert CODEC.encode(limits) == Frame(0x351, data)
+    # a limit is a magnitude: -1000 x 0.1 A (0xFC18) is malformed (section 5.2)
+    with pytest.raises(MalformedFrameError, match='discharge current limit -100 A is negative'):
+        CODEC.decode(0x351, data[:4] + bytes([0x18, 0xFC]) + data[6:])
 
 
 def test_limits_invalid_markers_and_short_frame():
@@ -45,8 +48,8 @@ def test_limits_invalid_markers_and_short_frame():
     # DLC 6: no discharge voltage limit sent
     assert CODEC.decode(0x351, data[:6]).discharge_voltage_v is None
     # 0x7FFF and 0xFFFE are real values, not markers
-    edge = CODEC.decode(0x351, bytes([0xFE, 0xFF, 0xFF, 0x7F, 0x01, 0x80, 0, 0]))
-    assert edge == SmaLimits(6553.4, 3276.7, -3276.7, None)  # 0 V = no limit (section 5)
+    edge = CODEC.decode(0x351, bytes([0xFE, 0xFF, 0xFF, 0x7F, 0xFF, 0x7F, 0, 0]))
+    assert edge == SmaLimits(6553.4, 3276.7, 3276.7, None)  # 0 V = no limit (section 5)
 
 
 def test_soc_golden_with_and_without_high_resolution():
@@ -179,16 +182,26 @@ def test_any_frame_decodes_or_is_malformed(frame_id, data):
     assert_decodes_or_malformed(CODEC, frame_id, data)
 
 
+def _field(data, first):
+    return int.from_bytes(data[first:first + 2], 'little', signed=True)
+
+
 @settings(max_examples=200, deadline=None)
 @given(st.binary(min_size=8, max_size=8))
 def test_limits_and_battery_round_trip(data):
-    if data[6:8] == bytes(2):  # 0 V discharge limit = none: sent back as the 0xFFFF marker
+    if any(-0x8000 < _field(data, k) < 0 for k in (2, 4)):  # a negative current limit
+        with pytest.raises(MalformedFrameError, match='is negative'):
+            CODEC.decode(0x351, data)
+    elif data[6:8] == bytes(2):  # 0 V discharge limit = none: sent back as the 0xFFFF marker
         assert CODEC.encode(CODEC.decode(0x351, data)).data == data[:6] + b'\xff\xff'
     else:
         assert CODEC.encode(CODEC.decode(0x351, data)).data == data
-    temperature = int.from_bytes(data[4:6], 'little', signed=True)
-    if temperature < -2731.5 and temperature != -0x8000:  # below absolute zero: no reading
-        with pytest.raises(MalformedFrameError, match='below absolute zero'):
+    voltage, temperature = _field(data, 0), _field(data, 4)
+    if -0x8000 < voltage < 0:  # a negative pack voltage: no reading
+        with pytest.raises(MalformedFrameError, match='pack voltage .* is negative'):
+            CODEC.decode(0x356, data[:6])
+    elif temperature != -0x8000 and not -2731.5 <= temperature <= 2000:  # no battery's
+        with pytest.raises(MalformedFrameError, match='outside -273.15..200 degC'):
             CODEC.decode(0x356, data[:6])
     else:
         assert CODEC.encode(CODEC.decode(0x356, data[:6])).data == data[:6]
@@ -222,7 +235,7 @@ def test_a_state_of_charge_above_100_percent_is_malformed(data, reason):
 
 
 def test_a_temperature_below_absolute_zero_is_malformed():
-    with pytest.raises(MalformedFrameError, match='-273.2 degC is below absolute zero'):
+    with pytest.raises(MalformedFrameError, match='-273.2 degC is outside -273.15..200 degC'):
         CODEC.decode(0x356, bytes([0, 0, 0, 0]) + (-2732).to_bytes(2, 'little', signed=True))
     reading = CODEC.decode(0x356, bytes([0, 0, 0, 0]) + (-2731).to_bytes(2, 'little',
                                                                          signed=True))

@@ -122,14 +122,17 @@ def test_victron_impossible_extremes_are_malformed():
         CODEC.decode(0x373, swapped_temps)
     with pytest.raises(MalformedFrameError, match='DLC 6'):
         CODEC.decode(0x373, CELLS_GOLDEN[:6])
-    # 3549 K (3275.85 degC) is the hottest a cell may read; 3550 K would be published as a
-    # temperature the SMA frames themselves cannot carry
-    hottest = CELLS_GOLDEN[:6] + bytes([0xDD, 0x0D])  # 0x0DDD = 3549
-    assert CODEC.decode(0x373, hottest).max_temperature_k == 3549
-    with pytest.raises(MalformedFrameError, match='3550 K is above 3549 K'):
-        CODEC.decode(0x373, CELLS_GOLDEN[:6] + bytes([0xDE, 0x0D]))
+    # 473 K (199.85 degC) is the hottest a cell may read: no battery is hotter than 200 degC
+    hottest = CELLS_GOLDEN[:6] + bytes([0xD9, 0x01])  # 0x01D9 = 473
+    assert CODEC.decode(0x373, hottest).max_temperature_k == 473
+    with pytest.raises(MalformedFrameError, match='474 K is above 473 K'):
+        CODEC.decode(0x373, CELLS_GOLDEN[:6] + bytes([0xDA, 0x01]))
     with pytest.raises(EncodeRangeError, match='max_temperature_k'):
-        CODEC.encode(VictronCellExtremes(3.3, 3.4, 290, 3550))
+        CODEC.encode(VictronCellExtremes(3.3, 3.4, 290, 474))
+    # no cell reads above 10 V: 10001 mV (0x2711) is malformed, 10000 mV is not
+    assert CODEC.decode(0x373, CELLS_GOLDEN[:2] + bytes([0x10, 0x27]) + CELLS_GOLDEN[4:])
+    with pytest.raises(MalformedFrameError, match='cell voltage 10.001 V is above 10 V'):
+        CODEC.decode(0x373, CELLS_GOLDEN[:2] + bytes([0x11, 0x27]) + CELLS_GOLDEN[4:])
 
 
 def test_encoders_refuse_what_the_wire_cannot_carry():

@@ -42,6 +42,27 @@ def test_status_golden():
     assert CODEC.decode(0x18FF50E5, STATUS_GOLDEN[:5]).temperature_raw is None
 
 
+# TC's "1430 ALG-CAN Protocol" (Lennart-O/TCCharger-voltage-current-control): Message 2,
+# Vout = 3201 -> 320.1 V, Iout = 582 -> 58.2 A, "Highest Byte mark: 0: Charging, 1:
+# Discharging" (bit 15 of bytes 2-3).
+CHARGING_1430 = bytes([0x0C, 0x81, 0x02, 0x46, 0x00, 0x00, 0x00, 0x00])
+DISCHARGING_1430 = bytes([0x0C, 0x81, 0x82, 0x46, 0x00, 0x00, 0x00, 0x00])
+
+
+def test_protocol_1430_direction_bit():
+    assert CODEC.decode(0x18FF50E5, CHARGING_1430) == ChargerStatus(1, 320.1, 58.2, 0, 0)
+    discharging = CODEC.decode(0x18FF50E5, DISCHARGING_1430)
+    assert discharging == ChargerStatus(1, 320.1, -58.2, 0, 0)  # not 3335.0 A
+    assert CODEC.encode(discharging).data == DISCHARGING_1430
+    # the issue's case: 0x8064 is 10.0 A discharging, not 3286.8 A
+    assert CODEC.decode(0x18FF50E5, bytes([0, 0, 0x80, 0x64, 0, 0])).output_current_a == -10.0
+    db = cantools.database.load_file(str(msg_defs_dir() / 'evms3.dbc'), strict=True)
+    assert db.decode_message(0x18FF50E5, DISCHARGING_1430, decode_choices=False)[
+        'OutputCurrentDirection'] == 1
+    assert db.decode_message(0x18FF50E5, DISCHARGING_1430)['OutputCurrent'] == \
+        pytest.approx(58.2)
+
+
 @pytest.mark.parametrize('bit, name, text', [
     (0, 'HARDWARE_FAILURE', 'hardware failure'),
     (1, 'OVER_TEMPERATURE', 'over-temperature shutdown'),
@@ -102,9 +123,9 @@ def test_dbc_agrees_with_the_golden_frames():
     assert command.decode(COMMAND_GOLDEN, decode_choices=False) == {
         'TargetVoltage': pytest.approx(403.2), 'CurrentLimit': 12.5, 'ShutdownByBms': 0}
     status = db.get_message_by_frame_id(0x18FF50E8, force_extended_id=True)
-    assert status.decode(STATUS_GOLDEN) == {
-        'OutputVoltage': pytest.approx(398.7), 'OutputCurrent': pytest.approx(9.8),
-        'HardwareFailure': 1,
+    assert status.decode(STATUS_GOLDEN, decode_choices=False) == {
+        'OutputVoltage': pytest.approx(398.7), 'OutputCurrentDirection': 0,
+        'OutputCurrent': pytest.approx(9.8), 'HardwareFailure': 1,
         'OverTemperature': 0, 'InputVoltageError': 1, 'BatteryFault': 0,
         'CommunicationTimeout': 0, 'Temperature': 0x41}
 

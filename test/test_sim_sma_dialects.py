@@ -127,3 +127,43 @@ def test_command_line_chooses_the_soc_frame():
         SmaSimulator(soc_layout='pylontech')
     with pytest.raises(SystemExit):
         build_parser().parse_args(['--sma-soc-frame', 'pylontech'])
+
+
+def test_tenth_volt_dialect_reaches_the_device_at_the_right_scale():
+    # as a Discover Lynx II sends it: 0x356 in 0.1 V, 0x351 limits (always 0.1 V) beside it
+    sim = SmaSimulator(voltage_scale=0.1, current_fn=lambda t: 0.0)
+    device = SmaDevice('sma', {})
+    frames = run_sim(sim, device, 3.0)
+    raw = [int.from_bytes(f.data[:2], 'little') for f in frames if f.arbitration_id == 0x356]
+    assert raw and abs(raw[-1] / 10 - sim.voltage_v()) <= 0.06  # 52.4 V sent as 524
+    assert device.battery_report().voltage == pytest.approx(sim.voltage_v(), abs=0.06)
+    assert device.diagnostic_report().values['voltage scale (0x356)'].startswith(
+        '0.1 V/bit (auto: ')
+    with pytest.raises(ValueError, match='0.01, 0.1'):
+        SmaSimulator(voltage_scale=1.0)
+
+
+@pytest.mark.parametrize('dialect, capacity', [('sma', None), ('victron', 100.0)])
+def test_capacity_zero_is_not_sent_and_victron_sends_0x379(dialect, capacity):
+    sim = SmaSimulator(dialect=dialect, send_capacity=False)
+    device = SmaDevice('sma', {})
+    frames = run_sim(sim, device, 6.0)
+    infos = [f for f in frames if f.arbitration_id == 0x35F]
+    assert infos and all(f.data[4:6] == bytes(2) for f in infos)  # capacity 0: as Eco-Worthy
+    report = device.battery_report()
+    if capacity is None:
+        assert report.capacity != report.capacity  # NaN: not sent
+    else:
+        assert report.capacity == capacity  # from the installed capacity 0x379
+
+
+def test_command_line_chooses_the_voltage_scale_and_capacity():
+    args = build_parser().parse_args(['--devices', 'sma', '--sma-voltage-scale', '0.1',
+                                      '--sma-no-capacity'])
+    [sim] = build_devices(args.devices, sma_voltage_scale=args.sma_voltage_scale,
+                          sma_no_capacity=args.sma_no_capacity)
+    assert sim.voltage_scale == 0.1 and sim.send_capacity is False
+    [sim] = build_devices(['sma'])
+    assert sim.voltage_scale == 0.01 and sim.send_capacity is True
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(['--sma-voltage-scale', '1'])

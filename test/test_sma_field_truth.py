@@ -208,7 +208,10 @@ def test_victron_energy_capacity_and_product_name():
     assert values['energy discharged kWh'] == '183.5'
     assert values['installed capacity Ah'] == '156'
     assert values['product name'] == 'PREMIUM'
-    assert device.battery_report().capacity != 156  # 0x379 is a diagnostic only
+    # no 0x35F: the capacity is the installed capacity of 0x379 (issue "Field truth II", 2)
+    assert device.battery_report().capacity == 156
+    feed(device, (0x35F, BYD_35F))
+    assert device.battery_report().capacity == 105  # 0x35F's own capacity comes first
 
 
 def test_dbc_decodes_the_new_frames_as_the_codec():

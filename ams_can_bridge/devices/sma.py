@@ -1,11 +1,13 @@
 """
 SMA Sunny Island protocol BMS state: 0x351..0x35F and its dialects -> BatteryState, diagnostics.
 
-Fixed IDs (no base_id). The primary frame is 0x356 (voltage, current, temperature); SoC comes
-from 0x355 (the high-resolution SoC only where it agrees with the integer one: real BMSs put
-zeros there), capacity from 0x35F, and charge = capacity x SoC while both are known and
-fresh (NaN otherwise). The wire current is already positive while charging, the ROS sign.
-"Not available" markers become NaN.
+Fixed IDs (no base_id). The primary frame is 0x356 (voltage, current, temperature); its
+voltage in SMA's 0.01 V or the 0.1 V some senders use (``voltage_scale``, devices/
+sma_voltage.py: unknown until the battery's 0x351 tells). SoC comes from 0x355 (the
+high-resolution SoC only where it agrees with the integer one: real BMSs put zeros there),
+capacity from 0x35F (0 = not sent: then Victron's installed capacity 0x379), and charge =
+capacity x SoC while both are known and fresh (NaN otherwise). The wire current is already
+positive while charging, the ROS sign. "Not available" markers become NaN.
 
 Commands: the only frame this device sends is the inverter keep-alive 0x305
 (``inverter_keepalive``, devices/sma_keepalive.py), while commands are enabled.
@@ -16,7 +18,8 @@ and both feed the health. 0x35C (charge / discharge enable, charge requests), th
 counts (0x359, 0x372), the Victron name and cell ids, the energy counters (0x378), installed
 capacity (0x379), product name (0x382) and the online status (0x35A byte 7) are diagnostics
 values. Victron's 0x373 (min/max cell voltage and temperature) is shown in V and degC and
-gives BatteryState.temperature (the hottest cell) when 0x356 carries none.
+gives BatteryState.temperature (the hottest cell) when 0x356 carries none; so does the
+binary 0x370 of Pylontech V2 / Seplos BMSs (their 0x371: the cells' ids).
 
 Every frame (group) expires on its own: a value older than ``stale_timeout`` is unknown
 again (NaN, left out of the diagnostics values and listed under 'frames expired'), so a BMS
@@ -27,26 +30,31 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Any, Callable, Hashable, Mapping
+from typing import Any, Callable, Hashable, Iterable, Mapping
 
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyHealth)
 from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.sma_keepalive import InverterKeepalive, KEEPALIVE_PERIOD
+from ams_can_bridge.devices.sma_values import fmt, sma_values
+from ams_can_bridge.devices.sma_voltage import AUTO, SCALE_CHOICES, ScaleInUse, VoltageScale
 from ams_can_bridge.devices.timed import TimedStore
-from ams_can_bridge.parameters import ParamSpec
+from ams_can_bridge.errors import ParamError
+from ams_can_bridge.parameters import coerce, ParamSpec
 from ams_can_bridge.devices.ports import SendFrame
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.sma import (
     ALARMS_ID, BATTERY_ID, INFO_ID, LIMITS_ID, MANUFACTURER_ID, SmaAlarms, SmaBattery,
     SmaBatteryInfo, SmaCodec, SmaLimits, SmaManufacturer, SmaSoc, SOC_ID)
 from ams_can_bridge.protocols.sma_dialects import (
-    CELL_ID_KINDS, PYLONTECH_ALARMS_ID, PYLONTECH_CONDITION_NAMES, PYLONTECH_REQUEST_ID,
-    PylontechAlarms, PylontechRequest, VICTRON_BMS_NAME1_ID, VICTRON_CELL_EXTREMES_ID,
+    CELL_ID_KINDS, PYLONTECH_ALARMS_ID, PYLONTECH_REQUEST_ID,
+    PylontechAlarms, PylontechCellExtremes, PylontechCellIds, PylontechRequest,
+    VICTRON_BMS_NAME1_ID, VICTRON_CELL_EXTREMES_ID,
     VICTRON_ENERGY_ID, VICTRON_INSTALLED_CAPACITY_ID, VICTRON_MIN_VOLTAGE_CELL_ID,
     VICTRON_MODULES_ID, VICTRON_PRODUCT_NAME_ID, VictronBmsName, VictronCellExtremes,
     VictronCellId, VictronEnergy, VictronInstalledCapacity, VictronModules, VictronProductName,
     keepalive_frame)
+from ams_can_bridge.protocols.sma_scale import raw_voltage, scaled_voltage
 
 # Alarm -> BatteryState health, first match wins (the most specific health first).
 ALARM_HEALTH = (
@@ -67,6 +75,7 @@ GROUP_IDS: dict[Hashable, int] = {
     SmaManufacturer: MANUFACTURER_ID, SmaBatteryInfo: INFO_ID,
     PylontechAlarms: PYLONTECH_ALARMS_ID, PylontechRequest: PYLONTECH_REQUEST_ID,
     (VictronBmsName, 1): VICTRON_BMS_NAME1_ID, (VictronBmsName, 2): VICTRON_BMS_NAME1_ID + 1,
+    PylontechCellExtremes: VICTRON_BMS_NAME1_ID, PylontechCellIds: VICTRON_BMS_NAME1_ID + 1,
     VictronModules: VICTRON_MODULES_ID, VictronCellExtremes: VICTRON_CELL_EXTREMES_ID,
     **{(VictronCellId, kind): VICTRON_MIN_VOLTAGE_CELL_ID + k
        for k, kind in enumerate(CELL_ID_KINDS)},
@@ -76,7 +85,8 @@ GROUP_IDS: dict[Hashable, int] = {
 IDENTITY_GROUPS = frozenset({SmaManufacturer, SmaBatteryInfo, (VictronBmsName, 1),
                              (VictronBmsName, 2), VictronEnergy, VictronInstalledCapacity,
                              VictronProductName})
-ONLINE_TEXT = {True: 'online', False: 'offline', None: 'not sent'}
+# What tells the 0x356 voltage scale (devices/sma_voltage.py)
+EVIDENCE = (SmaBattery, SmaLimits, VictronCellExtremes, PylontechCellExtremes)
 ALARM_GROUPS = (SmaAlarms, PylontechAlarms)
 
 
@@ -90,106 +100,24 @@ def group_key(reading: Any) -> Hashable:
     return type(reading)  # type: ignore[return-value]
 
 
-def _fmt(value: float | int | None, unit: str = '') -> str:
-    if value is None:
-        return 'not available'
-    return f'{value:g}' + (f' {unit}' if unit else '')
-
-
-def _fixed(value: float | None, decimals: int) -> str:
-    return 'not available' if value is None else f'{value:.{decimals}f}'
-
-
 def _nan(value: float | int | None) -> float:
     return NAN if value is None else float(value)
 
 
-def _yes(flag: bool) -> str:
-    return 'yes' if flag else 'no'
+VOLTAGE_SCALE = ParamSpec(
+    'voltage_scale', str, AUTO,
+    "V per bit of 0x356's voltage: auto = from the battery's own 0x351 limits and cell "
+    "voltages (unknown until 0x351 came; SMA's 0.01 with a WARN if they never tell), or 0.01 "
+    '(SMA) / 0.1 (e.g. Discover Lynx II, Orion BMS 2)', choices=SCALE_CHOICES)
 
 
-def _fixed2(value: float | None) -> str:
-    return _fixed(value, 2)
-
-
-def _fixed3(value: float | None) -> str:
-    return _fixed(value, 3)
-
-
-# The plain fields of each message as diagnostics values: (label, attribute, format), per
-# group key, in the order shown. Alarms, names and cell ids follow in sma_values().
-_FIELDS: tuple[tuple[Hashable, tuple[tuple[str, str, Callable[[Any], str]], ...]], ...] = (
-    (SmaLimits, (('charge voltage limit V', 'charge_voltage_v', _fmt),
-                 ('charge current limit A', 'charge_current_a', _fmt),
-                 ('discharge current limit A', 'discharge_current_a', _fmt),
-                 ('discharge voltage limit V', 'discharge_voltage_v', _fmt))),
-    (SmaSoc, (('soc %', 'soc_pct', _fmt), ('soh %', 'soh_pct', _fmt),
-              ('soc high resolution %', 'soc_hires_pct', _fmt))),
-    (SmaBattery, (('voltage V', 'voltage_v', _fmt),
-                  ('current A (positive = charging)', 'current_a', _fmt),
-                  ('temperature degC', 'temperature_c', _fmt))),
-    (SmaManufacturer, (('manufacturer', 'name', str),)),
-    (SmaBatteryInfo, (('battery type', 'battery_type', _fmt),
-                      ('bms version', 'bms_version', _fmt),
-                      ('capacity Ah', 'capacity_ah', _fmt))),
-    (PylontechRequest, (('charge enable', 'charge_enable', _yes),
-                        ('discharge enable', 'discharge_enable', _yes),
-                        ('request charge immediately', 'request_charge_immediately', _yes),
-                        ('force charge request II', 'force_charge_request_ii', _yes),
-                        ('full charge request', 'full_charge_request', _yes))),
-    (VictronModules, (('modules OK', 'ok', _fmt),
-                      ('modules blocking charge', 'blocking_charge', _fmt),
-                      ('modules blocking discharge', 'blocking_discharge', _fmt),
-                      ('modules offline', 'offline', _fmt))),
-    (VictronCellExtremes, (('min cell voltage V', 'min_cell_v', _fixed3),
-                           ('max cell voltage V', 'max_cell_v', _fixed3),
-                           ('min cell temperature degC', 'min_temperature_c', _fixed2),
-                           ('max cell temperature degC', 'max_temperature_c', _fixed2))),
-    (VictronEnergy, (('energy charged kWh', 'charged_kwh', _fmt),
-                     ('energy discharged kWh', 'discharged_kwh', _fmt))),
-    (VictronInstalledCapacity, (('installed capacity Ah', 'capacity_ah', _fmt),)),
-    (VictronProductName, (('product name', 'text', str),)),
-)
-
-
-def sma_values(readings: Mapping[Any, Any], prefix: str = '') -> dict[str, str]:
-    """
-    Diagnostic values of every SMA message in readings (keyed by ``group_key``).
-
-    The readings are of every message type at once: the key (the type) tells which, so the
-    values are typed Any here.
-    """
-    values: dict[str, str] = {}
-    for key, fields in _FIELDS:
+def _capacity_ah(readings: Mapping[Hashable, Any]) -> int | None:
+    """Return the capacity: 0x35F's, else Victron's installed capacity 0x379 (section 5.2)."""
+    for key in (SmaBatteryInfo, VictronInstalledCapacity):
         reading = readings.get(key)
-        if reading is not None:
-            for label, attribute, show in fields:
-                values[prefix + label] = show(getattr(reading, attribute))
-    alarms = readings.get(SmaAlarms)
-    if alarms is not None:
-        values[prefix + 'alarms active'] = ', '.join(alarms.active_alarms) or 'none'
-        values[prefix + 'warnings active'] = ', '.join(alarms.active_warnings) or 'none'
-        values[prefix + 'system status (0x35A byte 7)'] = ONLINE_TEXT[alarms.online]
-        for name, flag in alarms.alarms.items():
-            values[f'{prefix}alarm {name}'] = flag.name
-        for name, flag in alarms.warnings.items():
-            values[f'{prefix}warning {name}'] = flag.name
-    pylon = readings.get(PylontechAlarms)
-    if pylon is not None:
-        values[prefix + 'alarms active (0x359)'] = ', '.join(pylon.active_alarms) or 'none'
-        values[prefix + 'warnings active (0x359)'] = ', '.join(pylon.active_warnings) or 'none'
-        for name in PYLONTECH_CONDITION_NAMES:
-            for kind, active in (('alarm', pylon.alarms), ('warning', pylon.warnings)):
-                values[f'{prefix}{kind} {name} (0x359)'] = 'ACTIVE' if name in active else 'OK'
-        values[prefix + 'module count'] = _fmt(pylon.module_count)
-    parts = [readings.get((VictronBmsName, p)) for p in (1, 2)]
-    if any(parts):
-        values[prefix + 'bms name'] = ''.join(p.text if p else '' for p in parts)
-    for kind in CELL_ID_KINDS:
-        cell_id = readings.get((VictronCellId, kind))
-        if cell_id is not None:
-            values[f'{prefix}{kind.replace("_", " cell ")} id'] = cell_id.text
-    return values
+        if reading is not None and reading.capacity_ah is not None:
+            return int(reading.capacity_ah)
+    return None
 
 
 class SmaDevice(Device):
@@ -200,7 +128,7 @@ class SmaDevice(Device):
     # timeout of 5 periods (5 s) must not flap on a 1 Hz sender.
     BROADCAST_PERIOD = 1.0
     DEFAULT_BASE_ID = None
-    PARAMS = []
+    PARAMS = [VOLTAGE_SCALE]
     COMMAND_PARAMS = [
         ParamSpec('inverter_keepalive', bool, False,
                   'send the inverter keep-alive 0x305 (8 zero bytes) every '
@@ -215,6 +143,8 @@ class SmaDevice(Device):
         self.readings: TimedStore[Hashable, Any] = TimedStore()  # by group_key: its type
         self.battery_stamp = NAN
         self.keepalive: InverterKeepalive | None = None  # made by attach_keepalive()
+        self.scale = VoltageScale(f'{name}.voltage_scale', self._scale_setting(self.config),
+                                  self.stale_timeout)
 
     # --- commands ------------------------------------------------------------------------
     def keepalive_frame(self) -> Frame:
@@ -241,13 +171,46 @@ class SmaDevice(Device):
             self.keepalive.set_enabled(bool(new.inverter_keepalive))
         return new
 
+    def config_problems(self, config: DeviceConfig,
+                        keys: Iterable[str] | None = None) -> list[str]:
+        """Name a voltage_scale that is none of its choices (0.1 as a number is one)."""
+        try:
+            self._scale_setting(config)
+        except ParamError as exc:
+            return [str(exc)]
+        return []
+
+    def _scale_setting(self, config: DeviceConfig) -> str:
+        return coerce(f'{self.name}.voltage_scale', VOLTAGE_SCALE,
+                      config.voltage_scale) or AUTO
+
+    def _reconfigured(self, old: DeviceConfig, new: DeviceConfig) -> None:
+        if (old.voltage_scale, old.stale_timeout) != (new.voltage_scale, new.stale_timeout):
+            self.scale.reset(self._scale_setting(new), self.stale_timeout)
+
     def _handle(self, reading: Any, stamp: float) -> bool:
         key = group_key(reading)
-        self.readings.put(key, reading, self.clock())
+        now = self.clock()
+        self.readings.put(key, reading, now)
+        if isinstance(reading, EVIDENCE) and self.scale.undecided:
+            if isinstance(reading, SmaBattery):
+                self.scale.saw_battery(now)
+            self._scale(self._fresh()[0])  # decide now: 0x351 may stop before a report
         if isinstance(reading, SmaBattery):
             self.battery_stamp = stamp
             return True
         return False
+
+    def _scale(self, readings: Mapping[Hashable, Any]) -> tuple[ScaleInUse, float | None]:
+        """Return the 0x356 voltage scale in use and the voltage read with it (lock held)."""
+        battery = readings.get(SmaBattery)
+        raw = None if battery is None else raw_voltage(battery)
+        cells = readings.get(VictronCellExtremes) or readings.get(PylontechCellExtremes)
+        cells_v = None
+        if cells is not None and None not in (cells.min_cell_v, cells.max_cell_v):
+            cells_v = (cells.min_cell_v, cells.max_cell_v)
+        in_use = self.scale.in_use(raw, readings.get(SmaLimits), cells_v, self.clock())
+        return in_use, scaled_voltage(raw, in_use.scale)
 
     def group_timeout(self, key: Hashable) -> float:
         """Seconds a group's values stay valid after its frame."""
@@ -265,9 +228,9 @@ class SmaDevice(Device):
         soc = readings.get(SmaSoc)
         if soc is not None:
             report.percentage = _nan(soc.percent) / 100
-        info = readings.get(SmaBatteryInfo)
-        if info is not None:
-            report.capacity = report.design_capacity = _nan(info.capacity_ah)
+        capacity = _capacity_ah(readings)
+        if capacity is not None:
+            report.capacity = report.design_capacity = float(capacity)
             # Remaining Ah only where both are known and fresh: NaN times anything is NaN.
             report.charge = report.capacity * report.percentage
         if any(k in readings for k in ALARM_GROUPS):
@@ -276,10 +239,10 @@ class SmaDevice(Device):
         if battery is None:
             return report
         report.stamp = self.battery_stamp
-        report.voltage = _nan(battery.voltage_v)
+        report.voltage = _nan(self._scale(readings)[1])
         report.current = _nan(battery.current_a)
         report.temperature = _nan(battery.temperature_c)
-        cells = readings.get(VictronCellExtremes)
+        cells = readings.get(VictronCellExtremes) or readings.get(PylontechCellExtremes)
         if math.isnan(report.temperature) and cells is not None:
             report.temperature = _nan(cells.max_temperature_c)  # the hottest cell
         report.power_supply_status = current_status(report.current)
@@ -316,6 +279,11 @@ class SmaDevice(Device):
                     expired.items(), key=lambda item: GROUP_IDS[item[0]]))
         level = Level.OK
         parts: list[str] = []
+        in_use, voltage = self._scale(readings)
+        battery = readings.get(SmaBattery)
+        if with_values and battery is not None and battery.voltage_v is not None:
+            values['voltage V'] = 'unknown' if in_use.scale is None else fmt(voltage)
+            values['voltage scale (0x356)'] = in_use.text
         alarms, warnings = self._active(readings)
         if alarms:
             level = Level.ERROR
@@ -331,13 +299,16 @@ class SmaDevice(Device):
                              f'{expired[gone[0]]:.1f} s: alarms unknown')
             else:
                 parts.append('no alarm frame (0x35A or 0x359) yet')
-        elif level == Level.OK:
+        if in_use.warning:
+            level = max(level, Level.WARN)
+            parts.append(in_use.warning)
+        elif level == Level.OK and not parts:
             parts.append('OK')
-        battery = readings.get(SmaBattery)
         soc = readings.get(SmaSoc)
         if battery is not None:
-            summary = (f'{_fmt(battery.voltage_v, "V")}, {_fmt(battery.current_a, "A")}')
+            shown = 'voltage unknown' if in_use.scale is None else fmt(voltage, 'V')
+            summary = f'{shown}, {fmt(battery.current_a, "A")}'
             if soc is not None:
-                summary = f'SoC {_fmt(soc.soc_pct, "%")}, ' + summary
+                summary = f'SoC {fmt(soc.soc_pct, "%")}, ' + summary
             parts.append(summary)
         return DiagnosticReport(level, '; '.join(parts), values)

@@ -18,7 +18,8 @@ from ams_can_bridge.protocols.common import check_dlc, Frame, load_dbc
 from ams_can_bridge.protocols.layout import BadValue, Layout
 from ams_can_bridge.protocols.sma_dialects import (
     ascii_message, ascii_text, DIALECT_IDS, DIALECTS, DialectReading, DLC_1_TO_8, encode_ascii,
-    Message, pad_unsent, sma_field)
+    Message, pad_unsent, PYLONTECH_EXTREMES, PYLONTECH_IDS, PylontechCellExtremes,
+    PylontechCellIds, sma_field, VICTRON_BMS_NAME1_ID)
 
 LIMITS_ID = 0x351
 SOC_ID = 0x355
@@ -155,6 +156,11 @@ SmaReading = Union[SmaLimits, SmaSoc, SmaBattery, SmaAlarms, SmaManufacturer, Sm
 
 
 ABSOLUTE_ZERO_C = -273.15
+# degC: no battery reads hotter (issue "Hardened", 26.7): 0x356 at 1,047.6 degC is garbage.
+MAX_BATTERY_TEMPERATURE_C = 200.0
+_TEMPERATURE_CHECK = ('temperature {value:g} degC is outside {low:g}..{high:g} degC (below '
+                      'absolute zero, or hotter than any battery)')
+_LIMIT_CHECK = '{value:g} A is negative (a current limit is a magnitude)'
 
 
 # --- the SMA frames, one row per ID; the dialects' rows are in sma_dialects ------------------
@@ -165,6 +171,13 @@ def _limits(data: bytes) -> SmaLimits:
     if limits.discharge_voltage_v == 0:  # no limit sent, not 0 V
         return replace(limits, discharge_voltage_v=None)
     return limits
+
+
+def _info(data: bytes) -> SmaBatteryInfo:
+    info = _D_INFO(data)
+    if info.capacity_ah == 0:  # not sent: SMA's TI has unused fields invalid, 0 is no pack
+        return replace(info, capacity_ah=None)
+    return info
 
 
 def _alarms(data: bytes) -> SmaAlarms:
@@ -201,9 +214,10 @@ MESSAGES = {
     LIMITS_ID: Message(SmaLimits, (6, 7, 8), Layout('SMA_Limits', 8, (
         sma_field('ChargeVoltageLimit', 0, scale=0.1, unit='V', field='charge_voltage_v'),
         sma_field('ChargeCurrentLimit', 16, scale=0.1, signed=True, unit='A',
-                  field='charge_current_a'),
+                  field='charge_current_a', low=0, check='charge current limit ' + _LIMIT_CHECK),
         sma_field('DischargeCurrentLimit', 32, scale=0.1, signed=True, unit='A',
-                  field='discharge_current_a'),
+                  field='discharge_current_a', low=0,
+                  check='discharge current limit ' + _LIMIT_CHECK),
         sma_field('DischargeVoltageLimit', 48, scale=0.1, unit='V', field='discharge_voltage_v')),
         divide=True), decode=_limits),
     # encoded always 6 bytes (0xFFFF = no high-resolution SoC, as the DBC); SmaCodec.encode_soc
@@ -215,11 +229,13 @@ MESSAGES = {
                   check='high-resolution SoC {value:g} % is above {high:g} %')),
         divide=True)),
     BATTERY_ID: Message(SmaBattery, (6, 7, 8), Layout('SMA_Battery', 6, (
-        sma_field('Voltage', 0, scale=0.01, signed=True, unit='V', field='voltage_v'),
+        # 0.01 V as SMA's TI has it; SmaDevice reads the 0.1 V senders' (sma_scale.py)
+        sma_field('Voltage', 0, scale=0.01, signed=True, unit='V', field='voltage_v', low=0,
+                  check='pack voltage {value:g} V (at 0.01 V/bit) is negative'),
         sma_field('Current', 16, scale=0.1, signed=True, unit='A', field='current_a'),
         sma_field('Temperature', 32, scale=0.1, signed=True, unit='degC', field='temperature_c',
-                  low=ABSOLUTE_ZERO_C, check='temperature {value:g} degC is below absolute zero')),
-        divide=True)),
+                  low=ABSOLUTE_ZERO_C, high=MAX_BATTERY_TEMPERATURE_C,
+                  check=_TEMPERATURE_CHECK)), divide=True)),
     ALARMS_ID: Message(SmaAlarms, DLC_1_TO_8, Layout('SMA_AlarmsWarnings', 8, tuple(
         sma_field('SystemOnline', first + 2 * k, 2, lookup=ONLINE_CODES)
         if (kind, name) == ('Warning', ONLINE_CONDITION) else
@@ -230,11 +246,12 @@ MESSAGES = {
     INFO_ID: Message(SmaBatteryInfo, (6, 7, 8), Layout('SMA_BatteryInfo', 6, (
         sma_field('BatteryType', 0, field='battery_type'),
         sma_field('BmsVersion', 16, field='bms_version'),
-        sma_field('Capacity', 32, unit='Ah', field='capacity_ah')))),
+        sma_field('Capacity', 32, unit='Ah', field='capacity_ah'))), decode=_info),
     **DIALECTS,
 }
 _ONLINE = 16 + SMA_CONDITIONS.index(ONLINE_CONDITION)  # SystemOnline among the pairs
 _D_LIMITS = MESSAGES[LIMITS_ID].layout.decoder(into=SmaLimits)
+_D_INFO = MESSAGES[INFO_ID].layout.decoder(into=SmaBatteryInfo)
 _D_ALARMS = MESSAGES[ALARMS_ID].layout.decoder()
 _E_ALARMS = MESSAGES[ALARMS_ID].layout.encoder()
 
@@ -283,10 +300,16 @@ def _encode_text(message: SmaReading) -> Frame:
     return Frame(frame_id, encode_ascii(field, text))
 
 
-# ID -> (accepted DLCs, length a shorter frame is padded to (0: never), its layout, decoder)
+# ID -> (accepted DLCs, length a shorter frame is padded to (0: never), its layout, decoder,
+# what a wrong DLC means)
 _DECODERS = {frame_id: (m.dlcs, m.layout.length if m.pad and not m.text else 0, m.layout,
-                        _decoder(m)) for frame_id, m in MESSAGES.items()}
+                        _decoder(m), m.dlc_note) for frame_id, m in MESSAGES.items()}
 _ENCODERS = {m.reading: _encoder(frame_id, m) for frame_id, m in MESSAGES.items()}
+# The binary 0x370 / 0x371 of Pylontech V2 (the simulator, tests): rows of sma_dialects
+for _reading, _frame_id, _layout in (
+        (PylontechCellExtremes, VICTRON_BMS_NAME1_ID, PYLONTECH_EXTREMES),
+        (PylontechCellIds, VICTRON_BMS_NAME1_ID + 1, PYLONTECH_IDS)):
+    _ENCODERS[_reading] = _encoder(_frame_id, Message(_reading, (8,), _layout))
 
 
 class SmaCodec:
@@ -303,9 +326,15 @@ class SmaCodec:
         entry = _DECODERS.get(arbitration_id)
         if entry is None:
             raise MalformedFrameError(arbitration_id, data, 'not an SMA BMS ID')
-        dlcs, length, layout, decode = entry
+        dlcs, length, layout, decode, dlc_note = entry
         if len(data) not in dlcs:
-            check_dlc(arbitration_id, data, dlcs)
+            try:
+                check_dlc(arbitration_id, data, dlcs)
+            except MalformedFrameError as exc:
+                if not dlc_note:
+                    raise
+                raise MalformedFrameError(arbitration_id, data,
+                                          f'{exc.reason}: {dlc_note}') from None
         if len(data) < length:
             data = pad_unsent(data, layout)
         try:

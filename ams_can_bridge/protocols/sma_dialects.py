@@ -27,8 +27,12 @@ VICTRON_MIN_VOLTAGE_CELL_ID = 0x374  # 0x374..0x377: the cell ids of CELL_ID_KIN
 VICTRON_ENERGY_ID = 0x378
 VICTRON_INSTALLED_CAPACITY_ID = 0x379
 VICTRON_PRODUCT_NAME_ID = 0x382
+# 0x373 carries whole kelvin; public encoders add 273 (diyBMS victron_message_373), the
+# bridge subtracts 273.15: the 0.15 K is below the 1 K step either way (section 5.4).
 KELVIN_OFFSET = 273.15
-MAX_TEMPERATURE_K = 3549
+MAX_TEMPERATURE_K = 473  # 199.85 degC: no battery cell reads hotter than 200 degC (26.7)
+MAX_CELL_V = 10.0  # no battery cell reads more (issue "Hardened", 26.7)
+MAX_CELL_TEMPERATURE_C = 200.0
 
 # 0x359: condition (SMA name, as msg_defs/sma.dbc names it) -> byte of the alarm, bit; the
 # warning is the same bit two bytes on.
@@ -85,6 +89,26 @@ class VictronBmsName:
 
     part: int
     text: str
+
+
+@dataclass(frozen=True)
+class PylontechCellExtremes:
+    """0x370 as Pylontech V2 / Seplos send it (binary, not a name): degC and V."""
+
+    max_temperature_c: float | None
+    min_temperature_c: float | None
+    max_cell_v: float | None
+    min_cell_v: float | None
+
+
+@dataclass(frozen=True)
+class PylontechCellIds:
+    """0x371 as Pylontech V2 / Seplos send it: the id of each extreme cell (module, cell)."""
+
+    max_temperature_cell: int | None
+    min_temperature_cell: int | None
+    max_voltage_cell: int | None
+    min_voltage_cell: int | None
 
 
 @dataclass(frozen=True)
@@ -147,13 +171,19 @@ class VictronProductName:
     text: str
 
 
-DialectReading = Union[PylontechAlarms, PylontechRequest, VictronBmsName, VictronModules,
-                       VictronCellExtremes, VictronCellId, VictronEnergy,
-                       VictronInstalledCapacity, VictronProductName]
+DialectReading = Union[PylontechAlarms, PylontechRequest, PylontechCellExtremes,
+                       PylontechCellIds, VictronBmsName, VictronModules, VictronCellExtremes,
+                       VictronCellId, VictronEnergy, VictronInstalledCapacity,
+                       VictronProductName]
 
 
 def _celsius(kelvin: int | None) -> float | None:
     return None if kelvin is None else round(kelvin - KELVIN_OFFSET, 2)
+
+
+def is_text(data: bytes) -> bool:
+    """Tell whether a frame is printable ASCII, once its NUL / space padding is dropped."""
+    return all(0x20 <= b < 0x7F for b in bytes(data).rstrip(b'\x00 '))
 
 
 def ascii_text(data: bytes) -> str:
@@ -203,12 +233,47 @@ class Message:
     decode: Callable[[bytes], Any] | None = None
     encode: Callable[[Any], Frame] | None = None
     pad: bool = True
+    dlc_note: str = ''  # why the other lengths are malformed, when the DLC alone does not say
 
 
-def ascii_message(field: str, reading: type, name: str, *lead: Any) -> Message:
+def ascii_message(field: str, reading: type, name: str, *lead: Any,
+                  decode: Callable[[bytes], Any] | None = None) -> Message:
     """Return an ASCII frame of 1..8 bytes; name: the DBC message's (its signal's after '_')."""
     return Message(reading, DLC_1_TO_8, Layout(name, 8, (sma_field(name.split('_')[1], 0, 64),)),
-                   field, lead)
+                   field, lead, decode=decode)
+
+
+def _name_or_cells(part: int) -> Callable[[bytes], Any]:
+    """
+    Decode 0x370 / 0x371: Victron's BMS name, or Pylontech V2's binary cell extremes.
+
+    Text when printable (section 5.4); else, with all 8 bytes, the binary layout when its
+    values are possible; else the name with '?' for the odd bytes, as before.
+    """
+    decode_binary = _D_PYLON_EXTREMES if part == 1 else _D_PYLON_IDS
+
+    def decode(data: bytes) -> Any:
+        if len(data) == 8 and not is_text(data):
+            try:
+                reading = decode_binary(data)
+            except BadValue:
+                pass  # impossible as cell extremes: a name with odd bytes after all
+            else:
+                if part == 2 or _ordered(reading):
+                    return reading
+        return VictronBmsName(part, ascii_text(data))
+    return decode
+
+
+def _ordered(cells: PylontechCellExtremes) -> bool:
+    pairs = ((cells.min_temperature_c, cells.max_temperature_c),
+             (cells.min_cell_v, cells.max_cell_v))
+    return all(low is None or high is None or low <= high for low, high in pairs)
+
+
+def _installed_capacity(data: bytes) -> VictronInstalledCapacity:
+    capacity = _D_CAPACITY(data)
+    return VictronInstalledCapacity(None) if capacity.capacity_ah == 0 else capacity
 
 
 def _pylontech_alarms(data: bytes) -> PylontechAlarms:
@@ -244,7 +309,27 @@ def encode_pylontech_alarms(message: PylontechAlarms) -> Frame:
 
 
 DLC_1_TO_8 = tuple(range(1, 9))
-_TOO_HOT = 'cell temperature {value} K is above {high:g} K'
+_TOO_HOT = 'cell temperature {value} K is above {high:g} K (200 degC)'
+_CELL_V = 'cell voltage {value:g} V is above {high:g} V'
+_CELL_C = 'cell temperature {value:g} degC is outside {low:g}..{high:g} degC'
+# 0x370 / 0x371 as Pylontech V2 and Seplos send them (bms-to-inverter's Seplos and Pylon
+# CAN readers; an Eco-Worthy capture): not in msg_defs/sma.dbc, whose 0x370 / 0x371 are
+# Victron's name (one ID, two layouts: the content tells, _name_or_cells).
+PYLONTECH_EXTREMES = Layout('Pylontech_CellExtremes', 8, tuple(
+    sma_field(f'{end}CellTemperature', start, scale=0.1, signed=True, unit='degC',
+              field=f'pylontech.{end.lower()}_temperature_c', low=-273.15,
+              high=MAX_CELL_TEMPERATURE_C, check=_CELL_C)
+    for end, start in (('Max', 0), ('Min', 16))) + tuple(
+    sma_field(f'{end}CellVoltage', start, scale=0.001, unit='V',
+              field=f'pylontech.{end.lower()}_cell_v', high=MAX_CELL_V, check=_CELL_V)
+    for end, start in (('Max', 32), ('Min', 48))), divide=True)
+PYLONTECH_IDS = Layout('Pylontech_CellIds', 8, tuple(
+    sma_field(f'{name}Cell', 16 * k, field=f'pylontech.{field}_cell')
+    for k, (name, field) in enumerate((
+        ('MaxTemperature', 'max_temperature'), ('MinTemperature', 'min_temperature'),
+        ('MaxVoltage', 'max_voltage'), ('MinVoltage', 'min_voltage')))))
+_D_PYLON_EXTREMES = PYLONTECH_EXTREMES.decoder(into=PylontechCellExtremes)
+_D_PYLON_IDS = PYLONTECH_IDS.decoder(into=PylontechCellIds)
 DIALECTS = {
     # decoded from the frame as sent: DLC 4 says the module count is not sent
     PYLONTECH_ALARMS_ID: Message(PylontechAlarms, tuple(range(4, 9)), Layout(
@@ -259,7 +344,8 @@ DIALECTS = {
             Signal(name, bit, 1, LITTLE, field=f'sma.pylontech.{field.name}', flag=True)
             for (name, bit), field in zip(PYLONTECH_REQUEST_BITS, fields(PylontechRequest))))),
     **{VICTRON_BMS_NAME1_ID + part - 1: ascii_message(
-        'sma.victron.bms_name', VictronBmsName, f'Victron_BmsName{part}', part)
+        'sma.victron.bms_name', VictronBmsName, f'Victron_BmsName{part}', part,
+        decode=_name_or_cells(part))
        for part in (1, 2)},
     # odd DLCs would split a count
     VICTRON_MODULES_ID: Message(VictronModules, (2, 4, 6, 8), Layout('Victron_Modules', 8, tuple(
@@ -269,13 +355,17 @@ DIALECTS = {
             ('BlockingDischarge', 'blocking_discharge'), ('Offline', 'offline')))))),
     VICTRON_CELL_EXTREMES_ID: Message(VictronCellExtremes, (8,), Layout(
         'Victron_CellExtremes', 8, (
-            sma_field('MinCellVoltage', 0, 16, 0.001, unit='V', field='victron.min_cell_v'),
-            sma_field('MaxCellVoltage', 16, 16, 0.001, unit='V', field='victron.max_cell_v'),
+            sma_field('MinCellVoltage', 0, 16, 0.001, unit='V', field='victron.min_cell_v',
+                      high=MAX_CELL_V, check=_CELL_V),
+            sma_field('MaxCellVoltage', 16, 16, 0.001, unit='V', field='victron.max_cell_v',
+                      high=MAX_CELL_V, check=_CELL_V),
             sma_field('LowestCellTemperature', 32, unit='K', field='victron.min_temperature_k',
                       high=MAX_TEMPERATURE_K, check=_TOO_HOT),
             sma_field('HighestCellTemperature', 48, unit='K', field='victron.max_temperature_k',
                       high=MAX_TEMPERATURE_K, check=_TOO_HOT)), divide=True),
-        decode=_cell_extremes),
+        decode=_cell_extremes,
+        dlc_note='min/max cell voltage and temperature are 8 bytes (a Discover Lynx II '
+                 'sends 4 that are not this layout)'),
     **{VICTRON_MIN_VOLTAGE_CELL_ID + k: ascii_message(
         'sma.victron.cell_id', VictronCellId, f'Victron_{name}CellId', kind)
        for k, (name, kind) in enumerate(zip(
@@ -286,7 +376,8 @@ DIALECTS = {
                   field='victron.discharged_kwh')), divide=True)),
     VICTRON_INSTALLED_CAPACITY_ID: Message(VictronInstalledCapacity, tuple(range(2, 9)), Layout(
         'Victron_InstalledCapacity', 2, (sma_field(
-            'InstalledCapacity', 0, unit='Ah', field='victron.installed_capacity_ah'),))),
+            'InstalledCapacity', 0, unit='Ah', field='victron.installed_capacity_ah'),)),
+        decode=_installed_capacity),
     VICTRON_PRODUCT_NAME_ID: ascii_message('sma.victron.product_name', VictronProductName,
                                            'Victron_ProductName'),
 }
@@ -294,6 +385,8 @@ DIALECT_IDS = frozenset(DIALECTS)  # Pylontech's 0x359, 0x35C; Victron's 0x370..
 _D_ALARMS = DIALECTS[PYLONTECH_ALARMS_ID].layout.decoder()
 _E_ALARMS = DIALECTS[PYLONTECH_ALARMS_ID].layout.encoder()  # alarms, warnings, module count
 _D_RAW = DIALECTS[VICTRON_CELL_EXTREMES_ID].layout.decoder(raw=True)
+_D_CAPACITY = DIALECTS[VICTRON_INSTALLED_CAPACITY_ID].layout.decoder(
+    into=VictronInstalledCapacity)
 _D_EXTREMES = DIALECTS[VICTRON_CELL_EXTREMES_ID].layout.decoder(into=VictronCellExtremes)
 
 

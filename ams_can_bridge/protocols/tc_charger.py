@@ -2,11 +2,13 @@
 TC / Elcon chargers 1..3 as a ZEVA EVMS3 drives them (IDs, fields, decisions: docs/protocols.md 7).
 
 ``ChargerStatus.status`` is the raw status byte, so that bits the DBC does not name still warn.
+The answer's output current is 15 bits and a direction: TC's protocol 1430 marks bit 15 of
+bytes 2-3 "0: Charging, 1: Discharging" (a discharging charger is not 3286.8 A).
 """
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Union
 
 from ams_can_bridge.errors import EncodeRangeError, MalformedFrameError
@@ -57,7 +59,12 @@ class ChargerCommand:
 
 @dataclass(frozen=True, slots=True)
 class ChargerStatus:
-    """Charger 1..3 -> bus: output voltage and current, raw status byte, raw temperature."""
+    """
+    Charger 1..3 -> bus: output voltage and current, raw status byte, raw temperature.
+
+    output_current_a is positive while the charger charges, negative while it discharges
+    (bit 15 of bytes 2-3 set).
+    """
 
     charger: int
     output_voltage_v: float
@@ -85,20 +92,27 @@ LAYOUTS = {
                check='byte 4 = {value}, expected 0 (charge) or 1 (stop)')), divide=True),
     'TC_Charger1_Status': Layout('TC_Charger1_Status', 8, (
         Signal('OutputVoltage', 7, 16, scale=0.1, unit='V', field='output_voltage_v'),
-        Signal('OutputCurrent', 23, 16, scale=0.1, unit='A', field='output_current_a')) + tuple(
+        Signal('OutputCurrentDirection', 23, 1, field='discharging', flag=True),
+        Signal('OutputCurrent', 22, 15, scale=0.1, unit='A', field='output_current_a')) + tuple(
         Signal(name, 32 + bit, 1, LITTLE) for bit, name in enumerate((
             'HardwareFailure', 'OverTemperature', 'InputVoltageError', 'BatteryFault',
             'CommunicationTimeout'))) + (Signal('Temperature', 40, 8, LITTLE),), divide=True),
 }
 _D_COMMAND = LAYOUTS['TC_Charger1_Command'].decoder()
 _E_COMMAND = LAYOUTS['TC_Charger1_Command'].encoder()
-# ChargerStatus as the wire carries it: the DBC's output voltage and current, then the
-# status byte and the temperature, both raw.
-_STATUS = Layout('TC status', 6, LAYOUTS['TC_Charger1_Status'].signals[:2] + (
+# ChargerStatus as the wire carries it: the DBC's output voltage, current direction and
+# magnitude, then the status byte and the temperature, both raw.
+_STATUS = Layout('TC status', 6, LAYOUTS['TC_Charger1_Status'].signals[:3] + (
     Signal('Status', 32, 8, LITTLE, field='status'),
     Signal('Temperature', 40, 8, LITTLE, field='temperature_raw')), divide=True)
 _D_STATUS = _STATUS.decoder()
 _E_STATUS = _STATUS.encoder()
+
+
+def _status(charger: int, data: bytes) -> ChargerStatus:
+    voltage, discharging, current, status, temperature = _D_STATUS(data)
+    return ChargerStatus(charger, voltage, -current if discharging else current, status,
+                         temperature)
 
 
 class TcChargerCodec:
@@ -119,8 +133,8 @@ class TcChargerCodec:
                 raise MalformedFrameError(arbitration_id, data, str(exc)) from None
         charger = STATUS_IDS.index(arbitration_id) + 1
         if len(data) == 5:  # no temperature sent
-            return ChargerStatus(charger, *_D_STATUS(bytes(data) + b'\x00')[:3])
-        return ChargerStatus(charger, *_D_STATUS(data))
+            return replace(_status(charger, bytes(data) + b'\x00'), temperature_raw=None)
+        return _status(charger, data)
 
     def encode(self, message: ChargerReading) -> Frame:
         """Encode a reading as an 8-byte frame (reserved bytes 0); EncodeRangeError else."""
@@ -134,7 +148,10 @@ class TcChargerCodec:
                               1 if message.stop else 0)
             return Frame(COMMAND_IDS[index], data, True)
         temperature = message.temperature_raw  # None: not sent, DLC 5
-        data = _E_STATUS(message.output_voltage_v, message.output_current_a, message.status,
+        current = message.output_current_a
+        discharging = isinstance(current, (int, float)) and current < 0
+        data = _E_STATUS(message.output_voltage_v, discharging,
+                         -current if discharging else current, message.status,
                          0 if temperature is None else temperature)
         return Frame(STATUS_IDS[index], data[:5] if temperature is None
                      else data + bytes(2), True)

@@ -3,8 +3,9 @@ Declare ParamSpec / ConfigField lists as ROS parameters, and validate values set
 
 Numeric parameters are declared with ``dynamic_typing`` so that YAML ``3`` and ``3.0`` (and
 ``ros2 param set x 3``) both work: rclpy would otherwise refuse an INTEGER for a DOUBLE
-parameter. The type and range are then checked here (``coerce``), both at start-up and on
-every later set, with a reason that names the parameter, the value and what is allowed.
+parameter. So is a string parameter with number choices (``voltage_scale: 0.1``). The type
+and range are then checked here (``coerce``), both at start-up and on every later set, with
+a reason that names the parameter, the value and what is allowed.
 """
 from __future__ import annotations
 
@@ -19,7 +20,8 @@ import yaml
 
 from ams_can_bridge.device_set import unknown_parameter_errors
 from ams_can_bridge.errors import ParamError
-from ams_can_bridge.parameters import allowed_text, coerce, ParamSpec, raise_param_errors
+from ams_can_bridge.parameters import (
+    allowed_text, coerce, numeric_choices, ParamSpec, raise_param_errors)
 
 _STATIC_TYPES = {
     bool: Parameter.Type.BOOL,
@@ -36,7 +38,7 @@ def descriptor(spec: ParamSpec) -> ParameterDescriptor:
     constraints = allowed_text(spec)
     if constraints:
         desc.additional_constraints = constraints
-    if spec.type in (int, float):
+    if spec.type in (int, float) or numeric_choices(spec):
         desc.dynamic_typing = True  # see module docstring: 3 and 3.0 both work
         if spec.low is not None and spec.high is not None:
             if spec.type is int:

@@ -105,6 +105,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--sma-soc-frame', choices=('sma', 'byd', 'diybms'), default=None,
                    help='0x355 as the SMA BMS sends it: sma (with the high-resolution SoC), '
                         'byd (zeros after the SoH) or diybms (SoC only, DLC 2); default sma')
+    p.add_argument('--sma-voltage-scale', type=float, choices=(0.01, 0.1), default=None,
+                   help="V per bit of the SMA BMS's 0x356 voltage: 0.01 (SMA, default) or 0.1 "
+                        '(as a Discover Lynx II or an Orion BMS 2 sends it)')
+    p.add_argument('--sma-no-capacity', action='store_true',
+                   help='the SMA BMS sends capacity 0 (not sent) in 0x35F, as Revov/BYD and '
+                        'Eco-Worthy batteries do')
     p.add_argument('--fault', type=_fault, action='append', default=[],
                    metavar='DEVICE:KIND[=VALUE]',
                    help='inject a fault (repeatable): silent, malformed, error=CODE, '
@@ -127,7 +133,8 @@ def build_devices(types: Sequence[str], ams_banks: int | None = None,
                   bms16_variant: str | None = None,
                   sma_soc_frame: str | None = None,
                   ams_pad: bool = False, dbc_file: str | None = None,
-                  mapping_file: str | None = None) -> list[SimDevice]:
+                  mapping_file: str | None = None, sma_voltage_scale: float | None = None,
+                  sma_no_capacity: bool = False) -> list[SimDevice]:
     """Instantiate the simulators named by type (instance name = type name)."""
     devices: list[SimDevice] = []
     ams = None
@@ -147,9 +154,12 @@ def build_devices(types: Sequence[str], ams_banks: int | None = None,
                 if value is not None:
                     kwargs[key] = value
         elif kind == 'sma':
-            for key, text in (('dialect', sma_dialect), ('soc_layout', sma_soc_frame)):
+            for key, text in (('dialect', sma_dialect), ('soc_layout', sma_soc_frame),
+                              ('voltage_scale', sma_voltage_scale)):
                 if text is not None:
                     kwargs[key] = text
+            if sma_no_capacity:
+                kwargs['send_capacity'] = False
         elif kind == 'bms16' and 'sma' in types and _accepts(cls, 'send_sma'):
             # The BMS16 also speaks SMA (0x351...): two sources of one ID would clash.
             kwargs['send_sma'] = False
@@ -274,7 +284,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                                 args.evms3_charge_after, args.evms3_chargers,
                                 bms16_variant=args.bms16_variant,
                                 sma_soc_frame=args.sma_soc_frame, ams_pad=args.ams_pad,
-                                dbc_file=args.dbc, mapping_file=args.mapping)
+                                dbc_file=args.dbc, mapping_file=args.mapping,
+                                sma_voltage_scale=args.sma_voltage_scale,
+                                sma_no_capacity=args.sma_no_capacity)
         apply_faults(devices, args.fault)
     except (ValueError, TypeError, ImportError) as exc:
         print(f'simulator: {exc}', file=sys.stderr)

@@ -16,6 +16,11 @@ the min/max cell voltage and temperature (0x373) and their cell ids (0x374..0x37
 high-resolution SoC; 6 bytes), ``byd`` (SoC, SoH and four zero bytes, as a BYD LVS sends
 it) or ``diybms`` (the SoC alone, DLC 2, as diyBMS sends it): ``protocols.sma.SOC_LAYOUTS``.
 
+``voltage_scale`` (``--sma-voltage-scale``): 0x356's voltage in SMA's 0.01 V or in 0.1 V as
+a Discover Lynx II and an Orion BMS 2 send it. ``send_capacity=False``
+(``--sma-no-capacity``): 0x35F carries capacity 0 (not sent), as Revov/BYD and Eco-Worthy
+batteries do; the victron dialect still sends the installed capacity in 0x379.
+
 Faults: ``silent``; ``malformed`` (frames without data: malformed for every SMA ID, where a
 dropped byte may still be a valid DLC); ``extra['alarm']`` / ``extra['warning']``: a
 condition name or a list of them (``protocols.sma.SMA_CONDITIONS``) reported ACTIVE;
@@ -37,7 +42,8 @@ from ams_can_bridge.protocols.sma import (
     SmaManufacturer, SmaReading, SmaSoc)
 from ams_can_bridge.protocols.sma_dialects import (
     CELL_ID_KINDS, KELVIN_OFFSET, PYLONTECH_CONDITION_NAMES, PylontechAlarms, PylontechRequest,
-    VictronBmsName, VictronCellExtremes, VictronCellId, VictronModules)
+    VictronBmsName, VictronCellExtremes, VictronCellId, VictronInstalledCapacity, VictronModules)
+from ams_can_bridge.protocols.sma_scale import VOLTAGE_SCALES
 from ams_can_bridge.sim.base import Periodic, SimDevice
 from ams_can_bridge.sim.bms16 import CELL_RESISTANCE_OHM, lfp_cell_ocv, sma_empty
 from ams_can_bridge.sim.pack import Elapsed, integrate_soc, thermal_lag
@@ -78,8 +84,14 @@ class SmaSimulator(SimDevice):
                  current_fn: Callable[[float], float] | None = None,
                  capacity_ah: float = 100.0, manufacturer: str = 'SIMBMS',
                  seed: int = 0, dialect: str = 'sma', bms_name: str = 'SIMBMS 16S LFP',
-                 soc_layout: str = 'sma') -> None:
+                 soc_layout: str = 'sma', voltage_scale: float = 0.01,
+                 send_capacity: bool = True) -> None:
         super().__init__(name)
+        if voltage_scale not in VOLTAGE_SCALES:
+            raise ConfigError(f'SMA 0x356 voltage scale {voltage_scale!r}: use one of '
+                              + ', '.join(f'{s:g}' for s in VOLTAGE_SCALES))
+        self.voltage_scale = voltage_scale
+        self.send_capacity = send_capacity
         if dialect not in DIALECTS:
             raise ConfigError(f'SMA dialect {dialect!r}: use one of ' + ', '.join(DIALECTS))
         if soc_layout not in SOC_LAYOUTS:
@@ -168,6 +180,11 @@ class SmaSimulator(SimDevice):
         self.temperature_c = thermal_lag(
             self.temperature_c, 25.0 + 0.08 * abs(self.current_a), dt)
 
+    def _wire_voltage(self) -> float:
+        """0x356's voltage as SmaBattery carries it (0.01 V/bit): a 0.1 V sender's count."""
+        steps = round(self.voltage_v() / self.voltage_scale)
+        return steps / 100  # the raw count at SMA's 0.01 V, what the wire carries
+
     def tick(self, now: float) -> list[Frame]:
         """Advance the pack to ``now`` and return the frames due."""
         self._step(now)
@@ -177,7 +194,7 @@ class SmaSimulator(SimDevice):
                 SmaLimits(CELLS * 3.45, round(0.5 * self.capacity_ah, 1),
                           round(1.0 * self.capacity_ah, 1), CELLS * 3.0),
                 SmaSoc(round(self.soc_pct), self.soh_pct, round(self.soc_pct, 2)),
-                SmaBattery(round(self.voltage_v(), 2), round(-self.current_a, 1),
+                SmaBattery(self._wire_voltage(), round(-self.current_a, 1),
                            round(self.temperature_c, 1)),
             ]
             if self.dialect == 'pylontech':
@@ -187,10 +204,12 @@ class SmaSimulator(SimDevice):
             if self.dialect == 'victron':
                 messages += self.victron_messages()
         if self._info.due(now):
+            capacity = round(self.capacity_ah)
             messages += [SmaManufacturer(self.manufacturer),
-                         SmaBatteryInfo(1, 0x0100, round(self.capacity_ah))]
+                         SmaBatteryInfo(1, 0x0100, capacity if self.send_capacity else 0)]
             if self.dialect == 'victron':
-                messages += [VictronBmsName(1, self.bms_name[:8])]
+                messages += [VictronBmsName(1, self.bms_name[:8]),
+                             VictronInstalledCapacity(capacity)]
                 if len(self.bms_name) > 8:
                     messages.append(VictronBmsName(2, self.bms_name[8:]))
         if self.faults.silent or not messages:
