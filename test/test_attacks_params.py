@@ -130,3 +130,23 @@ def test_three_million_cell_counts_are_refused_and_a_disarm_after_them_is_answer
     frames_out = rig.frames_out()
     rig.assert_silent_since(frames_out)
     assert rig.failures == [], rig.failures
+
+
+def test_a_bug_in_a_parameter_callback_is_answered_and_the_heartbeat_goes_on(
+        rig_factory, monkeypatch):
+    import ams_can_bridge.ros.bridge_node as bridge_node
+    rig = rig_factory(armed_every_device())
+
+    def broken(*args, **kwargs):
+        raise RuntimeError('a bug')
+    monkeypatch.setattr(rig.node.params, 'validate', broken)
+    request = Parameter('ams.bank_count', value=3).to_parameter_msg()
+    result = set_messages(rig, request)[0]
+    assert not result.successful
+    assert result.reason == 'internal error: RuntimeError: a bug', result.reason
+    monkeypatch.undo()
+    monkeypatch.setattr(bridge_node, 'apply_set', broken)  # after the set was accepted
+    assert set_messages(rig, request)[0].successful
+    mark = rig.capture.mark()
+    rig.wait(lambda: len(rig.capture.since(mark, HEARTBEAT)) >= 3, what='3 more heartbeats')
+    assert rig.failures == [], rig.failures
