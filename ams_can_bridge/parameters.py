@@ -76,9 +76,10 @@ def allowed_text(spec: ParamSpec) -> str:
         parts.append(f'in steps of {spec.step:g}')
     if spec.choices:
         parts.append('one of ' + ', '.join(spec.choices))
-    if spec.max_length is not None:
-        parts.append(f'at most {spec.max_length} values')
-    return ' '.join(parts)
+    text = ' '.join(parts)
+    if spec.max_length is not None:  # an array: its length, then what each value may be
+        text = f'at most {spec.max_length} values' + (f', each {text}' if text else '')
+    return text
 
 
 def _check_range(name: str, spec: ParamSpec, value: float) -> None:
