@@ -13,13 +13,14 @@ parameter keeps the value the user gave ('' stays ''), and ``links`` says what w
 from __future__ import annotations
 
 import difflib
+import re
 import time
 from typing import Any, Callable, Collection, Iterable, Mapping
 
 from ams_can_bridge import registry
-from ams_can_bridge.devices.base import Device, device_params
+from ams_can_bridge.devices.base import Device, device_params, Sent
 from ams_can_bridge.errors import ConfigError, ParamError
-from ams_can_bridge.parameters import ParamSpec
+from ams_can_bridge.parameters import MAX_DEVICES, ParamSpec
 from ams_can_bridge.protocols.sma import SMA_IDS
 
 Declare = Callable[[str, ParamSpec], Any]
@@ -33,6 +34,16 @@ SHARED_IDS: dict[str, frozenset[int]] = {'sma': SMA_IDS, 'bms16': SMA_IDS}
 FOREIGN_PREFIXES = ('qos_overrides.',)
 # Parameters every rclpy node declares itself (log2bag, without rclpy, knows them by name).
 ROS_NODE_PARAMS = frozenset({'use_sim_time', 'start_type_description_service'})
+# An instance name becomes a topic and service namespace (<name>/battery_state), so it must
+# be one ROS name token: letters, digits and underscores, not starting with a digit (rcl).
+INSTANCE_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
+INSTANCE_NAME_RULE = ('an instance name names its topics and services (<name>/battery_state), '
+                      'so it must be a ROS name: letters, digits and underscores, not starting '
+                      'with a digit')
+OVERLAP_ADVICE = ('Two instances on one ID would both decode its frames (and both send, with '
+                  'commands armed). Move one of them (<name>.base_id) or remove it from '
+                  'devices')
+Ids = frozenset[tuple[int, bool]]
 
 
 class DeviceSet:
@@ -42,6 +53,9 @@ class DeviceSet:
                  clock: Callable[[], float] = time.monotonic) -> None:
         """Build every instance of ``names``; raise ConfigError saying what to change."""
         names = list(names)
+        if len(names) > MAX_DEVICES:  # before anything is declared or built
+            raise ConfigError(f'devices has {len(names)} instances: at most {MAX_DEVICES} are '
+                              'allowed (one bridge per bus; run another bridge for more)')
         if len(set(names)) != len(names):
             raise ConfigError(f'devices = {names}: instance names must be unique')
         self.devices: dict[str, Device] = {}
@@ -80,9 +94,11 @@ class DeviceSet:
         return [d for d in devices if d.handle_frame(arbitration_id, data, stamp)]
 
     def _add(self, name: str, declare: Declare, clock: Callable[[], float]) -> None:
-        if not name or '/' in name or '.' in name or name != name.strip():
-            raise ConfigError(f'devices: {name!r} is not a usable instance name '
-                              '(no empty names, dots, slashes or spaces)')
+        if not isinstance(name, str) or not INSTANCE_NAME.fullmatch(name):
+            suggestion = re.sub(r'\W', '_', str(name))
+            suggestion = f'_{suggestion}' if suggestion[:1].isdigit() else suggestion
+            raise ConfigError(f'devices: {name!r} is not a usable instance name: '
+                              f'{INSTANCE_NAME_RULE} (e.g. {suggestion or "pack"!r})')
         type_spec = ParamSpec('type', str, name, 'device type: ' + ', '.join(
             registry.DEVICE_TYPES), choices=registry.DEVICE_TYPES)
         try:
@@ -109,24 +125,10 @@ class DeviceSet:
         self.devices[name] = device
 
     def _check_overlaps(self) -> None:
-        """Raise ConfigError naming every pair of instances that use the same CAN IDs."""
-        problems = []
-        items = list(self.devices.items())
-        for i, (name_a, a) in enumerate(items):
-            for name_b, b in items[i + 1:]:
-                common = a.frame_ids & b.frame_ids
-                if a.TYPE != b.TYPE:
-                    shared = SHARED_IDS.get(a.TYPE, frozenset()) & SHARED_IDS.get(
-                        b.TYPE, frozenset())
-                    common = frozenset((i, e) for i, e in common if e or i not in shared)
-                if common:
-                    problems.append(f'{name_a} ({a.TYPE}) and {name_b} ({b.TYPE}) both use '
-                                    f'{format_ids(common)}')
+        """Raise ConfigError naming every pair of instances on the same CAN IDs."""
+        problems = overlap_problems(self.devices)
         if problems:
-            raise ConfigError(
-                'devices overlap: ' + '; '.join(problems) + '. Two instances on one ID would '
-                'both decode its frames (and both send, with commands armed). Move one of '
-                'them (<name>.base_id) or remove it from devices')
+            raise ConfigError(overlap_error(problems))
 
     def _resolve_links(self) -> None:
         """Give each device the instances its LINKS name ('' = the first of that type)."""
@@ -149,6 +151,86 @@ class DeviceSet:
                         + f' or add it to devices with type {link_type}')
                 device.attach_link(key, self.devices[wanted], origin)
                 self.links[f'{name}.{key}'] = f'{wanted} ({origin})'
+
+
+def _owners(devices: Mapping[str, Device], sent: Mapping[str, Mapping[tuple[int, bool], Sent]]
+            ) -> tuple[dict[tuple[int, bool], list[str]],
+                       dict[tuple[int, bool], list[tuple[str, Sent]]]]:
+    """Return who reads and who sends each ID, in device order: one pass over every ID."""
+    readers: dict[tuple[int, bool], list[str]] = {}
+    senders: dict[tuple[int, bool], list[tuple[str, Sent]]] = {}
+    for name, device in devices.items():
+        for can_id in device.frame_ids:
+            readers.setdefault(can_id, []).append(name)
+        for can_id, what in (sent[name] if name in sent else device.sent_ids()).items():
+            senders.setdefault(can_id, []).append((name, what))
+    return readers, senders
+
+
+def overlap_problems(devices: Mapping[str, Device],
+                     sent: Mapping[str, Mapping[tuple[int, bool], Sent]] | None = None
+                     ) -> list[str]:
+    """
+    Return one problem per pair of instances that share CAN IDs they may not share.
+
+    Read by both (except the SMA IDs read by an sma and a bms16 instance: one sender), sent
+    by both, or sent periodically by one (heartbeat, keep-alive) and read by the other. An
+    ID one sends only on a call while another reads it is left alone (the AMS's
+    override_bank_count 0x351 at the default base is the SMA limits ID, as it always was). Each
+    ID is visited once with its owners, so the check grows with the number of IDs, not
+    with the square of the instances (MAX_DEVICES bounds the owners of one ID). ``sent``:
+    the IDs to judge for some instances instead of their own (a run-time set).
+    """
+    readers, senders = _owners(devices, sent or {})
+    order = {name: i for i, name in enumerate(devices)}
+    read: dict[tuple[str, str], set[tuple[int, bool]]] = {}
+    for can_id, names in readers.items():
+        for i, a in enumerate(names):
+            for b in names[i + 1:]:
+                ta, tb = devices[a].TYPE, devices[b].TYPE
+                if ta != tb and not can_id[1] and can_id[0] in (
+                        SHARED_IDS.get(ta, frozenset()) & SHARED_IDS.get(tb, frozenset())):
+                    continue
+                read.setdefault((a, b), set()).add(can_id)
+    # a pair already named for reading an ID is not named again for sending it
+    both: dict[tuple[str, str], tuple[set[tuple[int, bool]], dict[str, None], dict[str, None]]]
+    both = {}
+    periodic: dict[tuple[str, str, str], set[tuple[int, bool]]] = {}
+    for can_id, owners in senders.items():
+        for i, (a, what_a) in enumerate(owners):
+            for b, what_b in owners[i + 1:]:
+                if a != b and can_id not in read.get((a, b), ()):
+                    ids, whats_a, whats_b = both.setdefault((a, b), (set(), {}, {}))
+                    ids.add(can_id)
+                    whats_a[what_a.what] = whats_b[what_b.what] = None
+        for a, what_a in owners:
+            for b in readers.get(can_id, ()):
+                pair = _pair(a, b, order)
+                if what_a.periodic and b != a and can_id not in read.get(pair, ()) \
+                        and can_id not in both.get(pair, ((),))[0]:
+                    periodic.setdefault((a, b, what_a.what), set()).add(can_id)
+    problems = [(order[a], order[b], 0, f'{a} ({devices[a].TYPE}) and {b} '
+                 f'({devices[b].TYPE}) both use {format_ids(ids)}')
+                for (a, b), ids in read.items()]
+    problems += [(order[a], order[b], 1, f'{a} ({devices[a].TYPE}) and {b} '
+                  f'({devices[b].TYPE}) both send {format_ids(ids)} ({a}: {", ".join(wa)}; '
+                  f'{b}: {", ".join(wb)})') for (a, b), (ids, wa, wb) in both.items()]
+    problems += [(order[a], order[b], 2, f'{a} ({devices[a].TYPE}) sends its {what} on '
+                  f'{format_ids(ids)}, which {b} ({devices[b].TYPE}) reads')
+                 for (a, b, what), ids in periodic.items()]
+    return [text for *_, text in sorted(problems)]
+
+
+def overlap_error(problems: list[str]) -> str:
+    """Return the one message for every overlap, with what to change."""
+    advice = OVERLAP_ADVICE
+    if any('keep-alive' in problem for problem in problems):
+        advice += ', or turn the keep-alive off (<name>.inverter_keepalive: false)'
+    return 'devices overlap: ' + '; '.join(problems) + '. ' + advice
+
+
+def _pair(a: str, b: str, order: Mapping[str, int]) -> tuple[str, str]:
+    return (a, b) if order[a] < order[b] else (b, a)
 
 
 def unknown_parameter_errors(given: Mapping[str, Any], declared: Collection[str]) -> list[str]:

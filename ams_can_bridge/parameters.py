@@ -17,6 +17,11 @@ from ams_can_bridge.protocols.common import ConfigField
 from ams_can_bridge.protocols.layout import check_value
 
 CONFIG_PREFIX = 'config.'
+# The most device instances one bridge takes: one CAN bus rarely carries more than a few
+# battery devices, and every instance declares ~10 parameters and is checked against every
+# other at start. A longer devices list stops the bridge before anything is built.
+MAX_DEVICES = 32
+MAX_BUS_OPTIONS = 32  # can.options entries (python-can bus arguments)
 
 
 @dataclass(frozen=True)
@@ -26,7 +31,9 @@ class ParamSpec:
 
     type is one of bool, int, float, str, 'int[]', 'str[]'. default None = no default
     (declared without a value; the device must cope with it unset). low/high/step give the
-    ROS range (FloatingPointRange/IntegerRange); choices restrict strings.
+    ROS range (FloatingPointRange/IntegerRange); choices restrict strings. max_length: the
+    most values an array may have, checked before any element is looked at (a set of
+    millions of values is refused at once, never walked, and never holds up a disarm).
     """
 
     key: str
@@ -38,6 +45,7 @@ class ParamSpec:
     step: float | None = None
     choices: tuple[str, ...] = ()
     read_only: bool = True
+    max_length: int | None = None
 
 
 def spec_from_config_field(field: ConfigField, key_prefix: str = 'config.',
@@ -49,7 +57,7 @@ def spec_from_config_field(field: ConfigField, key_prefix: str = 'config.',
         description += f' ({field.length} values)'
     return ParamSpec(key_prefix + field.name, field.type, None, description, low=field.low,
                      high=field.high, step=field.step, choices=field.choices,
-                     read_only=read_only)
+                     read_only=read_only, max_length=field.length or None)
 
 
 def format_number(value: float, key: str = '') -> str:
@@ -68,7 +76,10 @@ def allowed_text(spec: ParamSpec) -> str:
         parts.append(f'in steps of {spec.step:g}')
     if spec.choices:
         parts.append('one of ' + ', '.join(spec.choices))
-    return ' '.join(parts)
+    text = ' '.join(parts)
+    if spec.max_length is not None:  # an array: its length, then what each value may be
+        text = f'at most {spec.max_length} values' + (f', each {text}' if text else '')
+    return text
 
 
 def _check_range(name: str, spec: ParamSpec, value: float) -> None:
@@ -105,10 +116,10 @@ def coerce(name: str, spec: ParamSpec, value: Any) -> Any:
         return None
     if spec.type is float or spec.type is int:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ParamError(f'{name} = {value!r} must be a number')
+            raise ParamError(f'{name} = {_short(value)} must be a number')
         if spec.type is int:
             if isinstance(value, float) and (not math.isfinite(value) or value != int(value)):
-                raise ParamError(f'{name} = {value!r} must be a whole number')
+                raise ParamError(f'{name} = {_short(value)} must be a whole number')
             value = int(value)
         else:
             value = float(value)
@@ -116,28 +127,38 @@ def coerce(name: str, spec: ParamSpec, value: Any) -> Any:
         return value
     if spec.type is bool:
         if not isinstance(value, bool):
-            raise ParamError(f'{name} = {value!r} must be true or false')
+            raise ParamError(f'{name} = {_short(value)} must be true or false')
         return value
     if spec.type is str:
         if numeric_choices(spec) and isinstance(value, (int, float)) \
                 and not isinstance(value, bool):
             value = f'{value:g}'  # YAML 0.1 for the choice '0.1' (sma.voltage_scale)
         if not isinstance(value, str):
-            raise ParamError(f'{name} = {value!r} must be a string')
+            raise ParamError(f'{name} = {_short(value)} must be a string')
         if spec.choices and value not in spec.choices:
-            raise ParamError(f'{name} = {value!r} is not allowed: use one of '
+            raise ParamError(f'{name} = {_short(value)} is not allowed: use one of '
                              + ', '.join(spec.choices))
         return value
     if spec.type in ('int[]', 'str[]', 'float[]'):
         # rclpy hands integer and float arrays over as array.array (a set through the
         # parameter services, ros2 param set), a params file's values as lists
         if not isinstance(value, (list, tuple, array.array)):
-            raise ParamError(f'{name} = {value!r} must be a list')
+            raise ParamError(f'{name} = {_short(value)} must be a list')
+        if spec.max_length is not None and len(value) > spec.max_length:
+            # before any per-element work: the length alone refuses it
+            raise ParamError(f'{name} has {len(value)} values: at most {spec.max_length} '
+                             'are allowed')
         element = {'int[]': int, 'str[]': str, 'float[]': float}[spec.type]
         element_spec = ParamSpec(spec.key, element, None, '', spec.low, spec.high, spec.step,
                                  spec.choices)
         return [coerce(f'{name}[{i}]', element_spec, v) for i, v in enumerate(value)]
     raise ParamError(f'{name}: unsupported parameter type {spec.type!r}')
+
+
+def _short(value: Any) -> str:
+    """Return repr(value), cut to a readable length (a refused value may be huge)."""
+    text = repr(value)
+    return text if len(text) <= 200 else text[:200] + '...'
 
 
 def raise_param_errors(errors: list[str]) -> None:
@@ -162,7 +183,8 @@ BUS_PARAMS = [
               high=10_000_000),
     ParamSpec('fd', bool, False, 'CAN FD bus'),
     ParamSpec('options', 'str[]', [], 'extra python-can bus arguments, key=value (slcan '
-              'defaults to timeout=0.5: an idle serial port is not polled every ms)'),
+              'defaults to timeout=0.5: an idle serial port is not polled every ms)',
+              max_length=MAX_BUS_OPTIONS),
     ParamSpec('reconnect_period', float, 1.0, 's between attempts to (re)open the bus',
               low=0.01, high=3600.0),
     ParamSpec('replay_rate', float, 1.0, 'replay speed: 1.0 = real time, 0 = fast as possible',
@@ -190,7 +212,9 @@ AUTOSTART = ParamSpec(
     'wait unconfigured for a lifecycle manager, /<node>/change_state)')
 NODE_PARAMS = [
     AUTOSTART,
-    ParamSpec('devices', 'str[]', [], 'device instance names (each has <name>.type)'),
+    ParamSpec('devices', 'str[]', [], 'device instance names (each has <name>.type; ROS '
+              'names: letters, digits, _, not starting with a digit)',
+              max_length=MAX_DEVICES),
     ParamSpec('diagnostics_period', float, 1.0, 's between /diagnostics publications',
               low=0.01, high=3600.0),
     ParamSpec('commands_allowed', bool, False,

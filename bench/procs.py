@@ -169,15 +169,21 @@ def load(channel: str, seconds: float) -> None:
 
 
 def heartbeat(channel: str, seconds: float, out: str) -> None:
-    """On the adapter's side: time every heartbeat frame (nothing else runs here)."""
+    """On the adapter's side: time every heartbeat frame (nothing else runs here).
+
+    Ends after ``seconds`` or at SIGTERM (then within 0.1 s), and writes the stamps either way.
+    """
     import can
+    import signal
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
     sys.setswitchinterval(0.001)
     bus = can.Bus(interface='slcan', channel=channel,
                   **harness.parse_options(harness.SLCAN_OPEN + ['timeout=0.5']))
     stamps: list[float] = []
     end = time.monotonic() + seconds
     try:
-        while time.monotonic() < end:
+        while time.monotonic() < end and not stop.is_set():
             msg = bus.recv(0.1)
             if msg is not None and msg.arbitration_id == HEARTBEAT:
                 stamps.append(msg.timestamp)

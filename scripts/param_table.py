@@ -57,7 +57,7 @@ def main() -> None:
     common = {spec.key: spec for spec in device_specs('ams') + device_specs('evms3')}
     print(row('<name>.type', type('S', (), dict(
         key='type', type=str, default=None, choices=registry.DEVICE_TYPES,
-        low=None, high=None, step=None,
+        low=None, high=None, step=None, max_length=None,
         description='device type; default: the instance name itself'))))
     for key in COMMON:
         line = row(f'<name>.{key}', common[key])

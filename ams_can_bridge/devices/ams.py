@@ -31,7 +31,7 @@ from ams_can_bridge.devices.ams_master import AmsMaster, AmsView
 from ams_can_bridge.devices.ams_status import (diagnostic_report, ERROR_STATES, error_text,
                                                health)
 from ams_can_bridge.devices.base import (
-    BatteryReport, current_status, DiagnosticReport, Device, PowerSupplyStatus)
+    BatteryReport, current_status, DiagnosticReport, Device, PowerSupplyStatus, Sent)
 from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.timed import CounterHealth, TimedSpans, TimedStore
 from ams_can_bridge.parameters import ParamSpec
@@ -175,6 +175,14 @@ class AmsDevice(Device):
     def heartbeat_frame(self, command: int, bank_count: int, counter: int) -> Frame:
         """Build the car status (base + 0x005) the AMS master sends as its heartbeat."""
         return self.codec.encode(proto.CarStatus(proto.CarCommand(command), bank_count, counter))
+
+    def sent_ids(self, config: DeviceConfig | None = None) -> dict[tuple[int, bool], Sent]:
+        """Return the heartbeat, the charger command (repeated) and the two overrides."""
+        return {(self.codec.id_of(offset), False): sent for offset, sent in (
+            (proto.CAR_STATUS, Sent('car status heartbeat', True)),
+            (proto.CHARGER_COMMANDS, Sent('charger START/STOP', True)),
+            (proto.OVERRIDE_CHARGE_CURRENT, Sent('set_charge_current')),
+            (proto.OVERRIDE_BANK_COUNT, Sent('override_bank_count')))}
 
     def charger_frame(self, start: proto.ChargerStart, time_tick: int) -> Frame:
         """Build a charger command (base + 0x010): start / stop at this time tick."""

@@ -13,7 +13,7 @@ import math
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Any, Callable, ClassVar, Iterable, Mapping
+from typing import Any, Callable, ClassVar, Iterable, Mapping, NamedTuple
 
 from ams_can_bridge.devices.config import DeviceConfig, make_config_class
 from ams_can_bridge.errors import ParamError, ProtocolError
@@ -96,6 +96,13 @@ class DiagnosticReport:
     level: Level
     message: str
     values: dict[str, str] = field(default_factory=dict)
+
+
+class Sent(NamedTuple):
+    """What the bridge sends on one ID for a device, and whether it repeats on its own."""
+
+    what: str
+    periodic: bool = False  # a heartbeat, a keep-alive, a repeat: not only on a call
 
 
 def device_params(device_cls: type['Device']) -> list[ParamSpec]:
@@ -249,6 +256,16 @@ class Device:
             return ids
         extended = self.is_extended_id
         return frozenset((can_id, extended) for can_id in self.arbitration_ids)
+
+    def sent_ids(self, config: DeviceConfig | None = None) -> dict[tuple[int, bool], Sent]:
+        """
+        Return each (CAN ID, 29-bit) the bridge may send for this device, and what.
+
+        ``config``: judge this configuration instead of the current one (a run-time set).
+        The overlap check (``device_set.overlap_problems``) refuses an ID two instances
+        send, and an ID one sends periodically while another reads it.
+        """
+        return {}
 
     def handle_frame(self, arbitration_id: int, data: bytes, stamp: float) -> bool:
         """

@@ -16,7 +16,7 @@ import time
 from typing import Any, Callable, Iterable, Mapping
 
 from ams_can_bridge.devices.base import (
-    BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyHealth)
+    BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyHealth, Sent)
 from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
 from ams_can_bridge.devices.sma import sma_values
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
@@ -102,6 +102,14 @@ class Bms16Device(Device):
         """Build frames base + 4, base + 5 from the configuration now (all values set)."""
         values = self.CONFIG.complete(self.name, self.config, (), self.WRITE_HINT)
         return self.codec.bms16.config_frames(Bms16Config(**values))
+
+    def sent_ids(self, config: DeviceConfig | None = None) -> dict[tuple[int, bool], Sent]:
+        """Return base + 4 .. base + 8 (configuration, acknowledge, SoC reset, power off)."""
+        p, base = bms16_proto, self.codec.bms16.base_id
+        return {(base + offset, False): Sent(what) for offset, what in (
+            (p.CONFIG_1, 'write_config'), (p.CONFIG_2, 'write_config'),
+            (p.ACK_ERROR, 'acknowledge_error'), (p.RESET_SOC, 'reset_soc'),
+            (p.POWER_OFF, 'power_off'))}
 
     def ack_frame(self) -> Frame:
         """Build frame base + 6 (acknowledge error)."""

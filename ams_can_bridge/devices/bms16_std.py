@@ -15,7 +15,7 @@ import time
 from typing import Any, Callable, Iterable, Mapping
 
 from ams_can_bridge.devices.base import (
-    BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyStatus)
+    BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyStatus, Sent)
 from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
 from ams_can_bridge.devices.evms3_health import error_health, error_text
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
@@ -27,8 +27,8 @@ from ams_can_bridge.protocols.bms16_std import (
     DEFAULT_BASE_ID, MAX_CELLS)
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import (
-    AcknowledgeError, BatteryCurrent, Bms12Cells, EVMS3_WARNINGS, Evms3Error, Evms3State,
-    PowerOff, ResetSoc)
+    AcknowledgeError, BatteryCurrent, Bms12Cells, CONFIG1, EVMS3_WARNINGS, Evms3Error,
+    Evms3State, PowerOff, ResetSoc)
 
 VARIANT = 'standard'
 
@@ -85,6 +85,13 @@ class Bms16StdDevice(Device):
                     else ())
         values = self.CONFIG.complete(self.name, config, optional, self.WRITE_HINT)
         return self.codec.config_frames(proto.config_from_mapping(values))
+
+    def sent_ids(self, config: DeviceConfig | None = None) -> dict[tuple[int, bool], Sent]:
+        """Return IDs 32..39 (configuration, acknowledge, SoC reset, power off)."""
+        base, extended = self.codec.base_id, self.codec.is_extended_id
+        whats = ['write_config'] * 5 + ['acknowledge_error', 'reset_soc', 'power_off']
+        return {(base + offset, extended): Sent(what)
+                for offset, what in enumerate(whats, start=CONFIG1)}
 
     def ack_frame(self) -> Frame:
         """Build ID 37 with the error reported now; RefusedCommand if stale or no error."""

@@ -23,7 +23,7 @@ import time
 from typing import Any, Callable, Iterable, Mapping
 
 from ams_can_bridge.devices.base import (
-    BatteryReport, current_status, DiagnosticReport, Device, Level, PowerSupplyStatus)
+    BatteryReport, current_status, DiagnosticReport, Device, Level, PowerSupplyStatus, Sent)
 from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
 from ams_can_bridge.devices.evms3_health import (
     error_health, error_text, WRITABLE_STATES)
@@ -195,6 +195,18 @@ class Evms3Device(Device):
         cells = values.pop('cells_per_module')
         return [self.codec.encode(BmsCellNumbers(tuple(cells)))] + self.codec.config_frames(
             Evms3Config.from_mapping(values))
+
+    def sent_ids(self, config: DeviceConfig | None = None) -> dict[tuple[int, bool], Sent]:
+        """Return IDs 31..38 (setup mode, configuration, acknowledge, SoC reset) and 51."""
+        p, extended = evms3_proto, self.codec.is_extended_id
+        ids = {(self.codec.base_id + offset, extended): Sent(what) for offset, what in (
+            (p.SET_STATE, 'set_setup_mode'), (p.CONFIG1, 'write_config'),
+            (p.CONFIG2, 'write_config'), (p.CONFIG3, 'write_config'),
+            (p.CONFIG4, 'write_config'), (p.CELL_NUMBERS, 'write_config'),
+            (p.ACK_ERROR, 'acknowledge_error'), (p.RESET_SOC, 'reset_soc'))}
+        request = self.codec.encode(RequestConfig())
+        ids[(request.arbitration_id, request.is_extended_id)] = Sent('read_config request')
+        return ids
 
     def ack_frame(self) -> Frame:
         """Build ID 37 for the error shown now; RefusedCommand if stale or no error."""

@@ -27,7 +27,7 @@ import time
 from typing import Any, Callable, Mapping
 
 from ams_can_bridge.devices.base import (
-    BatteryReport, current_status, DiagnosticReport, Device, Level, PowerSupplyHealth)
+    BatteryReport, current_status, DiagnosticReport, Device, Level, PowerSupplyHealth, Sent)
 from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.ivt_s_commands import CommandLink
 from ams_can_bridge.devices.ivt_s_control import CYCLE_KEYS, ERROR_MASKS_KEY, IvtSControl
@@ -154,6 +154,10 @@ class IvtSDevice(IvtSControl, Device):
                              'of its own')
         self.link = CommandLink(self.lock, self.command_id)
         self._ids = self.codec.arbitration_ids | {self.answer_id}
+
+    def sent_ids(self, config: DeviceConfig | None = None) -> dict[tuple[int, bool], Sent]:
+        """Return the command ID (read_config, write_config, set_running, ...)."""
+        return {(self.command_id, False): Sent('IVT-S command')}
 
     # --- receive side ------------------------------------------------------------------------
     @property

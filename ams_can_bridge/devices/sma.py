@@ -33,7 +33,7 @@ import time
 from typing import Any, Callable, Hashable, Iterable, Mapping
 
 from ams_can_bridge.devices.base import (
-    BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyHealth)
+    BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyHealth, Sent)
 from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.sma_keepalive import InverterKeepalive, KEEPALIVE_PERIOD
 from ams_can_bridge.devices.sma_values import fmt, sma_values
@@ -150,6 +150,13 @@ class SmaDevice(Device):
     def keepalive_frame(self) -> Frame:
         """Build the inverter keep-alive 0x305 the bridge sends in the inverter's place."""
         return keepalive_frame()
+
+    def sent_ids(self, config: DeviceConfig | None = None) -> dict[tuple[int, bool], Sent]:
+        """Return the keep-alive's ID while inverter_keepalive is true, else nothing."""
+        if not (config or self.config).inverter_keepalive:
+            return {}
+        frame = self.keepalive_frame()
+        return {(frame.arbitration_id, frame.is_extended_id): Sent('inverter keep-alive', True)}
 
     def attach_keepalive(self, send: SendFrame,
                          log: Callable[[str], None],

@@ -144,6 +144,29 @@ def run_start_checks(configure: Callable[[], None], errors: list[str],
         raise error from None
 
 
+def security_warning(allowed: bool, environ: Mapping[str, str]) -> str | None:
+    """
+    Return the start-up WARN for ``commands_allowed: true`` without enforced SROS2, or None.
+
+    The gate is no access control: without DDS security every participant on the domain
+    may set ``commands_enabled`` and call the command services. Enforced means rcl's own
+    switches: ROS_SECURITY_ENABLE=true and ROS_SECURITY_STRATEGY=Enforce (rcl then refuses
+    to start a participant without the keys of its enclave).
+    """
+    if not allowed:
+        return None
+    enable = environ.get('ROS_SECURITY_ENABLE', '')
+    strategy = environ.get('ROS_SECURITY_STRATEGY', '')
+    if enable == 'true' and strategy == 'Enforce':
+        return None
+    return (f'commands_allowed is true and ROS 2 security is not enforced (ROS_SECURITY_ENABLE='
+            f'{enable or "unset"}, ROS_SECURITY_STRATEGY={strategy or "unset"}): any node on '
+            f'ROS_DOMAIN_ID {environ.get("ROS_DOMAIN_ID") or "0"} can set commands_enabled and '
+            'command the bridge. Run it with SROS2: ROS_SECURITY_ENABLE=true, '
+            'ROS_SECURITY_STRATEGY=Enforce, --enclave /ams_can_bridge and security/policy.xml '
+            '(README "Deploying with ROS 2 security (SROS2)")')
+
+
 def start_summary(config: BusConfig, hardware_id: str, devices: Mapping[str, Device], *,
                   enabled: bool, allowed: bool) -> tuple[str, str | None]:
     """Return the start-up log: the INFO text, and the WARN text when no device is set."""

@@ -120,7 +120,7 @@ def main(args: list[str] | None = None) -> int:
     from rclpy.signals import SignalHandlerOptions
 
     from ams_can_bridge.ros.bridge_node import BridgeNode, ConfigError, NODE_NAME
-    from ams_can_bridge.ros.params import unmatched_params_files
+    from ams_can_bridge.ros.params import params_file_problems, unmatched_params_files
     sys.setswitchinterval(GIL_SWITCH_INTERVAL)
     signals = StopSignals()
     try:
@@ -130,6 +130,10 @@ def main(args: list[str] | None = None) -> int:
         return 2
     node = None
     try:
+        problems = params_file_problems(argv)
+        if problems:  # before the node exists: nothing armed, the bus not opened
+            rclpy.logging.get_logger(NODE_NAME).error('cannot start: ' + '\n'.join(problems))
+            return 2
         try:
             node = BridgeNode(argv=argv, on_exit=signals.request)
         except ConfigError as exc:

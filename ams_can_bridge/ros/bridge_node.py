@@ -14,6 +14,7 @@ the transmit gate (``engine/gate.py``). Here: the lifecycle, the parameter decla
 from __future__ import annotations
 
 import logging
+import os
 import time
 import traceback
 from typing import Any, Callable
@@ -30,9 +31,9 @@ from ams_can_bridge.devices.base import Device
 from ams_can_bridge.engine.calls import answered
 from ams_can_bridge.engine.gate import CommandGate
 from ams_can_bridge.engine.live import live_engine, open_bus
-from ams_can_bridge.engine.param_sets import apply_set, set_refusal
+from ams_can_bridge.engine.param_sets import apply_set, not_set_refusal, set_refusal
 from ams_can_bridge.engine.startup import (bus_settings, check_replay_clock, launch_gate,
-                                           run_start_checks, start_summary)
+                                           run_start_checks, security_warning, start_summary)
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.parameters import AUTOSTART, BUS_PARAMS, NODE_PARAMS
 from ams_can_bridge.ros.bus_log import BusStateLog
@@ -40,6 +41,7 @@ from ams_can_bridge.ros.commander import Commander, make_commander
 from ams_can_bridge.ros.convert import stdlib_logger
 from ams_can_bridge.ros.overrides import unapplied_overrides
 from ams_can_bridge.ros.params import ParamRegistry
+from ams_can_bridge.ros.requests import guard_services
 from ams_can_bridge.ros.sink import RosSink
 
 NODE_NAME = 'ams_can_bridge'
@@ -63,6 +65,7 @@ class BridgeNode(LifecycleNode):
         super().__init__(node_name, **kwargs)
         self._argv = argv
         self._on_exit = on_exit
+        guard_services(self)  # parameter and lifecycle services: a bad request is answered
         self.params = ParamRegistry(self)
         self.service_group = ReentrantCallbackGroup()
         self.devices: dict[str, Device] = {}
@@ -73,12 +76,20 @@ class BridgeNode(LifecycleNode):
         self._ready = False
         self._active = False
         self._armed_at_launch = False  # commands_enabled: true given at launch, not autostart
+        # configure and activate as one step: only in the constructor (autostart); a later
+        # configure through change_state leaves the bridge inactive, whatever autostart says
+        self._autostarting = False
         self._start_error: ConfigError | None = None
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
         self.autostart = self.params.declare('autostart', AUTOSTART)
         if self.autostart is not False:  # unusable (None): configured, and its error named
-            if self.trigger_configure() != TransitionCallbackReturn.SUCCESS:
+            self._autostarting = True
+            try:
+                configured = self.trigger_configure()
+            finally:
+                self._autostarting = False
+            if configured != TransitionCallbackReturn.SUCCESS:
                 error = self._start_error or ConfigError('the bridge could not be configured')
                 self.destroy_node()
                 raise error
@@ -128,6 +139,8 @@ class BridgeNode(LifecycleNode):
         self._active = False
         if self.commands_enabled:
             self.set_parameters([Parameter('commands_enabled', value=False)])
+        if self.gate is not None:  # whatever became of that set: nothing is sent now
+            self.gate.set_enabled(False, how='the bridge was deactivated')
         self.periodic.stop()
         if self.sink is not None:
             self.sink.enabled = False
@@ -149,7 +162,7 @@ class BridgeNode(LifecycleNode):
         run_start_checks(self._configure, self.params.errors, self.params.unknown)
         self._ready = True
         assert self.can_io is not None  # opened by _configure above
-        if self.autostart and self.sink is not None:
+        if self._autostarting and self.sink is not None:
             # configure and activate are one step here: a frame that arrives between them
             # (a replay plays at once) is published, not lost to the inactive state
             self.sink.enabled = True
@@ -158,8 +171,9 @@ class BridgeNode(LifecycleNode):
                                          enabled=self.commands_enabled,
                                          allowed=self.commands_allowed)
         self.get_logger().info(summary)
-        if warning:
-            self.get_logger().warning(warning)
+        for text in (warning, security_warning(self.commands_allowed, os.environ)):
+            if text:
+                self.get_logger().warning(text)
 
     def _release(self) -> None:
         """Stop the periodic work, the commanders and the bus thread; drop the publishers."""
@@ -198,7 +212,7 @@ class BridgeNode(LifecycleNode):
             self.bus_config = settings.config
         self.hardware_id = settings.hardware_id
         self.gate, later, refused = launch_gate(
-            self.hardware_id, node, bus, autostart=self.autostart,
+            self.hardware_id, node, bus, autostart=self._autostarting,
             logger=self._stdlib_logger('gate', logging.DEBUG),
             node_name=self.get_fully_qualified_name())
         if later:  # configured, not active: nothing may be sent; activate arms it as given
@@ -264,12 +278,38 @@ class BridgeNode(LifecycleNode):
             callback = answered(srv_name, callback, self.gate, self.get_logger())
         return super().create_service(srv_type, srv_name, callback, **kwargs)
 
+    def set_parameters(self, parameter_list: list[Parameter]) -> list[SetParametersResult]:
+        """Set each parameter on its own (as rclpy does), NOT_SET refused (see below)."""
+        return [self.set_parameters_atomically([param]) for param in parameter_list]
+
+    def set_parameters_atomically(self, parameter_list: list[Parameter]) -> SetParametersResult:
+        """Set all or none; PARAMETER_NOT_SET for a declared parameter is refused, logged."""
+        # rclpy would undeclare it (its value gone until a restart, ams.bank_count included);
+        # refused here, before rclpy's own checks, so every parameter is refused alike
+        for param in parameter_list:
+            if param.type_ == Parameter.Type.NOT_SET and self.has_parameter(param.name):
+                reason = not_set_refusal(param.name)
+                self.get_logger().warning(f'refused: {reason}')
+                return SetParametersResult(successful=False, reason=reason)
+        return super().set_parameters_atomically(parameter_list)
+
     def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
+        try:
+            return self._judge_set(parameters)
+        except Exception as exc:  # a bug: the set is refused, the executor goes on
+            self.get_logger().error(f'parameter set refused, internal error:\n'
+                                    f'{traceback.format_exc()}')
+            return SetParametersResult(successful=False,
+                                       reason=f'internal error: {type(exc).__name__}: {exc}')
+
+    def _judge_set(self, parameters: list[Parameter]) -> SetParametersResult:
         for param in parameters:
             reason = self.params.validate(param)
-            if reason is None and self._ready and self.gate is not None:
+            # has_parameter is false while a parameter is being declared: a set is judged
+            if reason is None and self.has_parameter(param.name):
                 reason = set_refusal(param.name, self.params.value(param), gate=self.gate,
-                                     devices=self.devices, active=self._active,
+                                     devices=self.devices if self._ready else {},
+                                     active=self._active, configured=self._ready,
                                      log=self.get_logger())
             if reason:
                 return SetParametersResult(successful=False, reason=reason)
@@ -277,8 +317,12 @@ class BridgeNode(LifecycleNode):
 
     def _after_set_parameters(self, parameters: list[Parameter]) -> None:
         if self._ready and self.gate is not None:
-            apply_set({p.name: self.params.value(p) for p in parameters}, gate=self.gate,
-                      devices=self.devices, log=self.get_logger())
+            try:
+                apply_set({p.name: self.params.value(p) for p in parameters}, gate=self.gate,
+                          devices=self.devices, log=self.get_logger())
+            except Exception:  # a bug: logged; the set stands, the executor goes on
+                self.get_logger().error(f'parameter set not applied, internal error:\n'
+                                        f'{traceback.format_exc()}')
 
     def destroy_node(self) -> None:
         """Release everything (as on_shutdown) and destroy the node."""

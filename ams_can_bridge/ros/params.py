@@ -20,6 +20,7 @@ import yaml
 
 from ams_can_bridge.device_set import unknown_parameter_errors
 from ams_can_bridge.errors import ParamError
+from ams_can_bridge.offline.params_file import duplicate_problems
 from ams_can_bridge.parameters import (
     allowed_text, coerce, numeric_choices, ParamSpec, raise_param_errors)
 
@@ -154,6 +155,24 @@ def ros_flag_values(argv: Iterable[str], flags: tuple[str, ...]) -> list[str]:
 def params_files(argv: Iterable[str]) -> list[str]:
     """Return the ``--params-file`` paths of the ``--ros-args`` parts of a command line."""
     return ros_flag_values(argv, ('--params-file',))
+
+
+def params_file_problems(argv: Iterable[str]) -> list[str]:
+    """
+    Return why the params files of a command line cannot be used as written ([] = fine).
+
+    rcl takes the last of a key given twice (``commands_allowed: false`` at the top, ``true``
+    further down starts the bridge armed): such a key, or a second section for the node,
+    stops the bridge before it is built, naming the key and both lines.
+    """
+    problems = []
+    for path in params_files(argv):
+        try:
+            with open(path, encoding='utf-8') as stream:
+                problems += duplicate_problems(path, stream.read())
+        except (OSError, yaml.YAMLError):
+            continue  # rcl has refused it already, with its own message
+    return problems
 
 
 def section_applies(section: str, fully_qualified_name: str) -> bool:

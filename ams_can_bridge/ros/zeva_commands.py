@@ -11,6 +11,11 @@ Nothing is sent unless ``commands_enabled`` is true, and a refused call sends no
 frame of a call is built (and so validated) before the first one is sent. Frames go through
 the gate (``engine/gate.py``); the frames of one call go out in one ``gate.batch()``, so no
 other call's frame lands between two of them.
+
+A disarm (``commands_enabled`` false) during a multi-frame write wins at once: the gate lets
+no further frame out, even of a sequence under way (nothing is ever sent after a disarm
+returns). The call then answers which frames went out and which did not, and for the EVMS3
+what that leaves in the device (``EVMS3_PARTIAL``).
 """
 from __future__ import annotations
 
@@ -27,6 +32,13 @@ from ams_can_bridge.engine.gate import CommandPort
 from ams_can_bridge.errors import EncodeRangeError, RefusedCommand
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.ros.commander import Commander, DeviceT, ServiceHost
+
+
+# docs/protocols.md 3.6: 32..36 change the EVMS3's RAM at once; only 35 saves to EEPROM.
+EVMS3_PARTIAL = ('the EVMS3 saves its configuration to EEPROM only when ID 35 arrives, so the '
+                 'frames sent changed its RAM only: it runs with them until its next power-up, '
+                 'which restores the saved configuration; call write_config again (all five '
+                 'frames) once commands are enabled')
 
 
 def frame_text(frame: Frame) -> str:
@@ -51,7 +63,9 @@ class _ZevaCommands(Commander[DeviceT]):
         return callback
 
     def _send_frames(self, what: str, build: Callable[[], Iterable[Frame]],
-                     gap: float = 0.0, note_gap: bool = False) -> tuple[bool, str]:
+                     gap: float = 0.0, note_gap: bool = False,
+                     partial: str = '') -> tuple[bool, str]:
+        """Send a call's frames in one batch; ``partial``: what a sequence cut short means."""
         if not self.gate.enabled:
             return False, f'{self.name}: {self.gate.refusal(what)}'
         try:
@@ -69,12 +83,15 @@ class _ZevaCommands(Commander[DeviceT]):
         if not ok:
             return False, f'{self.name}: cannot {what}: {message}; nothing was sent'
         with self.gate.batch():  # the pause after each frame too: nothing else lands there
-            for frame in frames:
+            for k, frame in enumerate(frames):
                 ok, message = self.gate.transmit(frame, wait=False)
                 if not ok:
                     done = ', '.join(sent) if sent else 'nothing'
+                    left = ', '.join(f'ID {f.arbitration_id}' for f in frames[k:])
+                    after = f'. {partial}' if sent and partial else ''
                     return False, (f'{self.name}: {what} failed at {frame_text(frame)}: '
-                                   f'{message}; sent before it: {done}')
+                                   f'{message}; sent before it: {done}; not sent: {left}'
+                                   f'{after}')
                 sent.append(frame_text(frame))
                 if gap:
                     self._sleep(gap)  # after each frame, as the device's own tool paces it
@@ -111,7 +128,8 @@ class Evms3Commands(_ZevaCommands[Evms3Device]):
 
     def _write_config(self, request: Any, response: Any) -> Any:
         response.success, response.message = self._send_frames(
-            'write the configuration', self.device.config_frames, gap=self.WRITE_GAP)
+            'write the configuration', self.device.config_frames, gap=self.WRITE_GAP,
+            partial=EVMS3_PARTIAL)
         return response
 
     def _read_config(self, request: Any, response: Any) -> Any:
