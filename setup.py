@@ -32,6 +32,7 @@ setup(
             'simulator = ams_can_bridge.sim.main:main',
             'demo = ams_can_bridge.ros.demo:main',
             'log2bag = ams_can_bridge.offline.log2bag:main',
+            'probe = ams_can_bridge.probe.main:main',
         ],
     },
 )

@@ -1,0 +1,120 @@
+"""
+Run the recognisers, settle candidates for the same IDs, link devices, list what is left.
+
+A recogniser is a function ``(traffic, found so far) -> new candidates``; it may also refine
+a candidate found before it (add or decide a setting), which is how a decision that needs
+more than one device's frames plugs in. They run in ``BUILT_IN`` order, then the DBC pairs
+given on the command line. Two candidates that explain one ID cannot both be right: the one
+that explains everything the other does and more wins, else the more confident one (the
+user's own DBC on a tie), and the other is reported as a conflict.
+
+Not here yet, to plug in as one recogniser each: the SMA voltage scale decided from 0x351
+(refines the sma candidate's ``voltage_scale``), and the shipped ``dbc`` profiles
+(foxBMS 2, Orion BMS 2: ``dbc.match_plan`` on the profile's plan, writing ``<name>.profile``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import functools
+from typing import Callable, Sequence
+
+from ams_can_bridge.probe import ams, bms16, evms3, ivt_s, sma
+from ams_can_bridge.probe.evidence import Candidate, Conflict, MEDIUM, WEAK
+from ams_can_bridge.probe.traffic import IdTraffic, Traffic
+from ams_can_bridge.registry import DEVICE_TYPES
+
+Recogniser = Callable[[Traffic, list[Candidate]], list[Candidate]]
+BUILT_IN: tuple[Recogniser, ...] = (ams.recognise, ivt_s.recognise, evms3.recognise,
+                                    bms16.recognise, sma.recognise)
+PACK_VOLTAGE_AGREEMENT = 0.05  # an IVT-S voltage within 5 % of the AMS cell sum measures the pack
+
+
+@dataclass
+class Findings:
+    """What probe found: the devices kept (in params-file order), conflicts, the rest."""
+
+    devices: list[Candidate] = field(default_factory=list)
+    conflicts: list[Conflict] = field(default_factory=list)
+    unplaced: list[IdTraffic] = field(default_factory=list)
+
+    @property
+    def written(self) -> list[Candidate]:
+        """Return the devices the params file lists."""
+        return [c for c in self.devices if c.written]
+
+
+def recognise(traffic: Traffic, recognisers: Sequence[Recogniser] = BUILT_IN) -> Findings:
+    """Run every recogniser on the traffic and settle what they found."""
+    found: list[Candidate] = []
+    for recogniser in recognisers:
+        found += recogniser(traffic, found)
+    kept, conflicts = settle([c for c in found if c.confidence >= WEAK])
+    kept.sort(key=lambda c: (DEVICE_TYPES.index(c.type), -c.confidence))
+    _name(kept)
+    _link(kept)
+    claimed = set().union(*(c.ids for c in kept))
+    return Findings(kept, conflicts, [e for e in traffic if e.key not in claimed])
+
+
+def _before(a: Candidate, b: Candidate) -> int:
+    """Order two candidates: the one to keep when both claim one ID comes first (-1)."""
+    for x, y, sign in ((a, b, -1), (b, a, 1)):
+        if x.ids > y.ids and x.confidence >= MEDIUM:
+            return sign
+    key_a = (a.confidence, len(a.ids), a.user_given)
+    key_b = (b.confidence, len(b.ids), b.user_given)
+    return -1 if key_a > key_b else 1 if key_a < key_b else 0
+
+
+def settle(candidates: list[Candidate]) -> tuple[list[Candidate], list[Conflict]]:
+    """Keep the candidates that claim no ID of a better one; the others are conflicts."""
+    kept: list[Candidate] = []
+    conflicts = []
+    for cand in sorted(candidates, key=functools.cmp_to_key(_before)):
+        rival = next((k for k in kept if k.ids & cand.ids), None)
+        if rival is None:
+            kept.append(cand)
+        elif cand.confidence >= MEDIUM:  # a weaker match set aside is no news
+            conflicts.append(Conflict(rival, cand, rival.ids & cand.ids))
+    return kept, conflicts
+
+
+def _name(devices: list[Candidate]) -> None:
+    """Make the instance names unique: the first of a name keeps it, then name_2, ..."""
+    used: set[str] = set()
+    for cand in devices:
+        name, n = cand.name, 1
+        while name in used:
+            n += 1
+            name = f'{cand.name}_{n}'
+        cand.name = name
+        used.add(name)
+
+
+def _link(devices: list[Candidate]) -> None:
+    """Decide what needs two devices: which IVT-S result measures the AMS pack."""
+    amss = [c for c in devices if c.type == 'ams' and c.written]
+    shunts = [c for c in devices if c.type == 'ivt_s' and c.written]
+    for cand in amss:
+        if not shunts:
+            cand.notes.append('no IVT-S heard: the AMS voltage is the sum of its cells and '
+                              'the current is unknown (NaN)')
+            continue
+        shunt = shunts[0]
+        cand.set('current_sensor', shunt.name, f'the IVT-S at {shunt.title[len("IVT-S at "):]}')
+        cells = cand.facts.get('cell_sum_v')
+        voltages = shunt.facts.get('voltages', {})
+        near = sorted((abs(v - cells), name) for name, v in voltages.items()) if cells else []
+        if near and near[0][0] <= PACK_VOLTAGE_AGREEMENT * cells:
+            name = near[0][1]
+            cand.set('pack_voltage_channel', name,
+                     f'{name} reads {voltages[name]:.1f} V, the AMS cells add up to '
+                     f'{cells:.1f} V' + (' (' + ', '.join(
+                         f'{n} {voltages[n]:.1f} V' for _, n in near[1:]) + ')'
+                         if len(near) > 1 else ''))
+        else:
+            cand.set('pack_voltage_channel', 'U1', 'check: ' + (
+                f'no IVT-S voltage near the AMS cell sum {cells:.1f} V ('
+                + ', '.join(f'{n} {v:.1f} V' for n, v in voltages.items()) + ')'
+                if cells and voltages else 'no IVT-S voltage or AMS cell sum to compare')
+                + ': the input wired across the pack', decided=False)
