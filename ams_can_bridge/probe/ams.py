@@ -19,6 +19,8 @@ from ams_can_bridge.protocols.ams import AmsCodec
 
 DEFAULT_STALE_S = 0.5  # the device's 5 x 0.1 s
 COUNTING = 0.8  # share of status frames whose counter went up by exactly one
+SEEN_COUNTING = 3  # status frames from which a counter that never moves rules an AMS out
+CELL_V = (1.5, 4.6)  # V: what a lithium cell of an AMS reads (the frame can carry 0..5.1)
 # Other AMS frames, claimed when they read as such (a master's and a charger's included)
 _OTHERS = {proto.CHARGER_STATUS: 'charger status', proto.CAR_STATUS: 'car status (a master)',
            proto.CHARGER_COMMANDS: 'charger commands (a charger)', proto.ERROR: 'AMS errors',
@@ -69,8 +71,12 @@ def recognise(traffic: Traffic, found: list[Candidate]) -> list[Candidate]:
         except EncodeRangeError:
             continue  # too high an ID for a base with 0x051 above it
         statuses = _decoded(codec, entry)
-        if statuses:
-            out.append(_candidate(traffic, codec, entry, statuses[:len(entry.samples)]))
+        if not statuses:
+            continue
+        statuses = statuses[:len(entry.samples)]
+        if len(statuses) >= SEEN_COUNTING and len({s.counter for s in statuses}) == 1:
+            continue  # an AMS counts its status frames
+        out.append(_candidate(traffic, codec, entry, statuses))
     return out
 
 
@@ -93,6 +99,9 @@ def _candidate(traffic: Traffic, codec: AmsCodec, status: IdTraffic,
                                   'discharge temperatures')):
         entry = get(offset)
         readings = _decoded(codec, entry)
+        if readings and offset == proto.CELL_VOLTAGES and not all(
+                CELL_V[0] <= v <= CELL_V[1] for r in readings for v in r.voltages_v):
+            readings = None  # bytes that read as cells of 0.3 V or 5 V are something else
         if entry is None or not readings:
             if entry is not None:
                 cand.notes.append(f'0x{entry.can_id:03X} does not read as AMS {what}: '

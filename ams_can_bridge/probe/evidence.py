@@ -18,6 +18,7 @@ from ams_can_bridge.probe.traffic import Key
 HIGH = 0.8    # confidence from here: 'high'
 MEDIUM = 0.5  # from here: 'medium', written to the params file; below: reported only
 WEAK = 0.35   # below: not even reported as a candidate (its IDs stay unplaced)
+STALE_MARGIN = 1.1  # a period this much over the default's fifth is a slower sender, not jitter
 
 
 @dataclass
@@ -96,7 +97,7 @@ def stale_setting(candidate: Candidate, period_s: float, default_s: float,
     The bridge's default is 5 x the device's usual period; a sender set to a slower cycle
     would be STALE between its own frames: then 5 x the observed period, rounded up.
     """
-    if period_s == period_s and 5 * period_s > default_s:
+    if period_s == period_s and 5 * period_s > STALE_MARGIN * default_s:
         value = max(math.ceil(50 * period_s) / 10, default_s)
         candidate.set('stale_timeout', value,
                       f'{what} every {period_s:.3g} s: 5 x that (the default {default_s:g} s '

@@ -57,7 +57,7 @@ def recognise(traffic: Traffic, found: list[Candidate]) -> list[Candidate]:
 def _candidate(traffic: Traffic, status: zeva.ZevaStatus) -> Candidate:
     entry = status.entry
     base, extended = entry.can_id, entry.extended
-    score = 0.2 + (0.3 if status.four_hz else 0) + (0.1 if extended else 0)
+    score = 0.15 + (0.3 if status.four_hz else 0) + (0.1 if extended else 0)
     cand = Candidate('evms3', 'evms3', f'EVMS3 at {entry.label()}', 0.0, frozenset(),
                      [status.describe() + ('' if status.four_hz else ' (an EVMS3 sends 4 Hz)')])
     ids: set[Key] = {entry.key}

@@ -115,6 +115,8 @@ def _candidate(traffic: Traffic, base: int,
     except ConfigError:
         return None
     counting = {kind: _counter(entry) for kind, entry in results.items()}
+    jumps = [k for k, (_, how) in counting.items() if how.startswith('counter +')
+             and not how.startswith('counter +1')]
     running = sum(ok for ok, _ in counting.values())
     if not running:
         return None  # a DLC-6 frame with a constant first byte, nothing more
@@ -128,6 +130,10 @@ def _candidate(traffic: Traffic, base: int,
                      frozenset(e.key for e in results.values()),
                      [f'results {cycles}' + (f'; not heard: {", ".join(off)}' if off else '')])
     cand.facts['has_current'] = IvtMux.I in results
+    if jumps:
+        cand.notes.append('the counters of ' + ', '.join(DBC_NAME[k] for k in jumps)
+                          + ' step by more than one a frame: the ivt_s diagnostics will warn '
+                          'of lost frames')
     ids: set[Key] = set(cand.ids)
     for can_id, lowest in ((COMMAND_ID, cmd.SET_CONFIG_RESULT),
                            (RESPONSE_ID, cmd.RESP_MEAS_ERROR)):

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 from dataclasses import asdict
+import os
 import sys
 from typing import Sequence
 
@@ -136,6 +137,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print('probe: interrupted', file=sys.stderr)
         return 130
+    except BrokenPipeError:  # probe LOG | head: the reader has all it wanted
+        sys.stdout = open(os.devnull, 'w')  # no second error when Python flushes at exit
+        return 0
     return 0
 
 

@@ -15,7 +15,6 @@ Not here yet, to plug in as one recogniser each: the SMA voltage scale decided f
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-import functools
 from typing import Callable, Sequence
 
 from ams_can_bridge.probe import ams, bms16, evms3, ivt_s, sma
@@ -49,33 +48,38 @@ def recognise(traffic: Traffic, recognisers: Sequence[Recogniser] = BUILT_IN) ->
     for recogniser in recognisers:
         found += recogniser(traffic, found)
     kept, conflicts = settle([c for c in found if c.confidence >= WEAK])
-    kept.sort(key=lambda c: (DEVICE_TYPES.index(c.type), -c.confidence))
+    kept.sort(key=lambda c: (DEVICE_TYPES.index(c.type), not c.written, -c.confidence))
     _name(kept)
     _link(kept)
     claimed = set().union(*(c.ids for c in kept))
     return Findings(kept, conflicts, [e for e in traffic if e.key not in claimed])
 
 
-def _before(a: Candidate, b: Candidate) -> int:
-    """Order two candidates: the one to keep when both claim one ID comes first (-1)."""
-    for x, y, sign in ((a, b, -1), (b, a, 1)):
-        if x.ids > y.ids and x.confidence >= MEDIUM:
-            return sign
-    key_a = (a.confidence, len(a.ids), a.user_given)
-    key_b = (b.confidence, len(b.ids), b.user_given)
-    return -1 if key_a > key_b else 1 if key_a < key_b else 0
-
-
 def settle(candidates: list[Candidate]) -> tuple[list[Candidate], list[Conflict]]:
-    """Keep the candidates that claim no ID of a better one; the others are conflicts."""
+    """
+    Keep the candidates that claim no ID of a better one; the others are conflicts.
+
+    Better: the one that explains every ID of its rivals and more (if it is at least of
+    medium confidence), else the more confident, then the one explaining more IDs, then the
+    user's own DBC. A weak match set aside is not reported.
+    """
     kept: list[Candidate] = []
     conflicts = []
-    for cand in sorted(candidates, key=functools.cmp_to_key(_before)):
-        rival = next((k for k in kept if k.ids & cand.ids), None)
-        if rival is None:
+
+    def drop(winner: Candidate, loser: Candidate) -> None:
+        if loser.confidence >= MEDIUM:
+            conflicts.append(Conflict(winner, loser, winner.ids & loser.ids))
+    for cand in sorted(candidates, key=lambda c: (c.confidence, len(c.ids), c.user_given),
+                       reverse=True):
+        rivals = [k for k in kept if k.ids & cand.ids]
+        if not rivals:
             kept.append(cand)
-        elif cand.confidence >= MEDIUM:  # a weaker match set aside is no news
-            conflicts.append(Conflict(rival, cand, rival.ids & cand.ids))
+        elif cand.confidence >= MEDIUM and all(cand.ids > r.ids for r in rivals):
+            kept = [k for k in kept if k not in rivals] + [cand]
+            for rival in rivals:
+                drop(cand, rival)
+        else:
+            drop(rivals[0], cand)
     return kept, conflicts
 
 
