@@ -37,7 +37,7 @@ class Variant:
 
 def ams_ivt(banks: int, base: int = 0x300, ivt_base: int = 0x521, order: str = 'big',
             cycles: dict | None = None, pad: bool = False) -> Callable[[], list[SimDevice]]:
-    """An AMS with an IVT-S measuring its pack (as the simulator pairs them)."""
+    """Build an AMS with an IVT-S measuring its pack (as the simulator pairs them)."""
     def build() -> list[SimDevice]:
         ams = AmsSimulator('ams', base_id=base, bank_count=banks, pad=pad)
         ivt = IvtSSimulator('ivt_s', base_id=ivt_base, byte_order=order,

@@ -1,6 +1,8 @@
 """
-probe's command line: bad input is one line and exit 2, the help needs no ROS, conflicts
-are settled and said, a bus of unknown IDs still gets a params file the bridge accepts.
+The probe command line: bad input, help, conflicts, unknown IDs, the user's DBC.
+
+Bad input is one line and exit 2, the help needs no ROS, conflicts are settled and said, a
+bus of unknown IDs still gets a params file the bridge accepts.
 """
 from __future__ import annotations
 

@@ -192,7 +192,7 @@ def bridge_messages(node, executor, params: Path, peer: SlcanPeer,
 
 
 def test_probe_never_sends_on_a_virtual_bus(capsys):
-    """probe on python-can's virtual bus: a third bus hears only what the simulator sent."""
+    """Run probe on python-can's virtual bus: a third bus hears only what the simulator sent."""
     import can
 
     from ams_can_bridge.probe.main import main
@@ -229,7 +229,7 @@ def test_probe_never_sends_on_a_virtual_bus(capsys):
 
 
 def test_probe_help_and_a_log_load_no_ros_module(tmp_path):
-    """probe --help and a whole probe run import nothing of ROS (it runs without it)."""
+    """Check that probe --help and a whole probe run import nothing of ROS."""
     from ams_can_bridge.sim.recording import write_log
     log = tmp_path / 'bus.log'
     write_log(str(log), BY_NAME['sma'].build(), 3.0)

@@ -15,7 +15,7 @@ from ams_can_bridge.probe import zeva
 from ams_can_bridge.probe.evidence import Candidate, stale_setting
 from ams_can_bridge.probe.traffic import IdTraffic, Key, Traffic
 from ams_can_bridge.protocols import bms16 as inverter
-from ams_can_bridge.protocols.bms16 import Bms16Cells, Bms16Codec
+from ams_can_bridge.protocols.bms16 import Bms16Cells, Bms16Codec, Bms16Status
 from ams_can_bridge.protocols.bms16_std import (
     CAN_CURRENT_SENSOR_ID, CELLS_PER_MODULE, MAX_CELLS)
 from ams_can_bridge.protocols.sma import SMA_IDS
@@ -40,8 +40,11 @@ def _inverter(traffic: Traffic, status: IdTraffic) -> Candidate | None:
     base = status.can_id
     try:
         codec = Bms16Codec(base)
-        readings = [codec.decode(base, data) for data in status.payloads]
+        readings = [r for data in status.payloads
+                    if isinstance(r := codec.decode(base, data), Bms16Status)]
     except (EncodeRangeError, MalformedFrameError):
+        return None
+    if not readings:
         return None
     ids: set[Key] = {status.key}
     last = readings[-1]

@@ -19,7 +19,8 @@ from ams_can_bridge.protocols.tc_charger import COMMAND_IDS, STATUS_IDS
 DEFAULT_STALE_S = 1.25  # the device's 5 x 0.25 s
 MIN_CELLS = 4  # a BMS12 module has 4..12 cells (section 3.5), or none
 # the highest full voltage a 1x build can set (section 3.5): a pack above it needs 2x
-MAX_FULL_VOLTAGE_1X = next(s.high for s in CONFIG_LAYOUTS[0].signals if s.name == 'FullVoltage')
+MAX_FULL_VOLTAGE_1X = float(next(  # type: ignore[arg-type]  # the row has a range
+    s.high for s in CONFIG_LAYOUTS[0].signals if s.name == 'FullVoltage'))
 
 
 def chargers(traffic: Traffic) -> tuple[set[Key], list[str]]:

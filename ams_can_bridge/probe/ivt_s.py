@@ -95,8 +95,8 @@ def _byte_order(codecs: dict[str, IvtSCodec],
 
 def recognise(traffic: Traffic, found: list[Candidate]) -> list[Candidate]:
     """Return one candidate per base ID with result frames; the one with I first."""
-    out = [_candidate(traffic, base, results) for base, results in _results(traffic).items()]
-    out = [c for c in out if c is not None]
+    out = [cand for base, results in _results(traffic).items()
+           if (cand := _candidate(traffic, base, results)) is not None]
     out.sort(key=lambda c: (not c.facts['has_current'], -c.confidence))
     for extra in out[1:]:
         extra.writable = False

@@ -106,19 +106,19 @@ def _link(devices: list[Candidate]) -> None:
             continue
         shunt = shunts[0]
         cand.set('current_sensor', shunt.name, f'the IVT-S at {shunt.title[len("IVT-S at "):]}')
-        cells = cand.facts.get('cell_sum_v')
-        voltages = shunt.facts.get('voltages', {})
-        near = sorted((abs(v - cells), name) for name, v in voltages.items()) if cells else []
-        if near and near[0][0] <= PACK_VOLTAGE_AGREEMENT * cells:
+        cells: float | None = cand.facts.get('cell_sum_v')
+        voltages: dict[str, float] = shunt.facts.get('voltages', {})
+        near = sorted((abs(v - cells), name) for name, v in voltages.items()) \
+            if cells is not None else []
+        if cells is not None and near and near[0][0] <= PACK_VOLTAGE_AGREEMENT * cells:
             name = near[0][1]
+            others = ', '.join(f'{n} {voltages[n]:.1f} V' for _, n in near[1:])
             cand.set('pack_voltage_channel', name,
                      f'{name} reads {voltages[name]:.1f} V, the AMS cells add up to '
-                     f'{cells:.1f} V' + (' (' + ', '.join(
-                         f'{n} {voltages[n]:.1f} V' for _, n in near[1:]) + ')'
-                         if len(near) > 1 else ''))
+                     f'{cells:.1f} V' + (f' ({others})' if others else ''))
         else:
+            heard = ', '.join(f'{n} {v:.1f} V' for n, v in voltages.items())
             cand.set('pack_voltage_channel', 'U1', 'check: ' + (
-                f'no IVT-S voltage near the AMS cell sum {cells:.1f} V ('
-                + ', '.join(f'{n} {v:.1f} V' for n, v in voltages.items()) + ')'
-                if cells and voltages else 'no IVT-S voltage or AMS cell sum to compare')
-                + ': the input wired across the pack', decided=False)
+                f'no IVT-S voltage near the AMS cell sum {cells:.1f} V ({heard})'
+                if cells is not None and voltages else 'no IVT-S voltage or AMS cell sum to '
+                'compare') + ': the input wired across the pack', decided=False)

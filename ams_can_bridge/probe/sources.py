@@ -97,6 +97,7 @@ def open_bus(interface: str, channel: str, bitrate: int, options: dict[str, Any]
     kwargs = dict(options)
     if bitrate:
         kwargs['bitrate'] = bitrate
+    bus: can.BusABC
     try:
         if interface == 'slcan':
             kwargs.setdefault('timeout', SLCAN_TIMEOUT_S)

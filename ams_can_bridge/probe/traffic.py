@@ -88,7 +88,7 @@ class Traffic:
         self.first = math.nan
         self.last = math.nan
 
-    def add(self, can_id: int, extended: bool, data: bytes, stamp: float) -> None:
+    def add(self, can_id: int, extended: bool, data: bytes | bytearray, stamp: float) -> None:
         """Take one data frame."""
         key = (can_id, extended)
         entry = self.ids.get(key)

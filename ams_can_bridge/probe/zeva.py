@@ -47,7 +47,8 @@ class ZevaStatus:
 
 
 def statuses(traffic: Traffic) -> list[ZevaStatus]:
-    """Return every ID whose frames all read as the ZEVA status layout (DLC 8).
+    """
+    Return every ID whose frames all read as the ZEVA status layout (DLC 8).
 
     The BMS12 IDs are left out: a core's IDs cannot overlap them (its codec refuses that),
     and a module's padded temperature frame can read as a status.
