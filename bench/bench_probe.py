@@ -9,7 +9,6 @@ as the floor. The median pass of each counts. Target: probe at least as fast as 
 Run: ``./dev bench --only probe`` or ``.venv/bin/python bench/bench_probe.py``.
 """
 import argparse
-import json
 import os
 import shutil
 import statistics
@@ -43,60 +42,51 @@ def log2bag_pass(log: str, work: str, n: int) -> tuple[int, float]:
     return summary.frames_read, seconds
 
 
+def alternate(log: str, work: str, frames: int, passes: int) -> dict:
+    """Time probe and log2bag on one log, passes alternating; the figures of the median."""
+    times: dict[str, list[float]] = {'probe': [], 'log2bag': [], 'read': []}
+    devices = 0
+    for n in range(passes):
+        for what in (('probe', 'log2bag') if n % 2 == 0 else ('log2bag', 'probe')):
+            if what == 'probe':
+                count, took, devices = probe_pass(log)
+            else:
+                count, took = log2bag_pass(log, work, n)
+            assert count == frames, (what, count, frames)
+            times[what].append(took)
+        times['read'].append(bare_read(log)[1])
+    fps = {what: frames / statistics.median(t) for what, t in times.items()}
+    return {'frames': frames, 'devices_written': devices, 'probe_fps': fps['probe'],
+            'log2bag_fps': fps['log2bag'], 'python_can_read_fps': fps['read'],
+            'passes': passes, 'met': fps['probe'] >= fps['log2bag']}
+
+
 def measure(seconds: float, formats, passes: int = 3) -> list[dict]:
-    """Measure probe and log2bag on one simulated log per format, passes alternating."""
-    work = tempfile.mkdtemp(prefix='bench_probe_')
+    """Measure probe and log2bag on one simulated log per format."""
     rows = []
-    try:
+    with tempfile.TemporaryDirectory(prefix='bench_probe_') as work:
         for fmt in formats:
             log = os.path.join(work, f'bus.{fmt}')
             frames = write_log(log, simulators(), seconds)
-            probe_s, log2bag_s, read_s = [], [], []
-            devices = 0
-            for n in range(passes):
-                order = ('probe', 'log2bag') if n % 2 == 0 else ('log2bag', 'probe')
-                for what in order:
-                    if what == 'probe':
-                        count, took, devices = probe_pass(log)
-                        probe_s.append(took)
-                    else:
-                        count, took = log2bag_pass(log, work, n)
-                        log2bag_s.append(took)
-                    assert count == frames, (what, count, frames)
-                read_s.append(bare_read(log)[1])
-            probe_fps = frames / statistics.median(probe_s)
-            log2bag_fps = frames / statistics.median(log2bag_s)
-            rows.append({'format': fmt, 'frames': frames, 'devices_written': devices,
-                         'probe_fps': probe_fps, 'log2bag_fps': log2bag_fps,
-                         'python_can_read_fps': frames / statistics.median(read_s),
-                         'passes': passes, 'met': probe_fps >= log2bag_fps})
-    finally:
-        shutil.rmtree(work, ignore_errors=True)
+            rows.append({'format': fmt, **alternate(log, work, frames, passes)})
     return rows
 
 
 def main() -> None:
-    """Measure each format and print the table."""
+    """Measure each format and print one line per format."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[1])
     parser.add_argument('--seconds', type=float, default=60.0,
                         help='simulated seconds of bus traffic in the log')
-    parser.add_argument('--formats', default='log,blf')
     parser.add_argument('--passes', type=int, default=3)
-    parser.add_argument('--json', default='', help='also write the figures here')
     args, _ = parser.parse_known_args()
-    rows = measure(args.seconds, args.formats.split(','), args.passes)
-    print(f'probe and log2bag, {args.seconds:g} s of simulated bus per format, median of '
+    print(f'probe against log2bag, {args.seconds:g} s of simulated bus per format, median of '
           f'{args.passes} alternating passes (target: probe >= log2bag)')
-    print(f'{"format":<7}{"frames":>9}{"probe fps":>12}{"log2bag fps":>14}'
-          f'{"python-can read fps":>21}{"probe/log2bag":>15}  target')
-    for r in rows:
-        print(f'{r["format"]:<7}{r["frames"]:>9}{r["probe_fps"]:>12,.0f}'
-              f'{r["log2bag_fps"]:>14,.0f}{r["python_can_read_fps"]:>21,.0f}'
-              f'{r["probe_fps"] / r["log2bag_fps"]:>14.1f}x  '
-              + ('met' if r['met'] else 'NOT met'))
-    if args.json:
-        with open(args.json, 'w', encoding='utf-8') as stream:
-            json.dump({'probe': rows}, stream, indent=2)
+    for r in measure(args.seconds, ('log', 'blf'), args.passes):
+        verdict = 'met' if r['met'] else 'NOT met'
+        print(f'.{r["format"]}: {r["frames"]} frames, {r["devices_written"]} devices; probe '
+              f'{r["probe_fps"]:,.0f} frames/s, log2bag {r["log2bag_fps"]:,.0f} '
+              f'({r["probe_fps"] / r["log2bag_fps"]:.1f}x), python-can alone '
+              f'{r["python_can_read_fps"]:,.0f}: {verdict}')
 
 
 if __name__ == '__main__':

@@ -19,7 +19,6 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
-import signal
 import subprocess
 import sys
 import threading
@@ -34,7 +33,7 @@ from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.offline.converter import NODE_NAME
 from ams_can_bridge.offline.params_file import FileParams, load_parameters
 from ams_can_bridge.protocols.common import Frame
-from helpers import ros_context, values_of
+from helpers import interrupt, ros_context, values_of
 from probe_variants import BY_NAME, Variant
 from slcan_peer import SlcanPeer
 from test_bridge_slcan import bridge_executable
@@ -108,25 +107,13 @@ def assert_listened_only(peer: SlcanPeer) -> None:
     assert opens and all(c == 'L' for c in opens), peer.commands
 
 
-@pytest.fixture
-def ros():
-    with ros_context() as ctx:
-        node = rclpy.create_node('probe_live_listener', context=ctx)
-        executor = SingleThreadedExecutor(context=ctx)
-        executor.add_node(node)
-        yield node, executor
-        executor.shutdown()
-        node.destroy_node()
-
-
 @pytest.mark.parametrize('name, bitrate', [
     ('ams_3_ivt_little_shifted_results_off', '500000'),
     ('evms3_6_modules', 'auto'),
     ('sma_pylontech', '500000'),
 ])
-def test_live_probe_then_bridge_reads_what_the_simulator_sends(ros, tmp_path, name, bitrate):
+def test_live_probe_then_bridge_reads_what_the_simulator_sends(tmp_path, name, bitrate):
     variant = BY_NAME[name]
-    node, executor = ros
     peer = SlcanPeer(symlink=tmp_path / 'ttyACM_probe')
     out = tmp_path / 'probe.yaml'
     with Feeder(peer, variant) as feeder:
@@ -144,7 +131,7 @@ def test_live_probe_then_bridge_reads_what_the_simulator_sends(ros, tmp_path, na
         assert params['commands_allowed'] is False
         for key, value in {**variant.truth, **variant.expect}.items():
             assert params.get(key) == value, (key, result.stdout)
-        published = bridge_messages(node, executor, out, peer, variant)
+        published = bridge_messages(out, variant)
         assert peer.received() == [], 'the bridge (commands off) transmitted frames'
     for device, messages in published.items():
         assert messages, f'{device}: nothing published after the warm-up'
@@ -156,9 +143,20 @@ def test_live_probe_then_bridge_reads_what_the_simulator_sends(ros, tmp_path, na
                 device, values_of(msg))
 
 
-def bridge_messages(node, executor, params: Path, peer: SlcanPeer,
-                    variant: Variant) -> dict[str, list]:
+def bridge_messages(params: Path, variant: Variant) -> dict[str, list]:
     """Run the bridge on the probe's file; return what it published after the warm-up."""
+    with ros_context() as ctx:
+        node = rclpy.create_node('probe_live_listener', context=ctx)
+        executor = SingleThreadedExecutor(context=ctx)
+        executor.add_node(node)
+        try:
+            return _spin_bridge(node, executor, params, variant)
+        finally:
+            executor.shutdown()
+            node.destroy_node()
+
+
+def _spin_bridge(node, executor, params: Path, variant: Variant) -> dict[str, list]:
     ns = f'probe_live_{os.getpid()}'
     got: dict[str, list] = {name: [] for name in variant.truth['devices']}
     for name in got:
@@ -180,12 +178,7 @@ def bridge_messages(node, executor, params: Path, peer: SlcanPeer,
         assert first is not None, {n: len(v) for n, v in got.items()}
         assert proc.poll() is None
     finally:
-        proc.send_signal(signal.SIGINT)
-        try:
-            output = proc.communicate(timeout=20)[0]
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            output = proc.communicate(timeout=10)[0]
+        output = interrupt(proc)
     assert proc.returncode == 0 and 'Traceback' not in output, output
     return {n: [m for t, m in v if t > first + WARM_UP_S and m.present]
             for n, v in got.items()}
