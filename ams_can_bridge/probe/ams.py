@@ -122,9 +122,13 @@ def _candidate(traffic: Traffic, codec: AmsCodec, status: IdTraffic,
                 cand.set('bank_count', complete,
                          f'cell frames of banks 1..{complete}, each with its groups 0..3'
                          + (f' (the status word counts {counted})' if counted else ''))
+    padded = max(status.dlcs) == proto.MAX_DLC
     for offset, what in _OTHERS.items():
         entry = get(offset)
-        if entry is not None and _decoded(codec, entry):
+        # another sender's frames (the charger's, a master's) come at their own length,
+        # unless this AMS pads: 0x351 of an SMA battery is no bank count override
+        if entry is not None and (padded or set(entry.dlcs) == {proto.LAYOUTS[offset].length}) \
+                and _decoded(codec, entry):
             ids.add(entry.key)
             evidence.append(f'{what} 0x{entry.can_id:03X}: {entry.count} frames')
             if offset == proto.CAR_STATUS:
@@ -140,7 +144,7 @@ def _candidate(traffic: Traffic, codec: AmsCodec, status: IdTraffic,
         else:
             cand.set('bank_count', 1, 'check: no cell frame heard and the status word counts '
                      'no bank: set the number of banks of 28 cells', decided=False)
-    if max(status.dlcs) == proto.MAX_DLC:
+    if padded:
         evidence.append('frames padded to DLC 8 (accepted, section 1.7)')
     cand.set('base_id', base, f'0x{base:03X}: status there, the other frames at their '
              'offsets from it')

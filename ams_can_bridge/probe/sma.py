@@ -57,6 +57,7 @@ def recognise(traffic: Traffic, found: list[Candidate]) -> list[Candidate]:
     dialect = _dialect(readings.keys() | unreadable.keys())
     cand = Candidate('sma', 'sma', f'SMA-family battery ({dialect})', min(score, 1.0),
                      frozenset(ids), [_described(traffic, readings)])
+    cand.facts['readings'] = readings  # the last of each ID: for the voltage-scale decision
     cand.evidence.append(f'dialect {dialect}: ' + _dialect_evidence(readings, unreadable))
     for can_id, reason in unreadable.items():
         cand.notes.append(f'0x{can_id:03X}: {reason}: the bridge counts these malformed')
