@@ -125,6 +125,10 @@ def test_live_probe_then_bridge_reads_what_the_simulator_sends(tmp_path, name, b
             tried = [c for c in peer.commands if c[:1] == 'S']
             assert tried[:2] == ['S6', 'S5'], peer.commands  # 500k first, then 250k
             assert f'{variant.bitrate} bit/s' in result.stderr
+            assert (f'at {variant.bitrate} bit/s (listen-only, rate found by trying the '
+                    'standard ones)') in result.stdout
+            comments = ' '.join(out.read_text().replace('#', ' ').split())
+            assert '(listen-only): 500000: 0 frames, 250000: ' in comments  # the bitrate's
         params = load_parameters(str(out), NODE_NAME)
         assert params['can.bitrate'] == variant.bitrate
         assert params['can.interface'] == 'slcan' and params['can.channel'] == peer.channel

@@ -96,8 +96,9 @@ def _bus_lines(live: LiveInfo | None) -> list[Setting]:
         return [Setting('interface', 'socketcan', 'check: a log does not say which adapter '
                         'took it, nor at which rate: set yours (README "Bit rates")', False),
                 Setting('channel', 'can0', '', False), Setting('bitrate', 500000, '', False)]
-    how = ('found by listening at the standard rates (listen-only)' if live.tried
-           else 'where probe listened')
+    how = ('found by listening at the standard rates (listen-only): ' + ', '.join(
+        f'{rate}: {frames} frames' for rate, frames in live.tried) if live.tried
+        else 'where probe listened')
     return [Setting('interface', live.interface, 'where probe listened'),
             Setting('channel', live.channel, 'where probe listened'),
             Setting('bitrate', live.bitrate, how)]
@@ -121,6 +122,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             source = f'{args.interface}:{args.channel}'
             traffic, live = listen_live(args.interface, args.channel, args.bitrate,
                                         args.duration, options, sys.stderr)
+            source = live.describe()
         findings = recognise(traffic, recognisers)
         if args.json:
             print(report.as_json(findings, traffic, source, asdict(live) if live else None))

@@ -49,6 +49,14 @@ class LiveInfo:
     listen_only: bool
     tried: list[tuple[int, int]] = field(default_factory=list)  # --bitrate auto: (rate, frames)
 
+    def describe(self) -> str:
+        """Say where and how probe listened."""
+        rate = f' at {self.bitrate} bit/s' if self.bitrate else ''
+        how = [what for what, yes in (('listen-only', self.listen_only),
+                                      ('rate found by trying the standard ones', self.tried))
+               if yes]
+        return f'{self.interface}:{self.channel}{rate}' + (f' ({", ".join(how)})' if how else '')
+
 
 class ReceiveOnly:
     """A python-can bus probe can only receive from: it has no send."""
@@ -121,6 +129,7 @@ class Listener:
         self.stream = stream
         self.draw = stream.isatty()
         self.traffic = Traffic()
+        self.interrupted = False
 
     def say(self, text: str) -> None:
         """Write one line (ending a progress line first)."""
@@ -147,6 +156,7 @@ class Listener:
                         traffic.add(msg.arbitration_id, msg.is_extended_id, msg.data, stamp)
                 self._progress(what, time.monotonic() - started, seconds)
         except KeyboardInterrupt:
+            self.interrupted = True
             self.say('stopped (Ctrl-C): reporting what came so far')
         if self.draw:
             self.stream.write('\r\x1b[K')
@@ -176,7 +186,9 @@ def listen_live(interface: str, channel: str, bitrate: int | str, seconds: float
         info = LiveInfo(interface, channel, int(bitrate), silent)
         bus = open_bus(interface, channel, info.bitrate, options, silent)
     try:
-        mode = ' (listen-only)' if info.listen_only else ''
+        mode = (' (listen-only)' if info.listen_only else
+                " (this python-can opens slcan without listen-only: the adapter acknowledges "
+                'frames)' if interface == 'slcan' else '')
         rate = f' at {info.bitrate} bit/s' if info.bitrate else ''
         listener.say(f'listening on {interface}:{channel}{rate}{mode} for {seconds:g} s; '
                      'nothing is sent')
@@ -198,6 +210,9 @@ def _find_rate(listener: Listener, info: LiveInfo, options: dict[str, Any]) -> R
         bus = open_bus(info.interface, info.channel, rate, options, True)
         heard = listener.listen(bus, AUTO_WINDOW_S, f'{rate} bit/s')
         info.tried.append((rate, heard))
+        if listener.interrupted:
+            bus.close()
+            raise KeyboardInterrupt
         if heard >= AUTO_FRAMES:
             info.bitrate = rate
             listener.say(f'{rate} bit/s: {heard} frames in {AUTO_WINDOW_S:g} s')
