@@ -20,9 +20,10 @@ from ams_can_bridge.protocols.ivt_s import (
     BYTE_ORDERS, COMMAND_ID, DBC_NAME, DLC, IvtMux, IvtSCodec, RESPONSE_ID, SI_UNIT)
 
 DEFAULT_STALE_S = 0.5  # the device's 5 x 0.1 s
-# The most an IVT-S can report of each (raw units: mA, mV, 0.1 degC, W), with a margin: the
-# largest IVT-S measures 2500 A, its voltage inputs 1000 V. The counters As and Wh can hold
-# anything and decide nothing.
+# Bounds of a plausible reading (raw units: mA, mV, 0.1 degC, W). The IVT-S measures up to
+# +-2500 A continuously (Isabellenhuette, IVT-S datasheet V1.01, 2018); 1500 V is above any
+# traction pack (800 V class). A small value read in the wrong byte order is millions of
+# amperes or volts. The counters As and Wh can hold anything and decide nothing.
 PLAUSIBLE_RAW = {IvtMux.I: 4_000_000, IvtMux.U1: 1_500_000, IvtMux.U2: 1_500_000,
                  IvtMux.U3: 1_500_000, IvtMux.T: 2_000, IvtMux.W: 6_000_000}
 

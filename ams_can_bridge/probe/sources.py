@@ -129,15 +129,20 @@ class Listener:
         self.stream = stream
         self.draw = stream.isatty()
         self.traffic = Traffic()
-        self.interrupted = False
 
     def say(self, text: str) -> None:
         """Write one line (ending a progress line first)."""
         self.stream.write(('\r\x1b[K' if self.draw else '') + f'probe: {text}\n')
         self.stream.flush()
 
-    def listen(self, bus: ReceiveOnly, seconds: float, what: str) -> int:
-        """Take frames for ``seconds``; return how many data frames came (Ctrl-C ends early)."""
+    def listen(self, bus: ReceiveOnly, seconds: float, what: str,
+               report_on_ctrl_c: bool = True) -> int:
+        """
+        Take frames for ``seconds``; return how many data frames came.
+
+        Ctrl-C ends the listening early and what came is reported; with
+        ``report_on_ctrl_c`` false (trying rates) it ends probe.
+        """
         traffic = self.traffic
         before = traffic.frames
         started = time.monotonic()
@@ -156,7 +161,8 @@ class Listener:
                         traffic.add(msg.arbitration_id, msg.is_extended_id, msg.data, stamp)
                 self._progress(what, time.monotonic() - started, seconds)
         except KeyboardInterrupt:
-            self.interrupted = True
+            if not report_on_ctrl_c:
+                raise
             self.say('stopped (Ctrl-C): reporting what came so far')
         if self.draw:
             self.stream.write('\r\x1b[K')
@@ -208,11 +214,12 @@ def _find_rate(listener: Listener, info: LiveInfo, options: dict[str, Any]) -> R
                  f'({AUTO_WINDOW_S:g} s each); nothing is sent')
     for rate in STANDARD_RATES:
         bus = open_bus(info.interface, info.channel, rate, options, True)
-        heard = listener.listen(bus, AUTO_WINDOW_S, f'{rate} bit/s')
-        info.tried.append((rate, heard))
-        if listener.interrupted:
+        try:
+            heard = listener.listen(bus, AUTO_WINDOW_S, f'{rate} bit/s', report_on_ctrl_c=False)
+        except KeyboardInterrupt:
             bus.close()
-            raise KeyboardInterrupt
+            raise
+        info.tried.append((rate, heard))
         if heard >= AUTO_FRAMES:
             info.bitrate = rate
             listener.say(f'{rate} bit/s: {heard} frames in {AUTO_WINDOW_S:g} s')
