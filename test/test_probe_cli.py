@@ -6,6 +6,7 @@ bus of unknown IDs still gets a params file the bridge accepts.
 """
 from __future__ import annotations
 
+import io
 import os
 from pathlib import Path
 import subprocess
@@ -177,3 +178,30 @@ def test_probe_as_a_module_runs_without_ros():
     result = subprocess.run([sys.executable, '-m', 'ams_can_bridge.probe.main', '--help'],
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 0 and 'usage: probe' in result.stdout
+
+
+class Terminal(io.StringIO):
+    """A stream that says it is a terminal: probe draws its progress line there."""
+
+    def isatty(self) -> bool:
+        return True
+
+
+def test_listening_draws_a_progress_line_on_a_terminal():
+    import can
+
+    from ams_can_bridge.probe.sources import Listener, open_bus
+    channel = f'probe_progress_{os.getpid()}'
+    sender = can.Bus(interface='virtual', channel=channel)
+    bus = open_bus('virtual', channel, 0, {}, listen_only=False)
+    screen = Terminal()
+    try:
+        for k in range(5):
+            sender.send(can.Message(arbitration_id=0x123, data=bytes([k])))
+        assert Listener(screen).listen(bus, 0.5, 'listening') == 5
+    finally:
+        bus.close()
+        sender.shutdown()
+    drawn = screen.getvalue()
+    assert '\rprobe: listening: ' in drawn and 'of 0.5 s, 5 frames, 1 IDs' in drawn
+    assert not hasattr(bus, 'send')  # probe's bus cannot send
