@@ -33,6 +33,7 @@ setup(
             'demo = ams_can_bridge.ros.demo:main',
             'monitor = ams_can_bridge.ros.monitor:main',
             'log2bag = ams_can_bridge.offline.log2bag:main',
+            'probe = ams_can_bridge.probe.main:main',
         ],
     },
 )

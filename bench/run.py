@@ -300,6 +300,16 @@ def log2bag(seconds: float) -> None:
             result['python_can_read_fps'], 'fr/s', '>= 20,000/s', result['met'])
 
 
+def probe(seconds: float) -> None:
+    """probe reading and recognising a log beside log2bag on the same log, in one run."""
+    import bench_probe
+    for result in bench_probe.measure(seconds, ('log', 'blf')):
+        row('probe', f'.{result["format"]} frames/s', result['probe_fps'],
+            result['log2bag_fps'], 'fr/s', '>= log2bag', result['met'],
+            f'reference: log2bag on the same log; python-can alone reads '
+            f'{result["python_can_read_fps"]:,.0f} frames/s')
+
+
 def dbc_device(seconds: float) -> None:
     """A dbc device (our AMS over its DBC) beside the built-in AMS device, same frames."""
     import bench_dbc
@@ -320,6 +330,7 @@ SCENARIOS = {
     'throughput': lambda q: throughput(3.0 if q else 5.0),
     'log2bag': lambda q: log2bag(60.0 if q else 120.0),
     'dbc': lambda q: dbc_device(30.0 if q else 60.0),
+    'probe': lambda q: probe(30.0 if q else 60.0),
 }
 
 

@@ -39,7 +39,7 @@ mkdir -p "$pkg"
    > "$scratch/colcon.log" 2>&1) || { tail -40 "$scratch/colcon.log"; fail "colcon build"; }
 inst="$scratch/ws/install/ams_can_bridge"
 for f in lib/ams_can_bridge/bridge lib/ams_can_bridge/simulator lib/ams_can_bridge/demo \
-         lib/ams_can_bridge/log2bag lib/ams_can_bridge/monitor \
+         lib/ams_can_bridge/log2bag lib/ams_can_bridge/monitor lib/ams_can_bridge/probe \
          share/ams_can_bridge/config/foxglove_layout.json \
          share/ams_can_bridge/package.xml share/ams_can_bridge/launch/bridge.launch.py \
          share/ams_can_bridge/security/policy.xml \
@@ -58,6 +58,9 @@ ls "$inst"/share/ams_can_bridge/config/*.yaml >/dev/null || fail "colcon install
 (cd "$scratch" && set +u && source ws/install/setup.bash && set -u && \
   PATH="$bin:$PATH" timeout 60 ws/install/ams_can_bridge/lib/ams_can_bridge/monitor --help \
   >/dev/null) || fail "installed monitor --help"
+(cd "$scratch" && set +u && source ws/install/setup.bash && set -u && \
+  PATH="$bin:$PATH" timeout 60 ws/install/ams_can_bridge/lib/ams_can_bridge/probe --help \
+  >/dev/null) || fail "installed probe --help"
 echo "colcon build: OK ($inst)"
 
 echo "== pip install . into a fresh venv"
@@ -67,7 +70,7 @@ echo "== pip install . into a fresh venv"
   || fail "pip install ."
 (cd "$scratch" && "$scratch/venv/bin/python" -c "$probe" "$scratch/venv") \
   || fail "pip-installed package does not find its msg_defs"
-for exe in bridge simulator demo log2bag monitor; do
+for exe in bridge simulator demo log2bag monitor probe; do
   [ -x "$scratch/venv/bin/$exe" ] || fail "pip install lacks the $exe executable"
 done
 (cd "$scratch" && timeout 60 "$scratch/venv/bin/simulator" --help >/dev/null) \
@@ -76,4 +79,6 @@ done
   || fail "pip-installed log2bag --help"
 (cd "$scratch" && timeout 60 "$scratch/venv/bin/monitor" --help >/dev/null) \
   || fail "pip-installed monitor --help"
+(cd "$scratch" && timeout 60 "$scratch/venv/bin/probe" --help >/dev/null) \
+  || fail "pip-installed probe --help"
 echo "pip install: OK ($scratch/venv)"

@@ -6,7 +6,9 @@ import itertools
 import logging
 import math
 import os
+import signal
 import struct
+import subprocess
 import threading
 import time
 from typing import Any, Callable, Iterable, Iterator
@@ -146,6 +148,16 @@ def wait_for(predicate: Callable[[], Any], timeout: float = 5.0,
         if time.monotonic() >= deadline:
             raise AssertionError(f'timed out after {timeout} s waiting for {what}')
         time.sleep(poll)
+
+
+def interrupt(proc: Any, timeout: float = 20.0) -> str:
+    """Stop a child process as Ctrl-C does (killed after timeout); return its output."""
+    proc.send_signal(signal.SIGINT)
+    try:
+        return proc.communicate(timeout=timeout)[0]
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        return proc.communicate(timeout=10)[0]
 
 
 def assert_ended(thread: threading.Thread | None, what: str, timeout: float = 5.0) -> None:

@@ -23,7 +23,7 @@ from rclpy.executors import SingleThreadedExecutor
 from sensor_msgs.msg import BatteryState
 
 from ams_can_bridge.protocols.common import Frame
-from helpers import ros_context, wait_for
+from helpers import interrupt, ros_context, wait_for
 from slcan_peer import SlcanPeer
 
 BATTERY = ['ams', 'ivt', 'evms3', 'bms16', 'sma']
@@ -148,12 +148,7 @@ def test_installed_bridge_on_slcan(ros, tmp_path):
             (s.name, s.level, s.message) for s in diags[-1].status]
         assert proc.poll() is None
     finally:
-        proc.send_signal(signal.SIGINT)
-        try:
-            output = proc.communicate(timeout=20)[0]
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            output = proc.communicate(timeout=10)[0]
+        output = interrupt(proc)
         peer.shutdown()
     assert proc.returncode == 0, output
     assert 'Traceback' not in output, output

@@ -169,9 +169,9 @@ def test_the_parameters_that_change_at_run_time_are_the_nodes_writable_ones():
 @pytest.mark.parametrize('title', ['**1. The executables.**'])
 def test_the_executables_are_where_the_readme_says(title):
     for argv in commands(block_after(title, 'bash'))[1:]:
-        if argv[0] in ('bridge', 'simulator', 'log2bag', 'monitor'):
+        if argv[0] in ('bridge', 'simulator', 'log2bag', 'monitor', 'probe'):
             assert os.access(BIN / argv[0], os.X_OK), argv[0]
-    for exe in ('simulator', 'log2bag', 'monitor'):
+    for exe in ('simulator', 'log2bag', 'monitor', 'probe'):
         done = subprocess.run([str(BIN / exe), '--help'], capture_output=True, text=True,
                               timeout=60)
         assert done.returncode == 0 and 'usage:' in done.stdout, done.stderr

@@ -18,8 +18,9 @@ is answered "wrong command" (0xFF).
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Callable
+from typing import Any, Callable, Mapping
 
+from ams_can_bridge.devices.ivt_s_control import DISABLED_CYCLE_MS
 from ams_can_bridge.protocols import ivt_s_commands as cmd
 from ams_can_bridge.errors import ProtocolError
 from ams_can_bridge.protocols.common import Frame
@@ -66,9 +67,9 @@ class IvtSSimulator(SimDevice):
     bits on every result), extra['stuck_counter'] (counters stop advancing),
     extra['mute_commands'] (commands are taken but never answered).
 
-    ``byte_order`` and ``period`` are this sensor's factory setting: every result cyclic at
-    ``period``, sign normal (``configs`` holds the configuration in use, ``stored`` the one
-    a restart loads).
+    ``byte_order``, ``period`` and ``cycles_ms`` are this sensor's factory setting: every
+    result cyclic at ``period`` unless ``cycles_ms`` gives it its own cycle (0: off), sign
+    normal (``configs`` holds the configuration in use, ``stored`` the one a restart loads).
     """
 
     TYPE = 'ivt_s'
@@ -77,7 +78,7 @@ class IvtSSimulator(SimDevice):
                  byte_order: str = 'big', discharge_positive: bool = True,
                  current_fn: Callable[[float], float] | None = None,
                  voltage_fn: Callable[[], float] | None = None,
-                 period: float = 0.1) -> None:
+                 period: float = 0.1, cycles_ms: Mapping[IvtMux, int] | None = None) -> None:
         super().__init__(name)
         self.codec = IvtSCodec(base_id, byte_order)
         self.discharge_positive = discharge_positive
@@ -86,8 +87,11 @@ class IvtSSimulator(SimDevice):
         self.open_circuit_v = 400.0
         self.internal_resistance_ohm = 0.05
         self.period = period
-        self.factory = {kind: ResultConfig(kind, TriggerMode.CYCLIC, round(period * 1000),
-                                           byte_order == 'little') for kind in IvtMux}
+        # cycles_ms: results set apart from the factory's ``period`` (0 = the result is off)
+        cycles = {kind: round(period * 1000) for kind in IvtMux} | dict(cycles_ms or {})
+        self.factory = {kind: ResultConfig(
+            kind, TriggerMode.CYCLIC if cycles[kind] else TriggerMode.DISABLED,
+            cycles[kind] or DISABLED_CYCLE_MS, byte_order == 'little') for kind in IvtMux}
         self.configs = dict(self.factory)
         self.stored = dict(self.factory)
         self.running = True
@@ -96,7 +100,7 @@ class IvtSSimulator(SimDevice):
         self.received: list[tuple[int, bytes]] = []  # every command (mux, data), in order
         self.malformed_received = 0
         self._codecs = {order: IvtSCodec(base_id, order) for order in ('big', 'little')}
-        self._periodic = {kind: Periodic(period) for kind in IvtMux}
+        self._periodic = {kind: Periodic(c.cycle_ms / 1000.0) for kind, c in self.factory.items()}
         self._answers: list[tuple[float, Frame]] = []  # (due time, 0x511 frame)
         self._restart_until: float | None = None
         self._counters = [0] * len(IvtMux)

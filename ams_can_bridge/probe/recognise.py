@@ -1,0 +1,124 @@
+"""
+Run the recognisers, settle candidates for the same IDs, link devices, list what is left.
+
+A recogniser is a function ``(traffic, found so far) -> new candidates``; it may also refine
+a candidate found before it (add or decide a setting), which is how a decision that needs
+more than one device's frames plugs in. They run in ``BUILT_IN`` order, then the DBC pairs
+given on the command line. Two candidates that explain one ID cannot both be right: the one
+that explains everything the other does and more wins, else the more confident one (the
+user's own DBC on a tie), and the other is reported as a conflict.
+
+Not here yet, to plug in as one recogniser each: the SMA voltage scale decided from 0x351
+(refines the sma candidate's ``voltage_scale``), and the shipped ``dbc`` profiles
+(foxBMS 2, Orion BMS 2: ``dbc.match_plan`` on the profile's plan, writing ``<name>.profile``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+from ams_can_bridge.probe import ams, bms16, evms3, ivt_s, sma
+from ams_can_bridge.probe.evidence import Candidate, Conflict, MEDIUM, WEAK
+from ams_can_bridge.probe.traffic import IdTraffic, Traffic
+from ams_can_bridge.registry import DEVICE_TYPES
+
+Recogniser = Callable[[Traffic, list[Candidate]], list[Candidate]]
+BUILT_IN: tuple[Recogniser, ...] = (ams.recognise, ivt_s.recognise, evms3.recognise,
+                                    bms16.recognise, sma.recognise)
+PACK_VOLTAGE_AGREEMENT = 0.05  # an IVT-S voltage within 5 % of the AMS cell sum measures the pack
+
+
+@dataclass
+class Findings:
+    """What probe found: the devices kept (in params-file order), conflicts, the rest."""
+
+    devices: list[Candidate] = field(default_factory=list)
+    conflicts: list[Conflict] = field(default_factory=list)
+    unplaced: list[IdTraffic] = field(default_factory=list)
+
+    @property
+    def written(self) -> list[Candidate]:
+        """Return the devices the params file lists."""
+        return [c for c in self.devices if c.written]
+
+
+def recognise(traffic: Traffic, recognisers: Sequence[Recogniser] = BUILT_IN) -> Findings:
+    """Run every recogniser on the traffic and settle what they found."""
+    found: list[Candidate] = []
+    for recogniser in recognisers:
+        found += recogniser(traffic, found)
+    kept, conflicts = settle([c for c in found if c.confidence >= WEAK])
+    kept.sort(key=lambda c: (DEVICE_TYPES.index(c.type), not c.written, -c.confidence))
+    _name(kept)
+    _link(kept)
+    claimed = set().union(*(c.ids for c in kept))
+    return Findings(kept, conflicts, [e for e in traffic if e.key not in claimed])
+
+
+def settle(candidates: list[Candidate]) -> tuple[list[Candidate], list[Conflict]]:
+    """
+    Keep the candidates that claim no ID of a better one; the others are conflicts.
+
+    Better: the one that explains every ID of its rivals and more (if it is at least of
+    medium confidence), else the more confident, then the one explaining more IDs, then the
+    user's own DBC. A weak match set aside is not reported.
+    """
+    kept: list[Candidate] = []
+    conflicts = []
+
+    def drop(winner: Candidate, loser: Candidate) -> None:
+        if loser.confidence >= MEDIUM:
+            conflicts.append(Conflict(winner, loser, winner.ids & loser.ids))
+    for cand in sorted(candidates, key=lambda c: (c.confidence, len(c.ids), c.user_given),
+                       reverse=True):
+        rivals = [k for k in kept if k.ids & cand.ids]
+        if not rivals:
+            kept.append(cand)
+        elif cand.confidence >= MEDIUM and all(cand.ids > r.ids for r in rivals):
+            kept = [k for k in kept if k not in rivals] + [cand]
+            for rival in rivals:
+                drop(cand, rival)
+        else:
+            drop(rivals[0], cand)
+    return kept, conflicts
+
+
+def _name(devices: list[Candidate]) -> None:
+    """Make the instance names unique: the first of a name keeps it, then name_2, ..."""
+    used: set[str] = set()
+    for cand in devices:
+        name, n = cand.name, 1
+        while name in used:
+            n += 1
+            name = f'{cand.name}_{n}'
+        cand.name = name
+        used.add(name)
+
+
+def _link(devices: list[Candidate]) -> None:
+    """Decide what needs two devices: which IVT-S result measures the AMS pack."""
+    amss = [c for c in devices if c.type == 'ams' and c.written]
+    shunts = [c for c in devices if c.type == 'ivt_s' and c.written]
+    for cand in amss:
+        if not shunts:
+            cand.notes.append('no IVT-S heard: the AMS voltage is the sum of its cells and '
+                              'the current is unknown (NaN)')
+            continue
+        shunt = shunts[0]
+        cand.set('current_sensor', shunt.name, f'the IVT-S at {shunt.title[len("IVT-S at "):]}')
+        cells: float | None = cand.facts.get('cell_sum_v')
+        voltages: dict[str, float] = shunt.facts.get('voltages', {})
+        near = sorted((abs(v - cells), name) for name, v in voltages.items()) \
+            if cells is not None else []
+        if cells is not None and near and near[0][0] <= PACK_VOLTAGE_AGREEMENT * cells:
+            name = near[0][1]
+            others = ', '.join(f'{n} {voltages[n]:.1f} V' for _, n in near[1:])
+            cand.set('pack_voltage_channel', name,
+                     f'{name} reads {voltages[name]:.1f} V, the AMS cells add up to '
+                     f'{cells:.1f} V' + (f' ({others})' if others else ''))
+        else:
+            heard = ', '.join(f'{n} {v:.1f} V' for n, v in voltages.items())
+            cand.set('pack_voltage_channel', 'U1', 'check: ' + (
+                f'no IVT-S voltage near the AMS cell sum {cells:.1f} V ({heard})'
+                if cells is not None and voltages else 'no IVT-S voltage or AMS cell sum to '
+                'compare') + ': the input wired across the pack', decided=False)
