@@ -60,8 +60,10 @@ class Missing:
 
     def text(self, label: str = 'mux') -> str:
         parts = [f'{self.plan.messages[m].name} {why}' for m, why in self.whole.items()]
-        for (m, why), muxes in self.groups.items():
-            parts.append(f'{self.plan.messages[m].name} {label} {ranges(muxes)} {why}')
+        for m in dict.fromkeys(m for m, _ in self.groups):
+            parts.append(self.plan.messages[m].name + ' ' + ', '.join(
+                f'{label} {ranges(self.groups[(m, why)])} {why}'
+                for why in (NOT_RECEIVED, EXPIRED) if (m, why) in self.groups))
         if self.flagged:
             parts.append(f'{self.flagged} {INVALID} by the BMS')
         if self.out_of_range:

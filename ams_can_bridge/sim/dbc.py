@@ -169,9 +169,11 @@ class DbcSimulator(SimDevice):
         this package does not know is sent as the mapping converts it.
         """
         sample = ref.sample if isinstance(ref, Array) else ref
-        unit = lookup(sample.unit) if sample is not None else None
-        if unit is not None and unit.quantity == quantity:
-            sign = -1.0 if sample is not None and sample.scale < 0 else 1.0
+        unit = None
+        if sample is not None:  # the DBC's own unit, not a unit: the mapping claims
+            unit = lookup(self.plan.messages[sample.message].signals[sample.signal].unit)
+        if sample is not None and unit is not None and unit.quantity == quantity:
+            sign = -1.0 if sample.scale < 0 else 1.0
             return (sign * target - unit.add) / unit.factor
         factor, add = (ref.factor, ref.add)
         return (target - add) / factor if factor else target
