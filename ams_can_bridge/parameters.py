@@ -67,7 +67,7 @@ def allowed_text(spec: ParamSpec) -> str:
     if spec.step and not (spec.type is int and spec.step == 1):  # whole numbers: implied
         parts.append(f'in steps of {spec.step:g}')
     if spec.choices:
-        parts.append('one of ' + ', '.join(spec.choices))
+        parts.append('one of ' + ', '.join(c or "''" for c in spec.choices))
     return ' '.join(parts)
 
 
@@ -110,7 +110,7 @@ def coerce(name: str, spec: ParamSpec, value: Any) -> Any:
             raise ParamError(f'{name} = {value!r} must be a string')
         if spec.choices and value not in spec.choices:
             raise ParamError(f'{name} = {value!r} is not allowed: use one of '
-                             + ', '.join(spec.choices))
+                             + ', '.join(c or "''" for c in spec.choices))
         return value
     if spec.type in ('int[]', 'str[]', 'float[]'):
         # rclpy hands integer and float arrays over as array.array (a set through the
