@@ -179,6 +179,9 @@ def load_plan(dbc_file: str | None, mapping_file: str | None,
                 problems.append(f'dbc_file {found_dbc!r} cannot be read: {exc.strerror}')
             except DbcLoadError as exc:
                 problems.append(f'dbc_file {found_dbc!r} does not load: {exc}')
+            except Exception as exc:  # cantools on a file it trips over: a reason, no trace
+                problems.append(f'dbc_file {found_dbc!r} does not load: cantools: '
+                                f'{type(exc).__name__}: {exc}')
     if not mapping_file:
         problems.append('mapping_file is not set: give the path of your mapping YAML')
     else:
