@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import cantools
 import pytest
@@ -134,14 +135,18 @@ def _run(sim: DbcSimulator, device: DbcDevice, clock: Clock, seconds: float,
             device.handle_frame(frame.arbitration_id, frame.data, clock.now)
 
 
-def test_the_simulator_sends_the_dbcs_units_and_meaning():
-    sim = DbcSimulator('pack', profile='orion_bms2')
+def _simulate(profile: str, seconds: float) -> tuple[DbcDevice, list, Any]:
+    """Run a profile's simulator into its device; return it, the frames and the DBC."""
+    sim = DbcSimulator('pack', profile=profile)
     clock = Clock(0.0)
-    device = DbcDevice('pack', {'profile': 'orion_bms2'}, clock)
+    device = DbcDevice('pack', {'profile': profile}, clock)
     frames: list = []
-    _run(sim, device, clock, 1.0, frames)
-    dbc, _ = profile_files('orion_bms2')
-    db = cantools.database.load_file(str(dbc))
+    _run(sim, device, clock, seconds, frames)
+    return device, frames, cantools.database.load_file(str(profile_files(profile)[0]))
+
+
+def test_the_simulator_sends_the_dbcs_units_and_meaning():
+    device, frames, db = _simulate('orion_bms2', 1.0)
     soc = [db.decode_message(f.arbitration_id, f.data)['Pack_SOC'] for f in frames
            if f.arbitration_id == 0x6B0]
     assert len(soc) > 90 and all(30 <= s <= 90 for s in soc)  # Percent, as the BMS sends
@@ -150,13 +155,7 @@ def test_the_simulator_sends_the_dbcs_units_and_meaning():
 
 
 def test_the_simulator_sends_valid_flags_by_their_table_and_one_mux_a_period():
-    sim = DbcSimulator('pack', profile='foxbms2')
-    clock = Clock(0.0)
-    device = DbcDevice('pack', {'profile': 'foxbms2'}, clock)
-    frames: list = []
-    _run(sim, device, clock, 3.0, frames)
-    dbc, _ = profile_files('foxbms2')
-    db = cantools.database.load_file(str(dbc))
+    device, frames, db = _simulate('foxbms2', 3.0)
     cells = [db.decode_message(0x250, f.data, decode_choices=False) for f in frames
              if f.arbitration_id == 0x250]
     assert {c['f_CellVoltages_Mux'] for c in cells} == {0, 1, 2, 3, 4}  # 18 cells: 5 values

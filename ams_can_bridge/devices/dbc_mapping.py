@@ -13,6 +13,7 @@ each entry are ``devices.dbc_builder``'s and ``devices.dbc_arrays``'.
 """
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import yaml
@@ -160,49 +161,48 @@ def load_plan(dbc_file: str | None, mapping_file: str | None,
               profile: str | None = None) -> Plan:
     """Find, load and check both files; MappingError names every problem (missing too)."""
     dbc_file, mapping_file, problems = resolve_files(dbc_file, mapping_file, profile)
-    loaded = mapping = None
-    found_dbc = found_mapping = ''
     if problems:  # the profile: its own words
         raise MappingError(listing(problems))
-    if not dbc_file:
-        problems.append('dbc_file is not set: give the path of your DBC (or a profile: '
-                        'foxbms2, orion_bms2)')
-    else:
-        path, looked = locate(dbc_file)
-        if path is None:
-            problems.append(not_found('dbc_file', dbc_file, looked))
-        else:
-            found_dbc = str(path)
-            try:
-                loaded = read_dbc(path)
-            except OSError as exc:
-                problems.append(f'dbc_file {found_dbc!r} cannot be read: {exc.strerror}')
-            except DbcLoadError as exc:
-                problems.append(f'dbc_file {found_dbc!r} does not load: {exc}')
-            except Exception as exc:  # cantools on a file it trips over: a reason, no trace
-                problems.append(f'dbc_file {found_dbc!r} does not load: cantools: '
-                                f'{type(exc).__name__}: {exc}')
-    if not mapping_file:
-        problems.append('mapping_file is not set: give the path of your mapping YAML')
-    else:
-        path, looked = locate(mapping_file)
-        if path is None:
-            problems.append(not_found('mapping_file', mapping_file, looked))
-        else:
-            found_mapping = str(path)
-            try:
-                mapping = yaml.safe_load(path.read_text(encoding='utf-8'))
-            except OSError as exc:
-                problems.append(f'mapping_file {found_mapping!r} cannot be read: '
-                                f'{exc.strerror}')
-            except yaml.YAMLError as exc:
-                problems.append(yaml_problem(found_mapping, exc))
+    loaded = mapping = None
+    dbc_path = _find('dbc_file', dbc_file, 'the path of your DBC (or a profile: '
+                     'foxbms2, orion_bms2)', problems)
+    if dbc_path is not None:
+        try:
+            loaded = read_dbc(dbc_path)
+        except OSError as exc:
+            problems.append(f'dbc_file {str(dbc_path)!r} cannot be read: {exc.strerror}')
+        except DbcLoadError as exc:
+            problems.append(f'dbc_file {str(dbc_path)!r} does not load: {exc}')
+        except Exception as exc:  # cantools on a file it trips over: a reason, no trace
+            problems.append(f'dbc_file {str(dbc_path)!r} does not load: cantools: '
+                            f'{type(exc).__name__}: {exc}')
+    mapping_path = _find('mapping_file', mapping_file, 'the path of your mapping YAML',
+                         problems)
+    if mapping_path is not None:
+        try:
+            mapping = yaml.safe_load(mapping_path.read_text(encoding='utf-8'))
+        except OSError as exc:
+            problems.append(f'mapping_file {str(mapping_path)!r} cannot be read: '
+                            f'{exc.strerror}')
+        except yaml.YAMLError as exc:
+            problems.append(yaml_problem(str(mapping_path), exc))
     if problems:
         raise MappingError(listing(problems))
     assert loaded is not None
     plan = build_plan(loaded, mapping)
-    plan.files = (found_dbc, found_mapping)
+    plan.files = (str(dbc_path), str(mapping_path))
     return plan
+
+
+def _find(key: str, given: str | None, what: str, problems: list[str]) -> Path | None:
+    """Locate one of the two files; a problem (unset, not found) otherwise."""
+    if not given:
+        problems.append(f'{key} is not set: give {what}')
+        return None
+    path, looked = locate(given)
+    if path is None:
+        problems.append(not_found(key, given, looked))
+    return path
 
 
 def not_found(key: str, given: str, looked: list) -> str:
