@@ -103,3 +103,16 @@ def test_log2bag_finds_relative_files_beside_its_params_file_and_says_the_warnin
     assert 'log2bag: warning: dbc: DBC message Unrelated is broken and unusable: The signal ' \
         'wide does not fit' in err
     assert rosbags_read(str(tmp_path / 'bag'))['/dbc/battery_state']
+
+
+def test_log2bag_stops_with_exit_2_on_a_mapped_broken_message(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(dbc_plan, '_params_folders', [])  # main() sets them for the process
+    files = write_files(tmp_path, OUR_BMS_DBC.replace('error : 8|8@1+', 'error : 2|8@1+'))
+    params = tmp_path / 'params.yaml'
+    params.write_text('/**:\n  ros__parameters:\n    devices: [dbc]\n'
+                      f"    dbc: {{dbc_file: {files['dbc_file']}, "
+                      f"mapping_file: {files['mapping_file']}}}\n")
+    assert main([_log(tmp_path), str(tmp_path / 'bag'), '--params-file', str(params)]) == 2
+    err = capsys.readouterr().err
+    assert 'message BMS_State is broken in the DBC (The signals error and mode are ' \
+        'overlapping)' in err and 'Traceback' not in err

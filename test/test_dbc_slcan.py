@@ -20,7 +20,7 @@ from pathlib import Path
 from diagnostic_msgs.msg import DiagnosticArray
 from sensor_msgs.msg import BatteryState
 
-from dbc_fixtures import OUR_MAPPING, OUR_PARAMS, write_files
+from dbc_fixtures import OUR_BMS_DBC, OUR_MAPPING, OUR_PARAMS, write_files
 from slcan_peer import SlcanPeer
 from test_bridge_slcan import bridge_executable, ros  # noqa: F401 (fixture)
 
@@ -130,8 +130,10 @@ def test_simulated_dbc_bms_reaches_the_bridge_over_slcan(ros, tmp_path):  # noqa
 
 
 def test_a_typo_in_the_mapping_stops_the_bridge_with_exit_2(tmp_path):
-    files = write_files(tmp_path, mapping=OUR_MAPPING.replace('packSoc', 'packSco').replace(
-        'primary: BMS_PackValues\n', ''))
+    # and a mapped message that is broken in the DBC (two signals on the same bits)
+    files = write_files(tmp_path, OUR_BMS_DBC.replace('error : 8|8@1+', 'error : 2|8@1+'),
+                        OUR_MAPPING.replace('packSoc', 'packSco').replace(
+                            'primary: BMS_PackValues\n', ''))
     params = tmp_path / 'bad.yaml'
     params.write_text('/**:\n  ros__parameters:\n    devices: [pack]\n'
                       '    can: {interface: virtual, channel: dbc_typo}\n'
@@ -143,6 +145,8 @@ def test_a_typo_in_the_mapping_stops_the_bridge_with_exit_2(tmp_path):
     assert "signal 'packSco' is not in message BMS_StateEstimation; closest: packSoc" \
         in proc.stderr, proc.stderr
     assert 'primary is not set' in proc.stderr  # every problem, not only the first
+    assert 'message BMS_State is broken in the DBC (The signals error and mode are ' \
+        'overlapping)' in proc.stderr
 
 
 def test_simulator_refuses_a_bad_mapping_with_exit_2(tmp_path):
