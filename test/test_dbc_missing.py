@@ -33,7 +33,7 @@ def foxbms(clock: Clock, mapping: str | None = None, tmp_path: Path | None = Non
 
 
 def cells_frame(mux: int, mv: tuple[int, int, int, int], valid: int = 0xF) -> bytes:
-    """An f_CellVoltages frame by foxbms.dbc's layout, checked against cantools below."""
+    """Encode an f_CellVoltages frame by foxbms.dbc (cantools: the field tests are by hand)."""
     dbc, _ = profile_files('foxbms2')
     message = cantools.database.load_file(str(dbc)).get_message_by_frame_id(0x250)
     values = {'f_CellVoltages_Mux': mux}

@@ -1,6 +1,8 @@
 """
-The dbc mapping's rules on real-style files: loading, validity flags, units, the scale rule,
-the start log, timeouts from the DBC, bit masks in levels, paths and YAML errors.
+The dbc mapping's rules on real-style files.
+
+Loading, validity flags, units, the scale rule, the start log, timeouts from the DBC, bit
+masks in levels, paths and YAML errors.
 
 The DBCs are our hand-written BMS (test/fixtures/our_bms.dbc) changed the way real files
 are: units as the Orion utility and Volkswagen spell them, flags with a Valid/Invalid table
