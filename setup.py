@@ -14,6 +14,8 @@ setup(
         ('share/' + PACKAGE, ['package.xml']),
         ('share/' + PACKAGE + '/msg_defs', sorted(glob('msg_defs/*.dbc'))),
         ('share/' + PACKAGE + '/config', sorted(glob('config/*.yaml') + glob('config/*.json'))),
+        *[('share/' + PACKAGE + '/' + folder, sorted(glob(folder + '/*')))
+          for folder in sorted(glob('config/profiles/*'))],  # dbc profiles (DBC, mapping)
         ('share/' + PACKAGE + '/launch', sorted(glob('launch/*.py'))),
         ('share/' + PACKAGE + '/security', ['security/policy.xml']),
     ],

@@ -75,7 +75,7 @@ def allowed_text(spec: ParamSpec) -> str:
     if spec.step and not (spec.type is int and spec.step == 1):  # whole numbers: implied
         parts.append(f'in steps of {spec.step:g}')
     if spec.choices:
-        parts.append('one of ' + ', '.join(spec.choices))
+        parts.append('one of ' + ', '.join(c or "''" for c in spec.choices))
     text = ' '.join(parts)
     if spec.max_length is not None:  # an array: its length, then what each value may be
         text = f'at most {spec.max_length} values' + (f', each {text}' if text else '')
@@ -137,7 +137,7 @@ def coerce(name: str, spec: ParamSpec, value: Any) -> Any:
             raise ParamError(f'{name} = {_short(value)} must be a string')
         if spec.choices and value not in spec.choices:
             raise ParamError(f'{name} = {_short(value)} is not allowed: use one of '
-                             + ', '.join(spec.choices))
+                             + ', '.join(c or "''" for c in spec.choices))
         return value
     if spec.type in ('int[]', 'str[]', 'float[]'):
         # rclpy hands integer and float arrays over as array.array (a set through the

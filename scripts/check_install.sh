@@ -24,7 +24,14 @@ names = sorted(p.stem for p in d.glob("*.dbc"))
 assert names == ["ams", "bms16", "evms3", "ivt_s", "sma"], names
 for n in names:
     assert load_dbc(n).messages
-print("msg_defs at", d)
+from ams_can_bridge.devices.dbc import DbcDevice
+from ams_can_bridge.devices.dbc_profiles import PROFILES, profile_files
+for p in PROFILES:  # the dbc profiles: installed beside msg_defs, found, loading
+    dbc, mapping = profile_files(p)
+    assert Path(sys.argv[1]) in dbc.parents, f"profile {p} found at {dbc}"
+    assert (dbc.parent / "README.md").is_file() and mapping.is_file()
+    assert DbcDevice("pack", {"profile": p}).plan.messages, p
+print("msg_defs at", d, "; profiles", ", ".join(PROFILES))
 '
 
 echo "== colcon build in $scratch/ws"
@@ -50,6 +57,11 @@ for f in ams ivt_s evms3 bms16 sma; do
   [ -f "$inst/share/ams_can_bridge/msg_defs/$f.dbc" ] || fail "colcon install lacks msg_defs/$f.dbc"
 done
 ls "$inst"/share/ams_can_bridge/config/*.yaml >/dev/null || fail "colcon install lacks config/*.yaml"
+for f in foxbms2/foxbms.dbc foxbms2/mapping.yaml foxbms2/BSD-3-Clause.txt \
+         orion_bms2/orion_bms2.dbc orion_bms2/mapping.yaml; do
+  [ -f "$inst/share/ams_can_bridge/config/profiles/$f" ] \
+    || fail "colcon install lacks config/profiles/$f"
+done
 (cd "$scratch" && set +u && source ws/install/setup.bash && set -u && \
   "$py" -c "$probe" "$inst") || fail "colcon-installed package does not find its msg_defs"
 (cd "$scratch" && set +u && source ws/install/setup.bash && set -u && \

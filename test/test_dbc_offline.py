@@ -10,11 +10,12 @@ import time
 
 import can
 
-from ams_can_bridge.offline.log2bag import convert
+from ams_can_bridge.devices import dbc_plan
+from ams_can_bridge.offline.log2bag import convert, main
 from ams_can_bridge.sim.dbc import DbcSimulator
 from ams_can_bridge.sim.recording import write_log
 from command_rig import battery_topics
-from dbc_fixtures import OUR_PARAMS
+from dbc_fixtures import OUR_BMS_DBC, OUR_PARAMS, write_files
 from helpers import device_reference, same, values_of
 from test_log2bag import rosbags_read
 
@@ -79,3 +80,39 @@ def test_replay_publishes_the_reference(rig_factory, tmp_path):
     got = [values_of(m) for m in rig.messages('dbc/battery_state') if m.present]
     assert bus['frames in'] == str(frames)
     assert len(got) == len(want) and all(same(a, b) for a, b in zip(got, want))
+
+
+def test_log2bag_finds_relative_files_beside_its_params_file_and_says_the_warnings(
+        tmp_path, monkeypatch, capsys):
+    log = _log(tmp_path)
+    car = tmp_path / 'car'
+    car.mkdir()
+    # a broken message the mapping does not read: a warning, and the conversion goes on
+    write_files(car, OUR_BMS_DBC.replace('VAL_ 544 mode', 'BO_ 700 Unrelated: 1 BMS\n'
+                                         ' SG_ wide : 0|16@1+ (1,0) [0|0] "" BMS\n\n'
+                                         'VAL_ 544 mode'))
+    params = car / 'params.yaml'
+    params.write_text('/**:\n  ros__parameters:\n    devices: [dbc]\n'
+                      '    dbc: {dbc_file: our_bms.dbc, mapping_file: pack_mapping.yaml}\n')
+    elsewhere = tmp_path / 'elsewhere'
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    monkeypatch.setattr(dbc_plan, '_params_folders', [])  # main() sets them for the process
+    assert main([log, str(tmp_path / 'bag'), '--params-file', str(params)]) == 0
+    err = capsys.readouterr().err
+    assert 'log2bag: warning: dbc: DBC message Unrelated is broken and unusable: The signal ' \
+        'wide does not fit' in err
+    assert rosbags_read(str(tmp_path / 'bag'))['/dbc/battery_state']
+
+
+def test_log2bag_stops_with_exit_2_on_a_mapped_broken_message(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(dbc_plan, '_params_folders', [])  # main() sets them for the process
+    files = write_files(tmp_path, OUR_BMS_DBC.replace('error : 8|8@1+', 'error : 2|8@1+'))
+    params = tmp_path / 'params.yaml'
+    params.write_text('/**:\n  ros__parameters:\n    devices: [dbc]\n'
+                      f"    dbc: {{dbc_file: {files['dbc_file']}, "
+                      f"mapping_file: {files['mapping_file']}}}\n")
+    assert main([_log(tmp_path), str(tmp_path / 'bag'), '--params-file', str(params)]) == 2
+    err = capsys.readouterr().err
+    assert 'message BMS_State is broken in the DBC (The signals error and mode are ' \
+        'overlapping)' in err and 'Traceback' not in err

@@ -20,7 +20,7 @@ from pathlib import Path
 from diagnostic_msgs.msg import DiagnosticArray
 from sensor_msgs.msg import BatteryState
 
-from dbc_fixtures import OUR_MAPPING, OUR_PARAMS, write_files
+from dbc_fixtures import OUR_BMS_DBC, OUR_MAPPING, OUR_PARAMS, write_files
 from slcan_peer import SlcanPeer
 from test_bridge_slcan import bridge_executable, ros  # noqa: F401 (fixture)
 
@@ -55,7 +55,13 @@ def test_simulated_dbc_bms_reaches_the_bridge_over_slcan(ros, tmp_path):  # noqa
         50)
     sim_peer = SlcanPeer(symlink=tmp_path / 'ttySIM')
     bridge_peer = SlcanPeer(symlink=tmp_path / 'ttyBRIDGE')
-    params = tmp_path / 'bridge.yaml'
+    # the files beside the params file, named relatively; the bridge runs elsewhere
+    car = tmp_path / 'car'
+    car.mkdir()
+    write_files(car)
+    elsewhere = tmp_path / 'elsewhere'
+    elsewhere.mkdir()
+    params = car / 'bridge.yaml'
     params.write_text(f"""/**:
   ros__parameters:
     can: {{interface: slcan, channel: {bridge_peer.channel}, bitrate: 500000,
@@ -64,8 +70,8 @@ def test_simulated_dbc_bms_reaches_the_bridge_over_slcan(ros, tmp_path):  # noqa
     devices: [pack]
     pack:
       type: dbc
-      dbc_file: {OUR_PARAMS['dbc_file']}
-      mapping_file: {OUR_PARAMS['mapping_file']}
+      dbc_file: our_bms.dbc
+      mapping_file: pack_mapping.yaml
       stale_timeout: 1.0
 """)
     sim = subprocess.Popen(
@@ -76,7 +82,7 @@ def test_simulated_dbc_bms_reaches_the_bridge_over_slcan(ros, tmp_path):  # noqa
     bridge = subprocess.Popen(
         [bridge_executable(), '--ros-args', '-r', f'__ns:=/{ns}', '--params-file',
          str(params)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-        env=dict(os.environ))
+        env=dict(os.environ), cwd=elsewhere)
     stop = threading.Event()
     relay = threading.Thread(target=_relay, args=(sim_peer, bridge_peer, stop), daemon=True)
     try:
@@ -117,11 +123,17 @@ def test_simulated_dbc_bms_reaches_the_bridge_over_slcan(ros, tmp_path):  # noqa
     assert bridge.returncode == 0 and 'Traceback' not in bridge_out, bridge_out
     assert sim.returncode == 0 and 'Traceback' not in sim_out, sim_out
     assert 'pack (dbc): 0x220, 0x222, 0x231, 0x235, 0x240, 0x250' in bridge_out, bridge_out
+    # the start log: where the files were found (beside the params file), each formula
+    assert f"DBC {car / 'our_bms.dbc'}, mapping {car / 'pack_mapping.yaml'}" in bridge_out
+    assert 'percentage [0..1] = BMS_StateEstimation.packSoc [%] x 0.01' in bridge_out
+    assert 'timeout BMS_CellVoltages (0x240): 1 s, stale_timeout' in bridge_out
 
 
 def test_a_typo_in_the_mapping_stops_the_bridge_with_exit_2(tmp_path):
-    files = write_files(tmp_path, mapping=OUR_MAPPING.replace('packSoc', 'packSco').replace(
-        'primary: BMS_PackValues\n', ''))
+    # and a mapped message that is broken in the DBC (two signals on the same bits)
+    files = write_files(tmp_path, OUR_BMS_DBC.replace('error : 8|8@1+', 'error : 2|8@1+'),
+                        OUR_MAPPING.replace('packSoc', 'packSco').replace(
+                            'primary: BMS_PackValues\n', ''))
     params = tmp_path / 'bad.yaml'
     params.write_text('/**:\n  ros__parameters:\n    devices: [pack]\n'
                       '    can: {interface: virtual, channel: dbc_typo}\n'
@@ -133,6 +145,8 @@ def test_a_typo_in_the_mapping_stops_the_bridge_with_exit_2(tmp_path):
     assert "signal 'packSco' is not in message BMS_StateEstimation; closest: packSoc" \
         in proc.stderr, proc.stderr
     assert 'primary is not set' in proc.stderr  # every problem, not only the first
+    assert 'message BMS_State is broken in the DBC (The signals error and mode are ' \
+        'overlapping)' in proc.stderr
 
 
 def test_simulator_refuses_a_bad_mapping_with_exit_2(tmp_path):

@@ -7,7 +7,6 @@ msg_defs/ams.dbc.
 """
 from __future__ import annotations
 
-import logging
 import math
 from pathlib import Path
 
@@ -109,7 +108,7 @@ def test_invalid_flag_makes_the_cell_nan_and_counts_malformed(tmp_path):
     assert report.cell_voltage[2] == pytest.approx(3.69)
     assert math.isnan(report.cell_voltage[3])
     assert device.frames_malformed == 1
-    assert 'cell_voltage[3] (BMS_CellVoltages.cellVoltage_003_invalidFlag) invalid flag set' \
+    assert 'cell_voltage[3] (BMS_CellVoltages.cellVoltage_003_invalidFlag) flagged invalid' \
         in device.last_malformed
     device.handle_frame(0x240, bytes.fromhex('016A0E880E000000'), 2.0)  # flag cleared
     assert device.battery_report().cell_voltage[3] == pytest.approx(3.72)
@@ -154,6 +153,7 @@ def test_each_group_expires_on_its_own_and_the_primary_makes_stale(tmp_path):
 def test_diagnostics_values_with_units_and_first_matching_level(tmp_path):
     device = make(tmp_path)
     feed(device, *ALL)
+    device.handle_frame(0x240, bytes.fromhex('016A0E880E000000'), 2.0)  # cell 003 valid again
     diag = device.diagnostic_report()
     assert diag.level == Level.OK
     assert diag.values['BMS_PackValues.batteryVoltage [mV]'] == '400000'
@@ -210,10 +210,11 @@ def test_map_key_must_be_a_value_name(tmp_path):
     assert "'CHARGING' is not a value name of mode; closest: CHARGE" in text
 
 
-def test_dbc_that_does_not_load_strictly(tmp_path):
+def test_a_mapped_signal_of_a_broken_message_stops_naming_the_message_and_why(tmp_path):
     overlapping = OUR_BMS_DBC.replace('error : 8|8@1+', 'error : 2|8@1+')
     text = problems_of(tmp_path, OUR_MAPPING, overlapping)
-    assert 'does not load (cantools, strict)' in text
+    assert 'message BMS_State is broken in the DBC (The signals error and mode are ' \
+        'overlapping)' in text
 
 
 def test_missing_files(tmp_path):
@@ -223,12 +224,11 @@ def test_missing_files(tmp_path):
     assert 'mapping_file is not set' in str(info.value)
 
 
-def test_unknown_unit_without_scale_is_a_warning_naming_the_signal(tmp_path, caplog):
+def test_unknown_unit_without_scale_is_a_warning_naming_the_signal(tmp_path):
     mapping = OUR_MAPPING.replace('voltage: BMS_PackValues.batteryVoltage',
                                   'voltage: BMS_State.error')
-    with caplog.at_level(logging.WARNING):
-        device = make(tmp_path, mapping)
-    assert any('BMS_State.error has unit' in r.getMessage() for r in caplog.records)
+    device = make(tmp_path, mapping)
+    assert any('BMS_State.error has unit' in w for w in device.start_log()[1])
     feed(device, *ALL)
     diag = device.diagnostic_report()
     assert diag.level == Level.WARN and 'mapping warning' in diag.message

@@ -363,6 +363,10 @@ class Device:
             level = self._diagnostic_report(with_values=False).level
         return Level.STALE if self.is_stale() else level
 
+    def start_log(self) -> tuple[list[str], list[str]]:
+        """Return what the start log says of this device beyond its IDs: (INFO, WARN) lines."""
+        return [], []
+
     def _battery_report(self) -> BatteryReport:
         raise NotImplementedError
 

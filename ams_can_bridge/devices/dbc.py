@@ -5,16 +5,17 @@ docs/protocols.md section 8, README "Your own BMS". The mapping (``devices.dbc_m
 is checked whole at start; the device consumes exactly the messages it references. Each
 frame is decoded by the compiled decoder of its message (``protocols.dbc_codec``) and kept
 whole, with the time it came, as its *group* (a multiplexed message: one group per
-multiplexer value). Every group expires on its own after ``stale_timeout``: its values are
-unknown (NaN) again, never an old number shown as live. A frame of the primary message
-makes one BatteryState; while it is silent the device is STALE as every other device.
+multiplexer value). Every group expires on its own after its message's timeout (the
+mapping's, else a few DBC periods, else ``stale_timeout``): its values are unknown (NaN)
+again, never an old number shown as live, and the device WARNs naming what is missing
+(``devices.dbc_diag``). A frame of the primary message makes one BatteryState; while it is
+silent the device is STALE as every other device.
 
-A value outside its DBC [min|max], or an element whose invalid flag is set, is NaN and the
-frame counts as malformed (the rest of the frame is used). Telemetry only: sends nothing.
+A value outside its DBC [min|max], or an element whose validity flag says invalid, is NaN
+and the frame counts as malformed (the rest of the frame is used). Telemetry only.
 """
 from __future__ import annotations
 
-import logging
 import math
 import time
 from typing import Any, Callable, Iterable, Mapping
@@ -23,13 +24,16 @@ from ams_can_bridge.devices.base import (
     BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyHealth,
     PowerSupplyStatus)
 from ams_can_bridge.devices.config import DeviceConfig
+from ams_can_bridge.devices.dbc_describe import start_lines
+from ams_can_bridge.devices.dbc_diag import capped_values, listed, missing_report, WARNINGS_CAP
 from ams_can_bridge.devices.dbc_mapping import load_plan
-from ams_can_bridge.devices.dbc_plan import Array, Enum, MappingError, Plan, Ref, Scalar
+from ams_can_bridge.devices.dbc_plan import (
+    Array, Enum, FlagRule, MappingError, Plan, Ref, Scalar)
+from ams_can_bridge.devices.dbc_profiles import PROFILES
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
 from ams_can_bridge.errors import ConfigError, ProtocolError
 from ams_can_bridge.parameters import ParamSpec
 
-_LOG = logging.getLogger(__name__)
 _GroupKey = tuple[int, Any]
 
 
@@ -50,23 +54,28 @@ class DbcDevice(Device):
     PARAMS = [
         ParamSpec('dbc_file', str, None,
                   'path of the BMS DBC (absolute, or relative to the working directory, '
-                  'then to the package share folder)'),
+                  'the params file\'s folder, then the package share folder)'),
         ParamSpec('mapping_file', str, None,
                   'path of the mapping YAML (DBC signals -> BatteryState, diagnostics); '
                   'relative paths as dbc_file'),
+        ParamSpec('profile', str, '',
+                  "a shipped, tested DBC and mapping instead of dbc_file and mapping_file "
+                  "(mapping_file, when given, replaces the profile's mapping)",
+                  choices=('', *PROFILES)),
     ]
 
     def __init__(self, name: str, config: DeviceConfig | Mapping[str, Any],
                  clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__(name, config, clock)
         try:
-            self.plan: Plan = load_plan(self.config.dbc_file, self.config.mapping_file)
+            self.plan: Plan = load_plan(self.config.dbc_file, self.config.mapping_file,
+                                        self.config.profile)
         except MappingError as exc:
-            raise ConfigError('; '.join(str(exc).splitlines())) from None
+            raise ConfigError(str(exc)) from None  # its lines as they are: YAML's own too
         plan = self.plan
-        self.warnings = [f'{name}: {w}' for w in plan.warnings]
-        for warning in self.warnings:  # before the node's own logging exists: stderr
-            _LOG.warning('warning: %s', warning)
+        self.warnings = list(plan.warnings)  # the mapping's
+        self.dbc_notes = list(plan.dbc_notes)  # what the DBC lacked: dropped lines, broken
+        self.started = clock()  # missing data counts from here (log2bag: its first frame)
         self._by_id = {m.frame_id: (i, m) for i, m in enumerate(plan.messages)}
         self._frame_ids = frozenset((m.frame_id, m.is_extended_id) for m in plan.messages)
         if len(self._by_id) != len(self._frame_ids):
@@ -74,13 +83,14 @@ class DbcDevice(Device):
                               'extended message: map only one of them')
         self.groups: TimedStore[_GroupKey, tuple] = TimedStore()
         self._stamp = NAN
-        # invalid flags per message: (flag signal index, element label) for the malformed count
-        self._flags: dict[int, list[tuple[int, str]]] = {}
+        # validity flags per message: (flag signal index, its rule, element label) for the
+        # malformed count
+        self._flags: dict[int, list[tuple[int, FlagRule, str]]] = {}
         for key, array in plan.arrays.items():
             for n, flag in enumerate(array.invalid):
-                if flag is not None:
+                if flag is not None and array.flag_rule is not None:
                     self._flags.setdefault(flag.message, []).append(
-                        (flag.signal, f'{key}[{n}] ({flag.name})'))
+                        (flag.signal, array.flag_rule, f'{key}[{n}] ({flag.name})'))
         # positioned arrays: each element timed on its own (a span of one)
         self._slots: dict[int, list[tuple[str, Array, TimedSpans]]] = {}
         for key, array in plan.arrays.items():
@@ -119,6 +129,8 @@ class DbcDevice(Device):
             return False
         now = self.clock()
         with self.lock:
+            if self.started != self.started:  # log2bag: the clock is the log's, from here
+                self.started = now
             self.frames_received += 1
             if bad or flags:
                 self._check(compiled, arbitration_id, values, bad, flags)
@@ -141,10 +153,12 @@ class DbcDevice(Device):
             return primary
 
     def _check(self, compiled: Any, arbitration_id: int, values: tuple, bad: Any,
-               flags: list[tuple[int, str]]) -> None:
-        """Count a frame with a value out of range or an invalid flag set (lock held)."""
+               flags: list[tuple[int, FlagRule, str]]) -> None:
+        """Count a frame with a value out of range or a flag saying invalid (lock held)."""
         problems = [compiled.signals[i].name + ' outside its DBC range' for i in bad]
-        problems += [f'{label} invalid flag set' for flag, label in flags if values[flag]]
+        # a flag of another multiplexer branch is absent (None): not this frame's
+        problems += [f'{label} flagged invalid' for flag, rule, label in flags
+                     if values[flag] is not None and rule.invalid(values[flag])]
         if problems:
             self.frames_malformed += 1
             self.last_malformed = f'{compiled.name} 0x{arbitration_id:X}: ' + ', '.join(
@@ -170,13 +184,20 @@ class DbcDevice(Device):
                         for i in signals[low:high]], now)
 
     # --- reports: what the engine publishes (lock held) ---------------------------------------
-    def _timeout(self, message: int) -> float:
+    def group_timeout(self, message: int) -> float:
+        """Return how long a message's groups stay fresh (s)."""
         return self.plan.timeouts.get(message, self.stale_timeout)
 
-    def _fresh(self, key: _GroupKey, now: float) -> tuple | None:
-        return self.groups.get(key, now, self._timeout(key[0]))
+    def slot_elements(self, key: str) -> TimedSpans:
+        """Return the timed elements of a positioned array."""
+        array = self.plan.arrays[key]
+        assert array.slot_message is not None
+        return next(e for k, _, e in self._slots[array.slot_message] if k == key)
 
-    def _raw(self, ref: Ref, now: float) -> float:
+    def _fresh(self, key: _GroupKey, now: float) -> tuple | None:
+        return self.groups.get(key, now, self.group_timeout(key[0]))
+
+    def raw(self, ref: Ref, now: float) -> float:
         """Return the physical DBC value of a signal (NaN: unknown, expired, not in range)."""
         if ref.mux is None:
             values = self._fresh((ref.message, None), now)
@@ -185,27 +206,25 @@ class DbcDevice(Device):
             newest = max(((ref.message, mux) for mux in ref.mux), key=self.groups.seen,
                          default=None)
             values = (None if newest is None
-                      else self.groups.get(newest, now, self._timeout(ref.message)))
+                      else self.groups.get(newest, now, self.group_timeout(ref.message)))
         if values is None:
             return NAN
         value = values[ref.signal]
         return NAN if value is None else value
 
     def _value(self, ref: Ref, now: float) -> float:
-        return self._raw(ref, now) * ref.factor + ref.add
+        return self.raw(ref, now) * ref.factor + ref.add
 
     def _array(self, key: str, now: float) -> list[float]:
         array = self.plan.arrays[key]
         if array.slot_message is not None:
-            timeout = self._timeout(array.slot_message)
-            for slot_key, _, elements in self._slots[array.slot_message]:
-                if slot_key == key:
-                    return elements.read(now, timeout)
+            return self.slot_elements(key).read(now, self.group_timeout(array.slot_message))
         out = []
+        rule = array.flag_rule
         for ref, flag in zip(array.refs, array.invalid):
             value = self._value(ref, now)
-            if flag is not None and self._raw(flag, now):  # set, or unknown (NaN): no data
-                value = NAN
+            if flag is not None and rule is not None and rule.invalid(self.raw(flag, now)):
+                value = NAN  # invalid, or the flag unknown: no data
             out.append(value)
         return out
 
@@ -234,7 +253,7 @@ class DbcDevice(Device):
         if spec.constant is not None:
             return spec.constant
         for rule in spec.rules:
-            value = self._raw(rule.ref, now)
+            value = self.raw(rule.ref, now)
             if value != value:
                 continue
             found = rule.table.get(value, rule.otherwise)
@@ -242,18 +261,24 @@ class DbcDevice(Device):
                 return found
         return None
 
+    def _fields(self, now: float) -> tuple[dict[str, list[float]], dict[str, float]]:
+        arrays = {key: self._array(key, now) for key in self.plan.arrays}
+        scalars = {key: self._scalar(scalar, arrays, now)
+                   for key, scalar in self.plan.scalars.items()}
+        return arrays, scalars
+
     def _battery_report(self) -> BatteryReport:
         now, plan = self.clock(), self.plan
-        arrays = {key: self._array(key, now) for key in plan.arrays}
+        arrays, scalars = self._fields(now)
         report = BatteryReport(stamp=self._stamp, present=self.last_seen is not None,
                                cell_voltage=arrays.get('cell_voltage', []),
                                cell_temperature=arrays.get('cell_temperature', []))
-        for key, scalar in plan.scalars.items():
-            setattr(report, key, self._scalar(scalar, arrays, now))
+        for key, value in scalars.items():
+            setattr(report, key, value)
         for key, spec in plan.enums.items():
-            value = self._enum(spec, now)
-            if value is not None:
-                setattr(report, key, value)
+            found = self._enum(spec, now)
+            if found is not None:
+                setattr(report, key, found)
         if 'power_supply_status' not in plan.enums or \
                 report.power_supply_status == PowerSupplyStatus.UNKNOWN:
             report.power_supply_status = current_status(report.current)
@@ -263,24 +288,28 @@ class DbcDevice(Device):
 
     def _diagnostic_report(self, with_values: bool = True) -> DiagnosticReport:
         now, plan = self.clock(), self.plan
+        if self.started != self.started:
+            self.started = now
         level, parts = Level.OK, []
         for rule in plan.levels:
-            value = self._raw(rule.ref, now)
-            if value != value:
-                continue
-            hit = {'equal': value == rule.threshold, 'not_equal': value != rule.threshold,
-                   'below': value < rule.threshold,
-                   'above': value > rule.threshold}[rule.condition]
-            if hit:
-                info = plan.messages[rule.ref.message].signals[rule.ref.signal]
+            value = self.raw(rule.ref, now)
+            info = plan.messages[rule.ref.message].signals[rule.ref.signal]
+            if value == value and rule.hit(value, info):
                 level = rule.level
+                bits = round((value - info.offset) / info.scale) & int(rule.threshold) \
+                    if rule.condition.endswith('_bits') else 0
                 parts.append(rule.message.format(value=_fmt(value, info.choices),
-                                                 signal=rule.ref.name))
+                                                 signal=rule.ref.name, bits=f'0x{bits:X}'))
                 break
-        if self.warnings:
+        missing = missing_report(self, *self._fields(now), now)
+        if missing:
             level = max(level, Level.WARN)
-            parts.append(f'{len(self.warnings)} mapping warning(s)')
-        _, silent = self.groups.split(now, lambda key: self._timeout(key[0]))
+            parts += missing
+        for notes, what in ((self.warnings, 'mapping'), (self.dbc_notes, 'DBC')):
+            if notes:
+                level = max(level, Level.WARN)
+                parts.append(f'{len(notes)} {what} warning(s)')
+        _, silent = self.groups.split(now, lambda key: self.group_timeout(key[0]))
         expired = sorted({plan.messages[m].name for m, mux in silent if mux is None})
         if expired:
             parts.append('silent: ' + ', '.join(expired))
@@ -288,15 +317,22 @@ class DbcDevice(Device):
             parts.append('OK')
         values: dict[str, str] = {}
         if with_values:
-            for ref in plan.values:
-                info = plan.messages[ref.message].signals[ref.signal]
-                label = ref.name + (f' [{info.unit}]' if info.unit else '')
-                values[label] = _fmt(self._raw(ref, now), info.choices)
-            for n, warning in enumerate(self.warnings):
-                values[f'mapping warning {n + 1}'] = warning
+            values = capped_values(plan, lambda ref: _fmt(
+                self.raw(ref, now), plan.messages[ref.message].signals[ref.signal].choices))
+            values.update({f'unknown {n + 1}': text for n, text in enumerate(missing)})
+            values.update(listed('mapping warning', self.warnings))
+            values.update(listed('DBC warning', self.dbc_notes))
             if expired:
                 values['messages expired'] = ', '.join(expired)
         return DiagnosticReport(level, '; '.join(parts), values)
+
+    def start_log(self) -> tuple[list[str], list[str]]:
+        """Return the start log of this device: how each field is computed, the warnings."""
+        notes = self.dbc_notes[:WARNINGS_CAP]
+        if len(self.dbc_notes) > WARNINGS_CAP:
+            notes.append(f'... and {len(self.dbc_notes) - WARNINGS_CAP} more DBC warnings '
+                         '(the diagnostics count them)')
+        return start_lines(self.plan, self.stale_timeout), self.warnings + notes
 
     def config_problems(self, config: DeviceConfig,
                         keys: Iterable[str] | None = None) -> list[str]:

@@ -3,34 +3,54 @@ The checks of each entry of a dbc mapping, collecting every problem instead of s
 
 ``devices.dbc_mapping`` walks the file (its top-level keys, primary, timeouts) and hands each
 entry to a ``Builder``: a "Message.signal" reference (the closest names when it is not in the
-DBC, the unit converted to what the field wants), a BatteryState scalar, enum or array
-(templates, lists, positioned arrays), a diagnostics level or value list. docs/protocols.md
-section 8 holds the rules.
+DBC; a broken message or a duplicated name refused; the unit converted to what the field
+wants), a BatteryState scalar or enum, a diagnostics level or value list. Arrays are
+``devices.dbc_arrays``'. docs/protocols.md section 8 holds the rules.
 """
 from __future__ import annotations
 
+import re
 from typing import Any
 
 from ams_can_bridge.devices.dbc_plan import (
-    Array, ARRAY_UNITS, CONDITIONS, CONVERSIONS, Enum, EnumRule, ENUMS, LevelRule, LEVELS,
-    REDUCERS, Ref, Scalar, SCALAR_UNITS, unit_text)
+    base_unit, CONDITIONS, Enum, EnumRule, ENUMS, LevelRule, LEVELS, REDUCERS, Ref, Scalar,
+    SCALAR_UNITS)
+from ams_can_bridge.devices.dbc_units import lookup, QUANTITY_NAMES, unit_text
 from ams_can_bridge.protocols import dbc_codec
+from ams_can_bridge.protocols.dbc_load import DUPLICATE_MARK, LoadedDbc
+
+# a plausible value of each quantity, to show what a wrong scale would make of it
+_SAMPLE = {'V': 3.7, 'A': 20.0, 'Ah': 20.0, 'fraction': 0.75, 'degC': 25.0}
+
+
+def natural_key(text: str) -> tuple:
+    """Sort 'Cell_2' before 'Cell_10' (numbers as numbers)."""
+    return tuple(int(part) if part.isdigit() else part.lower()
+                 for part in re.split(r'(\d+)', text))
 
 
 class Builder:
     """Walks the mapping, collecting every problem instead of stopping at the first."""
 
-    def __init__(self, db: Any, mapping: dict) -> None:
-        self.db = db
+    def __init__(self, loaded: LoadedDbc, mapping: dict) -> None:
+        self.loaded = loaded
+        self.db = loaded.db
         self.mapping = mapping
         self.problems: list[str] = []
         self.warnings: list[str] = []
         self.messages: list[dbc_codec.CompiledMessage] = []
+        self.sources: list[Any] = []  # the cantools message of each compiled one
+        self.used: set[tuple[int, int]] = set()  # (message, signal) a field or level reads
         self._by_name: dict[str, int] = {}
 
     def message(self, name: str, where: str) -> int | None:
         if name in self._by_name:
             return self._by_name[name]
+        broken = self.loaded.broken.get(name)
+        if broken is not None:
+            self.problems.append(f'{where}: message {name} is broken in the DBC ({broken}): '
+                                 'fix it in the DBC or map another message')
+            return None
         try:
             msg = self.db.get_message_by_name(name)
         except KeyError:
@@ -39,10 +59,12 @@ class Builder:
             return None
         self._by_name[name] = len(self.messages)
         self.messages.append(dbc_codec.compile_message(msg))
+        self.sources.append(msg)
         return self._by_name[name]
 
     def ref(self, text: Any, where: str, wanted: str | None = None, scale: Any = None,
-            offset: Any = None) -> Ref | None:
+            offset: Any = None, unit: Any = None, used: bool = True) -> Ref | None:
+        """Check a "Message.signal" and its conversion to the wanted quantity (V, A, ...)."""
         if not isinstance(text, str) or text.count('.') != 1:
             self.problems.append(f'{where}: {text!r} is not "Message.signal"')
             return None
@@ -51,36 +73,81 @@ class Builder:
         if m is None:
             return None
         compiled = self.messages[m]
-        i = compiled.index.get(sig_name)
+        count = self.loaded.duplicates.get(msg_name, {}).get(sig_name)
+        if count:
+            self.problems.append(
+                f'{where}: signal {sig_name} appears {count} times in message {msg_name} of '
+                'the DBC, so it cannot be told apart: give each its own name in the DBC')
+            return None
+        i = None if DUPLICATE_MARK in sig_name else compiled.index.get(sig_name)
         if i is None:
             self.problems.append(f'{where}: signal {sig_name!r} is not in message {msg_name}'
-                                 + dbc_codec.closest(sig_name, list(compiled.index)))
+                                 + dbc_codec.closest(sig_name, [
+                                     n for n in compiled.index if DUPLICATE_MARK not in n]))
             return None
         info = compiled.signals[i]
-        factor, add = self._conversion(info.unit, text, where, wanted, scale, offset)
+        conversion = self._conversion(info, text, where, wanted, scale, offset, unit)
+        if conversion is None:
+            return None
+        unit_used, factor, add, converted, scale_f, offset_f = conversion
+        if used:
+            self.used.add((m, i))
         # nested multiplexing (decoded by cantools): one merged group per message
         mux = info.mux_ids if compiled.mux_index is not None else None
-        return Ref(m, i, mux, text, info.unit, factor, add)
+        return Ref(m, i, mux, text, unit_used, factor * scale_f, add * scale_f + offset_f,
+                   converted, scale_f, offset_f)
 
-    def _conversion(self, unit: str, name: str, where: str, wanted: str | None,
-                    scale: Any, offset: Any) -> tuple[float, float]:
-        factor, add = 1.0, 0.0
-        if wanted is not None:
-            known = CONVERSIONS[wanted].get(unit_text(unit))
-            if known is not None:
-                factor, add = known
-            elif scale is None:
-                self.warnings.append(
-                    f'{where}: {name} has unit {unit!r}, which is not a {wanted} unit we know;'
-                    f' taken as {wanted} as it is (give a scale to silence this)')
+    def _conversion(self, info: dbc_codec.SignalInfo, name: str, where: str,
+                    wanted: str | None, scale: Any, offset: Any, unit: Any
+                    ) -> tuple[str, float, float, str, float, float] | None:
+        """
+        Return (unit, factor, add, converted unit, scale, offset), or None (a problem).
+
+        The rule that makes the common mistake loud: the device converts a known unit
+        itself, so a mapping's scale on such a signal may only flip the sign.
+        """
         for label, value in (('scale', scale), ('offset', offset)):
             if value is not None and (isinstance(value, bool)
                                       or not isinstance(value, (int, float))):
                 self.problems.append(f'{where}: {label} {value!r} is not a number')
-                return factor, add
-        scale = 1.0 if scale is None else float(scale)
-        offset = 0.0 if offset is None else float(offset)
-        return factor * scale, add * scale + offset
+                return None
+        scale_f = 1.0 if scale is None else float(scale)
+        offset_f = 0.0 if offset is None else float(offset)
+        dbc_unit = unit_text(info.unit)
+        if wanted is None:
+            return dbc_unit, 1.0, 0.0, '', 1.0, 0.0
+        spelled = dbc_unit if unit is None else str(unit)
+        known = lookup(spelled)
+        target = QUANTITY_NAMES[wanted]
+        if unit is not None and (known is None or known.quantity != wanted):
+            self.problems.append(f'{where}: unit {unit!r} is not {target} unit this package '
+                                 'knows (README "Your own BMS": units)')
+            return None
+        if known is None:
+            if scale is None and offset is None:
+                self.warnings.append(
+                    f'{where}: {name} has unit {spelled!r}, which is not {target} unit we '
+                    f'know; taken as {base_unit(wanted)} as it is (give its unit with '
+                    'unit:, or scale: 1 if the value is right as it is)')
+            return spelled, 1.0, 0.0, '', scale_f, offset_f
+        if known.quantity != wanted:
+            self.problems.append(
+                f'{where}: {name} is in {spelled}, {QUANTITY_NAMES[known.quantity]}, not '
+                f'{target}: map {target} signal (or, if the DBC\'s unit is wrong, give the '
+                'right one with unit:)')
+            return None
+        if abs(scale_f) != 1.0:
+            sample = _SAMPLE[wanted]
+            raw = (sample - known.add) / known.factor
+            self.problems.append(
+                f'{where}: {name} is in {spelled}, which the device converts to '
+                f'{base_unit(wanted)} itself; scale {scale_f:g} on top would make '
+                f'{raw:g} {spelled} read {sample * scale_f + offset_f:g}. Remove scale '
+                '(scale: -1 only flips the sign); if the DBC\'s unit is wrong, give the '
+                'right one with unit:')
+            return None
+        converted = spelled if (known.factor, known.add) != (1.0, 0.0) else ''
+        return spelled, known.factor, known.add, converted, scale_f, offset_f
 
     # --- battery_state ---------------------------------------------------------------------
     def scalar(self, key: str, spec: Any, where: str) -> Scalar | None:
@@ -96,16 +163,17 @@ class Builder:
             return None
         if 'reduce' in spec:
             op, of = spec.get('reduce'), spec.get('of')
-            if op not in REDUCERS or of not in ARRAY_UNITS:
+            if op not in REDUCERS or of not in ('cell_voltage', 'cell_temperature'):
                 self.problems.append(f'{where}: reduce must be one of {", ".join(REDUCERS)} '
-                                     f'and of one of {", ".join(ARRAY_UNITS)}')
+                                     'and of one of cell_voltage, cell_temperature')
                 return None
             fallback = None
             if 'fallback' in spec:
                 fallback = self.scalar(key, spec['fallback'], where + '.fallback')
             return Scalar(reduce=op, of=of, fallback=fallback)
-        self.unknown_keys(spec, {'signal', 'scale', 'offset'}, where)
-        ref = self.ref(spec.get('signal'), where, wanted, spec.get('scale'), spec.get('offset'))
+        self.unknown_keys(spec, {'signal', 'scale', 'offset', 'unit'}, where)
+        ref = self.ref(spec.get('signal'), where, wanted, spec.get('scale'), spec.get('offset'),
+                       spec.get('unit'))
         return Scalar(ref=ref) if ref else None
 
     def enum(self, key: str, spec: Any, where: str) -> Enum | None:
@@ -167,111 +235,12 @@ class Builder:
                                 ' (it has no VAL_ names: use numbers)'))
         return None
 
-    def array(self, key: str, spec: Any, where: str) -> Array | None:
-        wanted = ARRAY_UNITS[key]
-        if isinstance(spec, list):
-            spec = {'signals': spec}
-        if not isinstance(spec, dict):
-            self.problems.append(f'{where}: write {{signal: "Msg.sig_{{i}}", count: N}} or a '
-                                 'list of "Message.signal"')
-            return None
-        self.unknown_keys(spec, {'signal', 'signals', 'count', 'first', 'invalid',
-                                 'per_frame', 'position', 'scale', 'offset'}, where)
-        scale, offset = spec.get('scale'), spec.get('offset')
-        if 'position' in spec:
-            return self._slot_array(spec, where, wanted)
-        if 'signals' in spec:
-            names: list[Any] | None = list(spec['signals'] or [])
-            invalid_names: list[Any] | None = [None] * len(spec['signals'] or [])
-        else:
-            count, first = spec.get('count'), spec.get('first', 0)
-            if not isinstance(count, int) or isinstance(count, bool) or not 1 <= count <= 1024:
-                self.problems.append(f'{where}.count: {count!r}: give the number of elements '
-                                     '(1..1024)')
-                return None
-            names = self._expand(spec.get('signal'), count, first, where)
-            invalid_names = (self._expand(spec['invalid'], count, first, where + '.invalid')
-                             if spec.get('invalid') else [None] * count)
-        if names is None or invalid_names is None:
-            return None
-        refs, invalid = [], []
-        before = len(self.problems)
-        for name, flag in zip(names, invalid_names):
-            ref = self.ref(name, where, wanted, scale, offset)
-            if ref is not None:
-                refs.append(ref)
-            invalid.append(self.ref(flag, where + '.invalid') if flag else None)
-            if len(self.problems) - before >= 3:
-                self.problems.append(f'{where}: (further elements not checked)')
-                return None
-        if len(self.problems) > before:
-            return None
-        return Array(count=len(refs), refs=tuple(refs), invalid=tuple(invalid))
-
-    def _expand(self, template: Any, count: int, first: Any, where: str) -> list[str] | None:
-        if not isinstance(template, str) or not isinstance(first, int):
-            self.problems.append(f'{where}: signal must be a "Message.signal_{{i}}" template '
-                                 'and first an integer')
-            return None
-        try:
-            names = [template.format(i=first + n) for n in range(count)]
-        except (KeyError, IndexError, ValueError) as exc:
-            self.problems.append(f'{where}: template {template!r} does not resolve with {{i}}:'
-                                 f' {exc!r}')
-            return None
-        if count > 1 and len(set(names)) == 1:
-            self.problems.append(f'{where}: template {template!r} has no {{i}}')
-            return None
-        return names
-
-    def _slot_array(self, spec: dict, where: str, wanted: str) -> Array | None:
-        per_frame, count = spec.get('per_frame'), spec.get('count')
-        position = spec.get('position')
-        if not isinstance(per_frame, int) or not isinstance(count, int) \
-                or not isinstance(position, dict) or not 1 <= count <= 1024:
-            self.problems.append(f'{where}: a positioned array needs per_frame (elements per '
-                                 'frame), count (1..1024) and position {selector signal: '
-                                 '{stride: N, first: F}}')
-            return None
-        names = self._expand(spec.get('signal'), per_frame, spec.get('first', 0), where)
-        if names is None:
-            return None
-        found = [self.ref(n, where, wanted, spec.get('scale'), spec.get('offset'))
-                 for n in names]
-        refs = [r for r in found if r is not None]
-        if len(refs) != len(found):
-            return None
-        message = refs[0].message
-        if any(r.message != message for r in refs):
-            self.problems.append(f'{where}: a positioned array takes its elements from one '
-                                 'message')
-            return None
-        selectors = []
-        compiled = self.messages[message]
-        for name, how in position.items():
-            how = how if isinstance(how, dict) else {'stride': how}
-            i = compiled.index.get(str(name))
-            stride, first = how.get('stride'), how.get('first', 0)
-            if i is None:
-                self.problems.append(f'{where}.position: {name!r} is not a signal of '
-                                     f'{compiled.name}'
-                                     + dbc_codec.closest(str(name), list(compiled.index)))
-            elif not isinstance(stride, int) or not isinstance(first, (int, float)):
-                self.problems.append(f'{where}.position.{name}: stride must be an integer')
-            else:
-                selectors.append((i, float(first), stride))
-        if len(selectors) != len(position):
-            return None
-        return Array(count=count, slot_message=message,
-                     slot_signals=tuple(r.signal for r in refs), selectors=tuple(selectors),
-                     factor=refs[0].factor, add=refs[0].add)
-
     # --- diagnostics -----------------------------------------------------------------------
     def levels(self, specs: Any) -> list[LevelRule]:
         rules: list[LevelRule] = []
         if not isinstance(specs, list):
-            self.problems.append('diagnostics.levels: write a list of '
-                                 '{signal, below|above|equal|not_equal, level, message}')
+            self.problems.append('diagnostics.levels: write a list of {signal, '
+                                 f'{"|".join(CONDITIONS)}, level, message}}')
             return rules
         for n, spec in enumerate(specs):
             where = f'diagnostics.levels[{n}]'
@@ -285,23 +254,37 @@ class Builder:
                 self.problems.append(f'{where}: give one of {", ".join(CONDITIONS)} and a level'
                                      f' ({", ".join(LEVELS)})')
                 continue
+            condition = conditions[0]
             ref = self.ref(spec.get('signal'), where)
             if ref is None:
                 continue
             info = self.messages[ref.message].signals[ref.signal]
-            threshold = self.signal_value(info, spec[conditions[0]], where)
+            if condition.endswith('_bits'):
+                threshold = self._mask(info, spec[condition], f'{where}.{condition}')
+            else:
+                threshold = self.signal_value(info, spec[condition], where)
             if threshold is None:
                 continue
-            message = spec.get('message') or f'{ref.name} {{value}} ({conditions[0]} ' \
-                f'{spec[conditions[0]]})'
-            rules.append(LevelRule(ref, conditions[0], threshold, level, str(message)))
+            message = spec.get('message') or f'{ref.name} {{value}} ({condition} ' \
+                f'{spec[condition]})'
+            rules.append(LevelRule(ref, condition, threshold, level, str(message)))
         return rules
 
+    def _mask(self, info: dbc_codec.SignalInfo, mask: Any, where: str) -> float | None:
+        """Check a bit mask: a positive whole number within the signal's raw bits."""
+        if isinstance(mask, bool) or not isinstance(mask, int) or mask <= 0:
+            self.problems.append(f'{where}: {mask!r} is not a bit mask (a whole number > 0, '
+                                 'e.g. 0x0C)')
+            return None
+        if mask >> info.length:
+            self.problems.append(f'{where}: 0x{mask:X} has bits beyond the {info.length} bits '
+                                 f'of {info.name}')
+            return None
+        return float(mask)
+
     def values(self, spec: Any) -> list[Ref]:
-        if spec in (None, 'all'):
-            return []  # filled with every signal of the consumed messages at the end
-        if spec == 'none':
-            return []
+        if spec in (None, 'all', 'none'):
+            return []  # 'all': every signal of the consumed messages, at the end
         if not isinstance(spec, list):
             self.problems.append("diagnostics.values: write all, none or a list of "
                                  '"Message.signal" / "Message"')
@@ -313,16 +296,26 @@ class Builder:
                 if m is not None:
                     refs += self.all_of(m)
             else:
-                ref = self.ref(text, 'diagnostics.values')
+                ref = self.ref(text, 'diagnostics.values', used=False)
                 if ref is not None:
                     refs.append(ref)
         return refs
 
     def all_of(self, m: int) -> list[Ref]:
+        """
+        Return every signal of a message as diagnostics show it.
+
+        The multiplexer's own signal and duplicated names are left out; multiplexed
+        signals come after the others, in natural order (Cell_2 before Cell_10).
+        """
         compiled = self.messages[m]
-        return [Ref(m, i, s.mux_ids if compiled.mux_index is not None else None,
-                    f'{compiled.name}.{s.name}', s.unit)
-                for i, s in enumerate(compiled.signals)]
+        muxed = compiled.mux_index is not None
+        shown = [(i, s) for i, s in enumerate(compiled.signals)
+                 if not s.is_multiplexer and DUPLICATE_MARK not in s.name]
+        shown.sort(key=lambda item: (0, item[0]) if not item[1].mux_ids
+                   else (1, natural_key(item[1].name)))
+        return [Ref(m, i, s.mux_ids if muxed else None, f'{compiled.name}.{s.name}', s.unit)
+                for i, s in shown]
 
     def unknown_keys(self, spec: dict, known: set[str], where: str) -> None:
         for key in spec:

@@ -9,53 +9,33 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterable
 
 from ams_can_bridge.devices.base import (
     Level, PowerSupplyHealth, PowerSupplyStatus, PowerSupplyTechnology)
+from ams_can_bridge.devices.dbc_units import BASE
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols import dbc_codec
 from ams_can_bridge.protocols.common import msg_defs_dir
 
-# BatteryState field -> the unit it wants (None: an enum or a name, not a number).
+# BatteryState field -> the quantity it wants (dbc_units; None: an enum or a name).
 SCALAR_UNITS = {'voltage': 'V', 'current': 'A', 'charge': 'Ah', 'capacity': 'Ah',
                 'design_capacity': 'Ah', 'percentage': 'fraction', 'temperature': 'degC'}
 ARRAY_UNITS = {'cell_voltage': 'V', 'cell_temperature': 'degC'}
+ARRAY_LABELS = {'cell_voltage': 'cell voltages', 'cell_temperature': 'cell temperatures'}
 ENUMS: dict[str, Any] = {'power_supply_status': PowerSupplyStatus,
                          'power_supply_health': PowerSupplyHealth,
                          'power_supply_technology': PowerSupplyTechnology}
-# DBC unit -> (factor, offset) to the wanted unit: wanted = value * factor + offset.
-_CELSIUS = {u: (1.0, 0.0) for u in (
-    'degC', '°C', 'C', 'deg C', 'degree C', 'Celsius', 'celsius', 'DegC', '\u2103')}
-CONVERSIONS: dict[str, dict[str, tuple[float, float]]] = {
-    'V': {'V': (1.0, 0.0), 'mV': (1e-3, 0.0), 'kV': (1e3, 0.0), 'uV': (1e-6, 0.0),
-          'µV': (1e-6, 0.0), 'dV': (0.1, 0.0), 'cV': (0.01, 0.0)},
-    'A': {'A': (1.0, 0.0), 'mA': (1e-3, 0.0), 'kA': (1e3, 0.0), 'uA': (1e-6, 0.0),
-          'µA': (1e-6, 0.0), 'dA': (0.1, 0.0), 'cA': (0.01, 0.0)},
-    'Ah': {'Ah': (1.0, 0.0), 'mAh': (1e-3, 0.0), 'kAh': (1e3, 0.0), 'As': (1 / 3600, 0.0),
-           'mAs': (1 / 3.6e6, 0.0)},
-    'degC': {**_CELSIUS, 'K': (1.0, -273.15), 'degF': (5 / 9, -160 / 9),
-             '°F': (5 / 9, -160 / 9), 'dK': (0.1, -273.15)},
-    'fraction': {'%': (0.01, 0.0), 'percent': (0.01, 0.0), '‰': (0.001, 0.0)},
-}
 REDUCERS = ('sum', 'max', 'min', 'mean')
-CONDITIONS = ('equal', 'not_equal', 'below', 'above')
+CONDITIONS = ('equal', 'not_equal', 'below', 'above', 'any_bits', 'all_bits')
+CONDITION_TEXT = {'equal': '=', 'not_equal': '!=', 'below': '<', 'above': '>',
+                  'any_bits': 'has any of the bits', 'all_bits': 'has all of the bits'}
 TOP_LEVEL = ('primary', 'battery_state', 'diagnostics', 'timeouts')
 LEVELS = {'OK': Level.OK, 'WARN': Level.WARN, 'ERROR': Level.ERROR}
-
-
-def unit_text(unit: str) -> str:
-    """
-    Return a DBC unit as its author wrote it.
-
-    cantools reads DBC files as cp1252 (the usual encoding of CANdb++ files), so a UTF-8
-    file's '°C' arrives as 'Â°C'; both mean degC.
-    """
-    text = unit.strip()
-    try:
-        return text.encode('cp1252').decode('utf-8')
-    except UnicodeError:
-        return text
+# A message's own timeout from its DBC period: this many periods (of a whole rotation for a
+# multiplexed message), never shorter than MIN_TIMEOUT (a loaded host delivers late).
+TIMEOUT_PERIODS = 5
+MIN_TIMEOUT = 0.1  # s
 
 
 class MappingError(ConfigError):
@@ -70,9 +50,13 @@ class Ref:
     signal: int  # index into that message's decoded tuple
     mux: tuple[int, ...] | None  # multiplexer values of its branch (None: every frame)
     name: str  # 'Message.signal'
-    unit: str
-    factor: float = 1.0
+    unit: str  # as the DBC spells it (or the mapping's unit:)
+    factor: float = 1.0  # wanted = DBC value * factor + add
     add: float = 0.0
+    # how factor and add came about, for the start log
+    converted: str = ''  # 'mV' when the unit was converted, '' when taken as it is
+    scale: float = 1.0  # the mapping's scale and offset, after the unit's conversion
+    offset: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -104,11 +88,32 @@ class Enum:
 
 
 @dataclass(frozen=True)
+class FlagRule:
+    """What a validity flag's value means: invalid when it is (or is not) one of values."""
+
+    values: frozenset[float]
+    invalid_if_in: bool  # True: invalid when the flag is one of values; False: unless it is
+    why: str  # for the start log: 'the DBC value table names 0 "Invalid"', ...
+
+    def invalid(self, value: float | None) -> bool:
+        """Tell whether a flag value means "no data" (unknown counts as invalid)."""
+        if value is None or value != value:
+            return True
+        return (value in self.values) == self.invalid_if_in
+
+    def text(self, template: str) -> str:
+        """Say the rule: 'invalid when Msg.flag_{i} = 0 (why)'."""
+        values = ' or '.join(f'{v:g}' for v in sorted(self.values))
+        sign = '=' if self.invalid_if_in else '!='
+        return f'invalid when {template} {sign} {values} ({self.why})'
+
+
+@dataclass(frozen=True)
 class Array:
     """
     cell_voltage / cell_temperature.
 
-    Template form: one Ref per element (and its invalid flag). Slot form: one message
+    Template form: one Ref per element (and its validity flag). Slot form: one message
     carries ``per_frame`` elements at a position its selector signals give
     (``sum((selector - first) * stride)``), as the AMS sends its banks and groups.
     """
@@ -116,11 +121,16 @@ class Array:
     count: int
     refs: tuple[Ref, ...] = ()
     invalid: tuple[Ref | None, ...] = ()
+    flag_rule: FlagRule | None = None
     slot_message: int | None = None
     slot_signals: tuple[int, ...] = ()
     selectors: tuple[tuple[int, float, int], ...] = ()  # (signal index, first, stride)
     factor: float = 1.0
     add: float = 0.0
+    # for the start log: the mapping's template or list, its first element's conversion
+    source: str = ''
+    flag_source: str = ''
+    sample: Ref | None = None
 
 
 @dataclass(frozen=True)
@@ -128,10 +138,25 @@ class LevelRule:
     """diagnostics.levels: a condition on a signal -> a level and a message."""
 
     ref: Ref
-    condition: str
-    threshold: float
+    condition: str  # one of CONDITIONS
+    threshold: float  # in the signal's DBC unit; a bit mask for any_bits / all_bits
     level: Level
     message: str
+
+    def hit(self, value: float, info: dbc_codec.SignalInfo) -> bool:
+        """Tell whether the DBC value meets the condition."""
+        condition = self.condition
+        if condition == 'below':
+            return value < self.threshold
+        if condition == 'above':
+            return value > self.threshold
+        if condition == 'equal':
+            return value == self.threshold
+        if condition == 'not_equal':
+            return value != self.threshold
+        mask = int(self.threshold)
+        bits = round((value - info.offset) / info.scale) & mask  # the raw value's bits
+        return bits == mask if condition == 'all_bits' else bits != 0
 
 
 @dataclass
@@ -145,23 +170,58 @@ class Plan:
     arrays: dict[str, Array] = field(default_factory=dict)
     levels: list[LevelRule] = field(default_factory=list)
     values: list[Ref] = field(default_factory=list)
-    warnings: list[str] = field(default_factory=list)
-    timeouts: dict[int, float] = field(default_factory=dict)  # message -> s (else stale_timeout)
+    warnings: list[str] = field(default_factory=list)  # the mapping's
+    dbc_notes: list[str] = field(default_factory=list)  # lines dropped, broken messages
+    # message -> s, from the mapping's timeouts or the DBC's period (else stale_timeout)
+    timeouts: dict[int, float] = field(default_factory=dict)
+    timeout_origin: dict[int, str] = field(default_factory=dict)  # message -> why
+    mapped: frozenset[tuple[int, int]] = frozenset()  # (message, signal) any rule reads
+    files: tuple[str, str] = ('', '')  # the DBC and the mapping as found
+    sources: list[Any] = field(default_factory=list)  # the cantools message of each message
 
 
-def resolve_path(path: str) -> Path:
+def base_unit(quantity: str) -> str:
+    """Return how the start log writes a quantity's unit ('V', '0..1', ...)."""
+    return BASE.get(quantity, quantity)
+
+
+# --- where the files are ----------------------------------------------------------------
+_params_folders: list[Path] = []
+
+
+def set_params_files(paths: Iterable[str]) -> None:
     """
-    Find a DBC or mapping file.
+    Say which params files the process was given (--params-file): their folders are searched.
 
-    As given (absolute, or relative to the working directory), else relative to the
-    installed package's share folder (``msg_defs/ams.dbc``,
+    The bridge and log2bag call it with their command line; a relative dbc_file or
+    mapping_file is then also found beside the params file that names it.
+    """
+    _params_folders[:] = [Path(os.path.expanduser(p)).resolve().parent for p in paths]
+
+
+def locate(path: str) -> tuple[Path | None, list[Path]]:
+    """
+    Find a DBC or mapping file; return it (None: not found) and every place looked at.
+
+    Absolute: itself. Relative: the working directory, the folder of each params file the
+    process was given, then the installed package's share folder (``msg_defs/ams.dbc``,
     ``config/ams_dbc_mapping.yaml`` work from anywhere).
     """
     given = Path(os.path.expanduser(path))
-    if given.is_absolute() or given.exists():
-        return given
+    if given.is_absolute():
+        return (given if given.is_file() else None), [given]
+    places = [Path.cwd() / given] + [folder / given for folder in _params_folders]
     try:
-        shared = msg_defs_dir().parent / given
+        places.append(msg_defs_dir().parent / given)
     except FileNotFoundError:
-        return given
-    return shared if shared.exists() else given
+        pass
+    for place in places:
+        if place.is_file():
+            return place, places
+    return None, places
+
+
+def resolve_path(path: str) -> Path:
+    """Return the file locate() finds, else the path as given (for an error to name)."""
+    found, _ = locate(path)
+    return found if found is not None else Path(os.path.expanduser(path))

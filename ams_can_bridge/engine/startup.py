@@ -169,7 +169,7 @@ def security_warning(allowed: bool, environ: Mapping[str, str]) -> str | None:
 
 def start_summary(config: BusConfig, hardware_id: str, devices: Mapping[str, Device], *,
                   enabled: bool, allowed: bool) -> tuple[str, str | None]:
-    """Return the start-up log: the INFO text, and the WARN text when no device is set."""
+    """Return the start-up log: the INFO text, and the WARN text (no device; a device's)."""
     rate = f' @ {config.bitrate} bit/s' if config.bitrate else ''
     lines = [f'CAN bus {hardware_id}{rate}'
              + (' (FD)' if config.fd else '')
@@ -178,14 +178,18 @@ def start_summary(config: BusConfig, hardware_id: str, devices: Mapping[str, Dev
                 if enabled else ', listen only')
              + ('' if allowed else
                 ' (commands_allowed is false: commands cannot be enabled)')]
+    warnings = []
     for name, device in devices.items():
         # 'IDs 0x300-0x301; 0x18FF50E5 (29-bit)' without its first word
         ids = format_ids(device.frame_ids).partition(' ')[2]
         lines.append(f'  {name} ({device.TYPE}): {ids}')
+        info, warn = device.start_log()  # a dbc device: how each field is computed
+        lines += [f'    {line}' for line in info]
+        warnings += [f'{name}: {line}' for line in warn]
     if not devices:
         lines.append('  no devices configured (set the devices parameter)')
         return '\n'.join(lines), NO_DEVICES_WARNING
-    return '\n'.join(lines), None
+    return '\n'.join(lines), '\n'.join(warnings) or None
 
 
 def name_collision(graph: list[tuple[str, str]], name: str, namespace: str) -> str | None:

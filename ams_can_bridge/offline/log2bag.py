@@ -32,6 +32,7 @@ import sys
 import time
 from typing import Sequence, TextIO, TYPE_CHECKING
 
+from ams_can_bridge.devices.dbc_plan import set_params_files
 from ams_can_bridge.errors import ConfigError, LogFileError
 from ams_can_bridge.offline.converter import Converter, NODE_NAME
 from ams_can_bridge.offline.log_frames import LogFrames
@@ -193,6 +194,9 @@ def convert(log: str, output: str, parameters: dict, storage: str = 'mcap',
     """
     check_output(output)
     converter = Converter(parameters, None, f'replay:{log}', node_name)  # bad: no bag
+    for name, device in converter.devices.devices.items():
+        for warning in device.start_log()[1]:  # a dbc device: broken DBC messages, ...
+            print(f'log2bag: warning: {name}: {warning}', file=sys.stderr)
     frames = LogFrames(log)
     try:
         bag = converter.bag = open_bag(output, storage)
@@ -290,6 +294,7 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run log2bag; exit 0 on success, 2 on unusable input (the message says what)."""
     args = parse_args(argv)
+    set_params_files([args.params_file])  # a dbc device's files beside the params file
     try:
         parameters = load_parameters(args.params_file, args.node_name)
         summary = convert(args.log, args.output, parameters, args.storage, args.start,

@@ -15,8 +15,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence
 
-import cantools
-from cantools.database.can import Database, Message
+from cantools.database.can import Message
 
 from ams_can_bridge.errors import MalformedFrameError
 from ams_can_bridge.protocols.layout import compile_function, Layout, tolerance
@@ -37,6 +36,8 @@ class SignalInfo:
     choices: dict[int, str]  # raw value -> name (VAL_)
     mux_ids: tuple[int, ...] | None  # multiplexer values carrying it (None: every frame)
     is_multiplexer: bool
+    length: int = 0  # bits
+    is_signed: bool = False
 
     def physical(self, raw: int) -> float:
         """Return the physical value of a raw value (raw * scale + offset, as cantools)."""
@@ -65,11 +66,6 @@ class CompiledMessage:
         return self.decode_values(data)
 
 
-def load(path: str) -> Database:
-    """Load a DBC file strictly (cantools raises on overlapping or out-of-frame signals)."""
-    return cantools.database.load_file(path, strict=True)  # type: ignore[return-value]  # CAN
-
-
 def closest(name: str, names: Sequence[str], n: int = 3) -> str:
     """Say which known names come closest to a misspelt one (for error messages)."""
     near = difflib.get_close_matches(name, list(names), n=n, cutoff=0.5)
@@ -84,7 +80,8 @@ def _info(message: Message) -> tuple[SignalInfo, ...]:
         scale=float(s.scale), offset=float(s.offset),
         choices={int(k): str(v) for k, v in (s.choices or {}).items()},
         mux_ids=tuple(s.multiplexer_ids) if s.multiplexer_ids else None,
-        is_multiplexer=bool(s.is_multiplexer)) for s in message.signals)
+        is_multiplexer=bool(s.is_multiplexer), length=s.length,
+        is_signed=bool(s.is_signed)) for s in message.signals)
 
 
 def _limits(info: SignalInfo) -> tuple[float, float]:

@@ -119,8 +119,11 @@ def main(args: list[str] | None = None) -> int:
     import rclpy.logging
     from rclpy.signals import SignalHandlerOptions
 
+    from ams_can_bridge.devices.dbc_plan import set_params_files
     from ams_can_bridge.ros.bridge_node import BridgeNode, ConfigError, NODE_NAME
-    from ams_can_bridge.ros.params import params_file_problems, unmatched_params_files
+    from ams_can_bridge.ros.params import (
+        params_file_problems, params_files, unmatched_params_files)
+    set_params_files(params_files(argv))  # a dbc device's files beside its params file
     sys.setswitchinterval(GIL_SWITCH_INTERVAL)
     signals = StopSignals()
     try:

@@ -13,6 +13,7 @@ from typing import Any, Sequence
 
 from ams_can_bridge import registry
 from ams_can_bridge.can_io import parse_options
+from ams_can_bridge.devices.dbc_profiles import PROFILES
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols.sma import SMA_CONDITIONS
 from ams_can_bridge.sim.base import SimDevice
@@ -79,7 +80,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="simulate a dbc device's BMS from its DBC (with --mapping; README "
                         '"Your own BMS"; default for --devices dbc: our AMS example)')
     p.add_argument('--mapping', default=None, metavar='FILE',
-                   help="the dbc device's mapping file (with --dbc)")
+                   help="the dbc device's mapping file (with --dbc, or to replace a "
+                        "--profile's mapping)")
+    p.add_argument('--profile', default=None, choices=PROFILES,
+                   help='simulate a shipped dbc profile (its DBC and mapping)')
     # defaults as config/ams_ivt.yaml and config/evms3.yaml: the examples run as they are
     p.add_argument('--ams-banks', type=int, default=5, metavar='N',
                    help='AMS banks 1..5 (default 5, as config/ams_ivt.yaml)')
@@ -134,15 +138,16 @@ def build_devices(types: Sequence[str], ams_banks: int | None = None,
                   sma_soc_frame: str | None = None,
                   ams_pad: bool = False, dbc_file: str | None = None,
                   mapping_file: str | None = None, sma_voltage_scale: float | None = None,
-                  sma_no_capacity: bool = False) -> list[SimDevice]:
+                  sma_no_capacity: bool = False,
+                  profile: str | None = None) -> list[SimDevice]:
     """Instantiate the simulators named by type (instance name = type name)."""
     devices: list[SimDevice] = []
     ams = None
     for kind in sorted(types, key=_SORT.index):
         cls = registry.simulator_class(kind, bms16_variant if kind == 'bms16' else None)
         kwargs: dict[str, Any] = {'name': kind}
-        if kind == 'dbc' and dbc_file:
-            kwargs.update(dbc_file=dbc_file, mapping_file=mapping_file)
+        if kind == 'dbc' and (dbc_file or profile):
+            kwargs.update(dbc_file=dbc_file, mapping_file=mapping_file, profile=profile)
         elif kind == 'ams':
             if ams_banks is not None:
                 kwargs['bank_count'] = ams_banks
@@ -261,8 +266,9 @@ def _ids(runner: SimRunner) -> str:
 
 def selected_types(args: argparse.Namespace) -> list[str]:
     """Return the device types to simulate: --devices, else the built-ins (none with --dbc)."""
-    types = args.devices if args.devices is not None else [] if args.dbc else list(_ORDER)
-    if args.dbc and 'dbc' not in types:
+    own = args.dbc or args.profile
+    types = args.devices if args.devices is not None else [] if own else list(_ORDER)
+    if own and 'dbc' not in types:
         types = [*types, 'dbc']
     return types
 
@@ -277,7 +283,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                                else 'can0')
     try:
         options = parse_options(args.option)
-        if bool(args.dbc) != bool(args.mapping):
+        if args.profile and args.dbc:
+            raise ConfigError(f'--profile {args.profile} brings its own DBC: drop --dbc')
+        if not args.profile and bool(args.dbc) != bool(args.mapping):
             raise ConfigError('--dbc and --mapping go together')
         devices = build_devices(selected_types(args), args.ams_banks, args.bms12_modules,
                                 args.ivt_byte_order, args.sma_dialect,
@@ -286,7 +294,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                                 sma_soc_frame=args.sma_soc_frame, ams_pad=args.ams_pad,
                                 dbc_file=args.dbc, mapping_file=args.mapping,
                                 sma_voltage_scale=args.sma_voltage_scale,
-                                sma_no_capacity=args.sma_no_capacity)
+                                sma_no_capacity=args.sma_no_capacity,
+                                profile=args.profile)
         apply_faults(devices, args.fault)
     except (ValueError, TypeError, ImportError) as exc:
         print(f'simulator: {exc}', file=sys.stderr)
