@@ -182,8 +182,8 @@ class Parts:
         return f'{head}:\n\n{fence}text\n{text}\n{fence}\n'
 
     @staticmethod
-    def _missing(what: str, modules: str, warn: bool = True) -> str:
-        modules = modules.strip()
+    def _missing(what: str, output: str, warn: bool = True) -> str:
+        modules = output.strip().splitlines()[-1]  # the runner's last line: what is missing
         (logger.warning if warn else logger.info)(
             f'docgen: {what} not generated: {modules} not installed here')
         return (f'{what} is generated when the documentation is built with every dependency '
