@@ -1,8 +1,9 @@
 """
 Print the bridge's parameters as Markdown tables, from the specs the node declares.
 
-Usage: python scripts/param_table.py > /tmp/params.md (paste into README.md). The test
-test/test_readme.py checks that README names every parameter the node declares.
+Usage: python scripts/param_table.py. The doc build runs it for doc/parameters.md
+(doc/docgen.py). The test test/test_readme.py checks that README names every parameter the
+node declares.
 """
 from ams_can_bridge import registry
 from ams_can_bridge.devices.base import device_params

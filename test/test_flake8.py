@@ -1,4 +1,4 @@
-"""ament flake8 over the package, tests, benchmarks and launch files (ROS style)."""
+"""ament flake8 over the package, tests, benchmarks, launch files, scripts, doc/ (ROS style)."""
 import pytest
 from ament_flake8.main import main_with_errors
 
@@ -6,5 +6,6 @@ from ament_flake8.main import main_with_errors
 @pytest.mark.flake8
 @pytest.mark.linter
 def test_flake8():
-    rc, errors = main_with_errors(argv=['ams_can_bridge', 'test', 'bench', 'launch', 'setup.py'])
+    rc, errors = main_with_errors(argv=['ams_can_bridge', 'test', 'bench', 'launch', 'scripts',
+                                        'doc', 'setup.py'])
     assert rc == 0, 'Found %d code style errors / warnings:\n' % len(errors) + '\n'.join(errors)

@@ -1,4 +1,4 @@
-"""ament pep257 docstring conventions over the package and tests."""
+"""ament pep257 docstring conventions over the package, tests, scripts and doc/."""
 import pytest
 from ament_pep257.main import main
 
@@ -6,5 +6,5 @@ from ament_pep257.main import main
 @pytest.mark.linter
 @pytest.mark.pep257
 def test_pep257():
-    rc = main(argv=['ams_can_bridge', 'test'])
+    rc = main(argv=['ams_can_bridge', 'test', 'scripts', 'doc'])
     assert rc == 0, 'Found code style errors / warnings'

@@ -22,6 +22,8 @@ import time
 import traceback
 from typing import Any
 
+from ams_can_bridge.registry import DEVICE_TYPES
+
 # rclpy and the node are imported in main(), after the arguments: --help must not load rcl
 # (loading it already checks the RMW implementation).
 
@@ -36,14 +38,15 @@ STOP_TIMEOUT = 2.0  # s: the longest the executor's callbacks get to finish on a
 NAME_CHECK_PERIOD = 0.5  # s
 NAME_CHECK_FOR = 5.0  # s after the start
 
-USAGE = """usage: bridge [-h] --ros-args --params-file PARAMS.yaml [-p NAME:=VALUE ...]
+USAGE = f"""usage: bridge [-h] --ros-args --params-file PARAMS.yaml [-p NAME:=VALUE ...]
        ros2 run ams_can_bridge bridge --ros-args --params-file PARAMS.yaml
        ros2 launch ams_can_bridge bridge.launch.py params_file:=PARAMS.yaml
 
-Bridges battery-management CAN devices (AMS + IVT-S, ZEVA EVMS3 / BMS16, SMA-protocol BMSs)
-to sensor_msgs/BatteryState and /diagnostics. Parameters come after --ros-args: a params
-file (--params-file, sections '/**:' or '<node name>:', then 'ros__parameters:') and single
-values (-p can.interface:=slcan). The example params files are installed in
+Bridges battery-management CAN devices (AMS + IVT-S, ZEVA EVMS3 / BMS16, SMA-protocol BMSs,
+any BMS from its DBC) to sensor_msgs/BatteryState and /diagnostics. Parameters come after
+--ros-args: a params file (--params-file, sections '/**:' or '<node name>:', then
+'ros__parameters:') and single values (-p can.interface:=slcan). The example params files
+are installed in
 $(ros2 pkg prefix ams_can_bridge)/share/ams_can_bridge/config/*.yaml.
 
 main parameters:
@@ -51,6 +54,7 @@ main parameters:
   can.channel        can0 (default), /dev/ttyACM0, ... (replay: the log file)
   can.bitrate        bit/s, 0 = leave the adapter as it is
   devices            device instances, e.g. [ams, ivt_s]; each has <name>.type and its IDs
+  <name>.type        {', '.join(DEVICE_TYPES)} (default: the instance name)
   commands_allowed   launch-only first key of the transmit gate (default false)
   commands_enabled   second key: nothing is ever sent while false (default false)
   autostart          lifecycle: false waits unconfigured for a manager (default true)
