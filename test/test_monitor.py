@@ -171,11 +171,14 @@ def test_monitor_shows_a_namespaced_bridge_marks_stale_devices_and_calls_nothing
         def live():
             rows = out.rows()
             return rows if set(rows) == {'ams', 'ivt_s', 'pack'} and all(
-                'n/a' not in words[2:4] for words in rows.values()) else None
+                'n/a' not in words[-11:-9] for words in rows.values()) else None
         rows = wait_for(live, 30, 'the monitor to show the three devices with values')
-        # the dbc device: the values of the hand-written frames (our_bms.dbc), exactly
-        assert rows['pack'] == ['pack', 'OK', '400.0', 'V', '-50.0', 'A', '87.5', '%',
-                                '3.690..3.710', 'V', '35.0', 'C', 'OK']
+        # the dbc device: the values of the hand-written frames (our_bms.dbc), exactly; the
+        # BMS flags cell 003 invalid, so the device WARNs and says so where a state would be
+        # (the state cell holds the head of its message: words of their own)
+        assert rows['pack'][-11:] == ['400.0', 'V', '-50.0', 'A', '87.5', '%',
+                                      '3.690..3.710', 'V', '35.0', 'C', 'WARN']
+        assert ' '.join(rows['pack'][1:-11]) == '1 of 4 cell vol.'
         # AMS and IVT-S idle: constant values, as the bridge holds them
         for name in ('ams', 'ivt_s'):
             report = rig.node.devices[name].battery_report()

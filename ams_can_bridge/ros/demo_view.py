@@ -267,7 +267,7 @@ def state_of(values: dict[str, str], message: str, level: str = '') -> str:
     if level == 'STALE':
         return 'silent'
     head = message.split(';')[0].strip()
-    if head[:1] in tuple('-+0123456789'):
+    if _READING.match(head):  # the IVT-S leads with its current ('-27.71 A, 222.9 V')
         return 'measuring'
     return head if len(head) <= 16 else head[:15] + '.'
 
