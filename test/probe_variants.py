@@ -21,6 +21,8 @@ from ams_can_bridge.sim.ivt_s import IvtSSimulator
 from ams_can_bridge.sim.sma import SmaSimulator
 
 ZEROS = [0] * 16
+SMA_CELLS = 16  # the SMA simulator's pack
+LFP_EMPTY_V, LFP_FULL_V = 2.5, 3.65  # V a LiFePO4 cell reads empty and full
 
 
 @dataclass
@@ -33,6 +35,7 @@ class Variant:
     expect: dict[str, Any]                 # '<instance>.<key>': what probe must decide
     cells: dict[str, int] = field(default_factory=dict)  # instance -> cell_voltage length
     bitrate: int = 500_000
+    volts: dict[str, tuple[float, float]] = field(default_factory=dict)  # instance -> V range
 
 
 def ams_ivt(banks: int, base: int = 0x300, ivt_base: int = 0x521, order: str = 'big',
@@ -54,6 +57,18 @@ def _ams(banks: int) -> Variant:
                     'ivt_s.byte_order': 'big', 'ams.pack_voltage_channel': 'U1',
                     'ams.current_sensor': 'ivt_s'},
                    {'ams': 28 * banks})
+
+
+def _sma(dialect: str, scale: float) -> Variant:
+    """SMA in a dialect, 0x356 in 0.01 V or 0.1 V: probe decides the scale from 0x351."""
+    soc_layout = {'sma': 'sma', 'pylontech': 'diybms', 'victron': 'byd'}[dialect]
+    name = 'sma' if dialect == 'sma' else f'sma_{dialect}'
+    return Variant(
+        name + ('_tenth_volt' if scale == 0.1 else ''),
+        lambda: [SmaSimulator('sma', dialect=dialect, soc_layout=soc_layout,
+                              voltage_scale=scale)],
+        {'devices': ['sma'], 'sma.voltage_scale': scale}, {},
+        volts={'sma': (SMA_CELLS * LFP_EMPTY_V, SMA_CELLS * LFP_FULL_V)})
 
 
 OFF = {IvtMux.U2: 0, IvtMux.U3: 0, IvtMux.W: 0, IvtMux.WH: 0, IvtMux.I: 20, IvtMux.T: 500}
@@ -99,11 +114,7 @@ VARIANTS = [
             {'devices': ['bms16'], 'bms16.variant': 'standard', 'bms16.config.cells': 12},
             {'bms16.variant': 'standard', 'bms16.base_id': 30, 'bms16.config.cells': 12},
             {'bms16': 12}, bitrate=250_000),
-    Variant('sma', lambda: [SmaSimulator('sma')], {'devices': ['sma']}, {}),
-    Variant('sma_pylontech', lambda: [SmaSimulator('sma', dialect='pylontech',
-                                                   soc_layout='diybms')],
-            {'devices': ['sma']}, {}),
-    Variant('sma_victron', lambda: [SmaSimulator('sma', dialect='victron', soc_layout='byd')],
-            {'devices': ['sma']}, {}),
+    *(_sma(dialect, scale) for dialect in ('sma', 'pylontech', 'victron')
+      for scale in (0.01, 0.1)),
 ]
 BY_NAME = {v.name: v for v in VARIANTS}

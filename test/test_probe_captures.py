@@ -76,23 +76,29 @@ def test_foxbms2_trace_ivt_s_with_moved_results(tmp_path, capsys):
 
 
 SMA = {  # capture -> (dialect, written settings, unplaced IDs, hand-decoded 0x356 and SoC)
-    # 356 61 14 D3 FE EB 00: 5217 x 0.01 V, -301 x 0.1 A, 235 x 0.1 degC; 355 SoC 60 %,
-    # high resolution 0x1784 = 60.20 % (agrees: used)
-    'sma_victron_gx_seplos': ('victron', {'sma.inverter_keepalive': False}, set(),
+    # 351 43 02 .. D0 01: charge 0x0243 = 57.9 V, discharge 0x01D0 = 46.4 V; 356 61 14 D3 FE
+    # EB 00: 5217 = 52.17 V at 0.01 V (inside 46.4..57.9 V; 521.7 V is not), -301 x 0.1 A,
+    # 235 x 0.1 degC; 355 SoC 60 %, high resolution 0x1784 = 60.20 % (agrees: used)
+    'sma_victron_gx_seplos': ('victron', {'sma.inverter_keepalive': False,
+                                          'sma.voltage_scale': 0.01}, set(),
                               dict(voltage=52.17, current=-30.1, temperature=23.5,
                                    percentage=0.602)),
-    # 356 02 13 00 00 4A 01: 4866 x 0.01 V, 0 A, 330 x 0.1 degC; 355 1A 00: 26 %
-    'sma_pylontech': ('pylontech', {}, set(),
+    # 351 14 02 .. CC 01: 53.2 V, 46.0 V; 356 02 13 00 00 4A 01: 4866 = 48.66 V at 0.01 V,
+    # 0 A, 330 x 0.1 degC; 355 1A 00: 26 %
+    'sma_pylontech': ('pylontech', {'sma.voltage_scale': 0.01}, set(),
                       dict(voltage=48.66, current=0.0, temperature=33.0, percentage=0.26)),
-    # 356 BE 14 F9 FF 8C 00: 5310 x 0.01 V, -7 x 0.1 A, 140 x 0.1 degC; 355 43 00: 67 %;
-    # 35F capacity 0x0069 = 105 Ah
-    'sma_byd_lvs': ('victron', {'sma.inverter_keepalive': False}, {0x35B, 0x360},
+    # 351 48 02 .. AE 01: 58.4 V, 43.0 V; 356 BE 14 F9 FF 8C 00: 5310 = 53.10 V at 0.01 V,
+    # -7 x 0.1 A, 140 x 0.1 degC; 355 43 00: 67 %; 35F capacity 0x0069 = 105 Ah
+    'sma_byd_lvs': ('victron', {'sma.inverter_keepalive': False, 'sma.voltage_scale': 0.01},
+                    {0x35B, 0x360},
                     dict(voltage=53.10, current=-0.7, temperature=14.0, percentage=0.67,
                          capacity=105.0)),
-    # 356 0A 02 11 FF BE 00: -239 x 0.1 A, 190 x 0.1 degC; 355 3E 00: 62 %. Its voltage 522
-    # is 52.2 V in 0.1 V: the scale is a check here (decided by the SMA voltage-scale work)
-    'sma_victron_discover': ('victron', {}, {0x354},
-                             dict(current=-23.9, temperature=19.0, percentage=0.62)),
+    # 351 2E 02 .. B0 01: 55.8 V, 43.2 V; 356 0A 02 11 FF BE 00: 522 = 52.2 V at 0.1 V
+    # (5.22 V at SMA's 0.01 V is far below 43.2 V), -239 x 0.1 A, 190 x 0.1 degC; 355 3E 00:
+    # 62 %
+    'sma_victron_discover': ('victron', {'sma.voltage_scale': 0.1}, {0x354},
+                             dict(voltage=52.2, current=-23.9, temperature=19.0,
+                                  percentage=0.62)),
 }
 
 
@@ -105,15 +111,17 @@ def test_sma_family_captures(name, tmp_path, capsys):
     sma = report['devices'][0]
     assert sma['title'] == f'SMA-family battery ({dialect})' and sma['level'] == 'high'
     for key, value in settings.items():
-        assert params[key] == value
+        assert params[key] == value, key
     assert {u['id'] for u in report['unplaced']} == unplaced
     scale = next(s for s in sma['settings'] if s['key'] == 'voltage_scale')
-    assert not scale['decided'] and scale['why'].startswith('check: 0x356 reads')
-    assert '# voltage_scale: auto' in out.read_text()
+    assert scale['decided'] and 'fits the 0x351 limits' in scale['why']
+    assert f'      voltage_scale: {settings["sma.voltage_scale"]}\n' in out.read_text()
     states = published(log, params, tmp_path, '/sma/battery_state')
     assert len(states) == 3  # one per 0x356
     for field, value in values.items():
         assert getattr(states[-1], field) == pytest.approx(value, abs=1e-4), field
+    # the file's fixed scale reads the first 0x356 already (auto waits for 0x351's evidence)
+    assert all(s.voltage == pytest.approx(values['voltage'], abs=1e-4) for s in states)
 
 
 def test_discover_capture_names_its_odd_frames(tmp_path, capsys):
@@ -122,6 +130,9 @@ def test_discover_capture_names_its_odd_frames(tmp_path, capsys):
     # 0x373 with DLC 4 (the Victron extension needs 8) and the 0.1 V voltage
     assert any(n.startswith('0x373: DLC 4, expected 8') for n in sma['notes'])
     scale = next(s for s in sma['settings'] if s['key'] == 'voltage_scale')
-    assert '5.22 V in 0.01 V, 52.2 V in 0.1 V' in scale['why']
-    assert '55.8 V charge, 43.2 V discharge' in scale['why']
+    assert scale['why'] == ('52.2 V at 0.1 V/bit fits the 0x351 limits 43.2..55.8 V, 5.22 V '
+                            'at 0.01 V/bit does not')
+    assert ('voltage scale: 0x356 voltage 522 as sent (5.22 V at 0.01 V/bit, 52.2 V at 0.1 '
+            'V/bit), 0x351 limits: charge 55.8 V, discharge 43.2 V, no readable cell voltages '
+            '(0x373, binary 0x370)') in sma['evidence']
     assert any("BMS name 'Discover AES'" in e for e in sma['evidence'])

@@ -111,6 +111,7 @@ def assert_listened_only(peer: SlcanPeer) -> None:
     ('ams_3_ivt_little_shifted_results_off', '500000'),
     ('evms3_6_modules', 'auto'),
     ('sma_pylontech', '500000'),
+    ('sma_victron_tenth_volt', '500000'),
 ])
 def test_live_probe_then_bridge_reads_what_the_simulator_sends(tmp_path, name, bitrate):
     variant = BY_NAME[name]
@@ -140,9 +141,12 @@ def test_live_probe_then_bridge_reads_what_the_simulator_sends(tmp_path, name, b
     for device, messages in published.items():
         assert messages, f'{device}: nothing published after the warm-up'
         cells = variant.cells.get(device)
+        volts = variant.volts.get(device)
         for msg in messages:
             if cells:
                 assert len(msg.cell_voltage) == cells
+            if volts:  # the pack's voltage, not 10x off (an SMA 0x356 in 0.1 V)
+                assert volts[0] < msg.voltage < volts[1], (device, msg.voltage)
             assert nan_free(values_of(msg)) in feeder.states[device], (
                 device, values_of(msg))
 

@@ -7,7 +7,8 @@ converts the log with exactly that file. What must hold: probe decided the setti
 simulator was configured with (bank count, base IDs, byte order, modules, cells, form),
 and every battery_state and array in the bag equals, message for message and value for
 value, the bag log2bag makes with the parameters that describe the simulator (its truth),
-with as many cells as the simulated device has, all of them read.
+with as many cells as the simulated device has, all of them read, and a voltage the pack
+can have (an SMA 0x356 in 0.1 V read at 0.01 V would be a tenth of it).
 """
 from __future__ import annotations
 
@@ -93,6 +94,9 @@ def test_probe_file_reads_what_the_simulator_sent(variant, tmp_path, capsys):
         last = ours[f'/{name}/battery_state'][-1]
         assert len(last.cell_voltage) == cells, name
         assert all(math.isfinite(v) and v > 1.0 for v in last.cell_voltage), name
+    for name, (low, high) in variant.volts.items():  # the pack's voltage, not 10x off
+        states = [m for m in ours[f'/{name}/battery_state'] if m.present]
+        assert states and all(low < m.voltage < high for m in states), name
 
 
 def _bag(log: Path, bag: Path, params: dict) -> Path:

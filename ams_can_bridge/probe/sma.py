@@ -9,8 +9,8 @@ is evidence and a comment, not a setting. An inverter on the bus shows itself by
 keep-alive 0x305 (eight zero bytes).
 
 The voltage scale of 0x356 (0.01 V as SMA writes it, 0.1 V from some senders) is decided by
-a recogniser of its own (it refines this candidate); until it is there, this one writes
-``voltage_scale`` as a check with the numbers that tell.
+a recogniser of its own, ``sma_voltage.py``, from ``facts['readings']`` (it refines this
+candidate).
 """
 from __future__ import annotations
 
@@ -20,11 +20,11 @@ from ams_can_bridge.errors import MalformedFrameError
 from ams_can_bridge.probe.evidence import Candidate, stale_setting
 from ams_can_bridge.probe.traffic import Key, Traffic
 from ams_can_bridge.protocols.sma import (
-    BATTERY_ID, INFO_ID, LIMITS_ID, MANUFACTURER_ID, SMA_IDS, SmaBattery, SmaCodec, SmaLimits,
-    SOC_ID)
+    BATTERY_ID, INFO_ID, LIMITS_ID, MANUFACTURER_ID, SMA_IDS, SmaBattery, SmaCodec, SOC_ID)
 from ams_can_bridge.protocols.sma_dialects import (
     DIALECT_IDS, PYLONTECH_ALARMS_ID, PYLONTECH_KEEPALIVE_ID, PYLONTECH_REQUEST_ID,
     VICTRON_PRODUCT_NAME_ID)
+from ams_can_bridge.protocols.sma_scale import raw_voltage
 
 DEFAULT_STALE_S = 5.0  # the device's 5 x 1 s
 PYLONTECH_IDS = frozenset({PYLONTECH_ALARMS_ID, PYLONTECH_REQUEST_ID})
@@ -69,7 +69,6 @@ def recognise(traffic: Traffic, found: list[Candidate]) -> list[Candidate]:
         stale_setting(cand, traffic.get(BATTERY_ID).period_s,  # type: ignore[union-attr]
                       DEFAULT_STALE_S, '0x356 comes')
     _inverter(cand, traffic)
-    _voltage_scale_check(cand, readings)
     return [cand]
 
 
@@ -96,8 +95,10 @@ def _described(traffic: Traffic, readings: dict[int, Any]) -> str:
     if isinstance(battery, SmaBattery):
         entry = traffic.get(BATTERY_ID)
         assert entry is not None  # read above
-        parts.append(f'0x356 every {entry.period_s:.3g} s: {battery.voltage_v} V, '
-                     f'{battery.current_a} A, {battery.temperature_c} degC')
+        raw = raw_voltage(battery)  # as sent: its scale is decided afterwards (sma_voltage.py)
+        volts = 'voltage not sent' if raw is None else f'voltage {raw} as sent'
+        parts.append(f'0x356 every {entry.period_s:.3g} s: {volts}, {battery.current_a} A, '
+                     f'{battery.temperature_c} degC')
     soc = readings.get(SOC_ID)
     if soc is not None:
         parts.append(f'SoC {soc.percent} %')
@@ -121,18 +122,3 @@ def _inverter(cand: Candidate, traffic: Traffic) -> None:
         cand.set('inverter_keepalive', True, 'check: no inverter keep-alive (0x305) heard; a '
                  'Pylontech-style BMS may stop after 3 s without one: then true (sent only '
                  'while commands_enabled)', decided=False)
-
-
-def _voltage_scale_check(cand: Candidate, readings: dict[int, Any]) -> None:
-    """Write voltage_scale as a check, with the values that will decide it."""
-    battery = readings.get(BATTERY_ID)
-    limits = readings.get(LIMITS_ID)
-    told = []
-    if isinstance(battery, SmaBattery) and battery.voltage_v is not None:
-        told.append(f'0x356 reads {battery.voltage_v:g} V in 0.01 V, '
-                    f'{battery.voltage_v * 10:g} V in 0.1 V')
-    if isinstance(limits, SmaLimits):
-        told.append(f'0x351 limits {limits.charge_voltage_v} V charge, '
-                    f'{limits.discharge_voltage_v} V discharge (0.1 V)')
-    cand.set('voltage_scale', 'auto', 'check: ' + ('; '.join(told) or 'no 0x356 voltage')
-             + ': 0.1 if the 0.01 V reading is a tenth of the pack', decided=False)
