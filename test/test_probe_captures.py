@@ -95,7 +95,7 @@ def test_foxbms2_trace_ivt_s_with_moved_results(tmp_path, capsys):
     # the IVT-S foxBMS reads. They stay the IVT-S's; both devices are kept
     (conflict,) = report['conflicts']
     assert conflict['kept'] == 'IVT-S at base 0x521' and conflict['ids'] == [0x525, 0x526, 0x528]
-    assert 'kept both' in conflict['text']
+    assert conflict['both_kept'] and 'kept both' in conflict['text']
     assert 'CS_IsabellenhuetteIvtString0Temp' in conflict['text']
     unplaced = {u['id']: u for u in report['unplaced']}
     assert set(unplaced) == {*range(0x246, 0x250), 0x251}
@@ -181,7 +181,7 @@ def test_orion_capture_is_its_profile_and_its_sma_frames_a_conflict(tmp_path, ca
     assert {i['id'] for i in orion['ids']} == {0x036, 0x6B0, 0x6B1} | sma_ids
     (conflict,) = report['conflicts']
     assert conflict['dropped'].startswith('SMA-family battery') and set(conflict['ids']) == sma_ids
-    assert conflict['kept'] == 'Orion BMS 2, profile orion_bms2'
+    assert conflict['kept'] == 'Orion BMS 2, profile orion_bms2' and not conflict['both_kept']
     # the other Orion messages the team configured (0x6B2..0x6B4), 0x076, 0x35B, 0x380, 0x381
     assert {u['id'] for u in report['unplaced']} == {
         0x076, 0x35B, 0x380, 0x381, 0x6B2, 0x6B3, 0x6B4}
