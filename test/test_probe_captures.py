@@ -65,6 +65,22 @@ def bag(log: Path, params: dict, tmp_path: Path) -> dict:
     return rosbags_read(str(tmp_path / 'bag'))
 
 
+def profile_found(report: dict, params: dict, name: str, title: str, level: str) -> dict:
+    """Check the profile is found and written as ``name``; return its report entry."""
+    found = next(d for d in report['devices'] if d['name'] == name)
+    assert found['title'] == title and found['level'] == level and found['written']
+    profile = title.rpartition(' ')[2]
+    assert params[f'{name}.type'] == 'dbc' and params[f'{name}.profile'] == profile
+    return found
+
+
+def mapping_check(out: Path, name: str, words: str) -> None:
+    """Check the file carries mapping_file commented out, under a check saying ``words``."""
+    text = out.read_text()
+    assert f'# mapping_file: {name}_mapping.yaml' in text
+    assert words in ' '.join(text.replace('#', ' ').split())
+
+
 def test_foxbms2_trace_ivt_s_with_moved_results(tmp_path, capsys):
     log = foxbms_log(tmp_path)
     report, params, _ = probe(log, tmp_path, capsys)
@@ -83,9 +99,7 @@ def test_foxbms2_trace_ivt_s_with_moved_results(tmp_path, capsys):
     # 0 (cells 0..3: 00 07 EB BF ..: 0x7 << 9 | 0xEB << 1 | 1 = 4055 mV, their flags bits
     # 12..15 all 0 "Invalid"), 0x241 and 0x243 in range. 0x233 (pack values), 0x235, 0x230,
     # 0x231, 0x232, 0x260 are not in this trace: 4 of the 10 mapped messages, medium.
-    fox = next(d for d in report['devices'] if d['type'] == 'dbc')
-    assert fox['name'] == 'foxbms2' and fox['level'] == 'medium' and fox['written']
-    assert params['foxbms2.type'] == 'dbc' and params['foxbms2.profile'] == 'foxbms2'
+    fox = profile_found(report, params, 'foxbms2', 'foxBMS 2, profile foxbms2', 'medium')
     # ... and the DBC's other messages it sends: 0x221 f_BmsStateDetails, 0x240 f_StringState,
     # 0x242, 0x244, 0x245 (the rest of 0x246..0x251 is in no foxBMS DBC message)
     assert {i['id'] for i in fox['ids']} == {0x220, 0x221, *range(0x240, 0x246), 0x250}
@@ -123,10 +137,8 @@ def test_foxbms2_own_trace_is_its_profile(tmp_path, capsys):
     # 0x260 of the mapping, 0x244 f_StringValuesP1 of the DBC; 7 of the 10 mapped messages
     log = FIXTURES.parent / 'foxbms2' / 'can-log.trc'
     report, params, out = probe(log, tmp_path, capsys)
-    assert params['devices'] == ['foxbms2']
-    assert params['foxbms2.type'] == 'dbc' and params['foxbms2.profile'] == 'foxbms2'
-    (fox,) = report['devices']
-    assert fox['level'] == 'high' and fox['title'] == 'foxBMS 2, profile foxbms2'
+    assert params['devices'] == ['foxbms2'] and len(report['devices']) == 1
+    fox = profile_found(report, params, 'foxbms2', 'foxBMS 2, profile foxbms2', 'high')
     assert {i['id'] for i in fox['ids']} == {
         0x220, 0x231, 0x232, 0x241, 0x243, 0x244, 0x250, 0x260}
     assert report['unplaced'] == [] and report['conflicts'] == []
@@ -138,10 +150,8 @@ def test_foxbms2_own_trace_is_its_profile(tmp_path, capsys):
             in evidence)
     assert 'more of its DBC\'s messages heard in range: f_StringValuesP1 0x244' in evidence
     # the counts no frame decides: written as a check, with the mapping to copy
-    text = out.read_text()
-    assert '# mapping_file: foxbms2_mapping.yaml' in text
-    assert 'check: the profile maps 18 cell voltages and 8 cell temperatures' in ' '.join(
-        text.replace('#', ' ').split())
+    mapping_check(out, 'foxbms2', 'check: the profile maps 18 cell voltages and 8 cell '
+                  'temperatures')
 
     topics = bag(log, params, tmp_path)
     (state,) = [m for _, m in topics['/foxbms2/battery_state']]  # one 0x220
@@ -166,10 +176,8 @@ def test_orion_capture_is_its_profile_and_its_sma_frames_a_conflict(tmp_path, ca
     # 0x6B0 00 00 0B 08 A1 01 62 CF: 0 A, 0x0B08 = 2824 x 0.1 V, SoC 0xA1 x 0.5 %; checksum
     # (0x6B0 + 8 + 0x0B + 0x08 + 0xA1 + 0x01 + 0x62) & 0xFF = 0xCF; 0x6B1 (.. F4) and 0x036
     # (.. 11) hold it too
-    assert params['devices'] == ['orion']
-    assert params['orion.type'] == 'dbc' and params['orion.profile'] == 'orion_bms2'
-    (orion,) = report['devices']
-    assert orion['level'] == 'high' and orion['title'] == 'Orion BMS 2, profile orion_bms2'
+    assert params['devices'] == ['orion'] and len(report['devices']) == 1
+    orion = profile_found(report, params, 'orion', 'Orion BMS 2, profile orion_bms2', 'high')
     evidence = ' | '.join(orion['evidence'])
     assert 'the bridge would publish 282.4 V, 0 A, SoC 80.5 %' in evidence
     assert 'checksum byte (ID + 8 + bytes 0..6) right in all 3 frames' in evidence
@@ -186,9 +194,7 @@ def test_orion_capture_is_its_profile_and_its_sma_frames_a_conflict(tmp_path, ca
     assert {u['id'] for u in report['unplaced']} == {
         0x076, 0x35B, 0x380, 0x381, 0x6B2, 0x6B3, 0x6B4}
     # no cells mapped: how to add them, commented out
-    text = out.read_text()
-    assert '# mapping_file: orion_mapping.yaml' in text
-    assert 'check: the profile maps no cell voltages' in ' '.join(text.replace('#', ' ').split())
+    mapping_check(out, 'orion', 'check: the profile maps no cell voltages')
 
     topics = bag(log, params, tmp_path)
     (state,) = [m for _, m in topics['/orion/battery_state']]  # one 0x6B0
