@@ -18,6 +18,7 @@ from ams_can_bridge.sim.bms16 import Bms16Simulator
 from ams_can_bridge.sim.bms16_std import Bms16StdSimulator
 from ams_can_bridge.sim.evms3 import Evms3Simulator
 from ams_can_bridge.sim.ivt_s import IvtSSimulator
+from ams_can_bridge.sim.main import build_devices
 from ams_can_bridge.sim.sma import SmaSimulator
 
 ZEROS = [0] * 16
@@ -118,3 +119,11 @@ VARIANTS = [
       for scale in (0.01, 0.1)),
 ]
 BY_NAME = {v.name: v for v in VARIANTS}
+
+# The shipped dbc profiles as `simulator --profile NAME` plays them (sim/dbc.py): foxBMS 2's
+# default pack (18 cells, 8 sensors) and the Orion BMS 2's standard messages (no cells)
+PROFILE_VARIANTS = [
+    Variant(f'profile_{profile}', lambda profile=profile: build_devices(['dbc'], profile=profile),
+            {'devices': [name], f'{name}.type': 'dbc', f'{name}.profile': profile}, {}, cells)
+    for profile, name, cells in (('foxbms2', 'foxbms2', {'foxbms2': 18}),
+                                 ('orion_bms2', 'orion', {}))]

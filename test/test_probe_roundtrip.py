@@ -1,10 +1,11 @@
 """
 probe on recorded simulator traffic: its params file, through log2bag, reads what was sent.
 
-For every variant the simulator plays (test/probe_variants.py): the simulators' frames are
-written to a log in simulated time; ``probe LOG --output`` writes a params file; log2bag
-converts the log with exactly that file. What must hold: probe decided the settings the
-simulator was configured with (bank count, base IDs, byte order, modules, cells, form),
+For every variant the simulator plays (test/probe_variants.py; the shipped dbc profiles as
+``simulator --profile`` plays them too): the simulators' frames are written to a log in
+simulated time; ``probe LOG --output`` writes a params file; log2bag converts the log with
+exactly that file. What must hold: probe decided the settings the simulator was configured
+with (bank count, base IDs, byte order, modules, cells, form, the profile),
 and every battery_state and array in the bag equals, message for message and value for
 value, the bag log2bag makes with the parameters that describe the simulator (its truth),
 with as many cells as the simulated device has, all of them read, and a voltage the pack
@@ -24,7 +25,7 @@ from ams_can_bridge.offline.params_file import load_parameters
 from ams_can_bridge.probe.main import main as probe_main
 from ams_can_bridge.sim.recording import write_log
 from helpers import same, values_of
-from probe_variants import Variant, VARIANTS
+from probe_variants import PROFILE_VARIANTS, Variant, VARIANTS
 from test_log2bag import rosbags_read
 
 SECONDS = 6.0
@@ -62,7 +63,7 @@ def arrays_equal(a, b) -> bool:
         x == y or (math.isnan(x) and math.isnan(y)) for x, y in zip(a.data, b.data))
 
 
-@pytest.mark.parametrize('variant', VARIANTS, ids=lambda v: v.name)
+@pytest.mark.parametrize('variant', VARIANTS + PROFILE_VARIANTS, ids=lambda v: v.name)
 def test_probe_file_reads_what_the_simulator_sent(variant, tmp_path, capsys):
     log = tmp_path / 'bus.log'
     assert write_log(str(log), variant.build(), SECONDS) > 20

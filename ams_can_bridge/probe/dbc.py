@@ -18,7 +18,7 @@ from ams_can_bridge.devices.dbc_mapping import load_plan
 from ams_can_bridge.devices.dbc_plan import MappingError, Plan, resolve_path
 from ams_can_bridge.errors import ConfigError, MalformedFrameError
 from ams_can_bridge.probe.evidence import Candidate, stale_setting
-from ams_can_bridge.probe.traffic import id_label, Key, Traffic
+from ams_can_bridge.probe.traffic import id_label, Key, rate_text, Traffic
 
 DEFAULT_STALE_S = 1.0  # the dbc device's 5 x 0.2 s
 
@@ -62,7 +62,7 @@ def match_plan(traffic: Traffic, plan: Plan) -> PlanMatch:
                                   + ', '.join(sorted(bad)))
             continue
         fits += 1
-        match.evidence.append(f'{where}: {entry.count} frames at {entry.rate_hz:.3g} Hz, '
+        match.evidence.append(f'{where}: {entry.count} frame(s), {rate_text(entry.rate_hz)}, '
                               'every value inside its DBC range')
         if index == plan.primary:
             match.primary_heard = True

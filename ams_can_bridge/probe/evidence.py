@@ -46,6 +46,8 @@ class Candidate:
     facts: dict[str, Any] = field(default_factory=dict)  # for cross-device decisions
     writable: bool = True       # False: reported only, never in the params file
     user_given: bool = False    # from --dbc/--mapping: wins a tie
+    # IDs it could explain but leaves to another candidate (kept both: a conflict saying so)
+    deferred: list[tuple[Candidate, frozenset[Key], str]] = field(default_factory=list)
 
     @property
     def level(self) -> str:
@@ -75,18 +77,24 @@ class Candidate:
 
 @dataclass
 class Conflict:
-    """Two candidates for the same IDs: the one kept and the one set aside."""
+    """
+    Two candidates for the same IDs: the one kept and the one set aside.
+
+    With a ``decision``, both devices stay and the IDs are the kept one's (a shipped
+    profile's DBC describes a sensor the BMS reads): the decision says so.
+    """
 
     kept: Candidate
     dropped: Candidate
     ids: frozenset[Key]
+    decision: str = ''
 
     def text(self) -> str:
         """Say what was decided and why."""
         common = format_ids(self.ids).partition(' ')[2]
         return (f'{self.dropped.title} ({self.dropped.level}, {self.dropped.confidence:.2f}) '
                 f'and {self.kept.title} ({self.kept.level}, {self.kept.confidence:.2f}) both '
-                f'explain {common}: kept {self.kept.title}')
+                f'explain {common}: ' + (self.decision or f'kept {self.kept.title}'))
 
 
 def stale_setting(candidate: Candidate, period_s: float, default_s: float,

@@ -9,23 +9,25 @@ that explains everything the other does and more wins, else the more confident o
 user's own DBC on a tie), and the other is reported as a conflict.
 
 ``sma_voltage.recognise`` is such a refiner: it decides the sma candidate's
-``voltage_scale`` from the battery's own 0x351 limits and cells. Not here yet, to plug in as
-one recogniser: the shipped ``dbc`` profiles (foxBMS 2, Orion BMS 2: ``dbc.match_plan`` on
-the profile's plan, writing ``<name>.profile``).
+``voltage_scale`` from the battery's own 0x351 limits and cells. The shipped ``dbc`` profiles
+come last (``profiles.py``): they leave a device of the bridge its IDs (a candidate's
+``deferred``, reported as a conflict that keeps both) and take over an SMA battery that is
+their own pack.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
-from ams_can_bridge.probe import ams, bms16, evms3, ivt_s, sma, sma_voltage
+from ams_can_bridge.probe import ams, bms16, evms3, ivt_s, profiles, sma, sma_voltage
 from ams_can_bridge.probe.evidence import Candidate, Conflict, MEDIUM, WEAK
 from ams_can_bridge.probe.traffic import IdTraffic, Traffic
 from ams_can_bridge.registry import DEVICE_TYPES
 
 Recogniser = Callable[[Traffic, list[Candidate]], list[Candidate]]
 BUILT_IN: tuple[Recogniser, ...] = (ams.recognise, ivt_s.recognise, evms3.recognise,
-                                    bms16.recognise, sma.recognise, sma_voltage.recognise)
+                                    bms16.recognise, sma.recognise, sma_voltage.recognise,
+                                    profiles.recognise)
 PACK_VOLTAGE_AGREEMENT = 0.05  # an IVT-S voltage within 5 % of the AMS cell sum measures the pack
 
 
@@ -49,6 +51,8 @@ def recognise(traffic: Traffic, recognisers: Sequence[Recogniser] = BUILT_IN) ->
     for recogniser in recognisers:
         found += recogniser(traffic, found)
     kept, conflicts = settle([c for c in found if c.confidence >= WEAK])
+    conflicts += [Conflict(other, cand, ids, why) for cand in kept
+                  for other, ids, why in cand.deferred if any(k is other for k in kept)]
     kept.sort(key=lambda c: (DEVICE_TYPES.index(c.type), not c.written, -c.confidence))
     _name(kept)
     _link(kept)

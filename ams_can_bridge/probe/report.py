@@ -77,6 +77,7 @@ def as_data(findings: Findings, traffic: Traffic, source: str,
                          for s in c.settings],
             'notes': c.notes} for c in findings.devices],
         'conflicts': [{'kept': c.kept.title, 'dropped': c.dropped.title,
+                       'both_kept': bool(c.decision),  # both stay, the IDs with kept
                        'ids': sorted(i for i, _ in c.ids), 'text': c.text()}
                       for c in findings.conflicts],
         'unplaced': [{'id': e.can_id, 'extended': e.extended, 'label': e.label(),
