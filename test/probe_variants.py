@@ -118,7 +118,6 @@ VARIANTS = [
     *(_sma(dialect, scale) for dialect in ('sma', 'pylontech', 'victron')
       for scale in (0.01, 0.1)),
 ]
-BY_NAME = {v.name: v for v in VARIANTS}
 
 # The shipped dbc profiles as `simulator --profile NAME` plays them (sim/dbc.py): foxBMS 2's
 # default pack (18 cells, 8 sensors) and the Orion BMS 2's standard messages (no cells)
@@ -127,3 +126,4 @@ PROFILE_VARIANTS = [
             {'devices': [name], f'{name}.type': 'dbc', f'{name}.profile': profile}, {}, cells)
     for profile, name, cells in (('foxbms2', 'foxbms2', {'foxbms2': 18}),
                                  ('orion_bms2', 'orion', {}))]
+BY_NAME = {v.name: v for v in VARIANTS + PROFILE_VARIANTS}

@@ -112,6 +112,8 @@ def assert_listened_only(peer: SlcanPeer) -> None:
     ('evms3_6_modules', 'auto'),
     ('sma_pylontech', '500000'),
     ('sma_victron_tenth_volt', '500000'),
+    ('bms16_inverter', '500000'),
+    ('profile_orion_bms2', '500000'),
 ])
 def test_live_probe_then_bridge_reads_what_the_simulator_sends(tmp_path, name, bitrate):
     variant = BY_NAME[name]
