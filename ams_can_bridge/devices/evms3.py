@@ -37,7 +37,7 @@ from ams_can_bridge.errors import ParamError, RefusedCommand
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import (
     AcknowledgeError, BatteryCurrent, BMS12_MAX_MODULES, Bms12Cells, Bms12Request,
-    Bms12Temperatures, BmsCellNumbers, ConfigReport, Evms3Codec, Evms3Config, Evms3Error,
+    Bms12Temperatures, BmsCellNumbers, ConfigReport, Evms3Codec, Evms3Settings, Evms3Error,
     Evms3State, Evms3Status, EVMS3_WARNINGS, READBACK_IDS, RequestConfig, ResetSoc, SetState)
 from ams_can_bridge.protocols.evms3_config import check_config_value
 from ams_can_bridge.protocols.tc_charger import ChargerCommand, ChargerStatus
@@ -194,7 +194,7 @@ class Evms3Device(Device):
             self.name, config, self.optional_config(config), self.WRITE_HINT.format(self.name))
         cells = values.pop('cells_per_module')
         return [self.codec.encode(BmsCellNumbers(tuple(cells)))] + self.codec.config_frames(
-            Evms3Config.from_mapping(values))
+            Evms3Settings.from_mapping(values))
 
     def sent_ids(self, config: DeviceConfig | None = None) -> dict[tuple[int, bool], Sent]:
         """Return IDs 31..38 (setup mode, configuration, acknowledge, SoC reset) and 51."""
