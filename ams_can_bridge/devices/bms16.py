@@ -24,8 +24,8 @@ from ams_can_bridge.errors import MalformedFrameError, ParamError
 from ams_can_bridge.parameters import config_param_specs
 from ams_can_bridge.protocols import bms16 as bms16_proto
 from ams_can_bridge.protocols.bms16 import (
-    BMS16_WARNINGS, Bms16Cells, Bms16Codec, Bms16Config, Bms16Error, Bms16Status, CELL_FRAME_COUNT,
-    CELL_FRAME_FIRST, CELLS_3, DEFAULT_BASE_ID, MAX_CELLS)
+    BMS16_WARNINGS, Bms16Cells, Bms16Codec, Bms16Error, Bms16Settings, Bms16Status,
+    CELL_FRAME_COUNT, CELL_FRAME_FIRST, CELLS_3, DEFAULT_BASE_ID, MAX_CELLS)
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.sma import (
     SMA_IDS, SmaAlarms, SmaBattery, SmaBatteryInfo, SmaCodec, SmaLimits, SmaManufacturer,
@@ -101,7 +101,7 @@ class Bms16Device(Device):
     def config_frames(self) -> list[Frame]:
         """Build frames base + 4, base + 5 from the configuration now (all values set)."""
         values = self.CONFIG.complete(self.name, self.config, (), self.WRITE_HINT)
-        return self.codec.bms16.config_frames(Bms16Config(**values))
+        return self.codec.bms16.config_frames(Bms16Settings(**values))
 
     def sent_ids(self, config: DeviceConfig | None = None) -> dict[tuple[int, bool], Sent]:
         """Return base + 4 .. base + 8 (configuration, acknowledge, SoC reset, power off)."""

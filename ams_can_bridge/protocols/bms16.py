@@ -89,7 +89,7 @@ class Bms16ConfigPart2:
 
 
 @dataclass(frozen=True)
-class Bms16Config(Bms16ConfigPart2, Bms16ConfigPart1):
+class Bms16Settings(Bms16ConfigPart2, Bms16ConfigPart1):
     """The whole configuration: part 1's fields, then part 2's (``bms16.config.*``)."""
 
 
@@ -258,7 +258,7 @@ class Bms16Codec:
             return self.frame(offset, SETTINGS.payload(offset - CONFIG_1, message))
         return self.frame(offset, _ENCODE[offset](*astuple(message)))
 
-    def config_frames(self, config: Bms16Config) -> list[Frame]:
+    def config_frames(self, config: Bms16Settings) -> list[Frame]:
         """Build the two configuration frames [base + 4, base + 5] (EncodeRangeError first)."""
         return [self.frame(CONFIG_1 + k, SETTINGS.payload(k, config)) for k in range(2)]
 
