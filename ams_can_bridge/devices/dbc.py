@@ -22,7 +22,7 @@ from typing import Any, Callable, Iterable, Mapping
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyHealth,
     PowerSupplyStatus)
-from ams_can_bridge.devices.config import DeviceConfig
+from ams_can_bridge.devices.configs import DbcConfig
 from ams_can_bridge.devices.dbc_mapping import load_plan
 from ams_can_bridge.devices.dbc_plan import Array, Enum, MappingError, Plan, Ref, Scalar
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
@@ -41,10 +41,11 @@ def _fmt(value: float | None, choices: Mapping[int, str] | None = None) -> str:
     return f'{value:g}'
 
 
-class DbcDevice(Device):
+class DbcDevice(Device[DbcConfig]):
     """A BMS described by a DBC and a mapping file (telemetry only)."""
 
     TYPE = 'dbc'
+    Config = DbcConfig
     BROADCAST_PERIOD = 0.2  # default stale_timeout 1 s; set it to ~5 x your primary's period
     DEFAULT_BASE_ID = None
     PARAMS = [
@@ -56,7 +57,7 @@ class DbcDevice(Device):
                   'relative paths as dbc_file'),
     ]
 
-    def __init__(self, name: str, config: DeviceConfig | Mapping[str, Any],
+    def __init__(self, name: str, config: DbcConfig | Mapping[str, Any],
                  clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__(name, config, clock)
         try:
@@ -102,6 +103,11 @@ class DbcDevice(Device):
     def arbitration_ids(self) -> frozenset[int]:
         """Return the CAN IDs of the messages the mapping references."""
         return frozenset(self._by_id)
+
+    @property
+    def is_extended_id(self) -> bool:
+        """Tell whether every message the mapping references is 29-bit (no single codec)."""
+        return bool(self._frame_ids) and all(extended for _, extended in self._frame_ids)
 
     # --- bus thread ------------------------------------------------------------------------
     def handle_frame(self, arbitration_id: int, data: bytes, stamp: float) -> bool:
@@ -298,7 +304,7 @@ class DbcDevice(Device):
                 values['messages expired'] = ', '.join(expired)
         return DiagnosticReport(level, '; '.join(parts), values)
 
-    def config_problems(self, config: DeviceConfig,
+    def config_problems(self, config: DbcConfig,
                         keys: Iterable[str] | None = None) -> list[str]:
         """Files are checked when the plan loads (every problem at once, see __init__)."""
         return []

@@ -177,7 +177,7 @@ _DLC = tuple(layout.length for layout in LAYOUTS)
 # The readings sent as a whole frame, by offset from base_id (a cell frame is one of three)
 _OFFSET = {Bms16Status: STATUS, Bms16ConfigPart1: CONFIG_1, Bms16ConfigPart2: CONFIG_2,
            AcknowledgeError: ACK_ERROR, ResetSoc: RESET_SOC, PowerOff: POWER_OFF}
-_CLASS = {offset: cls for cls, offset in _OFFSET.items()}
+_CLASS: dict[int, Callable[..., Bms16Reading]] = {offset: cls for cls, offset in _OFFSET.items()}
 _COMMANDS = (ACK_ERROR, RESET_SOC, POWER_OFF)  # DLC 0
 # Status and commands: their rows in the reading's order, one generated call each way;
 # telemetry (the simulator's status) is rounded to the resolution.

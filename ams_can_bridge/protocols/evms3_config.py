@@ -274,7 +274,7 @@ _CONFIG4 = Layout('EVMS3_Config4', 8, (
             'Monitor night brightness, x 10 %')))
 CELL_NUMBERS_LAYOUT = Layout('EVMS3_BmsCellNumbers', 8, tuple(
     Signal(f'Module{m}Cells', 4 * m, 4, LITTLE) for m in range(BMS12_MAX_MODULES)))
-_D_CELL_NUMBERS = CELL_NUMBERS_LAYOUT.decoder()
+_D_CELL_NUMBERS: Callable[[bytes], tuple[int, ...]] = CELL_NUMBERS_LAYOUT.decoder()
 _E_CELL_NUMBERS = CELL_NUMBERS_LAYOUT.encoder()
 CONFIG_LAYOUTS = (_CONFIG1, _CONFIG2, _CONFIG3, _CONFIG4, CELL_NUMBERS_LAYOUT)
 # By PACK_VOLTAGE_MULTIPLIER: an 800 V build counts the full voltage in 4 V steps.
