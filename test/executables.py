@@ -19,8 +19,8 @@ PACKAGE = 'ams_can_bridge'
 _OURS = (b'ams_can_bridge', b'ams-can-bridge')  # the module, or the distribution's name
 
 
-def install_dirs(bin_dir: Path | None = None,
-                 prefixes: Iterable[str] | None = None) -> list[Path]:
+def install_dirs(bin_dir: Path | None = None, prefixes: Iterable[str] | None = None,
+                 package_file: str | None = None) -> list[Path]:
     """
     Return where this package's console scripts may be, in the order they are tried.
 
@@ -28,7 +28,7 @@ def install_dirs(bin_dir: Path | None = None,
     ams_can_bridge), then the directory of this Python (a venv: ./dev setup, pip install),
     then <prefix>/lib/ams_can_bridge of every prefix on AMENT_PREFIX_PATH.
     """
-    here = Path(ams_can_bridge.__file__).resolve().parent
+    here = Path(package_file or ams_can_bridge.__file__).resolve().parent
     dirs = []
     if len(here.parents) > 3 and here.parent.name in ('site-packages', 'dist-packages'):
         dirs.append(here.parents[3] / 'lib' / PACKAGE)
@@ -50,9 +50,15 @@ def is_ours(path: Path) -> bool:
 
 
 def package_executable(name: str, bin_dir: Path | None = None,
-                       prefixes: Iterable[str] | None = None) -> str:
-    """Return the path of this package's executable ``name``; AssertionError if none."""
-    dirs = install_dirs(bin_dir, prefixes)
+                       prefixes: Iterable[str] | None = None,
+                       package_file: str | None = None) -> str:
+    """
+    Return the path of this package's executable ``name``; AssertionError if none.
+
+    bin_dir, prefixes, package_file: this Python's folder, AMENT_PREFIX_PATH and the imported
+    package's __init__.py unless given (tests of the lookup give them).
+    """
+    dirs = install_dirs(bin_dir, prefixes, package_file)
     for folder in dirs:
         if is_ours(folder / name):
             return str(folder / name)

@@ -38,20 +38,45 @@ def path_with_namesakes(tmp_path, monkeypatch):
 @pytest.mark.parametrize('name', NAMES)
 def test_each_executable_is_ours_with_a_namesake_first_on_path(name, path_with_namesakes):
     found = Path(package_executable(name))
-    assert found.parent != path_with_namesakes
-    assert is_ours(found) and b'ams_can_bridge' in found.read_bytes()
+    assert found.parent != path_with_namesakes and found.name == name
+    assert is_ours(found) and not is_ours(path_with_namesakes / name)
 
 
-def test_a_colcon_install_is_found_under_its_prefix_not_on_path(tmp_path, path_with_namesakes):
+def colcon_install(root: Path, script: str) -> tuple[Path, Path]:
+    """Lay out a colcon install prefix of the package; return (prefix, its bridge)."""
+    prefix = root / 'ws' / 'install' / 'ams_can_bridge'
+    package = prefix / 'lib' / 'python3.11' / 'site-packages' / 'ams_can_bridge'
+    package.mkdir(parents=True)
+    (package / '__init__.py').write_text('')
+    return prefix, fake(prefix / 'lib' / 'ams_can_bridge', 'bridge', script)
+
+
+# What colcon (setuptools) writes for a console script: it names the distribution only.
+COLCON_SCRIPT = """#!/usr/bin/python3
+# EASY-INSTALL-ENTRY-SCRIPT: 'ams-can-bridge==0.1.0','console_scripts','bridge'
+__requires__ = 'ams-can-bridge==0.1.0'
+"""
+
+
+def test_a_colcon_install_is_found_where_the_package_comes_from(tmp_path, path_with_namesakes):
     # colcon: this Python's folder has no bridge of ours (a system python3, or a venv without
     # the package); the workspace's is in <prefix>/lib/ams_can_bridge, not on PATH
-    ours = Path(package_executable('bridge')).read_text()
+    prefix, installed = colcon_install(tmp_path, COLCON_SCRIPT)
     python_dir = tmp_path / 'usr-bin'
     fake(python_dir, 'bridge', IPROUTE2)
-    prefix = tmp_path / 'ws' / 'install' / 'ams_can_bridge'
-    installed = fake(prefix / 'lib' / 'ams_can_bridge', 'bridge', ours)
+    package_file = str(prefix / 'lib' / 'python3.11' / 'site-packages' / 'ams_can_bridge'
+                       / '__init__.py')
+    assert package_executable('bridge', bin_dir=python_dir, prefixes=[],
+                              package_file=package_file) == str(installed)
+
+
+def test_a_colcon_install_on_the_ament_prefix_path_is_found(tmp_path, path_with_namesakes):
+    prefix, installed = colcon_install(tmp_path, COLCON_SCRIPT)
+    python_dir = tmp_path / 'usr-bin'
+    fake(python_dir, 'bridge', IPROUTE2)
     found = package_executable('bridge', bin_dir=python_dir,
-                               prefixes=[str(tmp_path / 'other'), str(prefix)])
+                               prefixes=[str(tmp_path / 'other'), str(prefix)],
+                               package_file=str(tmp_path / 'src' / 'ams_can_bridge' / 'x.py'))
     assert found == str(installed)
 
 
@@ -59,7 +84,8 @@ def test_no_install_of_ours_is_a_clear_failure_not_a_namesake(tmp_path, path_wit
     python_dir = tmp_path / 'usr-bin'
     fake(python_dir, 'bridge', IPROUTE2)
     with pytest.raises(AssertionError) as failed:
-        package_executable('bridge', bin_dir=python_dir, prefixes=[str(tmp_path / 'none')])
+        package_executable('bridge', bin_dir=python_dir, prefixes=[str(tmp_path / 'none')],
+                           package_file=str(tmp_path / 'src' / 'ams_can_bridge' / 'x.py'))
     message = str(failed.value)
     assert "executable 'bridge' is not installed" in message and 'colcon build' in message
     assert str(python_dir) in message and str(path_with_namesakes) not in message
