@@ -11,6 +11,10 @@ import random
 from hypothesis import HealthCheck, settings
 import pytest
 
+# The lanes (marks ros / process, checked at run time): test/lanes.py.
+from lanes import (pytest_collection_modifyitems, pytest_configure,  # noqa: F401 (hooks)
+                   pytest_runtest_makereport, pytest_runtest_protocol)
+
 # Network rule: never let DDS discovery leave the machine, and keep test runs apart.
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.Random(os.getpid()).randint(100, 200)))

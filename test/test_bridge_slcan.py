@@ -10,10 +10,8 @@ from __future__ import annotations
 import itertools
 import os
 from pathlib import Path
-import shutil
 import signal
 import subprocess
-import sys
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -23,6 +21,7 @@ from rclpy.executors import SingleThreadedExecutor
 from sensor_msgs.msg import BatteryState
 
 from ams_can_bridge.protocols.common import Frame
+from executables import package_executable
 from helpers import interrupt, ros_context, wait_for
 from slcan_peer import SlcanPeer
 
@@ -30,13 +29,8 @@ BATTERY = ['ams', 'ivt', 'evms3', 'bms16', 'sma']
 
 
 def bridge_executable() -> str:
-    """Return the installed console script: next to this Python first (venv), else PATH."""
-    here = Path(sys.executable).parent / 'bridge'
-    if here.is_file():
-        return str(here)
-    found = shutil.which('bridge')
-    assert found, 'the bridge executable is not installed (pip install -e . / colcon build)'
-    return found
+    """Return this package's installed bridge (never PATH's: that is iproute2's bridge)."""
+    return package_executable('bridge')
 
 
 def params_file(path: Path, channel: str) -> Path:

@@ -160,7 +160,7 @@ def test_config_changes_during_write_config_send_one_consistent_set(rig_factory)
         values = {k: tuple(v) if isinstance(v, list) else v for k, v in config.items()}
         cells = values.pop('cells_per_module')
         return [bytes(f.data) for f in [codec.encode(evms3_proto.BmsCellNumbers(cells))]
-                + codec.config_frames(evms3_proto.Evms3Config.from_mapping(values))]
+                + codec.config_frames(evms3_proto.Evms3Settings.from_mapping(values))]
     sets = {tuple(frames(EVMS3_CONFIG)): 'A', tuple(frames(other)): 'B'}
     assert len(sets) == 2
     rig = rig_factory(evms3_params())

@@ -12,19 +12,20 @@ import math
 import os
 import signal
 import subprocess
-import sys
 import threading
 import time
-from pathlib import Path
 
 from diagnostic_msgs.msg import DiagnosticArray
 from sensor_msgs.msg import BatteryState
 
 from dbc_fixtures import OUR_BMS_DBC, OUR_MAPPING, OUR_PARAMS, write_files
+from executables import package_executable
 from slcan_peer import SlcanPeer
 from test_bridge_slcan import bridge_executable, ros  # noqa: F401 (fixture)
 
-SIMULATOR = str(Path(sys.executable).parent / 'simulator')
+
+def simulator() -> str:
+    return package_executable('simulator')
 
 
 def _relay(source: SlcanPeer, target: SlcanPeer, stop: threading.Event) -> None:
@@ -75,7 +76,7 @@ def test_simulated_dbc_bms_reaches_the_bridge_over_slcan(ros, tmp_path):  # noqa
       stale_timeout: 1.0
 """)
     sim = subprocess.Popen(
-        [SIMULATOR, '--interface', 'slcan', '--channel', sim_peer.channel, '--bitrate',
+        [simulator(), '--interface', 'slcan', '--channel', sim_peer.channel, '--bitrate',
          '500000', '--option', 'sleep_after_open=0', '--dbc', OUR_PARAMS['dbc_file'],
          '--mapping', OUR_PARAMS['mapping_file']],
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
@@ -151,10 +152,10 @@ def test_a_typo_in_the_mapping_stops_the_bridge_with_exit_2(tmp_path):
 
 def test_simulator_refuses_a_bad_mapping_with_exit_2(tmp_path):
     files = write_files(tmp_path, mapping=OUR_MAPPING.replace('packSoc', 'packSco'))
-    proc = subprocess.run([SIMULATOR, '--dbc', files['dbc_file'], '--mapping',
+    proc = subprocess.run([simulator(), '--dbc', files['dbc_file'], '--mapping',
                            files['mapping_file'], '--duration', '0.1'],
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2 and 'packSco' in proc.stderr, proc.stderr
-    proc = subprocess.run([SIMULATOR, '--dbc', files['dbc_file'], '--duration', '0.1'],
+    proc = subprocess.run([simulator(), '--dbc', files['dbc_file'], '--duration', '0.1'],
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2 and '--dbc and --mapping go together' in proc.stderr

@@ -3,13 +3,13 @@ import math
 import os
 import re
 import subprocess
-import sys
 
 import pytest
 
 from ams_can_bridge.ros.demo_view import (
     cell_range, COLUMNS, device_row, DeviceRow, fmt_uptime, level_name, render, View,
     without_readings)
+from executables import package_executable
 
 NAN = math.nan
 ANSI = re.compile(r'\033\[[0-9;?]*[A-Za-z]')
@@ -153,9 +153,7 @@ def test_one_device_shows_one_current_though_its_diagnostics_lag():
 
 
 def demo_executable() -> str:
-    path = os.path.join(os.path.dirname(sys.executable), 'demo')
-    assert os.access(path, os.X_OK), f'the demo console script is not installed at {path}'
-    return path
+    return package_executable('demo')
 
 
 def snapshots(output: str) -> list[str]:

@@ -5,6 +5,7 @@ from ament_flake8.main import main_with_errors
 
 @pytest.mark.flake8
 @pytest.mark.linter
+@pytest.mark.process  # flake8 checks the files in worker processes (multiprocessing)
 def test_flake8():
     rc, errors = main_with_errors(argv=['ams_can_bridge', 'test', 'bench', 'launch', 'scripts',
                                         'doc', 'setup.py'])

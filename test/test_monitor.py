@@ -8,7 +8,6 @@ values, the dbc device STALE once its frames stop, every device STALE once the b
 gone, and the bridge never sees a service call from it.
 """
 import os
-from pathlib import Path
 import re
 import signal
 import subprocess
@@ -23,10 +22,15 @@ from ams_can_bridge.ros import monitor
 from ams_can_bridge.ros.bridge_node import NODE_NAME
 from ams_can_bridge.sim.runner import SimRunner
 from dbc_fixtures import FRAMES, OUR_PARAMS
+from executables import package_executable
 from helpers import wait_for
 
-MONITOR = str(Path(sys.executable).parent / 'monitor')
+
 NAMESPACE = 'car1'
+
+
+def monitor_executable() -> str:
+    return package_executable('monitor')
 
 
 class Output:
@@ -75,8 +79,7 @@ def table_words(value: float, unit: str) -> list[str]:
 
 
 def start_monitor(*args: str) -> tuple[subprocess.Popen, Output]:
-    assert os.access(MONITOR, os.X_OK), f'the monitor console script is not installed at {MONITOR}'
-    proc = subprocess.Popen([MONITOR, '--plain', *args], stdout=subprocess.PIPE,
+    proc = subprocess.Popen([monitor_executable(), '--plain', *args], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=dict(os.environ))
     return proc, Output(proc)
 
@@ -103,7 +106,8 @@ def test_monitor_help_answers_without_starting_ros():
                             timeout=60)
     assert result.stdout.strip().endswith('EXIT 0 False'), result.stdout + result.stderr
     assert '--namespace' in result.stdout and '--duration' in result.stdout
-    installed = subprocess.run([MONITOR, '--help'], capture_output=True, text=True, timeout=60)
+    installed = subprocess.run([monitor_executable(), '--help'], capture_output=True, text=True,
+                               timeout=60)
     assert installed.returncode == 0 and installed.stdout.startswith('usage: monitor')
 
 
@@ -111,7 +115,8 @@ def test_monitor_help_answers_without_starting_ros():
     (['--namespace', 'car 1'], '--namespace'), (['--node', 'my-bridge'], '--node'),
     (['--duration', '-1'], '--duration'), (['--stale-after', '0'], '--stale-after')])
 def test_monitor_refuses_a_bad_argument_with_one_line(args, named):
-    result = subprocess.run([MONITOR, *args], capture_output=True, text=True, timeout=60)
+    result = subprocess.run([monitor_executable(), *args], capture_output=True, text=True,
+                            timeout=60)
     assert result.returncode == 2
     assert 'Traceback' not in result.stderr
     assert named in result.stderr.splitlines()[-1], result.stderr

@@ -4,7 +4,7 @@ from hypothesis import given, settings, strategies as st
 import pytest
 
 from ams_can_bridge.protocols.bms16 import (
-    AcknowledgeError, BMS16_WARNINGS, Bms16Cells, Bms16Codec, Bms16Config, Bms16ConfigPart1,
+    AcknowledgeError, BMS16_WARNINGS, Bms16Cells, Bms16Codec, Bms16Settings, Bms16ConfigPart1,
     Bms16ConfigPart2, Bms16Error, Bms16Status, check_config_value, CONFIG_FIELDS, PowerOff,
     ResetSoc)
 from ams_can_bridge.errors import EncodeRangeError, MalformedFrameError
@@ -101,7 +101,7 @@ def test_last_cell_frame_has_four_cells_and_ignores_unused_bits():
 
 
 def test_config_golden_frames_both_ways():
-    frames = CODEC.config_frames(Bms16Config(**GOOD_CONFIG))
+    frames = CODEC.config_frames(Bms16Settings(**GOOD_CONFIG))
     assert frames == [Frame(504, GOOD_504), Frame(505, GOOD_505)]
     assert CODEC.decode(504, GOOD_504) == Bms16ConfigPart1(16, 100.0, 20.0, 58.0, 200.0,
                                                            300.0, 60.0, 2.8)
@@ -111,12 +111,12 @@ def test_config_golden_frames_both_ways():
 def test_config_accepts_natural_spellings():
     spelled = dict(GOOD_CONFIG, cells=16.0, pack_capacity_ah=100.0, min_cell_v=2.80,
                    shunt_size_a=200.0, hysteresis_v=0)
-    assert CODEC.config_frames(Bms16Config(**spelled))[1].data == bytes([73, 0, 69, 2])
+    assert CODEC.config_frames(Bms16Settings(**spelled))[1].data == bytes([73, 0, 69, 2])
 
 
 @pytest.mark.parametrize('size, code', [(0, 0), (100, 1), (200, 2), (500, 3)])
 def test_every_shunt_size(size, code):
-    frame = CODEC.config_frames(Bms16Config(**dict(GOOD_CONFIG, shunt_size_a=size)))[1]
+    frame = CODEC.config_frames(Bms16Settings(**dict(GOOD_CONFIG, shunt_size_a=size)))[1]
     assert frame.data[3] == code
     assert CODEC.decode(505, frame.data).shunt_size_a == size
 
@@ -126,10 +126,10 @@ def test_every_shunt_size(size, code):
 def test_config_range_edges_and_refusals(field, low, high, step):
     for ok in (low, high):
         check_config_value(field, ok)
-        CODEC.config_frames(Bms16Config(**dict(GOOD_CONFIG, **{field: ok})))
+        CODEC.config_frames(Bms16Settings(**dict(GOOD_CONFIG, **{field: ok})))
     for bad in (low - step, high + step, low + step / 2, float('nan'), True, '3'):
         with pytest.raises(EncodeRangeError) as info:
-            CODEC.config_frames(Bms16Config(**dict(GOOD_CONFIG, **{field: bad})))
+            CODEC.config_frames(Bms16Settings(**dict(GOOD_CONFIG, **{field: bad})))
         assert info.value.field == field
         assert f'{low:g}..{high:g}' in str(info.value)
 
@@ -137,7 +137,7 @@ def test_config_range_edges_and_refusals(field, low, high, step):
 @pytest.mark.parametrize('bad', [50, 300, -100, 1000, 200.5, None])
 def test_shunt_size_refusals_name_the_choices(bad):
     with pytest.raises(EncodeRangeError) as info:
-        CODEC.config_frames(Bms16Config(**dict(GOOD_CONFIG, shunt_size_a=bad)))
+        CODEC.config_frames(Bms16Settings(**dict(GOOD_CONFIG, shunt_size_a=bad)))
     assert info.value.field == 'shunt_size_a'
     assert '0 (no shunt), 100, 200 or 500 A' in str(info.value)
 
@@ -238,7 +238,7 @@ def test_config_round_trip(raw):
     frames = [Frame(504, bytes(raw[:8])), Frame(505, bytes(raw[8:]))]
     part1 = CODEC.decode(504, frames[0].data)
     part2 = CODEC.decode(505, frames[1].data)
-    config = Bms16Config(**vars(part1), **vars(part2))
+    config = Bms16Settings(**vars(part1), **vars(part2))
     assert CODEC.config_frames(config) == frames
 
 

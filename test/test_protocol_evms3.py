@@ -16,7 +16,7 @@ from ams_can_bridge.protocols.common import msg_defs_dir
 from ams_can_bridge.protocols.evms3 import (
     AcknowledgeError, BatteryCurrent, Bms12Cells, Bms12Request, Bms12Temperatures,
     ConfigReadback, ConfigReport,
-    BmsCellNumbers, check_config_value, CONFIG_FIELDS, Evms3Codec, Evms3Config,
+    BmsCellNumbers, check_config_value, CONFIG_FIELDS, Evms3Codec, Evms3Settings,
     Evms3Error, Evms3State, Evms3Status, EVMS3_WARNINGS, PowerOff, ResetSoc,
     OtherTraffic, SetState, ZeroCurrentSensor)
 
@@ -247,7 +247,7 @@ def test_ids_base_and_module_count():
 
 
 # --- configuration (IDs 32..35) ----------------------------------------------------------------
-GOLDEN_CONFIG = Evms3Config(
+GOLDEN_CONFIG = Evms3Settings(
     pack_capacity_ah=100, soc_warning_pct=20, full_voltage_v=400, warn_current_a=300,
     trip_current_a=500, temp_warning_c=60, min_aux_voltage_v=11, min_isolation_pct=50,
     tacho_ppr=2, fuel_gauge_full_pct=90, fuel_gauge_empty_pct=10, temp_gauge_hot_pct=80,
@@ -272,7 +272,7 @@ def test_config_golden():
     assert CODEC.config_frames(GOLDEN_CONFIG) == GOLDEN_CONFIG_FRAMES
     parts = [CODEC.decode(f.arbitration_id, f.data) for f in GOLDEN_CONFIG_FRAMES]
     assert [p.part for p in parts] == [1, 2, 3, 4]
-    assert Evms3Config.from_parts(parts) == GOLDEN_CONFIG
+    assert Evms3Settings.from_parts(parts) == GOLDEN_CONFIG
     assert CODEC.encode(parts[2]) == GOLDEN_CONFIG_FRAMES[2]
 
 
@@ -345,7 +345,7 @@ def test_voltage_multiplier_2_scales_full_and_charge_voltages():
     assert frames[0].data[2] == 200  # 800 V / 4 V per step
     # 600 V / 2 = 300 = 0x12C; 1022 / 2 = 511 = 0x1FF
     assert frames[2].data[3:7] == bytes([0x2C, 0x9E, 0xFF, 0x8A])
-    assert Evms3Config.from_parts(codec.decode(f.arbitration_id, f.data) for f in frames) == cfg
+    assert Evms3Settings.from_parts(codec.decode(f.arbitration_id, f.data) for f in frames) == cfg
     with pytest.raises(EncodeRangeError) as info:
         codec.config_frames(dataclasses.replace(cfg, full_voltage_v=802))  # off the 4 V step
     assert info.value.field == 'full_voltage_v' and '20..1004' in str(info.value)
@@ -384,7 +384,7 @@ EXPECTED_RANGES = {
 
 def test_config_fields_cover_the_config_and_the_spec_ranges():
     names = [f.name for f in CONFIG_FIELDS]
-    assert names == [f.name for f in dataclasses.fields(Evms3Config)] + ['cells_per_module']
+    assert names == [f.name for f in dataclasses.fields(Evms3Settings)] + ['cells_per_module']
     for spec in CONFIG_FIELDS:
         if spec.name in EXPECTED_RANGES:
             low, high, step = EXPECTED_RANGES[spec.name]
@@ -449,7 +449,7 @@ def test_static_balance_needs_balance_v_and_missing_values_are_named():
     values = dataclasses.asdict(GOLDEN_CONFIG)
     del values['tacho_ppr'], values['stationary_mode']
     with pytest.raises(EncodeRangeError) as info:
-        Evms3Config.from_mapping(values)
+        Evms3Settings.from_mapping(values)
     assert 'tacho_ppr' in str(info.value) and 'stationary_mode' in str(info.value)
 
 
@@ -490,7 +490,7 @@ def configs(draw):
     by_name = {f.name: f for f in CONFIG_FIELDS}
     values['balance_v'] = (draw(_value(by_name['balance_v']))
                            if values['balance_mode'] == 'static' else None)
-    return Evms3Config(**values)
+    return Evms3Settings(**values)
 
 
 @settings(max_examples=150, deadline=None)
@@ -499,7 +499,7 @@ def test_config_round_trip(cfg):
     frames = CODEC.config_frames(cfg)
     assert [f.arbitration_id for f in frames] == [32, 33, 34, 35]
     assert all(f.is_extended_id and len(f.data) == 8 for f in frames)
-    assert Evms3Config.from_parts(CODEC.decode(f.arbitration_id, f.data) for f in frames) == cfg
+    assert Evms3Settings.from_parts(CODEC.decode(f.arbitration_id, f.data) for f in frames) == cfg
 
 
 # --- the DBC reads the same frames the same way -------------------------------------------------

@@ -8,7 +8,7 @@ from ams_can_bridge.devices.base import Level, PowerSupplyHealth, PowerSupplySta
 from ams_can_bridge.devices.bms16 import Bms16Device
 from ams_can_bridge.devices.sma import SmaDevice
 from ams_can_bridge.protocols.bms16 import (
-    AcknowledgeError, Bms16Codec, Bms16Config, Bms16ConfigPart1, Bms16ConfigPart2, Bms16Error,
+    AcknowledgeError, Bms16Codec, Bms16Settings, Bms16ConfigPart1, Bms16ConfigPart2, Bms16Error,
     PowerOff, ResetSoc)
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.sma import SmaCodec, SmaFlag
@@ -16,10 +16,10 @@ from ams_can_bridge.sim.bms16 import Bms16Simulator
 from ams_can_bridge.sim.sma import SmaSimulator
 from helpers import run_sim
 
-CONFIG = Bms16Config(cells=12, pack_capacity_ah=50, soc_warning_pct=20, full_voltage_v=43,
-                     warn_current_a=200, trip_current_a=300, temperature_limit_c=60,
-                     min_cell_v=2.8, max_cell_v=3.65, hysteresis_v=0.1, balance_v=3.45,
-                     shunt_size_a=200)
+CONFIG = Bms16Settings(cells=12, pack_capacity_ah=50, soc_warning_pct=20, full_voltage_v=43,
+                       warn_current_a=200, trip_current_a=300, temperature_limit_c=60,
+                       min_cell_v=2.8, max_cell_v=3.65, hysteresis_v=0.1, balance_v=3.45,
+                       shunt_size_a=200)
 
 
 def count(frames, frame_id):

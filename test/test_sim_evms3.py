@@ -11,12 +11,12 @@ from ams_can_bridge.errors import MalformedFrameError
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import (
     AcknowledgeError, BatteryCurrent, Bms12Cells, Bms12Request,
-    BmsCellNumbers, Evms3Codec, Evms3Config, Evms3Error, Evms3State, Evms3Status, PowerOff,
+    BmsCellNumbers, Evms3Codec, Evms3Settings, Evms3Error, Evms3State, Evms3Status, PowerOff,
     ConfigReadback, ResetSoc, SetState)
 from ams_can_bridge.sim.evms3 import Evms3Simulator
 
 CODEC = Evms3Codec()
-CONFIG = Evms3Config(
+CONFIG = Evms3Settings(
     pack_capacity_ah=60, soc_warning_pct=20, full_voltage_v=100, warn_current_a=300,
     trip_current_a=500, temp_warning_c=60, min_aux_voltage_v=11, min_isolation_pct=50,
     tacho_ppr=2, fuel_gauge_full_pct=90, fuel_gauge_empty_pct=10, temp_gauge_hot_pct=80,

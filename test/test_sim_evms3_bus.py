@@ -5,7 +5,7 @@ from ams_can_bridge.devices.base import Level, PowerSupplyStatus
 from ams_can_bridge.devices.evms3 import Evms3Device
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import (
-    Bms12Request, ConfigReadback, ConfigReport, Evms3Codec, Evms3Config, Evms3State,
+    Bms12Request, ConfigReadback, ConfigReport, Evms3Codec, Evms3Settings, Evms3State,
     Evms3Status, RequestConfig)
 from ams_can_bridge.protocols.tc_charger import ChargerCommand, ChargerStatus
 from ams_can_bridge.sim.evms3 import Evms3Simulator
@@ -65,7 +65,7 @@ def test_charging_fills_the_pack_then_the_evms_stops_the_chargers():
 
 def test_stored_config_sets_target_and_balancing():
     sim = Evms3Simulator(bms12_modules=1, charge_after_s=0.0)
-    cfg = Evms3Config(
+    cfg = Evms3Settings(
         pack_capacity_ah=100, soc_warning_pct=20, full_voltage_v=50, warn_current_a=100,
         trip_current_a=200, temp_warning_c=60, min_aux_voltage_v=11, min_isolation_pct=50,
         tacho_ppr=2, fuel_gauge_full_pct=90, fuel_gauge_empty_pct=10, temp_gauge_hot_pct=80,

@@ -24,10 +24,13 @@ from ams_can_bridge.sim.main import apply_faults, build_devices
 from ams_can_bridge.sim.runner import open_bus, SimRunner
 
 sys.path.insert(0, str(Path(__file__).parent))
+from executables import package_executable  # noqa: E402, I100
 from helpers import wait_for  # noqa: E402, I100
 from slcan_peer import SlcanPeer  # noqa: E402, I100
 
-SIMULATOR = str(Path(sys.executable).parent / 'simulator')
+
+def simulator() -> str:
+    return package_executable('simulator')
 
 
 class Counter(SimDevice):
@@ -177,7 +180,7 @@ def test_build_devices_gives_each_type_its_options():
 
 
 def run_simulator(*args, timeout=30):
-    return subprocess.run([SIMULATOR, *args], capture_output=True, text=True,
+    return subprocess.run([simulator(), *args], capture_output=True, text=True,
                           timeout=timeout, env=dict(os.environ))
 
 
@@ -218,7 +221,7 @@ def test_simulator_across_processes_on_slcan_and_sigterm(tmp_path):
     types = ['ams', 'ivt_s', 'bms16']
     peer = SlcanPeer(symlink=tmp_path / 'ttyCAN0')
     proc = subprocess.Popen(
-        [SIMULATOR, '--interface', 'slcan', '--channel', peer.channel, '--bitrate', '500000',
+        [simulator(), '--interface', 'slcan', '--channel', peer.channel, '--bitrate', '500000',
          '--option', 'sleep_after_open=0', '--devices', ','.join(types)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
@@ -241,7 +244,7 @@ def test_simulator_across_processes_on_slcan_and_sigterm(tmp_path):
 
 
 def test_simulator_ctrl_c_exits_0_without_traceback():
-    proc = subprocess.Popen([SIMULATOR, '--devices', list(registry.SIMULATORS)[0]],
+    proc = subprocess.Popen([simulator(), '--devices', list(registry.SIMULATORS)[0]],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         line = proc.stderr.readline()          # the startup summary: it is running
@@ -338,7 +341,7 @@ def test_simulator_stops_when_the_other_end_of_its_pty_stops_reading(how):
     path = os.ttyname(slave)
     duration = ['--duration', '4'] if how == '--duration' else []
     proc = subprocess.Popen(
-        [SIMULATOR, '--interface', 'slcan', '--channel', path, '--option',
+        [simulator(), '--interface', 'slcan', '--channel', path, '--option',
          'sleep_after_open=0', '--devices', 'ams,ivt_s', '--status-period', '0.2', *duration],
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     filler = os.open(path, os.O_WRONLY | os.O_NOCTTY | os.O_NONBLOCK)  # the other writer
@@ -372,7 +375,7 @@ def test_ctrl_c_while_the_simulator_opens_an_slcan_port_ends_it_without_tracebac
     """python-can waits 2 s after opening a serial port: Ctrl-C then ends it at once."""
     master, slave = pty.openpty()
     path = os.ttyname(slave)
-    proc = subprocess.Popen([SIMULATOR, '--interface', 'slcan', '--channel', path,
+    proc = subprocess.Popen([simulator(), '--interface', 'slcan', '--channel', path,
                              '--devices', 'ams'], stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE, text=True)
     with ended_at_exit(proc, master, slave):

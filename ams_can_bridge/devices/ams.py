@@ -32,7 +32,7 @@ from ams_can_bridge.devices.ams_status import (diagnostic_report, ERROR_STATES, 
                                                health)
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, PowerSupplyStatus, Sent)
-from ams_can_bridge.devices.config import DeviceConfig
+from ams_can_bridge.devices.configs import AmsConfig
 from ams_can_bridge.devices.timed import CounterHealth, TimedSpans, TimedStore
 from ams_can_bridge.parameters import ParamSpec
 from ams_can_bridge.protocols import ams as proto
@@ -84,10 +84,12 @@ class _BankArray(TimedSpans):
         return self.read(now, max_age, banks * self.groups)
 
 
-class AmsDevice(Device):
+class AmsDevice(Device[AmsConfig]):
     """Formula-Student AMS (accumulator management system), docs/protocols.md section 1."""
 
     TYPE = 'ams'
+    Config = AmsConfig
+    codec: AmsCodec
     BROADCAST_PERIOD = 0.1
     LINKS = {'current_sensor': 'ivt_s'}  # parameter naming the IVT-S -> its device type
     DEFAULT_BASE_ID = proto.DEFAULT_BASE_ID
@@ -121,7 +123,7 @@ class AmsDevice(Device):
                   'unset refuses the call', low=0.0, high=25.5, step=0.1, read_only=False),
     ]
 
-    def __init__(self, name: str, config: DeviceConfig | Mapping[str, Any],
+    def __init__(self, name: str, config: AmsConfig | Mapping[str, Any],
                  clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__(name, config, clock)
         base_id = self.config.base_id
@@ -176,7 +178,7 @@ class AmsDevice(Device):
         """Build the car status (base + 0x005) the AMS master sends as its heartbeat."""
         return self.codec.encode(proto.CarStatus(proto.CarCommand(command), bank_count, counter))
 
-    def sent_ids(self, config: DeviceConfig | None = None) -> dict[tuple[int, bool], Sent]:
+    def sent_ids(self, config: AmsConfig | None = None) -> dict[tuple[int, bool], Sent]:
         """Return the heartbeat, the charger command (repeated) and the two overrides."""
         return {(self.codec.id_of(offset), False): sent for offset, sent in (
             (proto.CAR_STATUS, Sent('car status heartbeat', True)),
@@ -224,7 +226,7 @@ class AmsDevice(Device):
         """Take the device DeviceSet resolved for a LINKS key (only current_sensor)."""
         self.attach_current_sensor(device, origin)
 
-    def config_problems(self, config: DeviceConfig,
+    def config_problems(self, config: AmsConfig,
                         keys: Iterable[str] | None = None) -> list[str]:
         """Refuse a bank count the protocol cannot carry (1..5)."""
         try:
@@ -233,7 +235,7 @@ class AmsDevice(Device):
             return [str(exc)]
         return []
 
-    def configure(self, changes: Mapping[str, Any]) -> DeviceConfig:
+    def configure(self, changes: Mapping[str, Any]) -> AmsConfig:
         """Apply parameter changes; the master follows period and bank count at once."""
         new = super().configure(changes)
         if self.master is not None:  # outside the device lock: the master reads the state
@@ -241,7 +243,7 @@ class AmsDevice(Device):
             self.master.set_bank_count(self.bank_count)
         return new
 
-    def _reconfigured(self, old: DeviceConfig, new: DeviceConfig) -> None:
+    def _reconfigured(self, old: AmsConfig, new: AmsConfig) -> None:
         self.bank_count = _bank_count(_or_one(new.bank_count), f'{self.name}.bank_count')
 
     # --- bus thread ------------------------------------------------------------------------

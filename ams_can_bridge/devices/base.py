@@ -13,10 +13,11 @@ import math
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Any, Callable, ClassVar, Iterable, Mapping, NamedTuple
+from typing import (Any, Callable, ClassVar, Generic, Iterable, Mapping, NamedTuple, Protocol,
+                    TypeVar)
 
-from ams_can_bridge.devices.config import DeviceConfig, make_config_class
-from ams_can_bridge.errors import ParamError, ProtocolError
+from ams_can_bridge.devices.config import DeviceConfig
+from ams_can_bridge.errors import ConfigError, ParamError, ProtocolError
 from ams_can_bridge.parameters import ParamSpec
 
 NAN = math.nan
@@ -105,13 +106,35 @@ class Sent(NamedTuple):
     periodic: bool = False  # a heartbeat, a keep-alive, a repeat: not only on a call
 
 
-def device_params(device_cls: type['Device']) -> list[ParamSpec]:
+class Codec(Protocol):
+    """
+    What a device needs of its protocol codec (protocols/__init__.py lists the codec contract).
+
+    A device type narrows ``codec`` to its own codec class, for the encoders it calls.
+    """
+
+    @property
+    def arbitration_ids(self) -> frozenset[int]:
+        """Return the IDs the codec decodes."""
+
+    @property
+    def is_extended_id(self) -> bool:
+        """Tell whether its IDs are 29-bit."""
+
+    def decode(self, arbitration_id: int, data: bytes, /) -> object:
+        """Return the reading of one frame; raise a ProtocolError for a malformed one."""
+
+
+ConfigT = TypeVar('ConfigT', bound=DeviceConfig)
+
+
+def device_params(device_cls: type['Device[Any]']) -> list[ParamSpec]:
     """List every parameter of a device type: common, its own, its command services'."""
     return (common_params(device_cls) + list(device_cls.PARAMS)
             + list(device_cls.COMMAND_PARAMS))
 
 
-def common_params(device_cls: type['Device']) -> list[ParamSpec]:
+def common_params(device_cls: type['Device[Any]']) -> list[ParamSpec]:
     """List the parameters every device instance has, with the device type's defaults."""
     specs = [
         ParamSpec('frame_id', str, '', 'header.frame_id of the BatteryState messages'),
@@ -132,13 +155,15 @@ def common_params(device_cls: type['Device']) -> list[ParamSpec]:
     return specs
 
 
-class Device:
+class Device(Generic[ConfigT]):
     """
     Base of every device state: counters, staleness, locking, malformed-frame bookkeeping.
 
-    Subclasses set the class constants, build their codec in __init__, and implement
-    ``_handle`` (decoded reading -> state; return True for the primary status frame),
-    ``_battery_report`` and ``_diagnostic_report``.
+    Subclasses are ``Device[<Type>Config]`` (their typed configuration, devices/configs.py):
+    they set the class constants and ``Config``, build their ``codec`` in __init__ (a type
+    without one codec overrides arbitration_ids, frame_ids, is_extended_id and handle_frame),
+    and implement ``_handle`` (decoded reading -> state; return True for the primary status
+    frame), ``_battery_report`` and ``_diagnostic_report``.
     """
 
     TYPE: ClassVar[str] = ''
@@ -158,15 +183,12 @@ class Device:
     # value the user gave (the resolved instance shows in the diagnostics instead).
     LINKS: ClassVar[Mapping[str, str]] = {}
 
-    # The typed, frozen configuration class of the device type (devices/config.py), built
-    # from device_params() when the subclass is defined.
-    Config: ClassVar[type[DeviceConfig]] = DeviceConfig
+    # The typed, frozen configuration class of the device type (devices/configs.py,
+    # generated from device_params(); test_device_configs.py checks they agree).
+    Config: type[ConfigT]
+    codec: Codec
 
-    def __init_subclass__(cls, **kwargs: Any) -> None:
-        super().__init_subclass__(**kwargs)
-        cls.Config = make_config_class(cls.__name__.removesuffix('Device'), device_params(cls))
-
-    def __init__(self, name: str, config: DeviceConfig | Mapping[str, Any],
+    def __init__(self, name: str, config: ConfigT | Mapping[str, Any],
                  clock: Callable[[], float] = time.monotonic) -> None:
         """Check the configuration (ParamError naming every bad value) and set up the state."""
         self.name = name
@@ -176,9 +198,11 @@ class Device:
         self.frames_malformed = 0
         self.last_malformed: str = ''
         self.last_seen: float | None = None  # clock() of the last valid primary frame
-        self.codec: Any = None
         if not isinstance(config, DeviceConfig):
             config = self.Config.from_values(config)
+        elif not isinstance(config, self.Config):
+            raise ConfigError(f'{type(self).__name__} is configured by {self.Config.__name__}, '
+                              f'not by a {type(config).__name__}')
         problems = self.config_problems(config)
         if problems:
             raise ParamError('; '.join(problems))
@@ -187,7 +211,7 @@ class Device:
         self.stale_timeout = self._stale_timeout(config)
 
     # --- configuration ----------------------------------------------------------------------
-    def config_problems(self, config: DeviceConfig,
+    def config_problems(self, config: ConfigT,
                         keys: Iterable[str] | None = None) -> list[str]:
         """
         Say what is wrong with a configuration ([] = usable), each naming the parameter.
@@ -205,7 +229,7 @@ class Device:
             return f'{self.name}.{key} = {value!r} refused: {exc}'
         return '; '.join(self.config_problems(new, [key])) or None
 
-    def configure(self, changes: Mapping[str, Any]) -> DeviceConfig:
+    def configure(self, changes: Mapping[str, Any]) -> ConfigT:
         """
         Apply parameter changes ({key: value}) as one new configuration, swapped in whole.
 
@@ -223,10 +247,10 @@ class Device:
             self._reconfigured(old, new)
         return new
 
-    def _reconfigured(self, old: DeviceConfig, new: DeviceConfig) -> None:
+    def _reconfigured(self, old: ConfigT, new: ConfigT) -> None:
         """Follow a configuration change (lock held); the device types that need it."""
 
-    def attach_link(self, key: str, device: 'Device', origin: str) -> None:
+    def attach_link(self, key: str, device: 'Device[Any]', origin: str) -> None:
         """
         Take the instance DeviceSet resolved for one of LINKS (origin: how it was chosen).
 
@@ -234,7 +258,7 @@ class Device:
         """
         raise NotImplementedError(f'{type(self).__name__} declares no link {key!r}')
 
-    def _stale_timeout(self, config: DeviceConfig) -> float:
+    def _stale_timeout(self, config: ConfigT) -> float:
         return float(config.stale_timeout or 5.0 * self.BROADCAST_PERIOD)
 
     # --- receive side (bus thread) -------------------------------------------------------
@@ -246,18 +270,15 @@ class Device:
     @property
     def is_extended_id(self) -> bool:
         """Tell whether the device's own IDs are 29-bit."""
-        return bool(getattr(self.codec, 'is_extended_id', False))
+        return self.codec.is_extended_id
 
     @property
     def frame_ids(self) -> frozenset[tuple[int, bool]]:
         """Return every (CAN ID, 29-bit) the device consumes; a device may use both widths."""
-        ids = getattr(self.codec, 'frame_ids', None)
-        if ids is not None:
-            return ids
         extended = self.is_extended_id
         return frozenset((can_id, extended) for can_id in self.arbitration_ids)
 
-    def sent_ids(self, config: DeviceConfig | None = None) -> dict[tuple[int, bool], Sent]:
+    def sent_ids(self, config: ConfigT | None = None) -> dict[tuple[int, bool], Sent]:
         """
         Return each (CAN ID, 29-bit) the bridge may send for this device, and what.
 

@@ -17,15 +17,16 @@ from typing import Any, Callable, Iterable, Mapping
 
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyHealth, Sent)
-from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
+from ams_can_bridge.devices.config import ConfigFields
+from ams_can_bridge.devices.configs import Bms16Config
 from ams_can_bridge.devices.sma import sma_values
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
 from ams_can_bridge.errors import MalformedFrameError, ParamError
 from ams_can_bridge.parameters import config_param_specs
 from ams_can_bridge.protocols import bms16 as bms16_proto
 from ams_can_bridge.protocols.bms16 import (
-    BMS16_WARNINGS, Bms16Cells, Bms16Codec, Bms16Config, Bms16Error, Bms16Status, CELL_FRAME_COUNT,
-    CELL_FRAME_FIRST, CELLS_3, DEFAULT_BASE_ID, MAX_CELLS)
+    BMS16_WARNINGS, Bms16Cells, Bms16Codec, Bms16Error, Bms16Settings, Bms16Status,
+    CELL_FRAME_COUNT, CELL_FRAME_FIRST, CELLS_3, DEFAULT_BASE_ID, MAX_CELLS)
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.sma import (
     SMA_IDS, SmaAlarms, SmaBattery, SmaBatteryInfo, SmaCodec, SmaLimits, SmaManufacturer,
@@ -64,10 +65,12 @@ class Bms16FrameCodec:
         raise MalformedFrameError(arbitration_id, data, 'not a BMS16 ID')
 
 
-class Bms16Device(Device):
+class Bms16Device(Device[Bms16Config]):
     """One ZEVA BMS16."""
 
     TYPE = 'bms16'
+    Config = Bms16Config
+    codec: Bms16FrameCodec
     BROADCAST_PERIOD = 0.25
     DEFAULT_BASE_ID = DEFAULT_BASE_ID
     PARAMS = []
@@ -76,7 +79,7 @@ class Bms16Device(Device):
     CONFIG = ConfigFields(bms16_proto.CONFIG_FIELDS, bms16_proto.check_config_value)
     WRITE_HINT = 'set them all: the device has no read-back, a write overwrites every value'
 
-    def __init__(self, name: str, config: DeviceConfig | Mapping[str, Any],
+    def __init__(self, name: str, config: Bms16Config | Mapping[str, Any],
                  clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__(name, config, clock)
         base_id = self.config.base_id
@@ -92,7 +95,7 @@ class Bms16Device(Device):
         status = self.status
         return Bms16Error.NONE if status is None else status.error
 
-    def config_problems(self, config: DeviceConfig,
+    def config_problems(self, config: Bms16Config,
                         keys: Iterable[str] | None = None) -> list[str]:
         """Name every config.* value the BMS16 protocol refuses."""
         return self.CONFIG.problems(self.name, config, keys)
@@ -101,9 +104,9 @@ class Bms16Device(Device):
     def config_frames(self) -> list[Frame]:
         """Build frames base + 4, base + 5 from the configuration now (all values set)."""
         values = self.CONFIG.complete(self.name, self.config, (), self.WRITE_HINT)
-        return self.codec.bms16.config_frames(Bms16Config(**values))
+        return self.codec.bms16.config_frames(Bms16Settings(**values))
 
-    def sent_ids(self, config: DeviceConfig | None = None) -> dict[tuple[int, bool], Sent]:
+    def sent_ids(self, config: Bms16Config | None = None) -> dict[tuple[int, bool], Sent]:
         """Return base + 4 .. base + 8 (configuration, acknowledge, SoC reset, power off)."""
         p, base = bms16_proto, self.codec.bms16.base_id
         return {(base + offset, False): Sent(what) for offset, what in (

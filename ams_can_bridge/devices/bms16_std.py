@@ -16,7 +16,8 @@ from typing import Any, Callable, Iterable, Mapping
 
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyStatus, Sent)
-from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
+from ams_can_bridge.devices.config import ConfigFields
+from ams_can_bridge.devices.configs import Bms16StdConfig
 from ams_can_bridge.devices.evms3_health import error_health, error_text
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
 from ams_can_bridge.errors import RefusedCommand
@@ -33,10 +34,12 @@ from ams_can_bridge.protocols.evms3 import (
 VARIANT = 'standard'
 
 
-class Bms16StdDevice(Device):
+class Bms16StdDevice(Device[Bms16StdConfig]):
     """One ZEVA BMS16 speaking the EVMS3 protocol (the BMS16v2 standard form)."""
 
     TYPE = 'bms16'
+    Config = Bms16StdConfig
+    codec: Bms16StdCodec
     VARIANT = VARIANT
     ID_BITS = 29
     BROADCAST_PERIOD = 0.25  # the Monitor times out its core after 4 ticks of 4 Hz
@@ -48,7 +51,7 @@ class Bms16StdDevice(Device):
     # write_config: IDs 36, 32..35 with this pause after each frame (ZEVA Monitor: 20 ms)
     CONFIG_FRAME_GAP = CONFIG_GAP_S
 
-    def __init__(self, name: str, config: DeviceConfig | Mapping[str, Any],
+    def __init__(self, name: str, config: Bms16StdConfig | Mapping[str, Any],
                  clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__(name, config, clock)
         base_id = self.config.base_id
@@ -58,7 +61,7 @@ class Bms16StdDevice(Device):
         self._cells = TimedSpans.uniform(4, MAX_CELLS // 4)  # one span per BMS12 frame
         self._current: TimedStore[type, float] = TimedStore()  # wire sign: + = discharge
 
-    def config_problems(self, config: DeviceConfig,
+    def config_problems(self, config: Bms16StdConfig,
                         keys: Iterable[str] | None = None) -> list[str]:
         """Name every config.* value the BMS16 (standard form) refuses."""
         return self.CONFIG.problems(self.name, config, keys)
@@ -86,7 +89,7 @@ class Bms16StdDevice(Device):
         values = self.CONFIG.complete(self.name, config, optional, self.WRITE_HINT)
         return self.codec.config_frames(proto.config_from_mapping(values))
 
-    def sent_ids(self, config: DeviceConfig | None = None) -> dict[tuple[int, bool], Sent]:
+    def sent_ids(self, config: Bms16StdConfig | None = None) -> dict[tuple[int, bool], Sent]:
         """Return IDs 32..39 (configuration, acknowledge, SoC reset, power off)."""
         base, extended = self.codec.base_id, self.codec.is_extended_id
         whats = ['write_config'] * 5 + ['acknowledge_error', 'reset_soc', 'power_off']

@@ -1,11 +1,14 @@
 """
 A device instance's typed configuration: one frozen dataclass per device type.
 
-The fields come from the device type's ParamSpecs (common, its own, its command services'),
-so the parameter list stays the one source of names, types and defaults. A configuration is
-built and checked once from parameter values and never changed in place: a parameter change
-builds a new one, the device checks it whole and swaps it in with one assignment, so a
-reader on another thread sees the old set or the new set, never half of each.
+The classes are written out in ``devices/configs.py``, generated from the device types'
+ParamSpecs (common, their own, their command services') by ``scripts/gen_device_configs.py``;
+``test/test_device_configs.py`` fails when a parameter table and its class part. So the
+parameter list stays the one source of names, types and defaults, and mypy checks every
+``config.<field>`` read. A configuration is built and checked once from parameter values and
+never changed in place: a parameter change builds a new one, the device checks it whole and
+swaps it in with one assignment, so a reader on another thread sees the old set or the new
+set, never half of each.
 
 Fields are named as the parameter keys with dots as underscores
 (``config.pack_capacity_ah`` -> ``config_pack_capacity_ah``); ``value(key)`` and
@@ -14,11 +17,9 @@ Fields are named as the parameter keys with dots as underscores
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Callable, ClassVar, Iterable, Mapping, TYPE_CHECKING
+from typing import Any, Callable, ClassVar, Iterable, Mapping, Self
 
 from ams_can_bridge.errors import EncodeRangeError, ParamError, RefusedCommand
-
-_PYTHON_TYPES = {'int[]': tuple, 'str[]': tuple, 'float[]': tuple}
 
 
 def field_name(key: str) -> str:
@@ -28,61 +29,53 @@ def field_name(key: str) -> str:
 
 @dataclasses.dataclass(frozen=True)
 class DeviceConfig:
-    """Base of the generated configuration classes (see ``make_config_class``)."""
+    """
+    Base of the configuration classes (devices/configs.py): the values every device has.
 
-    KEYS: ClassVar[tuple[str, ...]] = ()          # parameter keys, in declaration order
-    NO_DEFAULT: ClassVar[frozenset[str]] = frozenset()  # keys that may stay unset (None)
+    A value given as None for a key that has a default takes the default (log2bag reads
+    ``key: ~`` from a file as None; the node declares such a key with its default), so a
+    field typed without None never holds None. Only the keys without a default stay unset.
+    """
+
+    KEYS: ClassVar[tuple[str, ...]] = (  # parameter keys, in declaration order
+        'frame_id', 'location', 'serial_number', 'stale_timeout')
+
+    frame_id: str = ''
+    location: str = ''
+    serial_number: str = ''
+    stale_timeout: float = 5.0
 
     @classmethod
-    def from_values(cls, values: Mapping[str, Any]) -> DeviceConfig:
+    def from_values(cls, values: Mapping[str, Any]) -> Self:
         """Build from {parameter key: value}; keys left out take their declared default."""
+        cls._check_keys(values)
+        return cls(**{field_name(k): cls._normal(k, v) for k, v in values.items()})
+
+    @classmethod
+    def _check_keys(cls, values: Iterable[str]) -> None:
         unknown = set(values) - set(cls.KEYS)
         if unknown:
             raise ParamError('unknown parameter(s): ' + ', '.join(sorted(unknown)))
-        kwargs = {field_name(k): cls._normal(k, v) for k, v in values.items()}
-        return cls(**kwargs)
 
     @classmethod
     def _normal(cls, key: str, value: Any) -> Any:
+        default = cls.__dataclass_fields__[field_name(key)].default
+        if value is None:
+            return default  # None for a key without a default: unset
         if isinstance(value, list):
             # YAML [] cannot be told from unset: a key without default stays unset
-            value = None if not value and key in cls.NO_DEFAULT else tuple(value)
+            value = None if not value and default is None else tuple(value)
         return value
 
     def value(self, key: str) -> Any:
         """Return the value of a parameter key."""
         return getattr(self, field_name(key))
 
-    if TYPE_CHECKING:
-        # The fields are made per device type from its ParamSpecs (make_config_class): the
-        # type checker cannot see them, so an attribute read is typed as the value it holds.
-        def __getattr__(self, name: str) -> Any:
-            """Return a generated field (for the type checker only)."""
-
-    def replace(self, changes: Mapping[str, Any]) -> DeviceConfig:
+    def replace(self, changes: Mapping[str, Any]) -> Self:
         """Return a new configuration with these {parameter key: value} changes."""
-        unknown = set(changes) - set(self.KEYS)
-        if unknown:
-            raise ParamError('unknown parameter(s): ' + ', '.join(sorted(unknown)))
+        self._check_keys(changes)
         return dataclasses.replace(
             self, **{field_name(k): self._normal(k, v) for k, v in changes.items()})
-
-
-def make_config_class(type_name: str, specs: Iterable[Any]) -> type[DeviceConfig]:
-    """Build the frozen configuration dataclass of a device type from its ParamSpecs."""
-    specs = list(specs)
-    fields = []
-    for spec in specs:
-        python_type = _PYTHON_TYPES.get(spec.type, spec.type)
-        default = tuple(spec.default) if isinstance(spec.default, list) else spec.default
-        fields.append((field_name(spec.key), python_type | None,
-                       dataclasses.field(default=default)))
-    cls = dataclasses.make_dataclass(
-        f'{type_name}Config', fields, bases=(DeviceConfig,), frozen=True,
-        namespace={'KEYS': tuple(s.key for s in specs),
-                   'NO_DEFAULT': frozenset(s.key for s in specs if s.default is None),
-                   '__doc__': f'Typed, frozen configuration of a {type_name} instance.'})
-    return cls
 
 
 class ConfigFields:

@@ -23,7 +23,7 @@ from typing import Any, Callable, Iterable, Mapping
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyHealth,
     PowerSupplyStatus)
-from ams_can_bridge.devices.config import DeviceConfig
+from ams_can_bridge.devices.configs import DbcConfig
 from ams_can_bridge.devices.dbc_describe import start_lines
 from ams_can_bridge.devices.dbc_diag import capped_values, listed, missing_report, WARNINGS_CAP
 from ams_can_bridge.devices.dbc_mapping import load_plan
@@ -45,10 +45,11 @@ def _fmt(value: float | None, choices: Mapping[int, str] | None = None) -> str:
     return f'{value:g}'
 
 
-class DbcDevice(Device):
+class DbcDevice(Device[DbcConfig]):
     """A BMS described by a DBC and a mapping file (telemetry only)."""
 
     TYPE = 'dbc'
+    Config = DbcConfig
     BROADCAST_PERIOD = 0.2  # default stale_timeout 1 s; set it to ~5 x your primary's period
     DEFAULT_BASE_ID = None
     PARAMS = [
@@ -64,7 +65,7 @@ class DbcDevice(Device):
                   choices=('', *PROFILES)),
     ]
 
-    def __init__(self, name: str, config: DeviceConfig | Mapping[str, Any],
+    def __init__(self, name: str, config: DbcConfig | Mapping[str, Any],
                  clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__(name, config, clock)
         try:
@@ -112,6 +113,11 @@ class DbcDevice(Device):
     def arbitration_ids(self) -> frozenset[int]:
         """Return the CAN IDs of the messages the mapping references."""
         return frozenset(self._by_id)
+
+    @property
+    def is_extended_id(self) -> bool:
+        """Tell whether every message the mapping references is 29-bit (no single codec)."""
+        return bool(self._frame_ids) and all(extended for _, extended in self._frame_ids)
 
     # --- bus thread ------------------------------------------------------------------------
     def handle_frame(self, arbitration_id: int, data: bytes, stamp: float) -> bool:
@@ -334,7 +340,7 @@ class DbcDevice(Device):
                          '(the diagnostics count them)')
         return start_lines(self.plan, self.stale_timeout), self.warnings + notes
 
-    def config_problems(self, config: DeviceConfig,
+    def config_problems(self, config: DbcConfig,
                         keys: Iterable[str] | None = None) -> list[str]:
         """Files are checked when the plan loads (every problem at once, see __init__)."""
         return []

@@ -24,7 +24,8 @@ from typing import Any, Callable, Iterable, Mapping
 
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, Level, PowerSupplyStatus, Sent)
-from ams_can_bridge.devices.config import ConfigFields, DeviceConfig
+from ams_can_bridge.devices.config import ConfigFields
+from ams_can_bridge.devices.configs import Evms3Config
 from ams_can_bridge.devices.evms3_health import (
     error_health, error_text, WRITABLE_STATES)
 from ams_can_bridge.devices.evms3_peers import Bms12Module, Chargers
@@ -37,7 +38,7 @@ from ams_can_bridge.errors import ParamError, RefusedCommand
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import (
     AcknowledgeError, BatteryCurrent, BMS12_MAX_MODULES, Bms12Cells, Bms12Request,
-    Bms12Temperatures, BmsCellNumbers, ConfigReport, Evms3Codec, Evms3Config, Evms3Error,
+    Bms12Temperatures, BmsCellNumbers, ConfigReport, Evms3Codec, Evms3Settings, Evms3Error,
     Evms3State, Evms3Status, EVMS3_WARNINGS, READBACK_IDS, RequestConfig, ResetSoc, SetState)
 from ams_can_bridge.protocols.evms3_config import check_config_value
 from ams_can_bridge.protocols.tc_charger import ChargerCommand, ChargerStatus
@@ -51,10 +52,12 @@ BMS12_STALE_TIMEOUT = 3.0
 CHARGER_STALE_TIMEOUT = 5.0
 
 
-class Evms3Device(Device):
+class Evms3Device(Device[Evms3Config]):
     """ZEVA EVMS3 (+ BMS12 modules): BatteryState from ID 30/40 and the module cells."""
 
     TYPE = 'evms3'
+    Config = Evms3Config
+    codec: Evms3Codec
     ID_BITS = 29
     EXTENDED_ID_CHOICE = True  # ZEVA's firmware can be built with 11-bit IDs
     DEFAULT_EXTENDED_ID = True
@@ -84,7 +87,7 @@ class Evms3Device(Device):
     WRITE_HINT = ('set them all, or fill them from the EVMS3 with {0}/read_config: a write '
                   'overwrites every value')
 
-    def __init__(self, name: str, config: DeviceConfig | Mapping[str, Any],
+    def __init__(self, name: str, config: Evms3Config | Mapping[str, Any],
                  clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__(name, config, clock)
         config = self.config
@@ -108,22 +111,27 @@ class Evms3Device(Device):
 
     # --- configuration ---------------------------------------------------------------------
     @staticmethod
-    def _multiplier(config: DeviceConfig) -> int:
+    def _multiplier(config: Evms3Config) -> int:
         return int(config.voltage_multiplier or 1)
 
-    def _config_fields(self, config: DeviceConfig) -> ConfigFields:
+    def _config_fields(self, config: Evms3Config) -> ConfigFields:
         multiplier = self._multiplier(config)
         return ConfigFields(evms3_proto.CONFIG_FIELDS,
                             lambda name, value: check_config_value(name, value, multiplier))
 
-    def config_problems(self, config: DeviceConfig,
+    def config_problems(self, config: Evms3Config,
                         keys: Iterable[str] | None = None) -> list[str]:
         """Name every config.* value the EVMS3 protocol refuses (at this voltage multiplier)."""
         return self._config_fields(config).problems(self.name, config, keys)
 
-    def _reconfigured(self, old: DeviceConfig, new: DeviceConfig) -> None:
+    def _reconfigured(self, old: Evms3Config, new: Evms3Config) -> None:
         self.module_timeout = max(self.stale_timeout, BMS12_STALE_TIMEOUT)
         self.charger_timeout = max(self.stale_timeout, CHARGER_STALE_TIMEOUT)
+
+    @property
+    def frame_ids(self) -> frozenset[tuple[int, bool]]:
+        """Return its own IDs at its width and the TC chargers' IDs, always 29-bit."""
+        return self.codec.frame_ids
 
     # --- what the commanding part reads ------------------------------------------------------
     @property
@@ -150,7 +158,7 @@ class Evms3Device(Device):
 
     # --- the frames the command services send (built here, on the device's own codec) --------
     @staticmethod
-    def optional_config(config: DeviceConfig) -> tuple[str, ...]:
+    def optional_config(config: Evms3Config) -> tuple[str, ...]:
         """Name the config values a write may leave unset: balance_v unless balancing fixed."""
         return ('balance_v',) if config.config_balance_mode in ('dynamic', 'off') else ()
 
@@ -194,9 +202,9 @@ class Evms3Device(Device):
             self.name, config, self.optional_config(config), self.WRITE_HINT.format(self.name))
         cells = values.pop('cells_per_module')
         return [self.codec.encode(BmsCellNumbers(tuple(cells)))] + self.codec.config_frames(
-            Evms3Config.from_mapping(values))
+            Evms3Settings.from_mapping(values))
 
-    def sent_ids(self, config: DeviceConfig | None = None) -> dict[tuple[int, bool], Sent]:
+    def sent_ids(self, config: Evms3Config | None = None) -> dict[tuple[int, bool], Sent]:
         """Return IDs 31..38 (setup mode, configuration, acknowledge, SoC reset) and 51."""
         p, extended = evms3_proto, self.codec.is_extended_id
         ids = {(self.codec.base_id + offset, extended): Sent(what) for offset, what in (
@@ -276,8 +284,7 @@ class Evms3Device(Device):
         capacity = self.config.config_pack_capacity_ah
         if capacity is None or isinstance(capacity, bool):
             return NAN
-        capacity = float(capacity)
-        return capacity if capacity > 0 else NAN
+        return float(capacity) if capacity > 0 else NAN
 
     def _ros_current(self) -> float:
         current_a = self._current.get(BatteryCurrent, self.clock(), self.stale_timeout)

@@ -28,7 +28,7 @@ from typing import Any, Callable, Mapping
 
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, Level, PowerSupplyHealth, Sent)
-from ams_can_bridge.devices.config import DeviceConfig
+from ams_can_bridge.devices.configs import IvtSConfig
 from ams_can_bridge.devices.ivt_s_commands import CommandLink
 from ams_can_bridge.devices.ivt_s_control import CYCLE_KEYS, ERROR_MASKS_KEY, IvtSControl
 from ams_can_bridge.devices.timed import CounterHealth, TimedStore
@@ -72,7 +72,7 @@ def _as_bool(key: str, value: Any) -> bool:
     raise ParamError(f'{key} = {value!r}: allowed true | false')
 
 
-class IvtSDevice(IvtSControl, Device):
+class IvtSDevice(IvtSControl, Device[IvtSConfig]):
     """
     Isabellenhuette IVT-S: current, voltages U1..U3, temperature, power, charge, energy.
 
@@ -84,6 +84,8 @@ class IvtSDevice(IvtSControl, Device):
     """
 
     TYPE = 'ivt_s'
+    Config = IvtSConfig
+    codec: IvtSCodec
     BROADCAST_PERIOD = 0.1
     DEFAULT_BASE_ID = DEFAULT_BASE_ID
     PARAMS = [
@@ -127,7 +129,7 @@ class IvtSDevice(IvtSControl, Device):
                   'commands_enabled is true)'),
     ]
 
-    def __init__(self, name: str, config: DeviceConfig | Mapping[str, Any],
+    def __init__(self, name: str, config: IvtSConfig | Mapping[str, Any],
                  clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__(name, config, clock)
         base_id = self.config.base_id
@@ -155,7 +157,7 @@ class IvtSDevice(IvtSControl, Device):
         self.link = CommandLink(self.lock, self.command_id)
         self._ids = self.codec.arbitration_ids | {self.answer_id}
 
-    def sent_ids(self, config: DeviceConfig | None = None) -> dict[tuple[int, bool], Sent]:
+    def sent_ids(self, config: IvtSConfig | None = None) -> dict[tuple[int, bool], Sent]:
         """Return the command ID (read_config, write_config, set_running, ...)."""
         return {(self.command_id, False): Sent('IVT-S command')}
 

@@ -12,7 +12,7 @@ import threading
 from typing import Any, Callable, Iterable
 
 from ams_can_bridge.devices import ivt_s_commands as seq
-from ams_can_bridge.devices.config import DeviceConfig
+from ams_can_bridge.devices.configs import IvtSConfig
 from ams_can_bridge.devices.ivt_s_commands import config_problems, NoAnswer
 from ams_can_bridge.devices.ports import SendFrame
 from ams_can_bridge.errors import RefusedCommand
@@ -38,7 +38,7 @@ class IvtSControl:
     """read_config, write_config, set_running, restart, reset_errors of one IVT-S."""
 
     name: str
-    config: DeviceConfig
+    config: IvtSConfig
     lock: threading.Lock
     link: seq.CommandLink
     byte_order: str
@@ -47,7 +47,7 @@ class IvtSControl:
     _tracks: dict
     clock: Callable[[], float]
 
-    def config_problems(self, config: DeviceConfig,
+    def config_problems(self, config: IvtSConfig,
                         keys: Iterable[str] | None = None) -> list[str]:
         """Name every config.<result>_cycle_ms that is not a whole 0..65535 ms."""
         wanted = CYCLE_KEYS.values() if keys is None else [

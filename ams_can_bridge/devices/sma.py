@@ -34,7 +34,7 @@ from typing import Any, Callable, Hashable, Iterable, Mapping
 
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyHealth, Sent)
-from ams_can_bridge.devices.config import DeviceConfig
+from ams_can_bridge.devices.configs import SmaConfig
 from ams_can_bridge.devices.sma_keepalive import InverterKeepalive, KEEPALIVE_PERIOD
 from ams_can_bridge.devices.sma_values import fmt, sma_values
 from ams_can_bridge.devices.sma_voltage import AUTO, SCALE_CHOICES, ScaleInUse, VoltageScale
@@ -120,10 +120,12 @@ def _capacity_ah(readings: Mapping[Hashable, Any]) -> int | None:
     return None
 
 
-class SmaDevice(Device):
+class SmaDevice(Device[SmaConfig]):
     """One BMS speaking the SMA Sunny Island protocol or its Pylontech / Victron dialects."""
 
     TYPE = 'sma'
+    Config = SmaConfig
+    codec: SmaCodec
     # Typical SMA-protocol BMSs send every 1 s (the BMS16 at 4 Hz): the default stale
     # timeout of 5 periods (5 s) must not flap on a 1 Hz sender.
     BROADCAST_PERIOD = 1.0
@@ -136,7 +138,7 @@ class SmaDevice(Device):
                   'inverter (Pylontech protocol); false = never', read_only=False),
     ]
 
-    def __init__(self, name: str, config: DeviceConfig | Mapping[str, Any],
+    def __init__(self, name: str, config: SmaConfig | Mapping[str, Any],
                  clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__(name, config, clock)
         self.codec = SmaCodec()
@@ -151,7 +153,7 @@ class SmaDevice(Device):
         """Build the inverter keep-alive 0x305 the bridge sends in the inverter's place."""
         return keepalive_frame()
 
-    def sent_ids(self, config: DeviceConfig | None = None) -> dict[tuple[int, bool], Sent]:
+    def sent_ids(self, config: SmaConfig | None = None) -> dict[tuple[int, bool], Sent]:
         """Return the keep-alive's ID while inverter_keepalive is true, else nothing."""
         if not (config or self.config).inverter_keepalive:
             return {}
@@ -171,14 +173,14 @@ class SmaDevice(Device):
         self.keepalive.set_enabled(bool(self.config.inverter_keepalive))
         return self.keepalive
 
-    def configure(self, changes: Mapping[str, Any]) -> DeviceConfig:
+    def configure(self, changes: Mapping[str, Any]) -> SmaConfig:
         """Apply parameter changes; the keep-alive follows inverter_keepalive at once."""
         new = super().configure(changes)
         if self.keepalive is not None:  # outside the device lock: stopping joins a thread
             self.keepalive.set_enabled(bool(new.inverter_keepalive))
         return new
 
-    def config_problems(self, config: DeviceConfig,
+    def config_problems(self, config: SmaConfig,
                         keys: Iterable[str] | None = None) -> list[str]:
         """Name a voltage_scale that is none of its choices (0.1 as a number is one)."""
         try:
@@ -187,11 +189,11 @@ class SmaDevice(Device):
             return [str(exc)]
         return []
 
-    def _scale_setting(self, config: DeviceConfig) -> str:
+    def _scale_setting(self, config: SmaConfig) -> str:
         return coerce(f'{self.name}.voltage_scale', VOLTAGE_SCALE,
                       config.voltage_scale) or AUTO
 
-    def _reconfigured(self, old: DeviceConfig, new: DeviceConfig) -> None:
+    def _reconfigured(self, old: SmaConfig, new: SmaConfig) -> None:
         if (old.voltage_scale, old.stale_timeout) != (new.voltage_scale, new.stale_timeout):
             self.scale.reset(self._scale_setting(new), self.stale_timeout)
 

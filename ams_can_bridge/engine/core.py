@@ -24,7 +24,8 @@ from typing import Any, Callable, Protocol
 from ams_can_bridge import reports
 from ams_can_bridge.bus_state import BusStatus
 from ams_can_bridge.device_set import DeviceSet
-from ams_can_bridge.devices.base import BatteryReport, DiagnosticReport
+from ams_can_bridge.devices.base import BatteryReport, Device, DiagnosticReport
+from ams_can_bridge.devices.config import DeviceConfig
 
 Arrays = dict[str, tuple[int, int, list[float]]]
 Statuses = list[tuple[str, DiagnosticReport]]
@@ -114,7 +115,7 @@ class Engine:
             arrays = _nan_arrays(arrays)
         elif math.isfinite(report.stamp):
             stamp = report.stamp
-        self.sink.battery(name, device.config.frame_id or '', report, arrays, stamp)
+        self.sink.battery(name, _frame_id(device), report, arrays, stamp)
 
     # --- periodic work ------------------------------------------------------------------------
     def publish_stale(self) -> None:
@@ -139,8 +140,7 @@ class Engine:
                 self._stale_msgs[name] = cached
             # "Nothing heard, as of now": stamped when emitted, never with the last frame's
             # time, which would make a silent device look as if it had just been repeated.
-            self.sink.battery(name, device.config.frame_id or '', cached[1], cached[2],
-                              self.now())
+            self.sink.battery(name, _frame_id(device), cached[1], cached[2], self.now())
 
     def statuses(self) -> Statuses:
         """Return every device's report and the CAN bus's, named as the bridge names them."""
@@ -261,3 +261,9 @@ def _nan_arrays(arrays: Arrays) -> Arrays:
     """Return the arrays of a silent device: NaN, not the last values."""
     return {suffix: (rows, cols, [math.nan] * len(data))
             for suffix, (rows, cols, data) in arrays.items()}
+
+
+def _frame_id(device: Device) -> str:
+    """Return a device's header.frame_id (a value every configuration class has)."""
+    config: DeviceConfig = device.config  # any device type's: the common values are checked
+    return config.frame_id

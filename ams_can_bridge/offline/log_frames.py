@@ -80,7 +80,7 @@ class _Lines:
 
     def __init__(self, first: list[str], file: Any) -> None:
         self._file = file
-        self._lines = itertools.chain(first, file)
+        self._lines: Iterator[str] = itertools.chain(first, file)
 
     def __iter__(self) -> Iterator[str]:
         return self._lines

@@ -7,5 +7,6 @@ One module per protocol. Each defines a codec class with:
 * ``decode(arbitration_id, data) -> <reading dataclass>``, raising MalformedFrameError;
 * ``encode(<message dataclass>) -> Frame``, raising EncodeRangeError.
 
-The errors are in ``ams_can_bridge.errors``, ``Frame`` in ``protocols.common``.
+The errors are in ``ams_can_bridge.errors``, ``Frame`` in ``protocols.common``; what a device
+needs of its codec is ``devices.base.Codec``.
 """

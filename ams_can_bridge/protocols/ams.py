@@ -382,7 +382,7 @@ class AmsCodec:
         self.base_id = base_id
         check_dbc()  # once
         # One dict lookup per frame: ID -> (DLC, reading builder).
-        self._decode_table: dict[int, tuple[int, Callable[[bytes], Any]]] = {
+        self._decode_table: dict[int, tuple[int, Callable[[bytes], AmsMessage]]] = {
             base_id + offset: (layout.length, _DECODERS[offset])
             for offset, layout in LAYOUTS.items()}
         self.arbitration_ids = frozenset(self._decode_table)

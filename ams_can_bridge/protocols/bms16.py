@@ -89,7 +89,7 @@ class Bms16ConfigPart2:
 
 
 @dataclass(frozen=True)
-class Bms16Config(Bms16ConfigPart2, Bms16ConfigPart1):
+class Bms16Settings(Bms16ConfigPart2, Bms16ConfigPart1):
     """The whole configuration: part 1's fields, then part 2's (``bms16.config.*``)."""
 
 
@@ -177,7 +177,7 @@ _DLC = tuple(layout.length for layout in LAYOUTS)
 # The readings sent as a whole frame, by offset from base_id (a cell frame is one of three)
 _OFFSET = {Bms16Status: STATUS, Bms16ConfigPart1: CONFIG_1, Bms16ConfigPart2: CONFIG_2,
            AcknowledgeError: ACK_ERROR, ResetSoc: RESET_SOC, PowerOff: POWER_OFF}
-_CLASS = {offset: cls for cls, offset in _OFFSET.items()}
+_CLASS: dict[int, Callable[..., Bms16Reading]] = {offset: cls for cls, offset in _OFFSET.items()}
 _COMMANDS = (ACK_ERROR, RESET_SOC, POWER_OFF)  # DLC 0
 # Status and commands: their rows in the reading's order, one generated call each way;
 # telemetry (the simulator's status) is rounded to the resolution.
@@ -258,7 +258,7 @@ class Bms16Codec:
             return self.frame(offset, SETTINGS.payload(offset - CONFIG_1, message))
         return self.frame(offset, _ENCODE[offset](*astuple(message)))
 
-    def config_frames(self, config: Bms16Config) -> list[Frame]:
+    def config_frames(self, config: Bms16Settings) -> list[Frame]:
         """Build the two configuration frames [base + 4, base + 5] (EncodeRangeError first)."""
         return [self.frame(CONFIG_1 + k, SETTINGS.payload(k, config)) for k in range(2)]
 

@@ -57,7 +57,7 @@ class Bms16StdStatus:
 
 
 @dataclass(frozen=True, slots=True)
-class Bms16StdConfig:
+class Bms16StdSettings:
     """Slots of IDs 32..35 a BMS16 uses (physical units); every other slot is sent as 0."""
 
     pack_capacity_ah: int
@@ -121,7 +121,7 @@ _LAYOUTS = (
 SETTINGS = Settings(_LAYOUTS)
 _FIELDS = {f.name: f for f in (*SETTINGS.fields(), *BALANCE_FIELDS)}
 CONFIG_FIELDS: tuple[ConfigField, ...] = tuple(
-    _FIELDS[name] for name in Bms16StdConfig.__dataclass_fields__)
+    _FIELDS[name] for name in Bms16StdSettings.__dataclass_fields__)
 CONFIG_FIELD = {f.name: f for f in CONFIG_FIELDS}
 
 
@@ -130,17 +130,17 @@ def check_config_value(name: str, value: Any) -> Any:
     return check_setting(SETTINGS, name, value)
 
 
-def config_from_mapping(values: Mapping[str, Any]) -> Bms16StdConfig:
+def config_from_mapping(values: Mapping[str, Any]) -> Bms16StdSettings:
     """Build the configuration (values checked and normalized); balance_v only if static."""
-    names = list(Bms16StdConfig.__dataclass_fields__)
+    names = list(Bms16StdSettings.__dataclass_fields__)
     missing = [n for n in names if values.get(n) is None and n != 'balance_v']
     if missing:
         raise EncodeRangeError(missing[0], None, 'a value (unset: ' + ', '.join(missing) + ')')
-    return Bms16StdConfig(**{n: None if values.get(n) is None  # type: ignore[arg-type]
-                             else check_config_value(n, values[n]) for n in names})
+    return Bms16StdSettings(**{n: None if values.get(n) is None  # type: ignore[arg-type]
+                               else check_config_value(n, values[n]) for n in names})
 
 
-def config_payloads(cfg: Bms16StdConfig) -> list[bytes]:
+def config_payloads(cfg: Bms16StdSettings) -> list[bytes]:
     """Return the payloads of IDs 32..35: 32 slots, the unused ones 0 (EncodeRangeError)."""
     raws = {BALANCE_ROW.name: balance_byte(cfg.balance_mode, cfg.balance_v)}
     return [SETTINGS.payload(k, cfg, raws) for k in range(4)]
@@ -194,7 +194,7 @@ class Bms16StdCodec:
     def _frame(self, offset: int, data: bytes) -> Frame:
         return Frame(self.base_id + offset, bytes(data), True)
 
-    def config_frames(self, cfg: Bms16StdConfig) -> list[Frame]:
+    def config_frames(self, cfg: Bms16StdSettings) -> list[Frame]:
         """Build IDs 36, 32, 33, 34, 35 in the Monitor's order (EncodeRangeError before any)."""
         payloads = config_payloads(cfg)
         module1 = cfg.cells - CELLS_PER_MODULE  # the Monitor's split: 8 on module 0

@@ -19,7 +19,7 @@ from ams_can_bridge.protocols.evms3_config import (  # noqa: F401 (some re-expor
     BMS12_MAX_MODULES, BmsCellNumbers, cell_numbers_payload, check_config_value, CONFIG_FIELDS,
     CONFIG_FILLER, CONFIG_LAYOUTS, config_payloads, ConfigReadback, ConfigReport,
     CORE_REQUEST_CONFIG, CORE_SEND_CELL_NUMS, decode_cell_numbers,
-    decode_config_packet, decode_report, Evms3Config, Evms3ConfigPart, OtherTraffic,
+    decode_config_packet, decode_report, Evms3Settings, Evms3ConfigPart, OtherTraffic,
     READBACK_IDS, READBACK_NAMES)
 from ams_can_bridge.protocols import bms12
 from ams_can_bridge.protocols.bms12 import (
@@ -300,12 +300,12 @@ class Evms3Codec:
     def _frame(self, offset: int, data: bytes | bytearray) -> Frame:
         return Frame(self.base_id + offset, bytes(data), self.is_extended_id)
 
-    def config_frames(self, cfg: Evms3Config) -> list[Frame]:
+    def config_frames(self, cfg: Evms3Settings) -> list[Frame]:
         """Build the frames of IDs 32, 33, 34, 35 in that order (EncodeRangeError first)."""
         return [self._frame(CONFIG1 + i, p)
                 for i, p in enumerate(config_payloads(cfg, self.voltage_multiplier))]
 
-    def report_frames(self, cfg: Evms3Config, cells_per_module: Sequence[int]) -> list[Frame]:
+    def report_frames(self, cfg: Evms3Settings, cells_per_module: Sequence[int]) -> list[Frame]:
         """Build the EVMS's answer to ID 51: the frames of 32..36 at the fixed IDs 52..56."""
         frames = self.config_frames(cfg) + [self.encode(BmsCellNumbers(tuple(cells_per_module)))]
         return [frame._replace(arbitration_id=aid) for aid, frame in zip(READBACK_IDS, frames)]
@@ -322,7 +322,7 @@ class Evms3Codec:
                     check_value('gauge_value', msg.gauge_value or 0, 0, 255, integer=True)]))
             return self._frame(SET_STATE, bytes([1 if msg.setup else 0]))
         if isinstance(msg, Evms3ConfigPart):
-            cfg = Evms3Config.from_mapping({**CONFIG_FILLER, **msg.values})
+            cfg = Evms3Settings.from_mapping({**CONFIG_FILLER, **msg.values})
             return self.config_frames(cfg)[msg.part - 1]
         if isinstance(msg, BmsCellNumbers):
             return self._frame(CELL_NUMBERS, cell_numbers_payload(msg.cells_per_module))

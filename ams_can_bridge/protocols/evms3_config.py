@@ -39,7 +39,7 @@ def sentinel_text(name: str, value: Any) -> str | None:
 
 
 @dataclass(frozen=True)
-class Evms3Config:
+class Evms3Settings:
     """IDs 32..35: every configuration value, physical units (ranges in CONFIG_FIELDS)."""
 
     pack_capacity_ah: int
@@ -77,12 +77,12 @@ class Evms3Config:
     night_brightness: int  # setting 31, ID 35 byte 7: 0..10 (x 10 % on the Monitor)
 
     @classmethod
-    def from_parts(cls, parts: Iterable[Evms3ConfigPart | ConfigReport]) -> Evms3Config:
+    def from_parts(cls, parts: Iterable[Evms3ConfigPart | ConfigReport]) -> Evms3Settings:
         """Join the four decoded packets or reports (any order) into one configuration."""
         return cls(**{name: value for part in parts for name, value in part.values.items()})
 
     @classmethod
-    def from_mapping(cls, values: Mapping[str, Any]) -> 'Evms3Config':
+    def from_mapping(cls, values: Mapping[str, Any]) -> 'Evms3Settings':
         """Build from a name -> value mapping (extra keys ignored, missing ones named)."""
         names = [f.name for f in fields(cls)]
         missing = [n for n in names if n not in values and n != 'balance_v']
@@ -127,7 +127,7 @@ class ConfigReport:
 class ConfigReadback:
     """A whole reported configuration (52..56 joined), or what was missing from it."""
 
-    config: Evms3Config | None
+    config: Evms3Settings | None
     cells_per_module: tuple[int, ...] | None
     missing: tuple[int, ...] = ()  # IDs of 52..56 not received
 
@@ -139,13 +139,13 @@ class ConfigReadback:
         if missing:
             return cls(None, None, missing)
         cells = by_id.pop(CORE_SEND_CELL_NUMS).values['cells_per_module']
-        return cls(Evms3Config.from_parts(by_id.values()), tuple(cells))
+        return cls(Evms3Settings.from_parts(by_id.values()), tuple(cells))
 
     def parameter_values(self) -> dict[str, Any]:
         """Every configuration field read, physical units (balance_v only when static)."""
         if self.config is None or self.cells_per_module is None:
             return {}
-        values = {f.name: getattr(self.config, f.name) for f in fields(Evms3Config)}
+        values = {f.name: getattr(self.config, f.name) for f in fields(Evms3Settings)}
         if values['balance_v'] is None:
             del values['balance_v']  # dynamic / off: the device reported no voltage
         values['cells_per_module'] = list(self.cells_per_module)
@@ -274,7 +274,7 @@ _CONFIG4 = Layout('EVMS3_Config4', 8, (
             'Monitor night brightness, x 10 %')))
 CELL_NUMBERS_LAYOUT = Layout('EVMS3_BmsCellNumbers', 8, tuple(
     Signal(f'Module{m}Cells', 4 * m, 4, LITTLE) for m in range(BMS12_MAX_MODULES)))
-_D_CELL_NUMBERS = CELL_NUMBERS_LAYOUT.decoder()
+_D_CELL_NUMBERS: Callable[[bytes], tuple[int, ...]] = CELL_NUMBERS_LAYOUT.decoder()
 _E_CELL_NUMBERS = CELL_NUMBERS_LAYOUT.encoder()
 CONFIG_LAYOUTS = (_CONFIG1, _CONFIG2, _CONFIG3, _CONFIG4, CELL_NUMBERS_LAYOUT)
 # By PACK_VOLTAGE_MULTIPLIER: an 800 V build counts the full voltage in 4 V steps.
@@ -290,7 +290,7 @@ _X2 = '; x 2 with voltage_multiplier 2)'
 
 
 def _build_fields() -> tuple[ConfigField, ...]:
-    """Return the fields in Evms3Config's order: the rows', the balance and charge voltages."""
+    """Return the fields in Evms3Settings's order: the rows', the balance and charge voltages."""
     by_name = {f.name: f for f in (*_SETTINGS[1].fields(), *BALANCE_FIELDS)}
     full = by_name['full_voltage_v']  # declared wide enough for both builds
     by_name[full.name] = replace(full, high=_SETTINGS[2].field(full.name).high,
@@ -298,7 +298,7 @@ def _build_fields() -> tuple[ConfigField, ...]:
     for volt in _CHARGE:
         by_name[volt] = ConfigField(volt, int, 0, 1022, 1, 'V', volt.split('_')[0]
                                     + ' charge voltage (0..511 V' + _X2)
-    return tuple(by_name[f.name] for f in fields(Evms3Config)) + (ConfigField(
+    return tuple(by_name[f.name] for f in fields(Evms3Settings)) + (ConfigField(
         'cells_per_module', 'int[]', 0, CELLS_MAX, 1, '',
         'cells on each of the 16 BMS12 modules (0 or 4..12), ID 36', length=BMS12_MAX_MODULES),)
 
@@ -331,7 +331,7 @@ def check_config_value(name: str, value: Any, multiplier: int = 1) -> Any:
     return check_setting(_SETTINGS[multiplier], name, value)
 
 
-def config_payloads(cfg: Evms3Config, multiplier: int = 1) -> list[bytes]:
+def config_payloads(cfg: Evms3Settings, multiplier: int = 1) -> list[bytes]:
     """Return the payloads of IDs 32..35 (EncodeRangeError names the first bad value)."""
     raws = {BALANCE_ROW.name: balance_byte(cfg.balance_mode, cfg.balance_v, True)}
     for volt, prefix in zip(_CHARGE, ('Max', 'Alt')):

@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import astuple, dataclass
 import enum
 import functools
-from typing import Any
+from typing import Any, Callable
 
 from ams_can_bridge.errors import ConfigError, EncodeRangeError, MalformedFrameError
 from ams_can_bridge.protocols.common import check_dlc, Frame, load_dbc
@@ -146,7 +146,8 @@ def _decoder(layout: Layout) -> Any:
     return compile_function(source, layout.name, 'decode', {'new': _new, 'IvtResult': IvtResult})
 
 
-_DECODERS = {'big': _decoder(LAYOUTS[IvtMux.I]), 'little': _decoder(LITTLE_LAYOUTS[IvtMux.I])}
+_DECODERS: dict[str, Callable[[IvtSCodec, int, bytes], IvtResult]] = {
+    'big': _decoder(LAYOUTS[IvtMux.I]), 'little': _decoder(LITTLE_LAYOUTS[IvtMux.I])}
 
 
 class IvtSCodec:

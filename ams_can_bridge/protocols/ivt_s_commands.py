@@ -290,12 +290,15 @@ def decode_answer(data: bytes) -> IvtAnswer:
     decode = _DECODE.get(data[0])
     if decode is None:
         return OtherAnswer(data[0], bytes(data))
-    return _decoded(decode, RESPONSE_ID, data)
+    answer: IvtAnswer = _decoded(decode, RESPONSE_ID, data)  # the reading of its layout
+    return answer
 
 
 def decode_config(arbitration_id: int, data: bytes) -> ResultConfig:
     """Decode the configuration layout of 0x2n (command) / 0xAn (answer)."""
-    return _decoded(_DECODE[RESP_CONFIG_RESULT + (data[0] & 0x07)], arbitration_id, data)
+    config: ResultConfig = _decoded(_DECODE[RESP_CONFIG_RESULT + (data[0] & 0x07)],
+                                    arbitration_id, data)
+    return config
 
 
 def decode_command(data: bytes) -> tuple[int, bytes]:

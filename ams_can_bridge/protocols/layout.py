@@ -79,7 +79,7 @@ class BadValue(ProtocolError):
     """A value a row's ``check`` refuses; the codec raises MalformedFrameError (it has the ID)."""
 
 
-class _Known(dict):
+class _Known(dict[int, Any]):
     """Raw value -> enum member of a checked lookup; an unknown raw value is a BadValue."""
 
     def __init__(self, s: Signal) -> None:
@@ -354,4 +354,5 @@ def compile_function(source: str, name: str, function: str,
     """Compile generated code: the tables' own and a protocol's (its per-ID fast path)."""
     scope = dict(scope or {})
     exec(compile(source, f'<layout {name}>', 'exec'), scope)  # noqa: S102 (our own table)
-    return scope[function]
+    compiled: Callable = scope[function]
+    return compiled

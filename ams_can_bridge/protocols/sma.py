@@ -250,8 +250,8 @@ MESSAGES = {
     **DIALECTS,
 }
 _ONLINE = 16 + SMA_CONDITIONS.index(ONLINE_CONDITION)  # SystemOnline among the pairs
-_D_LIMITS = MESSAGES[LIMITS_ID].layout.decoder(into=SmaLimits)
-_D_INFO = MESSAGES[INFO_ID].layout.decoder(into=SmaBatteryInfo)
+_D_LIMITS: Callable[[bytes], SmaLimits] = MESSAGES[LIMITS_ID].layout.decoder(into=SmaLimits)
+_D_INFO: Callable[[bytes], SmaBatteryInfo] = MESSAGES[INFO_ID].layout.decoder(into=SmaBatteryInfo)
 _D_ALARMS = MESSAGES[ALARMS_ID].layout.decoder()
 _E_ALARMS = MESSAGES[ALARMS_ID].layout.encoder()
 

@@ -387,7 +387,8 @@ _E_ALARMS = DIALECTS[PYLONTECH_ALARMS_ID].layout.encoder()  # alarms, warnings, 
 _D_RAW = DIALECTS[VICTRON_CELL_EXTREMES_ID].layout.decoder(raw=True)
 _D_CAPACITY = DIALECTS[VICTRON_INSTALLED_CAPACITY_ID].layout.decoder(
     into=VictronInstalledCapacity)
-_D_EXTREMES = DIALECTS[VICTRON_CELL_EXTREMES_ID].layout.decoder(into=VictronCellExtremes)
+_D_EXTREMES: Callable[[bytes], VictronCellExtremes] = DIALECTS[
+    VICTRON_CELL_EXTREMES_ID].layout.decoder(into=VictronCellExtremes)
 
 
 def pad_unsent(data: bytes, layout: Layout) -> bytes:

@@ -190,11 +190,13 @@ class DbcSimulator(SimDevice):
         if role == 'valid':
             return self._valid(detail, info)
         if role == 'value' and detail is not None:
-            return detail
+            value: float = detail  # the mapping's constant (a number)
+            return value
         if role == 'status':
             want = (PowerSupplyStatus.DISCHARGING if pack['current'] < 0
                     else PowerSupplyStatus.CHARGING)
-            keys = [v for v, target in detail.items() if target == want] or list(detail)
+            keys: list[float] = [v for v, target in detail.items() if target == want] \
+                or list(detail)
             if keys:
                 return keys[0]
         if info.choices:

@@ -34,7 +34,7 @@ from ams_can_bridge.errors import ConfigError, ProtocolError
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import (
     AcknowledgeError, BatteryCurrent, Bms12Cells, Bms12Request, Bms12Temperatures,
-    BmsCellNumbers, CORE_REQUEST_CONFIG, Evms3Codec, Evms3Config, Evms3ConfigPart, Evms3Error,
+    BmsCellNumbers, CORE_REQUEST_CONFIG, Evms3Codec, Evms3Settings, Evms3ConfigPart, Evms3Error,
     Evms3State, Evms3Status, PowerOff, RequestConfig, ResetSoc, SetState, ZeroCurrentSensor)
 from ams_can_bridge.protocols.tc_charger import ChargerCommand, ChargerStatus
 from ams_can_bridge.sim.base import Periodic, SimDevice
@@ -51,7 +51,7 @@ END_FRACTION = 0.05  # charge ends when the current has tapered below 5 % of the
 CHARGER_TEMPERATURE_RAW = 65
 # What an EVMS3 reports before anyone wrote a configuration: the default settings of ZEVA's
 # open firmware (MIT, August 2021), in physical units.
-FACTORY_CONFIG = Evms3Config(
+FACTORY_CONFIG = Evms3Settings(
     pack_capacity_ah=100, soc_warning_pct=20, full_voltage_v=160, warn_current_a=1210,
     trip_current_a=1210, temp_warning_c=151, min_aux_voltage_v=10, min_isolation_pct=50,
     tacho_ppr=2, fuel_gauge_full_pct=80, fuel_gauge_empty_pct=20, temp_gauge_hot_pct=80,
@@ -112,7 +112,7 @@ class Evms3Simulator(SimDevice):
         self.powered = True
         self.bms16_marker = False
         # EEPROM (None: never written, the factory settings) and RAM (None: as EEPROM)
-        self.stored_config: Evms3Config | None = None
+        self.stored_config: Evms3Settings | None = None
         self.stored_cell_numbers: tuple[int, ...] | None = None
         self._ram: dict[str, Any] | None = None
         self.cell_numbers: tuple[int, ...] | None = None  # RAM (ID 36)
@@ -141,7 +141,7 @@ class Evms3Simulator(SimDevice):
         self.state = Evms3State.IDLE
         self._set_state_request = 0
 
-    def load(self, config: Evms3Config, cells: Sequence[int] | None = None) -> None:
+    def load(self, config: Evms3Settings, cells: Sequence[int] | None = None) -> None:
         """Start as an EVMS3 configured earlier: config (and cell counts) in EEPROM and RAM."""
         self.stored_config = config
         self.stored_cell_numbers = None if cells is None else tuple(cells)
@@ -151,9 +151,9 @@ class Evms3Simulator(SimDevice):
         self.remaining_ah = min(self.remaining_ah, self.capacity_ah)
 
     @property
-    def ram_config(self) -> Evms3Config | None:
+    def ram_config(self) -> Evms3Settings | None:
         """Return the settings in use now (RAM); None = the factory settings, never written."""
-        return None if self._ram is None else Evms3Config(**self._ram)
+        return None if self._ram is None else Evms3Settings(**self._ram)
 
     def start_charging(self) -> None:
         """Plug the chargers in: the EVMS enters CHARGING and starts commanding them."""
@@ -355,7 +355,7 @@ class Evms3Simulator(SimDevice):
                 self._ram = asdict(FACTORY_CONFIG)
             self._ram.update(msg.values)  # each packet goes to RAM at once
             if msg.part == 4:  # CORE_RECEIVE_CONFIG4: save RAM (settings + cells) to EEPROM
-                self.stored_config = Evms3Config(**self._ram)
+                self.stored_config = Evms3Settings(**self._ram)
                 self.stored_cell_numbers = self.cell_numbers
                 self.eeprom_writes += 1
                 self.capacity_ah = float(self.stored_config.pack_capacity_ah)
