@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import logging
+import math
 import threading
 import time
 from typing import Callable
@@ -54,8 +55,10 @@ class CanIo:
     thread for every data frame whose (id, extended) is in ``filters`` (all frames when
     filters is None). Error frames are counted, remote frames ignored. ``stamp`` is the
     moment the frame was on the bus, in s since the epoch: the host clock at receive, the
-    driver's timestamp with ``use_bus_time``, the log's timestamp in a replay.
-    ``last_stamp`` holds the stamp of the last frame (a replay's log time, for /clock).
+    driver's timestamp with ``use_bus_time``, the log's timestamp in a replay (never the
+    host clock: an entry whose timestamp is no time is skipped and counted as unreadable).
+    ``last_stamp`` holds the stamp of the last frame (a replay's log time, for /clock; the
+    log's first moment from the replay's start until its first frame is played).
     """
 
     def __init__(self, config: BusConfig, on_frame: OnFrame,
@@ -73,6 +76,7 @@ class CanIo:
         self._tx_lock = threading.Lock()
         self._state_cv = threading.Condition()  # wakes callers waiting for 'connected'
         self._bus: can.BusABC | ReplayBus | None = None
+        self._replay: ReplayBus | None = None  # the replay being played (its skip count)
         self._recorder: Recording | None = None
         self._state = BusState.STOPPED
         self._reason = ''
@@ -155,7 +159,7 @@ class CanIo:
             frames_out=self.frames_out, frames_dropped_tx=self.frames_dropped_tx,
             error_frames=self.error_frames, reconnects=self.reconnects,
             hardware_id=self.config.hardware_id, callback_errors=self.callback_errors,
-            frames_unreadable=self.frames_unreadable,
+            frames_unreadable=self.frames_unreadable + self._replay_skipped(),
             down_for=None if down_since is None else time.monotonic() - down_since,
             last_outage=self._last_outage)
 
@@ -232,7 +236,10 @@ class CanIo:
     def _open(self) -> can.BusABC | ReplayBus:
         cfg = self.config
         if cfg.interface == 'replay':
-            bus: can.BusABC | ReplayBus = ReplayBus(cfg.channel, cfg.replay_rate)
+            replay = self._replay = ReplayBus(cfg.channel, cfg.replay_rate)
+            if not math.isnan(replay.log_start):  # the log's time from the start on
+                self.last_stamp = replay.log_start
+            bus: can.BusABC | ReplayBus = replay
         elif cfg.interface == 'slcan':  # opened exclusively; read in blocks unless told
             bus = open_bulk_slcan(cfg.channel, cfg.slcan_bulk_read, **cfg.bus_kwargs())
         else:
@@ -269,6 +276,9 @@ class CanIo:
 
     def _replay_finished(self, bus: ReplayBus) -> None:
         reason = f'{bus.played} frames played from {bus.path}'
+        if bus.skipped:
+            reason += (f'; {bus.skipped} entries skipped, their timestamp no time (last: '
+                       f'{bus.last_skipped})')
         if bus.error:
             reason += f'; stopped at a bad entry: {bus.error}'
         self._set_state(BusState.REPLAY_FINISHED, reason)
@@ -287,7 +297,8 @@ class CanIo:
                   and type(bus).state is not can.BusABC.state else None)
         replay = bus if isinstance(bus, ReplayBus) else None
         decode_errors = self.config.interface in _SOCKETCAN_ERRORS
-        bus_time = replay is not None or self.config.use_bus_time
+        bus_time = self.config.use_bus_time
+        skipped = 0  # a replay's entries skipped for their timestamp, as last logged
         next_poll = wall() + _STATE_POLL
         unreadable_run = 0
         while not stop():
@@ -309,7 +320,9 @@ class CanIo:
                 elif not msg.is_remote_frame:
                     self.frames_in += 1
                     # A driver without timestamps leaves 0.0: the host clock is all we have.
-                    stamp = msg.timestamp if bus_time and msg.timestamp > 0 else now
+                    # A replay's are the log's, each checked by ReplayBus (0.0 is a time).
+                    stamp = msg.timestamp if replay is not None or (
+                        bus_time and msg.timestamp > 0) else now
                     self.last_stamp = stamp
                     recorder = self._recorder
                     if recorder is not None:
@@ -324,6 +337,10 @@ class CanIo:
                             self._callback_failed(msg, exc)
             elif replay is not None and replay.finished:
                 return
+            if replay is not None and replay.skipped != skipped:
+                skipped = replay.skipped
+                self._unreadable_log(f'log entry skipped, its timestamp is no time '
+                                     f'({replay.last_skipped})', skipped)
             if now >= next_poll:
                 next_poll = now + _STATE_POLL
                 if polled is not None:
@@ -359,12 +376,20 @@ class CanIo:
         if run >= _UNREADABLE_LIMIT:
             raise _BusLost(BusState.RECONNECTING, f'{run} unreadable messages in a row from the '
                            f'driver, last: {_describe(exc)}')
+        self._unreadable_log(f'unreadable message from the driver dropped: {_describe(exc)}',
+                             self.frames_unreadable)
+
+    def _unreadable_log(self, what: str, count: int) -> None:
+        """Log an unreadable message or log entry, at most every _CALLBACK_LOG_EVERY."""
         now = time.monotonic()
         if now - self._last_unreadable_log >= _CALLBACK_LOG_EVERY:
             self._last_unreadable_log = now
-            self._log.warning('CAN bus %s: unreadable message from the driver dropped (%d so '
-                              'far): %s', self.config.hardware_id, self.frames_unreadable,
-                              _describe(exc))
+            self._log.warning('CAN bus %s: %s (%d so far)', self.config.hardware_id, what,
+                              count)
+
+    def _replay_skipped(self) -> int:
+        replay = self._replay
+        return 0 if replay is None else replay.skipped
 
     def _callback_failed(self, msg: can.Message, exc: Exception) -> None:
         self.callback_errors += 1

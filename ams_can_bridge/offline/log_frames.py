@@ -11,6 +11,8 @@ a text log whose last line has no end (that line is not read: a cut line can sti
 as a frame with part of its data), an .asc without its closing "End TriggerBlock", a .blf
 shorter than its header says. python-can's .trc reader logs one warning per line it cannot
 parse instead of raising: those are counted here as bad entries, not printed one by one.
+An entry whose timestamp is no time (NaN, infinite, before 1970, from 2038-01-19 on: see
+``stamp_problem``) is a bad entry too: counted and skipped, never stamped otherwise.
 """
 from __future__ import annotations
 
@@ -21,7 +23,7 @@ from typing import Any, Iterator
 
 import can
 
-from ams_can_bridge.can_io.replay import open_log
+from ams_can_bridge.can_io.replay import open_log, stamp_problem
 from ams_can_bridge.errors import LogFileError
 
 # Readers that re-read a header when iterated anew: a blank line stands in for it.
@@ -163,6 +165,12 @@ class LogFrames:
                 if isinstance(self.reader, _NEEDS_HEADER_LINE):
                     self.reader.file = _Lines(['\n'], self.reader.file)  # type: ignore[assignment]
                 messages = iter(self.reader)
+                continue
+            problem = stamp_problem(msg.timestamp)
+            if problem:
+                self.bad += 1
+                self.last_bad = (f'frame 0x{msg.arbitration_id:X} at timestamp '
+                                 f'{msg.timestamp!r}: {problem}')
                 continue
             yield msg
 
