@@ -53,6 +53,8 @@ class BusStatus:
     frames_unreadable: int = 0         # messages the driver could not parse
     down_for: float | None = None      # s the bus has been down (None while it is up)
     last_outage: float | None = None   # s the last outage lasted, once the bus is back
+    garbage_bytes: int = 0             # bytes the adapter sent without a line end, dropped
+    garbage_recent: bool = False       # some of them within the last GARBAGE_WARN_S
 
     @property
     def connected(self) -> bool:

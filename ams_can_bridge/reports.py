@@ -88,7 +88,10 @@ _BUS_LEVELS = {
 
 def bus_level(status: Any) -> Level:
     """Return the level bus_report() gives a BusStatus, without building the report."""
-    return _BUS_LEVELS.get(status.state, Level.ERROR)  # a BusState is its own text
+    level = _BUS_LEVELS.get(status.state, Level.ERROR)  # a BusState is its own text
+    if level == Level.OK and getattr(status, 'garbage_recent', False):
+        return Level.WARN  # frames flow, but the adapter also sends what is no line
+    return level
 
 
 def bus_report(status: Any, malformed: int, interface: str) -> DiagnosticReport:
@@ -105,6 +108,10 @@ def bus_report(status: Any, malformed: int, interface: str) -> DiagnosticReport:
     down_for = getattr(status, 'down_for', None)
     if down_for is not None:
         message += f' (down for {down_for:.1f} s)'
+    garbage = getattr(status, 'garbage_bytes', 0)
+    if getattr(status, 'garbage_recent', False):
+        message += (f': the adapter sends bytes without a line end ({garbage} dropped so far):'
+                    ' check its serial settings (baud rate) and firmware')
     values = {
         'state': str(state),
         'reason': reason,
@@ -116,6 +123,7 @@ def bus_report(status: Any, malformed: int, interface: str) -> DiagnosticReport:
         'reconnects': str(status.reconnects),
         'frame handler errors': str(getattr(status, 'callback_errors', 0)),
         'unreadable frames': str(getattr(status, 'frames_unreadable', 0)),
+        'garbage bytes dropped': str(garbage),
         'adapter': str(getattr(status, 'hardware_id', '') or ''),
         'replay': (('finished' if state == BusState.REPLAY_FINISHED else 'playing')
                    if interface == 'replay' else 'off'),

@@ -15,7 +15,7 @@ from ams_can_bridge.can_io.config import BusConfig
 from ams_can_bridge.can_io.recording import Recording
 from ams_can_bridge.errors import CanIoError, CanSendError
 from ams_can_bridge.can_io.replay import ReplayBus
-from ams_can_bridge.can_io.slcan import open_bulk_slcan
+from ams_can_bridge.can_io.slcan import BulkReadSlcanBus, open_bulk_slcan
 from ams_can_bridge.protocols.common import Frame
 
 OnFrame = Callable[[int, bytes, bool, float], None]
@@ -26,6 +26,7 @@ _SEND_TIMEOUT = 0.05    # s: a full TX queue is a dropped frame, not a stalled c
 _CALLBACK_LOG_EVERY = 5.0  # s: throttle for errors raised by on_frame
 _JOIN_TIMEOUT = 10.0    # s: how long stop() and start() wait for the receive thread to end
 _UNREADABLE_LIMIT = 100  # unreadable driver messages in a row: the link itself is broken
+GARBAGE_WARN_S = 10.0   # s: the bus status is WARN this long after the adapter's garbage
 
 # SocketCAN error-frame encoding (linux/can/error.h); the virtual bus carries it unchanged.
 _CAN_ERR_CRTL = 0x04
@@ -90,6 +91,8 @@ class CanIo:
         self.reconnects = 0
         self.callback_errors = 0
         self.frames_unreadable = 0  # messages the driver could not parse (garbled input)
+        self.garbage_bytes = 0  # bytes the slcan adapter sent without a line end (dropped)
+        self._garbage_at = -math.inf  # monotonic time garbage was last dropped
         self._last_unreadable_log = -_CALLBACK_LOG_EVERY
         self.last_stamp = float('nan')
         self._last_callback_log = 0.0
@@ -161,7 +164,8 @@ class CanIo:
             hardware_id=self.config.hardware_id, callback_errors=self.callback_errors,
             frames_unreadable=self.frames_unreadable + self._replay_skipped(),
             down_for=None if down_since is None else time.monotonic() - down_since,
-            last_outage=self._last_outage)
+            last_outage=self._last_outage, garbage_bytes=self.garbage_bytes,
+            garbage_recent=time.monotonic() - self._garbage_at < GARBAGE_WARN_S)
 
     def send(self, frame: Frame) -> None:
         """Send one frame now; raise CanSendError if not connected or the driver refuses."""
@@ -296,6 +300,8 @@ class CanIo:
         polled = (bus if not isinstance(bus, ReplayBus)
                   and type(bus).state is not can.BusABC.state else None)
         replay = bus if isinstance(bus, ReplayBus) else None
+        slcan = bus if isinstance(bus, BulkReadSlcanBus) else None
+        garbage = 0 if slcan is None else slcan.garbage_bytes  # as last counted
         decode_errors = self.config.interface in _SOCKETCAN_ERRORS
         bus_time = self.config.use_bus_time
         skipped = 0  # a replay's entries skipped for their timestamp, as last logged
@@ -337,10 +343,13 @@ class CanIo:
                             self._callback_failed(msg, exc)
             elif replay is not None and replay.finished:
                 return
+            if slcan is not None and slcan.garbage_bytes != garbage:
+                self._garbage(slcan.garbage_bytes - garbage)
+                garbage = slcan.garbage_bytes
             if replay is not None and replay.skipped != skipped:
                 skipped = replay.skipped
-                self._unreadable_log(f'log entry skipped, its timestamp is no time '
-                                     f'({replay.last_skipped})', skipped)
+                self._unreadable_log(f'log entry skipped, its timestamp is no time ({skipped} '
+                                     f'so far; last: {replay.last_skipped})')
             if now >= next_poll:
                 next_poll = now + _STATE_POLL
                 if polled is not None:
@@ -376,16 +385,23 @@ class CanIo:
         if run >= _UNREADABLE_LIMIT:
             raise _BusLost(BusState.RECONNECTING, f'{run} unreadable messages in a row from the '
                            f'driver, last: {_describe(exc)}')
-        self._unreadable_log(f'unreadable message from the driver dropped: {_describe(exc)}',
-                             self.frames_unreadable)
+        self._unreadable_log(f'unreadable message from the driver dropped '
+                             f'({self.frames_unreadable} so far): {_describe(exc)}')
 
-    def _unreadable_log(self, what: str, count: int) -> None:
-        """Log an unreadable message or log entry, at most every _CALLBACK_LOG_EVERY."""
+    def _garbage(self, size: int) -> None:
+        """Count bytes the adapter sent without a line end (dropped by the slcan bus)."""
+        self.garbage_bytes += size
+        self._garbage_at = time.monotonic()
+        self._unreadable_log(f'{size} bytes without a line end from the adapter dropped '
+                             f'({self.garbage_bytes} so far): not slcan, check its serial '
+                             'settings (baud rate) and firmware')
+
+    def _unreadable_log(self, what: str) -> None:
+        """Log what could not be read, at most every _CALLBACK_LOG_EVERY."""
         now = time.monotonic()
         if now - self._last_unreadable_log >= _CALLBACK_LOG_EVERY:
             self._last_unreadable_log = now
-            self._log.warning('CAN bus %s: %s (%d so far)', self.config.hardware_id, what,
-                              count)
+            self._log.warning('CAN bus %s: %s', self.config.hardware_id, what)
 
     def _replay_skipped(self) -> int:
         replay = self._replay
