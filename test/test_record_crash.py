@@ -16,34 +16,21 @@ import time
 
 import can
 import pytest
-import rclpy
-from rclpy.executors import SingleThreadedExecutor
 from sensor_msgs.msg import BatteryState
 
 from ams_can_bridge.can_io.recording import FLUSH_PERIOD
 from ams_can_bridge.protocols.common import Frame
-from helpers import ros_context
 from slcan_peer import SlcanPeer
 from test_bridge_node import bms16_status
-from test_bridge_slcan import bridge_executable
+from test_bridge_slcan import bridge_executable, ros  # noqa: F401 (ros: a fixture)
 
 FRAMES = 100  # BMS16 status frames, SoC 0..99 %: a few kB, less than any writer's buffer
 
 
-@pytest.fixture
-def listener():
-    with ros_context() as ctx:
-        node = rclpy.create_node('record_crash_listener', context=ctx)
-        executor = SingleThreadedExecutor(context=ctx)
-        executor.add_node(node)
-        yield node, executor
-        executor.shutdown()
-        node.destroy_node()
-
-
 @pytest.mark.parametrize('suffix', ['.log', '.blf', '.asc'])
-def test_a_killed_bridge_keeps_every_frame_older_than_a_second(listener, tmp_path, suffix):
-    node, executor = listener
+def test_a_killed_bridge_keeps_every_frame_older_than_a_second(
+        ros, tmp_path, suffix):  # noqa: F811 (the fixture imported above)
+    node, executor = ros
     ns = f'record_crash_{os.getpid()}_{suffix[1:]}'
     socs: list[float] = []
     node.create_subscription(BatteryState, f'/{ns}/bms16/battery_state',
