@@ -196,12 +196,12 @@ _NINTH = tuple(tuple(256 * (bits >> k & 1) for k in range(8)) for bits in range(
 def _cells(index: int, data: bytes) -> Bms16Cells:
     """Return cell frame index (0..2); the 9th bit of cell k is bit k of NinthBits."""
     *lows, ninth = _D_CELLS[index](data)  # a split the DBC cannot describe
-    raws = [low + high for low, high in zip(lows, _NINTH[ninth])]
-    if max(raws) > CELL_MAX_RAW:
-        k = max(range(len(raws)), key=raws.__getitem__)
-        raise BadValue(f'cell {CELL_FRAME_FIRST[index] + k + 1} {raws[k] / 100:g} V '
+    volts = tuple([(low + high) / 100 for low, high in zip(lows, _NINTH[ninth])])
+    if max(volts) > CELL_MAX_RAW / 100:
+        k = volts.index(max(volts))
+        raise BadValue(f'cell {CELL_FRAME_FIRST[index] + k + 1} {volts[k]:g} V '
                        f'(allowed 0..{CELL_MAX_RAW / 100:g} V)')
-    return Bms16Cells(CELL_FRAME_FIRST[index], tuple([raw / 100 for raw in raws]))
+    return Bms16Cells(CELL_FRAME_FIRST[index], volts)
 
 
 def _config(k: int, data: bytes) -> Bms16Reading:
