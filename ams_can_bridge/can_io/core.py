@@ -232,6 +232,10 @@ class CanIo:
                 if isinstance(bus, ReplayBus) and bus.finished:
                     self._replay_finished(bus)
                     return
+            finally:
+                recorder = self._recorder
+                if recorder is not None:  # no quiet ticks while the bus is away: now
+                    recorder.flush()
             self._close_bus()
             self._stop.wait(self.config.reconnect_period)
         # stop() may have given up joining an open that hung
@@ -343,6 +347,9 @@ class CanIo:
                             self._callback_failed(msg, exc)
             elif replay is not None and replay.finished:
                 return
+            recorder = self._recorder
+            if recorder is not None:  # a quiet bus: what waits in the file's buffer
+                recorder.tick()
             if slcan is not None and slcan.garbage_bytes != garbage:
                 self._garbage(slcan.garbage_bytes - garbage)
                 garbage = slcan.garbage_bytes

@@ -5,17 +5,20 @@ A recording must never cost the bus: a write that fails (disk full) ends the rec
 one error line and the frames keep flowing; a close that fails is logged, not raised, so a
 shutdown never turns into a traceback. Thread-safe: the receive thread and senders write.
 
-A crash or a power cut loses at most the last ``FLUSH_PERIOD``: a thread of the recording
-hands what python-can's writer buffers to the file (a .blf's buffered container too, its
-header then updated to the objects written) and syncs the file to the disk, once a period
-while frames come. Without it a killed bridge lost its last buffer (15 frames of a .log,
-hundreds of a .blf, still there seconds after they arrived).
+A crash or a power cut loses at most the last ``FLUSH_PERIOD``: what python-can's writer
+buffers (a .blf's container too, its header then updated to the objects written) is handed
+to the file by the thread that writes a frame once ``FLUSH_EVERY`` has passed, or by
+``tick()``, which the receive thread calls while the bus is quiet; a thread of the recording
+then syncs the file to the disk (``fsync``, without the lock: a slow disk never holds up a
+frame). Without it a killed bridge lost its last buffer (15 frames of a .log, hundreds of a
+.blf, still there seconds after they arrived).
 """
 from __future__ import annotations
 
 import logging
 import os
 import threading
+import time
 from typing import Any
 
 import can
@@ -23,6 +26,9 @@ import can
 from ams_can_bridge.errors import ConfigError
 
 FLUSH_PERIOD = 1.0  # s: the most a crash or power cut loses of a recording
+# s after a flush the next is due: room within FLUSH_PERIOD for the receive thread's
+# quiet wake-ups (every 0.1 s) and the sync after it
+FLUSH_EVERY = 0.8
 
 
 class Recording:
@@ -38,13 +44,15 @@ class Recording:
         self._log = log
         self._lock = threading.Lock()
         self._dirty = False  # frames written since the last flush
+        self._flushed_at = time.monotonic()
+        self._fd = _fileno(self._writer)  # what the sync thread syncs (None: nothing)
+        self._unsynced = threading.Event()  # flushed to the file, not yet to the disk
         self._closed = threading.Event()
-        self._flusher = threading.Thread(target=self._flush_every_period, daemon=True,
-                                         name='can-record-flush')
-        self._flusher.start()
+        self._syncer = threading.Thread(target=self._sync, daemon=True, name='can-record-sync')
+        self._syncer.start()
 
     def write(self, msg: can.Message) -> None:
-        """Write one frame (nothing once the recording ended)."""
+        """Write one frame (nothing once the recording ended); flush when one is due."""
         # One bus, one recording: the driver's channel object (a name, a path, a number)
         # means nothing in the file, and BLF cannot even store a name with big digits.
         msg.channel = None
@@ -54,49 +62,65 @@ class Recording:
                 return
             try:
                 writer.on_message_received(msg)
+                self._dirty = True
+                if time.monotonic() - self._flushed_at >= FLUSH_EVERY:
+                    self._flush(writer)
             except Exception as exc:  # disk full: stop recording, keep the bus alive
                 self._fail(writer, exc)
-            else:
-                self._dirty = True
+
+    def tick(self) -> None:
+        """Flush what waits once it is due (the receive thread calls it while quiet)."""
+        if self._dirty and time.monotonic() - self._flushed_at >= FLUSH_EVERY:
+            self.flush()
+
+    def flush(self) -> None:
+        """Hand everything written so far to the file, and to the disk soon after."""
+        with self._lock:
+            writer = self._writer
+            if writer is None or not self._dirty:
+                return
+            try:
+                self._flush(writer)
+            except Exception as exc:  # the disk is full or gone: as a failed write
+                self._fail(writer, exc)
+
+    def _flush(self, writer: Any) -> None:
+        """Flush the writer (under the lock); the sync thread syncs it to the disk."""
+        _flush(writer)
+        self._dirty = False
+        self._flushed_at = time.monotonic()
+        self._unsynced.set()
 
     def _fail(self, writer: Any, exc: Exception) -> None:
         """End the recording after a failed write or flush (under the lock)."""
         self._writer = None
+        self._fd = None
         self._log.error('CAN recording to %s stopped: %s', self.path, exc)
         try:
             writer.stop()  # keep what was written readable
         except Exception:  # the disk that failed may fail again: nothing to add
             pass
 
-    def flush(self) -> None:
-        """Hand everything written so far to the disk (what close() would keep)."""
-        with self._lock:
-            writer = self._writer
-            if writer is None or not self._dirty:
-                return
-            self._dirty = False
-            try:
-                fileno = _flush(writer)
-            except Exception as exc:  # the disk is full or gone: as a failed write
-                self._fail(writer, exc)
-                return
-        if fileno is not None:
-            try:  # outside the lock: the receive thread goes on writing meanwhile
-                os.fsync(fileno)
-            except OSError:  # a closed file (closed meanwhile), a pipe: nothing to sync
-                pass
-
-    def _flush_every_period(self) -> None:
-        while not self._closed.wait(FLUSH_PERIOD):
-            self.flush()
+    def _sync(self) -> None:
+        while not self._closed.is_set():
+            if not self._unsynced.wait(FLUSH_PERIOD):
+                continue
+            self._unsynced.clear()
+            fd = self._fd
+            if fd is not None:
+                try:
+                    os.fsync(fd)
+                except OSError:  # closed meanwhile, or a file that cannot sync (a pipe)
+                    pass
 
     def close(self) -> None:
         """Flush and close the file (idempotent); a failure is logged, not raised."""
         self._closed.set()
-        if self._flusher is not threading.current_thread():
-            self._flusher.join(timeout=5.0)
+        self._unsynced.set()  # wakes the sync thread: it sees closed and ends
+        if self._syncer is not threading.current_thread():
+            self._syncer.join(timeout=5.0)
         with self._lock:
-            writer, self._writer = self._writer, None
+            writer, self._writer, self._fd = self._writer, None, None
         if writer is not None:
             try:
                 writer.stop()
@@ -104,9 +128,9 @@ class Recording:
                 self._log.error('CAN recording %s not closed cleanly: %s', self.path, exc)
 
 
-def _flush(writer: Any) -> int | None:
+def _flush(writer: Any) -> None:
     """
-    Write what a python-can writer buffers to its file; return the file's descriptor.
+    Write what a python-can writer buffers to its file.
 
     A BLF writer keeps up to 128 kB of objects for its next compressed container: that
     container is written now, and the header (file size, object count, last time) updated,
@@ -115,7 +139,7 @@ def _flush(writer: Any) -> int | None:
     """
     stream = getattr(writer, 'file', None)
     if stream is None or getattr(stream, 'closed', True):
-        return None
+        return
     container = getattr(writer, '_flush', None)
     header = getattr(writer, '_write_header', None)
     if isinstance(writer, can.BLFWriter) and callable(container) and callable(header):
@@ -126,7 +150,11 @@ def _flush(writer: Any) -> int | None:
             header(end)
             stream.seek(end)
     stream.flush()
+
+
+def _fileno(writer: Any) -> int | None:
+    """Return the descriptor of a writer's file (None: an in-memory or wrapped stream)."""
     try:
-        return int(stream.fileno())
-    except (OSError, ValueError, AttributeError):  # an in-memory or wrapped stream
+        return int(writer.file.fileno())
+    except (OSError, ValueError, AttributeError):
         return None
