@@ -55,6 +55,8 @@ class BusStatus:
     last_outage: float | None = None   # s the last outage lasted, once the bus is back
     dropped_tx_ago: float | None = None  # s since a frame to send was last dropped (None: never)
     dropped_tx_reason: str = ''        # why that frame was dropped
+    garbage_bytes: int = 0             # bytes the adapter sent without a line end, dropped
+    garbage_recent: bool = False       # some of them within the last GARBAGE_WARN_S
 
     @property
     def connected(self) -> bool:

@@ -100,6 +100,8 @@ def bus_level(status: Any) -> Level:
     level = _BUS_LEVELS.get(status.state, Level.ERROR)  # a BusState is its own text
     if level == Level.OK and _dropped_lately(status):
         return Level.WARN
+    if level == Level.OK and getattr(status, 'garbage_recent', False):
+        return Level.WARN  # frames flow, but the adapter also sends what is no line
     return level
 
 
@@ -121,6 +123,10 @@ def bus_report(status: Any, malformed: int, interface: str) -> DiagnosticReport:
     if _dropped_lately(status) and state in (BusState.CONNECTED, BusState.ERROR_PASSIVE):
         message += (f'; {status.frames_dropped_tx} frames dropped (tx), the last '
                     f'{status.dropped_tx_ago:.1f} s ago: {status.dropped_tx_reason}')
+    garbage = getattr(status, 'garbage_bytes', 0)
+    if getattr(status, 'garbage_recent', False):
+        message += (f': the adapter sends bytes without a line end ({garbage} dropped so far):'
+                    ' check its serial settings (baud rate) and firmware')
     values = {
         'state': str(state),
         'reason': reason,
@@ -133,6 +139,7 @@ def bus_report(status: Any, malformed: int, interface: str) -> DiagnosticReport:
         'reconnects': str(status.reconnects),
         'frame handler errors': str(getattr(status, 'callback_errors', 0)),
         'unreadable frames': str(getattr(status, 'frames_unreadable', 0)),
+        'garbage bytes dropped': str(garbage),
         'adapter': str(getattr(status, 'hardware_id', '') or ''),
         'replay': (('finished' if state == BusState.REPLAY_FINISHED else 'playing')
                    if interface == 'replay' else 'off'),

@@ -23,10 +23,11 @@ GOLDEN = [
     (0x300, 'C0 44 B4 23 4D 09 05',
      AmsStatus(WORD_DRIVE, 3.6, 35, 77, 9, relay_error_air_minus=True,
                relay_error_precharge=True)),
-    # every flag bit 15..8 set, bank count 5 (101), state 9 CHARGE_ERROR (01001) -> 0xFF A9
-    (0x300, 'FF A9 00 FF 64 FF 02',
+    # every flag bit 15..8 set, bank count 5 (101), state 9 CHARGE_ERROR (01001) -> 0xFF A9;
+    # Temp_max 0xC8 = 200 degC, the highest a battery may report (docs/protocols.md 1.7)
+    (0x300, 'FF A9 00 C8 64 FF 02',
      AmsStatus(AmsStatusWord(True, True, True, True, True, True, True, True, 5,
-                             AmsState.CHARGE_ERROR), 0.0, 255, 100, 255,
+                             AmsState.CHARGE_ERROR), 0.0, 200, 100, 255,
                relay_error_air_plus=True)),
     # charger status: precharge (bit 13) only, 1 bank, PRECHARGING (7) -> 0x20 0x27; SOC 50,
     # charger current 123 * 0.1 A, turn on charger = 1
@@ -303,7 +304,8 @@ def test_unknown_id():
     (AmsStatus(AmsStatusWord(state=10), 3.6, 20, 50, 0), 'state', 'an AmsState value'),
     (AmsStatus(AmsStatusWord(air_plus=2), 3.6, 20, 50, 0), 'air_plus', 'True/False'),
     (AmsStatus(WORD_DRIVE, 5.2, 20, 50, 0), 'volt_min_v', '0..5.1 V'),
-    (AmsStatus(WORD_DRIVE, 3.6, -1, 50, 0), 'temp_max_c', '0..255'),
+    (AmsStatus(WORD_DRIVE, 3.6, -1, 50, 0), 'temp_max_c', '0..200'),
+    (AmsStatus(WORD_DRIVE, 3.6, 201, 50, 0), 'temp_max_c', '0..200'),
     (AmsStatus(WORD_DRIVE, 3.6, 20, 101, 0), 'soc_pct', '0..100'),
     (AmsChargerStatus(WORD_DRIVE, 50, 30.0, True), 'charger_current_a', '0..25.5 A'),
 ])
@@ -359,7 +361,7 @@ BANK = st.integers(1, 5)
 VOLT = st.integers(0, 255).map(lambda n: n * 0.02)
 TEMP = st.integers(-128, 127)
 MESSAGES = st.one_of(
-    st.builds(AmsStatus, WORDS, VOLT, st.integers(0, 255), st.integers(0, 100),
+    st.builds(AmsStatus, WORDS, VOLT, st.integers(0, 200), st.integers(0, 100),
               st.integers(0, 255), st.booleans(), st.booleans(), st.booleans()),
     st.builds(AmsChargerStatus, WORDS, st.integers(0, 100),
               st.integers(0, 255).map(lambda n: n * 0.1), st.booleans()),
@@ -428,8 +430,9 @@ def _as_signals(r):
 def _valid(can_id, sig):
     """Tell whether the signals are a reading the codec accepts (what the spec allows)."""
     offset = can_id - 0x300
-    if offset in (0x000, 0x001):
-        return sig['AMS_State'] <= 9 and sig['Bank_Count'] <= 5
+    if offset in (0x000, 0x001):  # Temp_max above 200 degC: no battery (section 1.7)
+        return (sig['AMS_State'] <= 9 and sig['Bank_Count'] <= 5
+                and sig.get('Temp_max', 0) <= 200)
     if offset == 0x005:
         return sig['CMD'] <= 6 and 1 <= sig['Bank_Count'] <= 5
     if offset == 0x010:

@@ -242,8 +242,8 @@ def test_any_frame_decodes_or_is_malformed_and_never_crashes_the_device(frame_id
 
 
 @settings(max_examples=200, deadline=None)
-@given(st.integers(0, 5), st.integers(0, 16), st.integers(0, 0xFFFF), st.integers(0, 0xFFFF),
-       st.integers(0, 255))
+@given(st.integers(0, 5), st.integers(0, 16), st.integers(0, 0xFFFF), st.integers(0, 1600),
+       st.integers(0, 240))  # 16 cells of at most 10 V; at most 200 degC
 def test_status_round_trip(state, error, ah, volts, temp):
     data = bytes([state | error << 3, ah >> 8, ah & 0xFF, volts >> 8, volts & 0xFF, 255, 0,
                   temp])

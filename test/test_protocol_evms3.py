@@ -189,7 +189,7 @@ def test_encode_refuses_out_of_range(msg, field):
 @pytest.mark.parametrize('msg,aid,hexdata', [
     (Bms12Request(3, 3600), 330, '0E 10'),
     (Bms12Request(0, None), 300, '00 00'),
-    (Bms12Cells(2, 4, (3.301, 3.302, 0.0, 65.535)), 322, '0C E5 0C E6 00 00 FF FF'),
+    (Bms12Cells(2, 4, (3.301, 3.302, 0.0, 10.0)), 322, '0C E5 0C E6 00 00 27 10'),
     (Bms12Cells(0, 0, (4.2, 3.0, 2.5, 3.65)), 301, '10 68 0B B8 09 C4 0E 42'),
     (Bms12Cells(15, 8, (1.0, 1.0, 1.0, 1.0)), 453, '03 E8 03 E8 03 E8 03 E8'),
     # raw 0 = no sensor (BMS12 firmware LineariseTemp); raw 1 = -39 degC
@@ -521,8 +521,8 @@ def test_dbc_agrees_on_status_current_and_bms12(dbc):
     assert decoded['Temperature'] == reading.temperature_c
     assert dbc.decode_message(40 | X, bytes.fromhex('7F AF EC'))['BatteryCurrent'] == \
         pytest.approx(-20.5)
-    cells = dbc.decode_message(322 | X, bytes.fromhex('0C E5 0C E6 00 00 FF FF'))
-    assert [cells[f'Cell{i}'] for i in (5, 6, 7, 8)] == pytest.approx([3.301, 3.302, 0, 65.535])
+    cells = dbc.decode_message(322 | X, bytes.fromhex('0C E5 0C E6 00 00 27 10'))
+    assert [cells[f'Cell{i}'] for i in (5, 6, 7, 8)] == pytest.approx([3.301, 3.302, 0, 10.0])
     assert dbc.get_message_by_frame_id(454 | X).name == 'BMS12_M15_Temperatures'
     numbers = dbc.decode_message(36 | X, bytes.fromhex('8C 43 00 00 00 00 00 F0'))
     assert [numbers[f'Module{m}Cells'] for m in (0, 1, 2, 3, 15)] == [12, 8, 3, 4, 15]

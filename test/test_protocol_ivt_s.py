@@ -6,7 +6,7 @@ import pytest
 
 from ams_can_bridge.errors import EncodeRangeError, MalformedFrameError
 from ams_can_bridge.protocols.common import Frame, load_dbc
-from ams_can_bridge.protocols.ivt_s import IvtMux, IvtResult, IvtSCodec, LAYOUTS
+from ams_can_bridge.protocols.ivt_s import IvtMux, IvtResult, IvtSCodec, LAYOUTS, RAW_LIMITS
 
 BE = IvtSCodec()
 LE = IvtSCodec(byte_order='little')
@@ -134,6 +134,8 @@ def test_random_data_decodes_or_raises_malformed(offset, data, order):
        order=st.sampled_from(['big', 'little']))
 def test_encode_decode_round_trip(kind, raw, counter, bits, order):
     codec = BE if order == 'big' else LE
+    low, high = RAW_LIMITS[kind]  # T: -273.1..200 degC (docs/protocols.md 2.1)
+    raw = low + (raw - low) % (high - low + 1)
     result = IvtResult(kind, counter, bool(bits & 1), bool(bits & 2), bool(bits & 4),
                        bool(bits & 8), raw, raw / (1000 if kind <= IvtMux.U3 else
                                                    10 if kind == IvtMux.T else 1))
@@ -147,9 +149,14 @@ def test_encode_decode_round_trip(kind, raw, counter, bits, order):
 def test_big_endian_codec_agrees_with_the_dbc(offset, tail):
     # The DBC describes the factory (big-endian) layout: both readers must agree.
     data = bytes([offset]) + tail
-    ours = BE.decode(0x521 + offset, data)
     theirs = load_dbc('ivt_s').decode_message(0x521 + offset, data, decode_choices=False)
     name = ['I', 'U1', 'U2', 'U3', 'T', 'W', 'As', 'Wh'][offset]
+    low, high = RAW_LIMITS[IvtMux(offset)]
+    if not low <= int.from_bytes(tail[1:], 'big', signed=True) <= high:
+        with pytest.raises(MalformedFrameError):  # outside the DBC's range: no temperature
+            BE.decode(0x521 + offset, data)
+        return
+    ours = BE.decode(0x521 + offset, data)
     assert theirs[f'IVT_MsgCount_Result_{name}'] == ours.counter
     assert theirs[f'IVT_Result_{name}_OCS'] == ours.ocs
     assert theirs[f'IVT_Result_{name}_Channel_Error'] == ours.result_error

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import errno
 import logging
+import math
 import threading
 import time
 from typing import Callable
@@ -15,7 +16,7 @@ from ams_can_bridge.can_io.config import BusConfig
 from ams_can_bridge.can_io.recording import channel_name, Recording
 from ams_can_bridge.errors import CanIoError, CanSendError
 from ams_can_bridge.can_io.replay import ReplayBus
-from ams_can_bridge.can_io.slcan import open_bulk_slcan
+from ams_can_bridge.can_io.slcan import BulkReadSlcanBus, open_bulk_slcan
 from ams_can_bridge.protocols.common import Frame
 
 OnFrame = Callable[[int, bytes, bool, float], None]
@@ -26,6 +27,7 @@ _SEND_TIMEOUT = 0.05    # s: a full TX queue is a dropped frame, not a stalled c
 _CALLBACK_LOG_EVERY = 5.0  # s: throttle for errors raised by on_frame
 _JOIN_TIMEOUT = 10.0    # s: how long stop() and start() wait for the receive thread to end
 _UNREADABLE_LIMIT = 100  # unreadable driver messages in a row: the link itself is broken
+GARBAGE_WARN_S = 10.0   # s: the bus status is WARN this long after the adapter's garbage
 
 # SocketCAN error-frame encoding (linux/can/error.h); the virtual bus carries it unchanged.
 _CAN_ERR_CRTL = 0x04
@@ -55,8 +57,10 @@ class CanIo:
     thread for every data frame whose (id, extended) is in ``filters`` (all frames when
     filters is None). Error frames are counted, remote frames ignored. ``stamp`` is the
     moment the frame was on the bus, in s since the epoch: the host clock at receive, the
-    driver's timestamp with ``use_bus_time``, the log's timestamp in a replay.
-    ``last_stamp`` holds the stamp of the last frame (a replay's log time, for /clock).
+    driver's timestamp with ``use_bus_time``, the log's timestamp in a replay (never the
+    host clock: an entry whose timestamp is no time is skipped and counted as unreadable).
+    ``last_stamp`` holds the stamp of the last frame (a replay's log time, for /clock; the
+    log's first moment from the replay's start until its first frame is played).
     """
 
     def __init__(self, config: BusConfig, on_frame: OnFrame,
@@ -74,6 +78,7 @@ class CanIo:
         self._tx_lock = threading.Lock()
         self._state_cv = threading.Condition()  # wakes callers waiting for 'connected'
         self._bus: can.BusABC | ReplayBus | None = None
+        self._replay: ReplayBus | None = None  # the replay being played (its skip count)
         self._recorder: Recording | None = None
         self._state = BusState.STOPPED
         self._reason = ''
@@ -88,6 +93,8 @@ class CanIo:
         self.reconnects = 0
         self.callback_errors = 0
         self.frames_unreadable = 0  # messages the driver could not parse (garbled input)
+        self.garbage_bytes = 0  # bytes the slcan adapter sent without a line end (dropped)
+        self._garbage_at = -math.inf  # monotonic time garbage was last dropped
         self._last_unreadable_log = -_CALLBACK_LOG_EVERY
         self.last_stamp = float('nan')
         self._last_callback_log = 0.0
@@ -159,11 +166,13 @@ class CanIo:
             frames_out=self.frames_out, frames_dropped_tx=self.frames_dropped_tx,
             error_frames=self.error_frames, reconnects=self.reconnects,
             hardware_id=self.config.hardware_id, callback_errors=self.callback_errors,
-            frames_unreadable=self.frames_unreadable,
+            frames_unreadable=self.frames_unreadable + self._replay_skipped(),
             down_for=None if down_since is None else time.monotonic() - down_since,
             last_outage=self._last_outage,
             dropped_tx_ago=None if last_drop is None else time.monotonic() - last_drop[0],
-            dropped_tx_reason='' if last_drop is None else last_drop[1])
+            dropped_tx_reason='' if last_drop is None else last_drop[1],
+            garbage_bytes=self.garbage_bytes,
+            garbage_recent=time.monotonic() - self._garbage_at < GARBAGE_WARN_S)
 
     def send(self, frame: Frame) -> None:
         """Send one frame now; raise CanSendError if not connected or the driver refuses."""
@@ -234,6 +243,10 @@ class CanIo:
                 if isinstance(bus, ReplayBus) and bus.finished:
                     self._replay_finished(bus)
                     return
+            finally:
+                recorder = self._recorder
+                if recorder is not None:  # no quiet ticks while the bus is away: now
+                    recorder.flush()
             self._close_bus()
             self._stop.wait(self.config.reconnect_period)
         # stop() may have given up joining an open that hung
@@ -242,7 +255,10 @@ class CanIo:
     def _open(self) -> can.BusABC | ReplayBus:
         cfg = self.config
         if cfg.interface == 'replay':
-            bus: can.BusABC | ReplayBus = ReplayBus(cfg.channel, cfg.replay_rate)
+            replay = self._replay = ReplayBus(cfg.channel, cfg.replay_rate)
+            if not math.isnan(replay.log_start):  # the log's time from the start on
+                self.last_stamp = replay.log_start
+            bus: can.BusABC | ReplayBus = replay
         elif cfg.interface == 'slcan':  # opened exclusively; read in blocks unless told
             bus = open_bulk_slcan(cfg.channel, cfg.slcan_bulk_read, **cfg.bus_kwargs())
         else:
@@ -279,6 +295,9 @@ class CanIo:
 
     def _replay_finished(self, bus: ReplayBus) -> None:
         reason = f'{bus.played} frames played from {bus.path}'
+        if bus.skipped:
+            reason += (f'; {bus.skipped} entries skipped, their timestamp no time (last: '
+                       f'{bus.last_skipped})')
         if bus.error:
             reason += f'; stopped at a bad entry: {bus.error}'
         self._set_state(BusState.REPLAY_FINISHED, reason)
@@ -296,8 +315,11 @@ class CanIo:
         polled = (bus if not isinstance(bus, ReplayBus)
                   and type(bus).state is not can.BusABC.state else None)
         replay = bus if isinstance(bus, ReplayBus) else None
+        slcan = bus if isinstance(bus, BulkReadSlcanBus) else None
+        garbage = 0 if slcan is None else slcan.garbage_bytes  # as last counted
         decode_errors = self.config.interface in _SOCKETCAN_ERRORS
-        bus_time = replay is not None or self.config.use_bus_time
+        bus_time = self.config.use_bus_time
+        skipped = 0  # a replay's entries skipped for their timestamp, as last logged
         next_poll = wall() + _STATE_POLL
         unreadable_run = 0
         while not stop():
@@ -319,7 +341,9 @@ class CanIo:
                 elif not msg.is_remote_frame:
                     self.frames_in += 1
                     # A driver without timestamps leaves 0.0: the host clock is all we have.
-                    stamp = msg.timestamp if bus_time and msg.timestamp > 0 else now
+                    # A replay's are the log's, each checked by ReplayBus (0.0 is a time).
+                    stamp = msg.timestamp if replay is not None or (
+                        bus_time and msg.timestamp > 0) else now
                     self.last_stamp = stamp
                     recorder = self._recorder
                     if recorder is not None:
@@ -334,6 +358,16 @@ class CanIo:
                             self._callback_failed(msg, exc)
             elif replay is not None and replay.finished:
                 return
+            recorder = self._recorder
+            if recorder is not None:  # a quiet bus: what waits in the file's buffer
+                recorder.tick()
+            if slcan is not None and slcan.garbage_bytes != garbage:
+                self._garbage(slcan.garbage_bytes - garbage)
+                garbage = slcan.garbage_bytes
+            if replay is not None and replay.skipped != skipped:
+                skipped = replay.skipped
+                self._unreadable_log(f'log entry skipped, its timestamp is no time ({skipped} '
+                                     f'so far; last: {replay.last_skipped})')
             if now >= next_poll:
                 next_poll = now + _STATE_POLL
                 if polled is not None:
@@ -369,12 +403,27 @@ class CanIo:
         if run >= _UNREADABLE_LIMIT:
             raise _BusLost(BusState.RECONNECTING, f'{run} unreadable messages in a row from the '
                            f'driver, last: {_describe(exc)}')
+        self._unreadable_log(f'unreadable message from the driver dropped '
+                             f'({self.frames_unreadable} so far): {_describe(exc)}')
+
+    def _garbage(self, size: int) -> None:
+        """Count bytes the adapter sent without a line end (dropped by the slcan bus)."""
+        self.garbage_bytes += size
+        self._garbage_at = time.monotonic()
+        self._unreadable_log(f'{size} bytes without a line end from the adapter dropped '
+                             f'({self.garbage_bytes} so far): not slcan, check its serial '
+                             'settings (baud rate) and firmware')
+
+    def _unreadable_log(self, what: str) -> None:
+        """Log what could not be read, at most every _CALLBACK_LOG_EVERY."""
         now = time.monotonic()
         if now - self._last_unreadable_log >= _CALLBACK_LOG_EVERY:
             self._last_unreadable_log = now
-            self._log.warning('CAN bus %s: unreadable message from the driver dropped (%d so '
-                              'far): %s', self.config.hardware_id, self.frames_unreadable,
-                              _describe(exc))
+            self._log.warning('CAN bus %s: %s', self.config.hardware_id, what)
+
+    def _replay_skipped(self) -> int:
+        replay = self._replay
+        return 0 if replay is None else replay.skipped
 
     def _callback_failed(self, msg: can.Message, exc: Exception) -> None:
         self.callback_errors += 1

@@ -1,6 +1,7 @@
 """Replay of a recorded CAN log as if it were a bus (the 'replay' interface)."""
 from __future__ import annotations
 
+import math
 import os
 import time
 from typing import Iterator
@@ -8,6 +9,27 @@ from typing import Iterator
 import can
 
 from ams_can_bridge.errors import ConfigError, LogFileError
+
+# A ROS time holds its seconds in an int32 (builtin_interfaces/Time): 2038-01-19 03:14:08 UTC
+# is the first moment it cannot stamp.
+STAMP_END = float(2 ** 31)
+
+
+def stamp_problem(stamp: float) -> str:
+    """
+    Say why a log timestamp cannot be a frame's moment ('' when it can).
+
+    Not a number, infinite, before 1970 or from 2038-01-19 03:14:08 UTC on (a ROS stamp
+    holds int32 seconds): such an entry is a bad log entry, counted and skipped by log2bag
+    and by a replay, never stamped with something else (the host clock, a wrapped year).
+    """
+    if not math.isfinite(stamp):
+        return 'not a time'
+    if stamp < 0:
+        return 'before 1970'
+    if stamp >= STAMP_END:
+        return 'past 2038-01-19 03:14:07 UTC, the last second a ROS stamp holds'
+    return ''
 
 
 def open_log(path: str) -> can.io.generic.MessageReader:
@@ -34,6 +56,7 @@ class ReplayBus:
     """
 
     def __init__(self, path: str, rate: float = 1.0) -> None:
+        """Open the log and read its first frame (``log_start``; NaN when there is none)."""
         if not path:
             raise ConfigError('replay: can.channel must name the log file to play')
         if not os.path.isfile(path):
@@ -44,15 +67,40 @@ class ReplayBus:
         self.rate = rate
         # LogReader picks the format from the extension and raises ValueError for others.
         self._reader = open_log(path)
-        self._messages: Iterator[can.Message] = iter(self._reader)
-        self._pending: can.Message | None = None
         self._log_start: float | None = None
         self._wall_start = 0.0
         self._last_due = 0.0
         self.played = 0
         self.finished = False
         self.error = ''
+        self.skipped = 0  # entries whose timestamp is no time (stamp_problem)
+        self.last_skipped = ''
         self.channel_info = f'replay of {path}'
+        self._messages: Iterator[can.Message] = self._timed(iter(self._reader))
+        self._pending_due: float | None = None
+        self._pending = self._next()  # read ahead: the log's first moment
+        self.log_start = math.nan if self._pending is None else self._pending.timestamp
+
+    def _timed(self, messages: Iterator[can.Message]) -> Iterator[can.Message]:
+        """Yield the messages whose timestamp is a time; count the others."""
+        for msg in messages:
+            problem = stamp_problem(msg.timestamp)
+            if problem:
+                self.skipped += 1
+                self.last_skipped = f'timestamp {msg.timestamp!r}: {problem}'
+                continue
+            yield msg
+
+    def _next(self) -> can.Message | None:
+        """Return the next message with a usable timestamp; None (finished) at the end."""
+        try:
+            return next(self._messages)
+        except StopIteration:
+            self.finished = True
+        except Exception as exc:  # a corrupt line: stop here rather than loop forever
+            self.error = f'{type(exc).__name__}: {exc}'
+            self.finished = True
+        return None
 
     def _due(self, msg: can.Message) -> float:
         """Monotonic time at which msg is to be handed out."""
@@ -71,15 +119,10 @@ class ReplayBus:
                 if timeout:
                     time.sleep(timeout)
                 return None
-            try:
-                self._pending = next(self._messages)
-            except StopIteration:
-                self.finished = True
+            self._pending = self._next()
+            if self._pending is None:
                 return None
-            except Exception as exc:  # a corrupt line: stop here rather than loop forever
-                self.error = f'{type(exc).__name__}: {exc}'
-                self.finished = True
-                return None
+        if self._pending_due is None:
             self._pending_due = self._due(self._pending) if self.rate > 0 else 0.0
         if self.rate > 0:
             wait = self._pending_due - time.monotonic()
@@ -88,7 +131,7 @@ class ReplayBus:
                     time.sleep(timeout)
                     return None
                 time.sleep(wait)
-        msg, self._pending = self._pending, None
+        msg, self._pending, self._pending_due = self._pending, None, None
         self.played += 1
         return msg
 

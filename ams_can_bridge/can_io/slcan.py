@@ -11,6 +11,11 @@ parsed, opening, writing, flushing and closing stay python-can's own code.
 Used for ``can.interface: slcan``; with ``can.slcan_bulk_read: false`` it reads with
 python-can's own reader.
 
+A line is at most ``MAX_LINE`` bytes: an adapter that sends bytes without a line end (line
+noise, a wrong baud rate, a broken firmware) has them dropped once they exceed it, counted
+in ``garbage_lines`` / ``garbage_bytes`` (the CAN bus status shows them, WARN), instead of a
+buffer that grows without limit and is searched again for every byte that arrives.
+
 It also opens the serial port exclusively. Two programs reading one serial adapter each get
 part of every line (python-can then reports "multiple access on port?" and both lose the bus
 every few seconds). Before python-can touches the port, the bus takes an exclusive ``flock``
@@ -34,6 +39,9 @@ _CR = 0x0D
 _BEL = 0x07
 # One read takes at most this much: a full pty/USB buffer is a few kB; lines are <= 150.
 _MAX_READ = 4096
+# No slcan line is longer: a CAN FD frame with 64 bytes and a timestamp ('B', 8 ID digits,
+# DLC, 128 data digits, 4 timestamp digits, CR) is 143 characters.
+MAX_LINE = 200
 _log = logging.getLogger(__name__)
 
 try:  # POSIX; on Windows a COM port is exclusive to one program anyway
@@ -113,6 +121,8 @@ class BulkReadSlcanBus(slcanBus):
 
     _bulk = False  # python-can's reader until __init__ has checked (it may read while opening)
     _lock_fd: int | None = None
+    garbage_lines = 0  # runs of bytes longer than MAX_LINE without a line end, dropped
+    garbage_bytes = 0
 
     def __init__(self, channel: str, *args: object, bulk_read: bool = True,
                  **kwargs: object) -> None:
@@ -150,8 +160,15 @@ class BulkReadSlcanBus(slcanBus):
             os.close(fd)  # closing the fd releases the flock
 
     def _read(self, timeout: float | None) -> str | None:
-        if not self._bulk:
-            return super()._read(timeout)
+        if not self._bulk:  # python-can's reader: its buffer bounded between calls
+            line = super()._read(timeout)
+            if line is not None and len(line) > MAX_LINE:
+                self._garbage(len(line))
+                return None
+            if len(self._buffer) > MAX_LINE:
+                self._garbage(len(self._buffer))
+                self._buffer.clear()
+            return line
         buffer = self._buffer
         line = self._next_line(buffer)
         if line is not None:
@@ -170,22 +187,31 @@ class BulkReadSlcanBus(slcanBus):
                 line = self._next_line(buffer)
                 if line is not None:
                     return line
+                if len(buffer) > MAX_LINE:  # no line end in sight: not a line, drop it
+                    self._garbage(len(buffer))
+                    buffer.clear()
             if deadline is not None and time.monotonic() >= deadline:
                 return None
 
-    @staticmethod
-    def _next_line(buffer: bytearray) -> str | None:
+    def _garbage(self, size: int) -> None:
+        self.garbage_lines += 1
+        self.garbage_bytes += size
+
+    def _next_line(self, buffer: bytearray) -> str | None:
         """Take the first CR- or BEL-ended line out of the buffer (None: none complete)."""
-        cr = buffer.find(_CR)
-        bel = buffer.find(_BEL)
-        if cr < 0 and bel < 0:
-            return None
-        end = bel if cr < 0 or 0 <= bel < cr else cr
-        raw = bytes(buffer[:end + 1])
-        # Out of the buffer before decoding: line noise that is not text raises once (the
-        # caller counts an unreadable line), it must not stay to fail every later call.
-        del buffer[:end + 1]
-        return raw.decode()
+        while True:
+            cr = buffer.find(_CR)
+            bel = buffer.find(_BEL)
+            if cr < 0 and bel < 0:
+                return None
+            end = bel if cr < 0 or 0 <= bel < cr else cr
+            raw = bytes(buffer[:end + 1])
+            # Out of the buffer before decoding: line noise that is not text raises once
+            # (the caller counts an unreadable line), it must not stay to fail every call.
+            del buffer[:end + 1]
+            if len(raw) <= MAX_LINE:
+                return raw.decode()
+            self._garbage(len(raw))  # the end of a run of garbage: no line either
 
 
 def open_bulk_slcan(channel: str, bulk_read: bool = True,

@@ -228,33 +228,65 @@ class Engine:
                 (STALE_PUBLISH_PERIOD, self.publish_stale),
                 (WATCH_PERIOD, self.watch)]
 
+    def quiet_horizon(self) -> float:
+        """Return how long a silent bus changes what is emitted (every device gone stale)."""
+        timeouts = [device.stale_timeout for device in self.devices.values()]
+        return max(timeouts, default=0.0) + 2 * WATCH_PERIOD
+
 
 class Schedule:
     """The engine's periodic work driven by a clock the caller moves (a log's time)."""
 
     def __init__(self, tasks: list[tuple[float, Callable[[], None]]],
-                 set_now: Callable[[float], None]) -> None:
-        """Take (period, call) pairs; ``set_now`` moves the engine's clock before each call."""
+                 set_now: Callable[[float], None], horizon: float = math.inf) -> None:
+        """
+        Take (period, call) pairs; ``set_now`` moves the engine's clock before each call.
+
+        ``horizon``: how long into a gap (no stamp) the grid is run (``run_until``).
+        """
         # [next run, period, call]: a list, moved in place
         self.tasks: list[list[Any]] = [[math.nan, period, call] for period, call in tasks]
         self.set_now = set_now
+        self.horizon = horizon
         self.started = False
+        self.last = math.nan  # the latest stamp run to
+        self._longest = max((period for period, _ in tasks), default=0.0)
 
     def start(self, now: float) -> None:
         """Start the grid at ``now``: each task first runs one period later."""
         self.started = True
+        self.last = now
         for task in self.tasks:
             task[0] = now + task[1]
 
     def run_until(self, stamp: float) -> None:
-        """Run every task due up to ``stamp``, each at its own moment, in order."""
-        while self.started:
+        """
+        Run every task due up to ``stamp``, each at its own moment, in order.
+
+        A gap longer than ``horizon`` after the last stamp (a logger that paused, a car
+        parked overnight, a timestamp years off) is not worked through period by period:
+        the tasks run until ``horizon`` into it (what a silence changes has been emitted by
+        then) and skip the rest of it, each keeping its phase. A stamp earlier than the last
+        by more than the longest period (logs put one after another) starts the grid again.
+        """
+        if not self.started:
+            return
+        if stamp < self.last - self._longest:
+            self.start(stamp)
+            return
+        end = min(stamp, self.last + self.horizon)
+        while True:
             task = min(self.tasks, key=lambda t: t[0])  # the first of equals: list order
-            if task[0] > stamp:
+            if task[0] > end:
                 break
             self.set_now(task[0])
             task[0] += task[1]
             task[2]()
+        if stamp > end:  # the rest of a long gap: each task's first slot after it
+            for task in self.tasks:
+                if task[0] < stamp:
+                    task[0] += math.ceil((stamp - task[0]) / task[1]) * task[1]
+        self.last = max(self.last, stamp)
 
 
 def _nan_arrays(arrays: Arrays) -> Arrays:

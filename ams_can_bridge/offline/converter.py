@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 from ams_can_bridge.bus_state import BusState, BusStatus
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.devices.base import BatteryReport
-from ams_can_bridge.engine.core import Arrays, Engine, Schedule, Statuses
+from ams_can_bridge.engine.core import Arrays, Engine, Schedule, STALE_PUBLISH_PERIOD, Statuses
 from ams_can_bridge.offline.params_file import FileParams
 from ams_can_bridge.parameters import BUS_PARAMS, NODE_PARAMS
 
@@ -80,8 +80,10 @@ class Converter:
         self.engine = Engine(self.devices, self.sink, status_prefix=status_prefix,
                              interface='replay', bus_status=self._bus_status,
                              now=lambda: self.now, monotonic=lambda: self.now)
-        self.schedule = Schedule(self.engine.schedule(self.diagnostics_period),
-                                 self._set_now)
+        self.last_frame = math.nan  # the log time of the last frame (any ID)
+        tasks = [(period, self._repeat_stale if call == self.engine.publish_stale else call)
+                 for period, call in self.engine.schedule(self.diagnostics_period)]
+        self.schedule = Schedule(tasks, self._set_now, self.engine.quiet_horizon())
 
     @property
     def bag(self) -> BagOut | None:
@@ -94,6 +96,16 @@ class Converter:
 
     def _set_now(self, now: float) -> None:
         self.now = now
+
+    def _repeat_stale(self) -> None:
+        """
+        Repeat the present: false of the silent devices (every second) while the log goes on.
+
+        In a gap of the log (no frame for a stale period) nothing is repeated: each device's
+        going stale is still written once (the watch), the rest of the gap adds nothing.
+        """
+        if self.now - self.last_frame <= STALE_PUBLISH_PERIOD:
+            self.engine.publish_stale()
 
     def _bus_status(self) -> BusStatus:
         return BusStatus(state=self.state, reason='', frames_in=self.frames_in, frames_out=0,
@@ -108,7 +120,7 @@ class Converter:
                 self.schedule.run_until(stamp)
             else:  # the first written frame starts the grid
                 self.schedule.start(stamp)
-        self.now = stamp
+        self.now = self.last_frame = stamp
         self.frames_in += 1
         self.sink.enabled = write
         self.engine.on_frame(arbitration_id, data, is_extended_id, stamp)

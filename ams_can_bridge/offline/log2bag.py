@@ -66,6 +66,8 @@ class Summary:
     frames_read: int = 0
     bad_entries: int = 0
     last_bad: str = ''
+    other_records: int = 0  # records that are no frame (a .trc's status, warnings)
+    other_kinds: str = ''
     stopped: str = ''
     first_stamp: float = math.nan
     last_stamp: float = math.nan
@@ -85,6 +87,9 @@ class Summary:
                  f'bad log entries skipped: {self.bad_entries}'
                  + (f' (last: {self.last_bad})' if self.last_bad else '')
                  + (f'; {self.stopped}' if self.stopped else '')]
+        if self.other_records:
+            lines.append(f'records that are no frame skipped: {self.other_records} '
+                         f'({self.other_kinds})')
         for name, count in self.malformed.items():
             lines.append(f'{name}: {count} malformed frame(s) dropped')
         lines.append('messages written:')
@@ -168,6 +173,9 @@ def check_frames(log: str, frames: LogFrames, summary: Summary, start: float | N
     last_bad = f' (last: {frames.last_bad})' if frames.last_bad else ''
     if read == 0 and bad == 0 and not frames.stopped:
         raise LogFileError(f'log file {log!r} holds no CAN frame (empty)')
+    if read == 0 and bad == frames.bad_stamps:
+        raise LogFileError(f'log file {log!r}: no frame with a timestamp a ROS stamp can '
+                           f'hold, {bad} with one that is no time{last_bad}')
     if read == 0:
         raise LogFileError(f'log file {log!r}: no CAN frame read, {bad} unreadable '
                            f'entr{"y" if bad == 1 else "ies"}{last_bad}: is it a CAN log '
@@ -252,6 +260,8 @@ def _convert(log: str, frames: LogFrames, converter: Converter, bag: BagOut,
     progress.finish(summary.frames_read)
     summary.bad_entries = frames.bad
     summary.last_bad = frames.last_bad
+    summary.other_records = frames.other
+    summary.other_kinds = ', '.join(sorted(frames.other_kinds))
     summary.stopped = frames.stopped
     if frames.truncated:
         at = time.strftime('%Y-%m-%d %H:%M:%S', time.gmtime(last))

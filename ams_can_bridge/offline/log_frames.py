@@ -8,9 +8,14 @@ after a corrupt object can be trusted, so reading stops there and the summary sa
 
 A log cut short (a copy that stopped, a logger that lost power) says so in ``truncated``:
 a text log whose last line has no end (that line is not read: a cut line can still parse,
-as a frame with part of its data), an .asc without its closing "End TriggerBlock", a .blf
-shorter than its header says. python-can's .trc reader logs one warning per line it cannot
-parse instead of raising: those are counted here as bad entries, not printed one by one.
+as a frame with part of its data), an .asc that opened a "Begin TriggerBlock" without its
+closing "End TriggerBlock" (can-utils' log2asc and some CANoe versions write neither: such
+a file is complete), a .blf shorter than its header says. python-can's .trc reader logs one
+warning per line it cannot parse instead of raising: those are counted here as bad entries,
+not printed one by one; the records that are no frame (PCAN's Warng, Error, ER, ST, EC, EV:
+bus warnings, error frames, status, events) are counted apart, as ``other``.
+An entry whose timestamp is no time (NaN, infinite, before 1970, from 2038-01-19 on: see
+``stamp_problem``) is a bad entry too: counted and skipped, never stamped otherwise.
 """
 from __future__ import annotations
 
@@ -21,7 +26,7 @@ from typing import Any, Iterator
 
 import can
 
-from ams_can_bridge.can_io.replay import open_log
+from ams_can_bridge.can_io.replay import open_log, stamp_problem
 from ams_can_bridge.errors import LogFileError
 
 # Readers that re-read a header when iterated anew: a blank line stands in for it.
@@ -29,9 +34,13 @@ _NEEDS_HEADER_LINE = (can.CSVReader, can.ASCReader)
 _RESUMABLE = (can.CanutilsLogReader, can.TRCReader) + _NEEDS_HEADER_LINE
 _LINE_COUNT_CHUNK = 1 << 20
 _ASC_END = b'end triggerblock'
-# python-can's TRCReader logs these (one per line) and goes on: each is a bad entry
+_ASC_BEGIN = b'begin triggerblock'
+_ASC_HEAD = 1 << 16  # bytes of an .asc searched for its Begin TriggerBlock (in its header)
+# python-can's TRCReader logs these (one per line) and goes on: a line it cannot parse is
+# a bad entry, a record of another type (not a frame) is counted apart
 _TRC_LOGGER = 'can.io.trc'
-_TRC_BAD = ('TRCReader: Failed to parse', 'TRCReader: Unsupported type')
+_TRC_BAD = 'TRCReader: Failed to parse'
+_TRC_OTHER = 'TRCReader: Unsupported type'
 
 
 class _CompleteLines:
@@ -71,6 +80,10 @@ class _CountTrcErrors(logging.Filter):
         if text.startswith(_TRC_BAD):
             self.owner.bad += 1
             self.owner.last_bad = record.getMessage()
+            return False
+        if text.startswith(_TRC_OTHER):
+            self.owner.other += 1
+            self.owner.other_kinds.update(str(arg) for arg in record.args or ())
             return False
         return True
 
@@ -118,6 +131,9 @@ class LogFrames:
         self.total = self._estimate_total()
         self.bad = 0
         self.last_bad = ''
+        self.bad_stamps = 0  # of the bad entries: a timestamp that is no time
+        self.other = 0  # records that are no frame (a .trc's status, warnings, events)
+        self.other_kinds: set[str] = set()
         self.stopped = ''
         self.truncated = ''  # why the log looks cut short ('' = it ends as it should)
         self.cut_line: str | None = None
@@ -164,6 +180,13 @@ class LogFrames:
                     self.reader.file = _Lines(['\n'], self.reader.file)  # type: ignore[assignment]
                 messages = iter(self.reader)
                 continue
+            problem = stamp_problem(msg.timestamp)
+            if problem:
+                self.bad += 1
+                self.bad_stamps += 1
+                self.last_bad = (f'frame 0x{msg.arbitration_id:X} at timestamp '
+                                 f'{msg.timestamp!r}: {problem}')
+                continue
             yield msg
 
     def _check_end(self) -> None:
@@ -180,9 +203,10 @@ class LogFrames:
                               'header announces')
         elif isinstance(self.reader, can.ASCReader):
             with open(self.path, 'rb') as stream:
+                opened = _ASC_BEGIN in stream.read(_ASC_HEAD).lower()
                 stream.seek(max(0, size - 256))
                 tail = stream.read().strip().lower()
-            if not tail.endswith(_ASC_END):
+            if opened and not tail.endswith(_ASC_END):
                 self.truncated = ('the log is cut short: it ends without the closing '
                                   '"End TriggerBlock" line')
 

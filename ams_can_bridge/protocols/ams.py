@@ -12,7 +12,7 @@ from dataclasses import dataclass, fields
 from typing import Any, Callable, Union
 
 from ams_can_bridge.errors import EncodeRangeError, MalformedFrameError
-from ams_can_bridge.protocols.common import Frame, load_dbc
+from ams_can_bridge.protocols.common import Frame, load_dbc, TEMP_C_MAX
 from ams_can_bridge.protocols.layout import BadValue, Layout, Signal
 
 DEFAULT_BASE_ID = 0x300
@@ -273,7 +273,9 @@ _BANKS: dict[str, Any] = dict(low=1, high=MAX_BANKS, field='bank_count')
 _MESSAGES: tuple[tuple[int, type, str, int, tuple[Signal, ...]], ...] = (
     (STATUS, AmsStatus, 'AMS_Status', 7, _WORD + (
         Signal('Volt_min', 23, 8, field='volt_min_v', **_VOLTS),
-        Signal('Temp_max', 31, 8, unit='degC', field='temp_max_c'),
+        Signal('Temp_max', 31, 8, high=TEMP_C_MAX, unit='degC', field='temp_max_c',
+               check='Temp_max {value} degC (allowed {low:g}..{high:g}: above is no '
+               'battery temperature)'),
         Signal('SOC', 39, 8, high=100, unit='%', field='soc_pct'),
         Signal('Counter', 47, 8, field='counter'),
         Signal('Relay_Error_AIR_Minus', 48, 1, field='relay_error_air_minus', flag=True),

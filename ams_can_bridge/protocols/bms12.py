@@ -10,9 +10,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from ams_can_bridge.errors import EncodeRangeError
-from ams_can_bridge.protocols.common import check_dlc, Frame
-from ams_can_bridge.protocols.layout import BIG, check_value, Layout, LITTLE, Signal
+from ams_can_bridge.errors import EncodeRangeError, MalformedFrameError
+from ams_can_bridge.protocols.common import CELL_V_MAX, check_dlc, Frame, TEMP_C_MAX
+from ams_can_bridge.protocols.layout import BadValue, BIG, check_value, Layout, LITTLE, Signal
 
 BMS12_BASE_ID = 300
 BMS12_MAX_MODULES = 16
@@ -44,8 +44,12 @@ class Bms12Temperatures:
 
 
 def _cells(first: int) -> tuple[Signal, ...]:
-    return tuple(Signal(f'Cell{first + k}', 7 + 16 * k, 16, BIG, scale=0.001, unit='V',
-                        field=f'voltages_v[{k}]') for k in range(4))
+    # uint16 mV carries up to 65.535 V: above CELL_V_MAX it is no cell (section "Physical
+    # bounds"), and the frame is malformed
+    return tuple(Signal(f'Cell{first + k}', 7 + 16 * k, 16, BIG, scale=0.001, high=CELL_V_MAX,
+                        unit='V', field=f'voltages_v[{k}]',
+                        check='cell voltage {value:g} V (allowed {low:g}..{high:g} V)')
+                 for k in range(4))
 
 
 # ZEVA's firmware divides (3456 -> 3.456 V): divide=True keeps those values exact.
@@ -57,8 +61,10 @@ LAYOUTS = {
     'BMS12_M0_Cells9to12': Layout('BMS12_M0_Cells9to12', 8, _cells(9), divide=True),
     # Raw 0 = no sensor (section 3.3)
     'BMS12_M0_Temperatures': Layout('BMS12_M0_Temperatures', 8, tuple(
-        Signal(f'Temperature{k + 1}', 8 * k, 8, LITTLE, offset=-40, unit='degC',
-               field=f'temperatures_c[{k}]', invalid=0) for k in range(2)), divide=True),
+        Signal(f'Temperature{k + 1}', 8 * k, 8, LITTLE, offset=-40, high=TEMP_C_MAX,
+               unit='degC', field=f'temperatures_c[{k}]', invalid=0,
+               check='temperature {value} degC (allowed {low:g}..{high:g} degC)')
+        for k in range(2)), divide=True),
 }
 _D_REQUEST = LAYOUTS['BMS12_M0_Request'].decoder(raw=True)  # the firmware's mV
 _E_CELLS = LAYOUTS['BMS12_M0_Cells1to4'].encoder()
@@ -70,18 +76,21 @@ decode_cells = LAYOUTS['BMS12_M0_Cells1to4'].decoder(into=Bms12Cells, pack=2)
 
 
 def decode(aid: int, data: bytes, module: int, t: int) -> Any:
-    """Frame t of module -> reading; MalformedFrameError for a wrong DLC."""
+    """Frame t of module -> reading; MalformedFrameError for a wrong DLC or value."""
     if t == 0:
         check_dlc(aid, data, 2)
         mv, = _D_REQUEST(data)
         return Bms12Request(module, mv or None)
-    if t == 4:
-        # The BMS12 PDF says DLC 2; ZEVA's firmware sends 8 (section 3.3)
-        check_dlc(aid, data, (2, 8))
-        return Bms12Temperatures(module, _D_TEMPS(data))
-    if len(data) != 8:
-        check_dlc(aid, data, 8)
-    return decode_cells(data, module, 4 * (t - 1))
+    try:
+        if t == 4:
+            # The BMS12 PDF says DLC 2; ZEVA's firmware sends 8 (section 3.3)
+            check_dlc(aid, data, (2, 8))
+            return Bms12Temperatures(module, _D_TEMPS(data))
+        if len(data) != 8:
+            check_dlc(aid, data, 8)
+        return decode_cells(data, module, 4 * (t - 1))
+    except BadValue as exc:  # a cell or temperature no battery has
+        raise MalformedFrameError(aid, data, f'module {module}: {exc}') from None
 
 
 def encode(msg: Bms12Request | Bms12Cells | Bms12Temperatures, base_id: int,

@@ -25,6 +25,7 @@ MAX_CELLS = 16
 CELL_FRAME_FIRST = (0, 6, 12)  # first cell index (0-based) of the frames base + 1..3
 CELL_FRAME_COUNT = (6, 6, 4)
 SHUNT_SIZES_A = (0, 100, 200, 500)  # wire code 0..3
+CELL_MAX_RAW = 500  # 5.00 V: the document's range of a cell (9 bits could carry 5.11 V)
 
 
 class Bms16Error(enum.IntEnum):
@@ -165,10 +166,15 @@ LAYOUTS: tuple[Layout, ...] = (  # by offset from base_id; divide: 523 -> 52.3 V
                check='error code {value}, known codes are {low}..{high}'),
         Signal('SoC', 8, 8, LITTLE, high=100, unit='%', field='soc_pct',
                check='SoC {value} %, above 100 %'),
-        Signal('Voltage', 16, 16, LITTLE, scale=0.1, unit='V', field='voltage_v'),
-        Signal('Current', 32, 16, LITTLE, scale=0.1, offset=-3276.8, unit='A',
-               field='current_a'),
-        Signal('Temperature', 48, 8, LITTLE, unit='degC', field='temperature_c')), divide=True),
+        # the document's ranges (section 4): beyond them no BMS16 reading, malformed
+        Signal('Voltage', 16, 16, LITTLE, scale=0.1, high=80, unit='V', field='voltage_v',
+               check='pack voltage {value:g} V (allowed {low:g}..{high:g} V)'),
+        Signal('Current', 32, 16, LITTLE, scale=0.1, offset=-3276.8, low=-1000, high=1000,
+               unit='A', field='current_a',
+               check='current {value:g} A (allowed {low:g}..{high:g} A)'),
+        Signal('Temperature', 48, 8, LITTLE, high=120, unit='degC', field='temperature_c',
+               check='temperature {value} degC (allowed {low:g}..{high:g} degC)')
+    ), divide=True),
     *map(_cell_frame, CELL_FRAME_FIRST, CELL_FRAME_COUNT),
     _CONFIG_1, _CONFIG_2,
     *(Layout(f'BMS16_{name}', 0, ()) for name in ('AcknowledgeError', 'ResetSoc', 'PowerOff')),
@@ -190,8 +196,12 @@ _NINTH = tuple(tuple(256 * (bits >> k & 1) for k in range(8)) for bits in range(
 def _cells(index: int, data: bytes) -> Bms16Cells:
     """Return cell frame index (0..2); the 9th bit of cell k is bit k of NinthBits."""
     *lows, ninth = _D_CELLS[index](data)  # a split the DBC cannot describe
-    return Bms16Cells(CELL_FRAME_FIRST[index], tuple(
-        [(low + high) / 100 for low, high in zip(lows, _NINTH[ninth])]))
+    volts = tuple([(low + high) / 100 for low, high in zip(lows, _NINTH[ninth])])
+    if max(volts) > CELL_MAX_RAW / 100:
+        k = volts.index(max(volts))
+        raise BadValue(f'cell {CELL_FRAME_FIRST[index] + k + 1} {volts[k]:g} V '
+                       f'(allowed 0..{CELL_MAX_RAW / 100:g} V)')
+    return Bms16Cells(CELL_FRAME_FIRST[index], volts)
 
 
 def _config(k: int, data: bytes) -> Bms16Reading:
@@ -270,7 +280,8 @@ class Bms16Codec:
         if len(cells.voltages_v) != count:
             raise EncodeRangeError(f'cells[{cells.first_cell}:].count',
                                    len(cells.voltages_v), f'exactly {count} voltages')
-        raws = [round(check_value(f'cell{cells.first_cell + k + 1}_v', volts, 0, 5.11,
-                                  unit='V') * 100) for k, volts in enumerate(cells.voltages_v)]
+        raws = [round(check_value(f'cell{cells.first_cell + k + 1}_v', volts, 0,
+                                  CELL_MAX_RAW / 100, unit='V') * 100)
+                for k, volts in enumerate(cells.voltages_v)]
         ninth = sum((raw >> 8) << k for k, raw in enumerate(raws))  # as decoded above
         return self.frame(CELLS_1 + index, _E_CELLS[index](*(raw & 0xFF for raw in raws), ninth))

@@ -14,7 +14,7 @@ from ams_can_bridge.errors import (
     BadConfigBytes, ConfigError, EncodeRangeError, MalformedFrameError)
 from ams_can_bridge.protocols.bms12 import BMS12_BASE_ID
 from ams_can_bridge.protocols.bms16 import SHUNT_SIZES_A  # slot 7: code 0..3
-from ams_can_bridge.protocols.common import ConfigField, Frame
+from ams_can_bridge.protocols.common import CELL_V_MAX, ConfigField, Frame
 from ams_can_bridge.protocols.evms3 import (
     AcknowledgeError, BatteryCurrent, Bms12Cells, BMS16_MARKER, CELL_NUMBERS, CONFIG1,
     Evms3Codec, Evms3Error, Evms3State, generated, LAYOUTS, payload, PowerOff, ResetSoc, STATUS)
@@ -33,13 +33,16 @@ CELL_FRAMES = {(0, 1): 0, (0, 2): 4, (1, 1): 8, (1, 2): 12}
 CELL_IDS = {BMS12_BASE_ID + 10 * m + t: first for (m, t), first in CELL_FRAMES.items()}
 CONFIG_GAP_S = 0.02                   # the Monitor waits 20 ms after each settings frame
 SLOTS = 32                            # setting bytes in IDs 32..35
+MAX_PACK_V = MAX_CELLS * CELL_V_MAX   # 160 V: no pack of a BMS16 holds more
 
 
 # ID 30 has the EVMS3 layout (protocols.evms3.LAYOUTS, checked against its DBC); byte 5 (aux
 # voltage on an EVMS3) must be the marker, byte 6 (isolation) is unused.
 _D_STATUS = generated(LAYOUTS['EVMS3_Status'].replace(
     'AuxVoltage', scale=1, low=BMS16_MARKER, check='byte 5 = {value}, not the BMS16 marker '
-    '255: the status of another device (an EVMS3 sends its aux voltage there), not decoded'),
+    '255: the status of another device (an EVMS3 sends its aux voltage there), not decoded')
+    .replace('BatteryVoltage', high=MAX_PACK_V,  # the 16 cells of a BMS16, none over 10 V
+             check='pack voltage {value:g} V (allowed {low:g}..{high:g} V: 16 cells)'),
     lambda _marker, *values: Bms16StdStatus(*values),
     'AuxVoltage', 'State', 'ErrorCode', 'AmpHoursRemaining', 'BatteryVoltage', 'Temperature')
 _E_STATUS = LAYOUTS['EVMS3_Status'].encoder(exact=False)  # telemetry: rounded to 0.1

@@ -14,7 +14,7 @@ from dataclasses import astuple, dataclass, replace
 from typing import Any, Callable, Sequence
 
 from ams_can_bridge.errors import ConfigError, EncodeRangeError, MalformedFrameError
-from ams_can_bridge.protocols.common import check_dlc, Frame, load_dbc
+from ams_can_bridge.protocols.common import check_dlc, Frame, load_dbc, TEMP_C_MAX
 from ams_can_bridge.protocols.evms3_config import (  # noqa: F401 (some re-exported)
     BMS12_MAX_MODULES, BmsCellNumbers, cell_numbers_payload, check_config_value, CONFIG_FIELDS,
     CONFIG_FILLER, CONFIG_LAYOUTS, config_payloads, ConfigReadback, ConfigReport,
@@ -86,8 +86,9 @@ LAYOUTS = {
         Signal('Headlights', 55, 1, LITTLE, field='headlights', flag=True),
         Signal('IsolationIntegrity', 48, 7, LITTLE, high=100, unit='%', field='isolation_pct',
                invalid=101, check='isolation {value} % (0..100, 101 = n/a)'),  # 101: n/a
-        Signal('Temperature', 56, 8, LITTLE, offset=-40, unit='degC', field='temperature_c',
-               invalid=0)),  # raw 0: no sensor
+        Signal('Temperature', 56, 8, LITTLE, offset=-40, high=TEMP_C_MAX, unit='degC',
+               field='temperature_c', invalid=0,  # raw 0: no sensor
+               check='temperature {value} degC (allowed {low:g}..{high:g})')),
         divide=True),
     'EVMS3_AcknowledgeError': Layout('EVMS3_AcknowledgeError', 1, (
         replace(_ERROR_CODE, start=0, length=8),)),  # the same codes, a whole byte
@@ -282,7 +283,10 @@ class Evms3Codec:
             raise MalformedFrameError(arbitration_id, data, 'not an EVMS3/BMS12 ID of this codec')
         module, t = module_type
         if 1 <= t <= 3 and len(data) == 8:  # the bulk of the bus: cells in one call
-            return decode_cells(data, module, 4 * (t - 1))
+            try:
+                return decode_cells(data, module, 4 * (t - 1))
+            except BadValue:  # worded with the module by bms12.decode
+                pass
         return bms12.decode(arbitration_id, data, module, t)
 
     def _decode_set_state(self, aid: int, data: bytes) -> SetState:

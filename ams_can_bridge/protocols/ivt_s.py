@@ -13,7 +13,8 @@ import functools
 from typing import Any, Callable
 
 from ams_can_bridge.errors import ConfigError, EncodeRangeError, MalformedFrameError
-from ams_can_bridge.protocols.common import check_dlc, Frame, load_dbc
+from ams_can_bridge.protocols.common import (
+    ABSOLUTE_ZERO_C, check_dlc, Frame, load_dbc, TEMP_C_MAX)
 from ams_can_bridge.protocols.layout import compile_function, Layout, LITTLE, Signal
 
 COMMAND_ID = 0x411
@@ -89,6 +90,13 @@ class IvtResult:
                          self.system_error, 0)[1]
 
 
+# Where a physical bound applies (section 2.1): a temperature no sensor on a battery reads.
+# Current, voltages (signed by the wiring), power and the counters have none.
+_BOUNDS: dict[IvtMux, dict[str, Any]] = {IvtMux.T: dict(
+    low=ABSOLUTE_ZERO_C, high=TEMP_C_MAX,
+    check='temperature {value:g} degC (allowed {low:g}..{high:g} degC)')}
+
+
 def _layout(kind: IvtMux) -> Layout:
     name = DBC_NAME[kind]
     result = f'IVT_Result_{name}'
@@ -101,10 +109,14 @@ def _layout(kind: IvtMux) -> Layout:
         Signal(f'{result}_System_Error', 15, 1, field='system_error', flag=True),
         Signal(result, 23, 32, signed=True, scale=1 / DIVISOR[kind] if kind == IvtMux.T else 1,
                unit=SI_UNIT[kind] if kind == IvtMux.T else RAW_UNIT[kind],
-               field=f'IVT-S {kind.name} raw value')))  # the DBC scales only T
+               field=f'IVT-S {kind.name} raw value', **_BOUNDS.get(kind, {}))))
+    # the DBC scales only T
 
 
 LAYOUTS = {kind: _layout(kind) for kind in IvtMux}
+# The raw values a result may carry: its row's range where it has a check, else any int32.
+RAW_LIMITS = {kind: layout.signals[-1].raw_limits() if layout.signals[-1].check
+              else (INT32_MIN, INT32_MAX) for kind, layout in LAYOUTS.items()}
 # The sensor can be set to send the value little-endian (its byte 2 first).
 LITTLE_LAYOUTS = {kind: layout.replace(f'IVT_Result_{DBC_NAME[kind]}', start=16,
                                        byte_order=LITTLE) for kind, layout in LAYOUTS.items()}
@@ -130,8 +142,10 @@ _DECODE_SOURCE = '''def decode(self, arbitration_id, data):
     entry = self._by_id.get(arbitration_id)
     if entry is None or len(data) != {dlc} or data[0] != entry[0]:
         self._reject(arbitration_id, data)
-    kind, divisor, fields = entry
+    kind, divisor, fields, low, high = entry
     raw = {raw}
+    if not low <= raw <= high:
+        self._out_of_range(arbitration_id, data, kind, raw)
     result = new(IvtResult)
     state = result.__dict__
     state.update(fields[data[1]])
@@ -176,12 +190,14 @@ class IvtSCodec:
         # the instance attribute takes the place of the method above.
         self.decode = _DECODERS[byte_order].__get__(self)  # type: ignore[method-assign]
         self._encoders = {kind: layout.replace(
-            f'IVT_Result_{DBC_NAME[kind]}', scale=1, unit=RAW_UNIT[kind]).encoder()
+            f'IVT_Result_{DBC_NAME[kind]}', scale=1, unit=RAW_UNIT[kind],
+            low=RAW_LIMITS[kind][0], high=RAW_LIMITS[kind][1]).encoder()
             for kind, layout in layouts.items()}  # the raw value, in the vendor unit
-        # ID -> (kind, divisor, fields by byte 1): one dict lookup finds everything decode needs.
+        # ID -> (kind, divisor, fields by byte 1, raw limits): one dict lookup finds
+        # everything decode needs.
         self._by_id = {base_id + kind: (kind, DIVISOR[kind], [
             {'kind': kind, **dict(zip(_BYTE1_FIELDS, _BYTE1(bytes((kind, b)))))}
-            for b in range(256)]) for kind in IvtMux}
+            for b in range(256)], *RAW_LIMITS[kind]) for kind in IvtMux}
 
     def decode(self, arbitration_id: int, data: bytes) -> IvtResult:
         """Decode one result frame; MalformedFrameError for a wrong ID, DLC or MuxID."""
@@ -199,6 +215,12 @@ class IvtSCodec:
             arbitration_id, data,
             f'MuxID {data[0]} does not match result {kind.name} (MuxID {int(kind)}) '
             f'expected at this ID')
+
+    def _out_of_range(self, arbitration_id: int, data: bytes, kind: IvtMux, raw: int) -> None:
+        row = LAYOUTS[kind].signals[-1]
+        low, high = row.bounds()
+        raise MalformedFrameError(arbitration_id, data, f'{kind.name}: ' + row.check.format(
+            value=raw / DIVISOR[kind], low=low, high=high))
 
     def encode(self, result: IvtResult) -> Frame:
         """Build the frame of one result (the simulator's side of the codec)."""

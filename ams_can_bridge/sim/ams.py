@@ -48,7 +48,7 @@ from ams_can_bridge.protocols.ams import (
     AmsChargerStatus, AmsCodec, AmsError, AmsErrorEvent, AmsState, AmsStatus, AmsStatusWord,
     CarCommand, CarStatus, CellTemperatures, CellVoltages, ChargerCommand, ChargerStart,
     DischargeTemperatures, OverrideBankCount, OverrideChargeCurrent)
-from ams_can_bridge.protocols.common import Frame
+from ams_can_bridge.protocols.common import Frame, TEMP_C_MAX
 from ams_can_bridge.sim.base import Periodic, SimDevice
 from ams_can_bridge.sim.pack import Elapsed, integrate_soc, thermal_lag
 from ams_can_bridge.sim.profiles import drive_current_a
@@ -293,7 +293,8 @@ class AmsSimulator(SimDevice):
 
     @staticmethod
     def _wire_c(celsius: float, low: int = -128) -> int:
-        return int(min(127 if low < 0 else 255, max(low, round(celsius))))
+        # Temp_max (unsigned) ends at the protocol's 200 degC, a signed byte at 127
+        return int(min(127 if low < 0 else TEMP_C_MAX, max(low, round(celsius))))
 
     def _status_frame(self) -> Frame:
         air_minus, air_plus, precharge = self.relay_error

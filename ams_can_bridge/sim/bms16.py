@@ -15,8 +15,8 @@ from typing import Any, Callable
 
 from ams_can_bridge.protocols.bms16 import (
     AcknowledgeError, Bms16Cells, Bms16Codec, Bms16ConfigPart1, Bms16ConfigPart2, Bms16Error,
-    Bms16Status, CELL_FRAME_COUNT, CELL_FRAME_FIRST, CONFIG_1, CONFIG_2, CONFIG_FIELD,
-    PowerOff, ResetSoc, SETTINGS, SHUNT_SIZES_A)
+    Bms16Status, CELL_FRAME_COUNT, CELL_FRAME_FIRST, CELL_MAX_RAW, CONFIG_1, CONFIG_2,
+    CONFIG_FIELD, PowerOff, ResetSoc, SETTINGS, SHUNT_SIZES_A)
 from ams_can_bridge.errors import MalformedFrameError, ProtocolError
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.sma import (
@@ -94,7 +94,7 @@ class Bms16Simulator(SimDevice):
 
     def cell_voltages(self) -> list[float]:
         """Present cell voltages (V) of the configured number of cells."""
-        return [min(5.11, max(0.0, v)) for v in pack_cells(self)]
+        return [min(CELL_MAX_RAW / 100, max(0.0, v)) for v in pack_cells(self)]
 
     def error(self) -> Bms16Error:
         """Return the error reported: the injected one, else low SoC against its warning."""

@@ -16,7 +16,7 @@ from typing import Any, Callable
 from ams_can_bridge.protocols.bms16_std import (
     Bms16StdCodec, Bms16StdStatus, CELL_FRAMES, CELLS_PER_MODULE, CONFIG1, decode_config,
     DEFAULT_BASE_ID)
-from ams_can_bridge.protocols.common import Frame
+from ams_can_bridge.protocols.common import CELL_V_MAX, Frame
 from ams_can_bridge.protocols.evms3 import (
     ACK_ERROR, BatteryCurrent, Bms12Cells, Evms3Error, Evms3State, POWER_OFF, RESET_SOC)
 from ams_can_bridge.sim.base import Periodic, SimDevice
@@ -58,7 +58,7 @@ class Bms16StdSimulator(SimDevice):
 
     def cell_voltages(self) -> list[float]:
         """Present cell voltages (V) of the configured number of cells."""
-        return [round(min(65.535, max(0.0, v)), 3) for v in pack_cells(self)]
+        return [round(min(CELL_V_MAX, max(0.0, v)), 3) for v in pack_cells(self)]
 
     def error(self) -> Evms3Error:
         """Return the error reported: the injected one, else low SoC against its warning."""
