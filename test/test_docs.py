@@ -163,6 +163,7 @@ def test_docs_build_without_ros_and_without_any_dependency(tmp_path, built):
     assert 'usage: bridge' in page(xml, 'executables')  # its --help needs nothing
 
 
+@pytest.mark.process  # docgen.Parts runs the generators as processes
 def test_a_block_naming_no_part_or_a_failing_generator_stops_the_build(tmp_path):
     parts = docgen.Parts(ROOT)
     try:
