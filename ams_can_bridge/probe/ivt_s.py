@@ -66,6 +66,14 @@ def _values(codecs: dict[str, IvtSCodec], entry: IdTraffic) -> dict[str, list[in
     return out
 
 
+def _shown(codec: IvtSCodec, can_id: int, data: bytes, unit: str, digits: int = 6) -> str:
+    """Return a result as one byte order reads it, or why that order cannot read it."""
+    try:
+        return f'{codec.decode(can_id, data).value:.{digits}g} {unit}'
+    except MalformedFrameError:  # out of the protocol's range (a temperature past 200 degC)
+        return 'nothing plausible (out of range)'
+
+
 def _byte_order(codecs: dict[str, IvtSCodec],
                 results: dict[IvtMux, IdTraffic]) -> tuple[str | None, list[str]]:
     """Decide big or little from the results that can tell; the evidence of each."""
@@ -80,11 +88,11 @@ def _byte_order(codecs: dict[str, IvtSCodec],
             order = fits[0]
             other = 'little' if order == 'big' else 'big'
             last = entry.payloads[-1]
-            shown = {o: codecs[o].decode(entry.can_id, last).value for o in BYTE_ORDERS}
             unit = SI_UNIT[kind]
             votes[order].append(
-                f'{DBC_NAME[kind]} reads {shown[order]:.6g} {unit} {order}-endian, '
-                f'{shown[other]:.3g} {unit} {other}-endian ([{last.hex(" ").upper()}])')
+                f'{DBC_NAME[kind]} reads {_shown(codecs[order], entry.can_id, last, unit)} '
+                f'{order}-endian, {_shown(codecs[other], entry.can_id, last, unit, 3)} '
+                f'{other}-endian ([{last.hex(" ").upper()}])')
     decided = [o for o in BYTE_ORDERS if votes[o]]
     if len(decided) == 1:
         return decided[0], votes[decided[0]]
