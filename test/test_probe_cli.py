@@ -205,3 +205,25 @@ def test_listening_draws_a_progress_line_on_a_terminal():
     drawn = screen.getvalue()
     assert '\rprobe: listening: ' in drawn and 'of 0.5 s, 5 frames, 1 IDs' in drawn
     assert not hasattr(bus, 'send')  # probe's bus cannot send
+
+
+def test_a_frame_a_recogniser_cannot_read_stops_only_that_recogniser():
+    from ams_can_bridge.errors import MalformedFrameError
+    from ams_can_bridge.probe import ivt_s, sma
+    from ams_can_bridge.probe.recognise import recognise
+    from ams_can_bridge.probe.report import as_data, text as as_text
+    from ams_can_bridge.probe.traffic import Traffic
+
+    def fussy(traffic, found):  # a recogniser meeting a frame it did not expect
+        raise MalformedFrameError(0x525, bytes.fromhex('0400000000D2'), 'T: out of range')
+
+    traffic = Traffic()
+    for k in range(20):  # an IVT-S current result at 0x521, 20 ms apart: I = 1.000 A
+        traffic.add(0x521, False, bytes([0, k % 16]) + (1000).to_bytes(4, 'big'), k * 0.02)
+    findings = recognise(traffic, (fussy, ivt_s.recognise, sma.recognise))
+    assert [c.type for c in findings.devices] == ['ivt_s']  # the others still ran
+    assert findings.failures == ['test_probe_cli: malformed frame 0x525 [04 00 00 00 00 D2]: '
+                                 'T: out of range']
+    text = as_text(findings, traffic, 'bus.log')
+    assert 'recognisers a frame stopped' in text and 'T: out of range' in text
+    assert as_data(findings, traffic, 'bus.log')['failures'] == findings.failures

@@ -19,6 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
+from ams_can_bridge.errors import ProtocolError
 from ams_can_bridge.probe import ams, bms16, evms3, ivt_s, profiles, sma, sma_voltage
 from ams_can_bridge.probe.evidence import Candidate, Conflict, MEDIUM, WEAK
 from ams_can_bridge.probe.traffic import IdTraffic, Traffic
@@ -38,6 +39,7 @@ class Findings:
     devices: list[Candidate] = field(default_factory=list)
     conflicts: list[Conflict] = field(default_factory=list)
     unplaced: list[IdTraffic] = field(default_factory=list)
+    failures: list[str] = field(default_factory=list)  # recognisers a frame stopped
 
     @property
     def written(self) -> list[Candidate]:
@@ -48,8 +50,12 @@ class Findings:
 def recognise(traffic: Traffic, recognisers: Sequence[Recogniser] = BUILT_IN) -> Findings:
     """Run every recogniser on the traffic and settle what they found."""
     found: list[Candidate] = []
+    failures = []
     for recogniser in recognisers:
-        found += recogniser(traffic, found)
+        try:
+            found += recogniser(traffic, found)
+        except ProtocolError as exc:  # a frame it did not expect: the others still run
+            failures.append(f'{recogniser.__module__.rpartition(".")[2]}: {exc}')
     kept, conflicts = settle([c for c in found if c.confidence >= WEAK])
     conflicts += [Conflict(other, cand, ids, why) for cand in kept
                   for other, ids, why in cand.deferred if any(k is other for k in kept)]
@@ -57,7 +63,7 @@ def recognise(traffic: Traffic, recognisers: Sequence[Recogniser] = BUILT_IN) ->
     _name(kept)
     _link(kept)
     claimed = set().union(*(c.ids for c in kept))
-    return Findings(kept, conflicts, [e for e in traffic if e.key not in claimed])
+    return Findings(kept, conflicts, [e for e in traffic if e.key not in claimed], failures)
 
 
 def settle(candidates: list[Candidate]) -> tuple[list[Candidate], list[Conflict]]:

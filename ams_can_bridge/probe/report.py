@@ -44,6 +44,10 @@ def text(findings: Findings, traffic: Traffic, source: str) -> str:
                  + ('' if findings.devices else ' (no frame pattern of a known device)'))
     for cand in findings.devices:
         lines += _device_text(cand)
+    if findings.failures:
+        lines.append('recognisers a frame stopped (their devices are not reported; '
+                     'please report it with the frame):')
+        lines += [f'  - {text}' for text in findings.failures]
     if findings.conflicts:
         lines.append('conflicts (two candidates for the same IDs):')
         lines += [f'  - {c.text()}' for c in findings.conflicts]
@@ -80,6 +84,7 @@ def as_data(findings: Findings, traffic: Traffic, source: str,
                        'both_kept': bool(c.decision),  # both stay, the IDs with kept
                        'ids': sorted(i for i, _ in c.ids), 'text': c.text()}
                       for c in findings.conflicts],
+        'failures': findings.failures,
         'unplaced': [{'id': e.can_id, 'extended': e.extended, 'label': e.label(),
                       'count': e.count, 'dlcs': sorted(e.dlcs),
                       'rate_hz': _finite(e.rate_hz)} for e in findings.unplaced],
