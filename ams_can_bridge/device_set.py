@@ -46,6 +46,14 @@ OVERLAP_ADVICE = ('Two instances on one ID would both decode its frames (and bot
 Ids = frozenset[tuple[int, bool]]
 
 
+def variant_spec(device_type: str) -> ParamSpec:
+    """Return the '<name>.variant' parameter of a type with several wire forms (VARIANTS)."""
+    variants = tuple(registry.VARIANTS[device_type])
+    return ParamSpec('variant', str, variants[0], registry.VARIANT_HELP.get(
+        device_type, f'wire form of the {device_type}: ' + ', '.join(variants)),
+        choices=variants)
+
+
 class DeviceSet:
     """Device instances by name (each with its typed configuration) and the dispatch."""
 
@@ -113,9 +121,7 @@ class DeviceSet:
         variants = registry.VARIANTS.get(device_type)
         if variants:
             # read first: the variant decides which parameters the instance has
-            variant = declare(f'{name}.variant', ParamSpec(
-                'variant', str, next(iter(variants)), 'wire form of the ' + device_type + ': '
-                + ', '.join(variants) + ' (docs/protocols.md)', choices=tuple(variants)))
+            variant = declare(f'{name}.variant', variant_spec(device_type))
         cls = registry.device_class(device_type, variant)
         values = {spec.key: declare(f'{name}.{spec.key}', spec) for spec in device_params(cls)}
         try:

@@ -68,7 +68,7 @@ def format_number(value: float, key: str = '') -> str:
 
 
 def allowed_text(spec: ParamSpec) -> str:
-    """Describe the values a spec allows, as error messages, descriptors and README say it."""
+    """Describe the values a spec allows, as errors, descriptors and doc/parameters.md say it."""
     parts = []
     if spec.low is not None and spec.high is not None:
         parts.append(f'{format_number(spec.low, spec.key)}..{format_number(spec.high, spec.key)}')

@@ -34,7 +34,7 @@ SIMULATORS = {
 # Device types with more than one wire form: '<name>.variant' picks the device and simulator
 # classes (the first variant is the default; DEVICES / SIMULATORS name the default's classes).
 # BMS16: 'inverter' = the 11-bit / 500 kbit/s units "intended for CAN integration with
-# inverters" (docs/protocols.md section 4), 'standard' = the EVMS3 protocol (section 6).
+# inverters" (doc/protocols.md section 4), 'standard' = the EVMS3 protocol (section 6).
 VARIANTS = {
     'bms16': {
         'inverter': ('ams_can_bridge.devices.bms16:Bms16Device',
@@ -42,6 +42,13 @@ VARIANTS = {
         'standard': ('ams_can_bridge.devices.bms16_std:Bms16StdDevice',
                      'ams_can_bridge.sim.bms16_std:Bms16StdSimulator'),
     },
+}
+# The description of '<name>.variant' (ros2 param describe, the parameter reference).
+VARIANT_HELP = {
+    'bms16': ('wire form of the BMS16: inverter (11-bit, 500 kbit/s, IDs 500.. and the SMA '
+              'frames; doc/protocols.md section 4) or standard (BMS16v2 standard form: EVMS3 '
+              'protocol, 29-bit, 250 kbit/s; section 6), which has its own base_id default '
+              'and config.* parameters'),
 }
 
 # ROS command services per device type; only these types have any.

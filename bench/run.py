@@ -343,8 +343,11 @@ def main() -> None:
     parser.add_argument('--only', default='', help='comma-separated scenarios: '
                         + ', '.join(SCENARIOS) + ', soak')
     parser.add_argument('--json', default=os.path.join(harness.BENCH, 'results.json'))
-    parser.add_argument('--update-readme', metavar='README', default='',
-                        help="only rewrite the README's table from the JSON (no run)")
+    parser.add_argument('--update-readme', metavar='FILE', nargs='?', default='',
+                        const=os.path.join(harness.BENCH, 'README.md'),
+                        help='only rewrite the table between the bench-table markers of FILE '
+                        '(default bench/README.md, where the figures live) from the JSON (no '
+                        'run)')
     args = parser.parse_args()
     if args.update_readme:
         with open(args.json, encoding='utf-8') as stream:
@@ -376,7 +379,7 @@ def main() -> None:
 
 
 def markdown(result: dict) -> str:
-    """Return the results as the README's Markdown table (with the machine line)."""
+    """Return the results as bench/README.md's Markdown table (with the machine line)."""
     m = result['machine']
     lines = [f"Taken {result['date']} on {m['cpus']} cores of {m['cpu']} (Python "
              f"{m['python']}, Linux {m['kernel']}), a shared machine"
@@ -394,12 +397,15 @@ def markdown(result: dict) -> str:
 
 
 def update_readme(path: str, result: dict) -> None:
-    """Replace the table between the bench-table markers of the README."""
+    """Replace the table between the bench-table markers of a Markdown file (bench/README.md)."""
     with open(path, encoding='utf-8') as stream:
         text = stream.read()
     start, end = '<!-- bench-table -->', '<!-- /bench-table -->'
-    head, _, rest = text.partition(start)
-    _, _, tail = rest.partition(end)
+    head, found, rest = text.partition(start)
+    _, closed, tail = rest.partition(end)
+    if not (found and closed):
+        sys.exit(f'bench/run.py: {path} has no {start} ... {end} markers to write the table '
+                 'between')
     with open(path, 'w', encoding='utf-8') as stream:
         stream.write(f'{head}{start}\n{markdown(result)}\n{end}{tail}')
 

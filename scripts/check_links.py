@@ -2,8 +2,7 @@
 Check every relative link and anchor of the package's Markdown, without the network.
 
 Usage: python scripts/check_links.py [ROOT]; prints one line per broken link, exit 1 if any.
-The files: README.md, bench/README.md, docs/*.md and every page of doc/ (a page linked into
-doc/ is checked from there too, as Sphinx reads it). A link is broken when its file (or
+The files: README.md, bench/README.md and every page of doc/. A link is broken when its file (or
 directory) does not exist, leaves the package, or names an anchor that no heading of a
 Markdown target makes (GitHub's and MyST's heading anchors: lower case, punctuation dropped,
 spaces to '-', a repeated heading gets '-1', '-2', ...). Links with a scheme (https:,
@@ -28,7 +27,7 @@ _md = MarkdownIt('commonmark').enable('table')
 
 def markdown_files(root: Path) -> list[Path]:
     """Return the Markdown files whose links are checked (paths as found, links unresolved)."""
-    files = [root / 'README.md', root / 'bench' / 'README.md', *sorted(root.glob('docs/*.md')),
+    files = [root / 'README.md', root / 'bench' / 'README.md',
              *sorted(root.glob('doc/**/*.md'))]
     return [path for path in files if path.is_file() and '_build' not in path.parts]
 

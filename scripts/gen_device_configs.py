@@ -66,7 +66,7 @@ def default(spec: Any) -> str:
     """Return the field's default as Python source (an array's default as a tuple)."""
     value = tuple(spec.default) if isinstance(spec.default, list) else spec.default
     if spec.key.endswith('_id') and spec.type is int and value is not None:
-        return f'0x{value:X}'  # CAN IDs as the README and the vendors write them
+        return f'0x{value:X}'  # CAN IDs as doc/ and the vendors write them
     return repr(value)
 
 

@@ -2,22 +2,25 @@
 Print the bridge's parameters as Markdown tables, from the specs the node declares.
 
 Usage: python scripts/param_table.py. The doc build runs it for doc/parameters.md
-(doc/docgen.py). The test test/test_readme.py checks that README names every parameter the
-node declares.
+(doc/docgen.py). test/test_readme.py checks that these tables name every parameter the node
+declares, for every device type and variant.
 """
 from ams_can_bridge import registry
+from ams_can_bridge.device_set import variant_spec
 from ams_can_bridge.devices.base import device_params
 from ams_can_bridge.parameters import allowed_text, BUS_PARAMS, format_number, NODE_PARAMS
 
 
 COMMON = ('frame_id', 'location', 'serial_number', 'stale_timeout', 'base_id')
 CONFIG_NOTES = {'ivt_s': '`write_config` needs every cycle time; `error_masks` unset keeps the '
-                         "sensor's"}
+                         "sensor's",
+                ('bms16', 'standard'): '`write_config` needs them all, `balance_v` only with '
+                                       '`balance_mode: static`'}
 
 
-def device_specs(device_type: str) -> list:
-    """Return the specs of one device type: its own, then its commander's."""
-    cls = registry.device_class(device_type)
+def device_specs(device_type: str, variant: str | None = None) -> list:
+    """Return the specs of one device type (and wire form): its own, then its commander's."""
+    cls = registry.device_class(device_type, variant)
     return device_params(cls)
 
 
@@ -77,6 +80,8 @@ def main() -> None:
             if spec.key.startswith('config.'):
                 continue
             print(row(f'{device_type}.{spec.key}', spec))
+        if device_type in registry.VARIANTS:
+            print(row(f'{device_type}.variant', variant_spec(device_type)))
     for device_type in registry.COMMANDERS:
         config = [s for s in device_specs(device_type) if s.key.startswith('config.')]
         if config:
@@ -84,6 +89,18 @@ def main() -> None:
             print(f'\n`{device_type}.config.*` (no defaults; {note}):\n')
             print(head)
             for spec in config:
+                print(row(f'{device_type}.{spec.key}', spec))
+    for device_type, variants in registry.VARIANTS.items():
+        default = {spec.key: spec for spec in device_specs(device_type)}
+        for variant in list(variants)[1:]:
+            specs = [spec for spec in device_specs(device_type, variant)
+                     if default.get(spec.key) != spec]
+            note = CONFIG_NOTES.get((device_type, variant), '`write_config` needs them all')
+            print(f'\nWith `{device_type}.variant: {variant}` these rows replace the '
+                  f'{device_type} rows of the same name above, and its `config.*` are these '
+                  f'alone (no defaults; {note}):\n')
+            print(head)
+            for spec in specs:
                 print(row(f'{device_type}.{spec.key}', spec))
 
 

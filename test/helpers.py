@@ -53,7 +53,7 @@ def same(a: Any, b: Any) -> bool:
     return a == b
 
 
-# Protocol ranges (docs/protocols.md): nothing a frame can carry lies outside these.
+# Protocol ranges (doc/protocols.md): nothing a frame can carry lies outside these.
 INT32_SCALED = 2 ** 31 / 1000  # IVT-S results: int32 mV / mA / mAs
 BOUNDS = {
     'voltage': (-INT32_SCALED, INT32_SCALED),  # IVT-S U1 when an AMS uses the shunt

@@ -57,7 +57,7 @@ def heartbeat_commands(rig, mark=0):
     return [f.data[0] & 0x0F for _, f in rig.capture.since(mark, HEARTBEAT)]
 
 
-# --- charger role: frames written by hand from docs/protocols.md section 1 ---------------------
+# --- charger role: frames written by hand from doc/protocols.md section 1 ---------------------
 CHARGER = BASE + 0x010
 
 
@@ -84,7 +84,7 @@ def test_start_charging_repeats_start_every_100_ms_until_stop_charging(rig_facto
     assert_ended(repeat, 'the charger repeat')
     rig.capture.sync()
     frames = charger_frames(rig, mark)
-    # docs/protocols.md section 1: DLC 3, b0 bits 1..0 = 1 START / 2 STOP, b1..2 = tick (BE)
+    # doc/protocols.md section 1: DLC 3, b0 bits 1..0 = 1 START / 2 STOP, b1..2 = tick (BE)
     assert all(len(d) == 3 for d in frames)
     assert [d[0] for d in frames] == [1] * (len(frames) - 1) + [2]  # STOP once, last
     assert len(frames) >= 5

@@ -12,7 +12,7 @@ from helpers import assert_ended, wait_for
 
 
 def encode(command: int, bank_count: int, counter: int) -> Frame:
-    """Car status frame by hand from docs/protocols.md: b0 = bank << 4 | command, b1 = counter."""
+    """Car status frame by hand from doc/protocols.md: b0 = bank << 4 | command, b1 = counter."""
     return Frame(0x305, bytes([(bank_count << 4) | command, counter]))
 
 

@@ -4,7 +4,7 @@ A disarm during an EVMS3 write_config (issue 26, point 11).
 Decision: the disarm wins at once (the gate lets no frame out after commands_enabled went
 false, even of a sequence under way), and the call answers exactly which frames went out,
 which did not, and what that leaves in the EVMS3: frames 36 and 32..34 change its RAM only;
-its EEPROM is written when 35 arrives (docs/protocols.md 3.6), so a cut-short write is gone
+its EEPROM is written when 35 arrives (doc/protocols.md 3.6), so a cut-short write is gone
 at the next power-up. The pause after each frame is stretched here so the disarm lands
 between two frames every time (ZEVA's Monitor: 20 ms).
 """

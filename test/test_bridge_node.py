@@ -1,7 +1,7 @@
 """
 The bridge node in-process on python-can 'virtual': golden frames in, exact messages out.
 
-Frames are written by hand from docs/protocols.md (not through the codecs or the DBC); a real
+Frames are written by hand from doc/protocols.md (not through the codecs or the DBC); a real
 subscriber node receives what the bridge publishes (``rig_factory``, conftest.py).
 """
 from __future__ import annotations

@@ -52,7 +52,7 @@ def params_file(path: Path, channel: str) -> Path:
     return path
 
 
-# Hand-written frames of docs/protocols.md, one set per device type.
+# Hand-written frames of doc/protocols.md, one set per device type.
 FRAMES = [
     Frame(0x521, bytes([0, 0]) + (-12_000).to_bytes(4, 'big', signed=True)),  # IVT-S -12 A
     Frame(0x300, bytes([0xC0, 0x21, 180, 30, 66, 1, 0])),  # AMS IDLE, SOC 66 %

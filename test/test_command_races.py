@@ -1,7 +1,7 @@
 """
 Commands under races and bus faults, on a real node and a real (virtual) bus.
 
-Defined behaviour (README, "Commanding the AMS safely"): one AMS command at a time, from
+Defined behaviour (doc/commanding.md): one AMS command at a time, from
 any number of clients: a second ``enable_*`` while one waits is refused; ``abort`` is never
 refused and replaces the waiting command in the very next heartbeat. The frames of one
 ZEVA call are never interleaved with another call's, and are built from one consistent

@@ -14,7 +14,7 @@ from helpers import ros_context
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config'
 # The bridge's parameter files (diagnostics_aggregator.yaml configures another node; a
-# *_mapping.yaml is a dbc device's mapping file, README "Your own BMS").
+# *_mapping.yaml is a dbc device's mapping file, doc/own_bms.md).
 FILES = sorted(p for p in CONFIG.glob('*.yaml') if p.name != 'diagnostics_aggregator.yaml'
                and not p.name.endswith('_mapping.yaml'))
 

@@ -434,7 +434,7 @@ def test_the_device_builds_its_command_frames_at_its_base_id(clock):
 
 
 def test_a_padding_ams_is_decoded_and_never_stale(clock):
-    """Frames padded to 8 bytes (docs/protocols.md section 1, DLC) count as received."""
+    """Frames padded to 8 bytes (doc/protocols.md section 1, DLC) count as received."""
     device = make(clock)
     for counter in range(12):  # 1.2 s of status every 100 ms, each padded with 0xFF
         clock.now += 0.1

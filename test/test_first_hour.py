@@ -47,7 +47,7 @@ from test_bridge_slcan import bridge_executable
 
 _ids = itertools.count()
 BUS = {spec.key: spec.default for spec in BUS_PARAMS}
-# BMS16 status (docs/protocols.md, as test_bridge_slcan's): byte 1 is the SoC in %
+# BMS16 status (doc/protocols.md, as test_bridge_slcan's): byte 1 is the SoC in %
 BMS16_STATUS = bytes([0, 81, 0x0B, 0x02, 0x7D, 0x80, 25])
 
 

@@ -1,5 +1,5 @@
 """
-The layering of the README's Architecture and Layout sections, checked on the source.
+The layering of doc/architecture.md (its Layout section), checked on the source.
 
 Only ``ams_can_bridge/ros/`` imports rclpy.
 
@@ -63,9 +63,9 @@ def test_the_check_sees_an_import_inside_a_function(tmp_path):
     assert ros_imports(source) == ['rclpy.node', 'std_msgs.msg']
 
 
-# Layers that must never import another (the README's Layout): the protocols are the bottom
-# a device builds on, the parameters are read by devices, the devices know no engine or ROS,
-# the engine no ROS, and the bus layer carries frames without knowing what they mean.
+# Layers that must never import another (doc/architecture.md, Layout): the protocols are the
+# bottom a device builds on, the parameters are read by devices, the devices know no engine or
+# ROS, the engine no ROS, and the bus layer carries frames without knowing what they mean.
 NEVER = {
     'protocols': ('devices', 'engine', 'ros', 'can_io', 'offline', 'sim'),
     'parameters': ('devices',),

@@ -3,7 +3,7 @@ Values no battery reports are malformed frames: counted, never published (issue 
 
 The attack frames carry what a red team sent (a BMS16 status of 3,738.9 V and 153 degC, a
 BMS12 cell of 65.535 V, an AMS Temp_max of 255 degC) and the first value past each bound of
-docs/protocols.md ("Physical bounds" and each protocol's ranges), every frame written by hand
+doc/protocols.md ("Physical bounds" and each protocol's ranges), every frame written by hand
 from the byte tables there. Each goes through the engine as the bridge runs it: the frame is
 counted as malformed with its reason, the device publishes nothing from it (a primary frame
 no message at all, the rest of the frame unused), and the last good values stay.
@@ -69,7 +69,7 @@ def send(engine: Engine, frame_id: int, hexdata: str, extended: bool = False) ->
 
 
 # (device, primary frame that is good, attack frame, a text of its reason, extended ID)
-# The primary frames: docs/protocols.md 1.1 (AMS 0x300), 4 (BMS16 500), 3.1 (EVMS3 30),
+# The primary frames: doc/protocols.md 1.1 (AMS 0x300), 4 (BMS16 500), 3.1 (EVMS3 30),
 # 6 (standard BMS16 at base 60), 2.1 (IVT-S 0x521).
 AMS_OK = 'C0 21 B4 23 42 01 00'          # IDLE, Volt_min 3.6 V, Temp_max 35, SOC 66 %
 BMS16_OK = '00 50 10 02 10 80 19'        # SoC 80 %, 52.8 V, 1.6 A, 25 degC

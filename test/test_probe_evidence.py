@@ -1,7 +1,7 @@
 """
 What probe says and decides from hand-written frames, one device family at a time.
 
-Each test builds the traffic frame by frame (bytes worked out from docs/protocols.md in the
+Each test builds the traffic frame by frame (bytes worked out from doc/protocols.md in the
 comments) and checks the candidate: its IDs, the evidence that names the deciding values,
 what it decides and what it leaves as a check (never a silent guess).
 """

@@ -1,7 +1,7 @@
 """
 probe's SMA voltage scale (probe/sma_voltage.py) from hand-written frames.
 
-Bytes worked out from docs/protocols.md section 5.2.1 in the comments: 0x351 CVL, DVL at
+Bytes worked out from doc/protocols.md section 5.2.1 in the comments: 0x351 CVL, DVL at
 bytes 0-1 and 6-7 (0.1 V), 0x356 voltage at bytes 0-1 (as sent), 0x373 min / max cell mV at
 bytes 0-3, the binary 0x370 max / min cell mV at bytes 4-7. What must hold: the scale the
 battery's own evidence settles is written with the values that settled it; what it cannot
@@ -46,7 +46,7 @@ def test_limits_settle_0_01_v():
 
 
 def test_cells_alone_settle_it_from_a_binary_0x370():
-    # Eco-Worthy's 0x370 (docs/protocols.md 5.4): max 0x0CCF = 3.279 V, min 0x0CCA = 3.274 V;
+    # Eco-Worthy's 0x370 (doc/protocols.md 5.4): max 0x0CCF = 3.279 V, min 0x0CCA = 3.274 V;
     # 522 is 16 such cells at 0.1 V (52.2 V), 1.6 of them at 0.01 V: no 0x351 needed
     cand = sma([(0x356, DISCOVER_356), (0x370, bytes.fromhex('76006C00CF0CCA0C'))])
     scale = cand.setting('voltage_scale')

@@ -1,4 +1,4 @@
-"""AMS codec: golden frames written by hand from docs/protocols.md section 1 (not from the DBC)."""
+"""AMS codec: golden frames written by hand from doc/protocols.md section 1 (not from the DBC)."""
 import math
 
 import cantools
@@ -24,7 +24,7 @@ GOLDEN = [
      AmsStatus(WORD_DRIVE, 3.6, 35, 77, 9, relay_error_air_minus=True,
                relay_error_precharge=True)),
     # every flag bit 15..8 set, bank count 5 (101), state 9 CHARGE_ERROR (01001) -> 0xFF A9;
-    # Temp_max 0xC8 = 200 degC, the highest a battery may report (docs/protocols.md 1.7)
+    # Temp_max 0xC8 = 200 degC, the highest a battery may report (doc/protocols.md 1.7)
     (0x300, 'FF A9 00 C8 64 FF 02',
      AmsStatus(AmsStatusWord(True, True, True, True, True, True, True, True, 5,
                              AmsState.CHARGE_ERROR), 0.0, 200, 100, 255,
@@ -199,7 +199,7 @@ def test_longer_than_classic_can_is_malformed(can_id):
 
 
 # The same readings as GOLDEN, padded to 8 bytes with the fillers firmwares use (0x00, 0xFF,
-# 0xAA, 0x55): docs/protocols.md section 1, "DLC". Written by hand, byte by byte.
+# 0xAA, 0x55): doc/protocols.md section 1, "DLC". Written by hand, byte by byte.
 PADDED = [
     (0x300, 'C0 44 B4 23 4D 09 05 FF', GOLDEN[0][2]),
     (0x300, 'C0 44 B4 23 4D 09 05 00', GOLDEN[0][2]),

@@ -1,4 +1,4 @@
-"""ZEVA BMS16 codec: golden frames written by hand from docs/protocols.md section 4, both ways."""
+"""ZEVA BMS16 codec: golden frames written by hand from doc/protocols.md section 4, both ways."""
 import cantools
 from hypothesis import given, settings, strategies as st
 import pytest

@@ -1,5 +1,5 @@
 """
-BMS16 standard form (docs/protocols.md section 6): codec and device on hand-written frames.
+BMS16 standard form (doc/protocols.md section 6): codec and device on hand-written frames.
 
 Every golden frame below is written byte by byte from ZEVA's EVMS Monitor firmware
 (soyachips/ZEVA_EVMS_Monitor_v3_FZR250, EVMS_Monitor3.c and Common.h): the status layout and
@@ -212,16 +212,23 @@ def test_base_id_overlapping_the_fixed_ids_is_refused():
         DeviceSet(['bms16'], _declare({'bms16.variant': 'standard', 'bms16.base_id': 35}))
 
 
-def test_readme_and_example_cover_every_standard_form_parameter():
+def test_parameter_page_and_example_cover_every_standard_form_parameter():
     from pathlib import Path
+    import subprocess
+    import sys
 
     import yaml
     root = Path(__file__).resolve().parents[1]
-    readme = (root / 'README.md').read_text()
+    # doc/parameters.md is these tables (the doc build runs the script)
+    tables = subprocess.run([sys.executable, str(root / 'scripts' / 'param_table.py')],
+                            capture_output=True, text=True, timeout=60, cwd=root,
+                            check=True).stdout
+    standard = tables.split('With `bms16.variant: standard`', 1)[1]
     specs = device_params(registry.device_class('bms16', 'standard'))
-    missing = [s.key for s in specs if s.key.startswith('config.')
-               and f'`bms16.{s.key}`' not in readme]
-    assert not missing and '`bms16.variant`' in readme, missing
+    missing = [s.key for s in specs if (s.key.startswith('config.') or s.key == 'base_id')
+               and f'| `bms16.{s.key}` |' not in standard]
+    assert not missing and '| `bms16.variant` |' in tables, missing
+    assert '| `bms16.base_id` | int | 0x1E | 0x0..0x1FFFFFFF |' in standard
     example = yaml.safe_load((root / 'config' / 'bms16_standard.yaml').read_text())
     bms16 = example['/**']['ros__parameters']['bms16']
     assert bms16['variant'] == 'standard'

@@ -1,5 +1,5 @@
 """
-ZEVA EVMS3 + BMS12 codec against frames written by hand from docs/protocols.md section 3.
+ZEVA EVMS3 + BMS12 codec against frames written by hand from doc/protocols.md section 3.
 
 Golden bytes come from the spec tables, not from the codec or the DBC; the DBC is then
 checked to read the same frames the same way, so users' CAN tools agree with the bridge.

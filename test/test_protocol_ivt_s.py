@@ -1,4 +1,4 @@
-"""IVT-S codec: golden frames written by hand from docs/protocols.md s. 2, not from the DBC."""
+"""IVT-S codec: golden frames written by hand from doc/protocols.md s. 2, not from the DBC."""
 import math
 
 from hypothesis import given, settings, strategies as st
@@ -134,7 +134,7 @@ def test_random_data_decodes_or_raises_malformed(offset, data, order):
        order=st.sampled_from(['big', 'little']))
 def test_encode_decode_round_trip(kind, raw, counter, bits, order):
     codec = BE if order == 'big' else LE
-    low, high = RAW_LIMITS[kind]  # T: -273.1..200 degC (docs/protocols.md 2.1)
+    low, high = RAW_LIMITS[kind]  # T: -273.1..200 degC (doc/protocols.md 2.1)
     raw = low + (raw - low) % (high - low + 1)
     result = IvtResult(kind, counter, bool(bits & 1), bool(bits & 2), bool(bits & 4),
                        bool(bits & 8), raw, raw / (1000 if kind <= IvtMux.U3 else

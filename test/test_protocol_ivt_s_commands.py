@@ -1,7 +1,7 @@
 """
 IVT-S commands (0x411) and answers (0x511) against golden frames written by hand.
 
-The bytes come from the public sources (docs/protocols.md section 2): the vendor DBC
+The bytes come from the public sources (doc/protocols.md section 2): the vendor DBC
 IVT-S_12082020.dbc, the EVtv/Stm32-vcu isa_shunt.cpp and sectioncritical/ivts.
 """
 import pytest

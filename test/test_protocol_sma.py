@@ -1,4 +1,4 @@
-"""SMA Sunny Island BMS codec: golden frames written by hand from docs/protocols.md section 5."""
+"""SMA Sunny Island BMS codec: golden frames written by hand from doc/protocols.md section 5."""
 from hypothesis import given, settings, strategies as st
 import pytest
 

@@ -1,10 +1,13 @@
 """
-The README's "From ./dev demo to the car" section stays true: its commands are run here.
+The way from ./dev demo to the car stays true.
+
+The commands of doc/getting_started.md and doc/real_bus.md are run here (the README's ten
+steps link to them).
 
 The two-process example runs as written (the bundled serial link, the simulator, the bridge,
 with only the /tmp paths moved into the test's directory); the several-cars params file is
 loaded by two bridges in their namespaces; the list of parameters that can change at run
-time is the node's own.
+time (doc/parameters.md) is the node's own.
 """
 import os
 from pathlib import Path
@@ -23,14 +26,18 @@ import yaml
 from helpers import every_device_bridge
 
 ROOT = Path(__file__).resolve().parents[1]
-README = (ROOT / 'README.md').read_text()
-SECTION = README.split('## From `./dev demo` to the car', 1)[1].split('\n## ', 1)[0]
 BIN = Path(sys.executable).parent
 
 
-def block_after(title: str, kind: str) -> str:
-    """Return the first ```kind block after the paragraph starting with title."""
-    rest = SECTION.split(title, 1)[1]
+def section(page: str, heading: str) -> str:
+    """Return one '## heading' section of a page of doc/ (up to the next '## ')."""
+    text = (ROOT / 'doc' / f'{page}.md').read_text()
+    return text.split(f'\n## {heading}\n', 1)[1].split('\n## ', 1)[0]
+
+
+def block_after(text: str, title: str, kind: str) -> str:
+    """Return the first ```kind block of text after title ('' = the first of text)."""
+    rest = text.split(title, 1)[1] if title else text
     return rest.split(f'```{kind}\n', 1)[1].split('```', 1)[0]
 
 
@@ -66,7 +73,8 @@ class Output:
 
 
 def test_simulator_and_bridge_as_two_processes_over_the_bundled_link(tmp_path):
-    steps = commands(block_after('**2. Simulator and bridge as two processes**', 'bash'))
+    two = section('getting_started', 'Simulator and bridge as two processes')
+    steps = commands(block_after(two, 'as two processes', 'bash'))
     assert steps[0][0] == 'socat'  # shown first; this machine may not have it
     link, sim, bridge = steps[1:]
     assert link[:2] == ['python', 'bench/pty_link.py'] and sim[0] == 'simulator'
@@ -97,7 +105,7 @@ def test_simulator_and_bridge_as_two_processes_over_the_bundled_link(tmp_path):
         assert not any('bank' in line.lower() and 'mismatch' in line.lower()
                        for line in out.lines)
         # "In another shell ... monitor": the demo's table of this bridge (a bounded run)
-        watch, = commands(block_after('In another shell', 'bash'))
+        watch, = commands(block_after(two, 'In another shell', 'bash'))
         assert watch == ['monitor']
         shown = subprocess.run([str(BIN / 'monitor'), '--plain', '--duration', '4'],
                                capture_output=True, text=True, timeout=60)
@@ -121,7 +129,8 @@ def test_the_several_cars_params_file_configures_each_bridge(tmp_path):
     from rclpy.parameter import Parameter
 
     from ams_can_bridge.ros.bridge_node import BridgeNode
-    text = block_after('**5. Several buses or cars side by side.**', 'yaml')
+    text = block_after(section('real_bus', 'Several buses or cars side by side'),
+                       'Run one bridge per bus', 'yaml')
     path = tmp_path / 'cars.yaml'
     path.write_text(text)
     sections = yaml.safe_load(text)
@@ -146,7 +155,7 @@ def test_the_several_cars_params_file_configures_each_bridge(tmp_path):
 
 
 def test_the_parameters_that_change_at_run_time_are_the_nodes_writable_ones():
-    paragraph = SECTION.split('**6. What can change at run time.**', 1)[1].split('\n\n')[0]
+    paragraph = section('parameters', 'What can change at run time').strip().split('\n\n')[0]
     names = paragraph.split('):', 1)[1].split('Every other', 1)[0]  # after the instances
     listed = re.findall(r'`([a-z0-9_.*]+)`', names)
     assert 'commands_enabled' in listed
@@ -161,14 +170,14 @@ def test_the_parameters_that_change_at_run_time_are_the_nodes_writable_ones():
         return {pattern} & every
     covered = set().union(*(matches(p) for p in listed))
     for pattern in listed:
-        assert matches(pattern), f'README names {pattern}, which the node does not have'
+        assert matches(pattern), f'doc/parameters.md names {pattern}, which the node lacks'
         assert matches(pattern) <= writable, f'{pattern} is read-only in the node'
-    assert covered == writable, f'writable but not in the README: {writable - covered}'
+    assert covered == writable, f'writable but not in doc/parameters.md: {writable - covered}'
 
 
-@pytest.mark.parametrize('title', ['**1. The executables.**'])
-def test_the_executables_are_where_the_readme_says(title):
-    for argv in commands(block_after(title, 'bash'))[1:]:
+@pytest.mark.parametrize('heading', ['The executables'])
+def test_the_executables_are_where_getting_started_says(heading):
+    for argv in commands(block_after(section('getting_started', heading), '', 'bash'))[1:]:
         if argv[0] in ('bridge', 'simulator', 'log2bag', 'monitor', 'probe'):
             assert os.access(BIN / argv[0], os.X_OK), argv[0]
     for exe in ('simulator', 'log2bag', 'monitor', 'probe'):

@@ -1,5 +1,5 @@
 """
-SMA frames as real devices send them (issue "Field truth", docs/protocols.md section 5).
+SMA frames as real devices send them (issue "Field truth", doc/protocols.md section 5).
 
 Every golden frame below is typed by hand from the public source named beside it, never
 produced by our simulator or codec.

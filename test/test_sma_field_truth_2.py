@@ -1,5 +1,5 @@
 """
-SMA-family frames as real batteries send them, part II (docs/protocols.md section 5).
+SMA-family frames as real batteries send them, part II (doc/protocols.md section 5).
 
 Issue "Field truth II", points 1, 2 and 4; issue "Hardened" 26.7 for the SMA frames.
 

@@ -1,5 +1,5 @@
 """
-The inverter keep-alive 0x305 (sma.inverter_keepalive, docs/protocols.md section 5).
+The inverter keep-alive 0x305 (sma.inverter_keepalive, doc/protocols.md section 5).
 
 Pylontech's protocol has the inverter reply every second with 0x305, eight zero bytes; a
 robot has no inverter, so the bridge sends it: only while commands_enabled and

@@ -312,7 +312,9 @@ def test_help_prints_usage_and_exits_0_without_starting_ros():
         assert proc.stderr == ''
         for words in ('usage: bridge', '--ros-args --params-file PARAMS.yaml',
                       '-p NAME:=VALUE', 'can.interface', 'can.channel', 'devices',
-                      'commands_allowed', 'README.md', 'share/ams_can_bridge/config'):
+                      'commands_allowed', 'doc/parameters.md', 'doc/topics_services.md',
+                      'doc/failure_modes.md', 'doc/real_bus.md',
+                      'share/ams_can_bridge/config'):
             assert words in proc.stdout, words
 
 

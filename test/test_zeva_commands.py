@@ -6,7 +6,7 @@ import pytest
 from std_srvs.srv import SetBool, Trigger
 
 
-# --- BMS16: golden frames written by hand from docs/protocols.md section 4 ---------------------
+# --- BMS16: golden frames written by hand from doc/protocols.md section 4 ---------------------
 BMS16_CONFIG = {
     'cells': 14.0,             # 14 (written as 14.0: YAML spelling must not matter)
     'pack_capacity_ah': 100,   # 10 Ah/bit -> 10
@@ -96,7 +96,7 @@ def test_bms16_disabled_refuses_and_sends_nothing(rig_factory):
     assert sent(rig, mark) == []
 
 
-# --- EVMS3: golden frames written by hand from docs/protocols.md section 3 (29-bit IDs) ---------
+# --- EVMS3: golden frames written by hand from doc/protocols.md section 3 (29-bit IDs) ---------
 EVMS3_CONFIG = {
     'pack_capacity_ah': 100, 'soc_warning_pct': 20, 'full_voltage_v': 400.0,
     'warn_current_a': 200, 'trip_current_a': 300, 'temp_warning_c': 60,

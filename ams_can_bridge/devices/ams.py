@@ -16,7 +16,7 @@ lock, so the two locks are never nested and no later IVT -> AMS call can deadloc
 ``charge`` is the charge in the battery (sensor_msgs: Ah), never the IVT-S As counter: that
 counts from the sensor's last reset and goes negative after a drive. The AMS reports only a
 SOC, so ``charge`` = ``design_capacity_ah`` x SOC when that parameter is set, NaN otherwise
-(docs/protocols.md section 1).
+(doc/protocols.md section 1).
 
 Health and diagnostics (what the state means, and the error bookkeeping): ``ams_status.py``.
 """
@@ -85,7 +85,7 @@ class _BankArray(TimedSpans):
 
 
 class AmsDevice(Device[AmsConfig]):
-    """Formula-Student AMS (accumulator management system), docs/protocols.md section 1."""
+    """Formula-Student AMS (accumulator management system), doc/protocols.md section 1."""
 
     TYPE = 'ams'
     Config = AmsConfig

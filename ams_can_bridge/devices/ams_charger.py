@@ -1,5 +1,5 @@
 """
-The charger role's periodic START (base + 0x010) without ROS: docs/protocols.md section 1.
+The charger role's periodic START (base + 0x010) without ROS: doc/protocols.md section 1.
 
 The seed gives the charger commands "Transmission Rate: Periodically: 100 ms": a charger
 keeps its request alive by repeating it. So once ``start_charging`` has put its first START

@@ -24,7 +24,7 @@ Only AMS status frames received *after* the request was first carried count as a
 so a state reported before the request can never confirm it.
 
 A state command the AMS cannot carry out from the state it reports now is refused at once,
-naming the state it must be in first (``ams_preconditions.py``, docs/protocols.md 1.4): the
+naming the state it must be in first (``ams_preconditions.py``, doc/protocols.md 1.4): the
 seed's car path is IDLE -> SC_ENABLED -> TS_ACTIVE -> DRIVE, one command a step, so
 ENABLE_TS needs SC_ENABLED and ENABLE_DRIVE needs TS_ACTIVE. Nothing is carried then (the
 heartbeat goes on with NO_COMMAND). While the state is unknown (no status yet, or stale) the

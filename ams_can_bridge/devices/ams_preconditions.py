@@ -1,5 +1,5 @@
 """
-Which AMS state a car command needs first: docs/protocols.md section 1.4.
+Which AMS state a car command needs first: doc/protocols.md section 1.4.
 
 The seed's car path is IDLE -> SC_ENABLED -> TS_ACTIVE -> DRIVE, one command a step, so a
 state command the AMS reports it cannot carry out from its present state is answered at once

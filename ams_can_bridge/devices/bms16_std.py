@@ -1,7 +1,7 @@
 """
 ZEVA BMS16 in its standard form (``<name>.variant: standard``): EVMS3 protocol, 29-bit IDs.
 
-docs/protocols.md section 6. The status frame (ID 30, byte 5 = 255) gives state, error,
+doc/protocols.md section 6. The status frame (ID 30, byte 5 = 255) gives state, error,
 remaining Ah, pack voltage and temperature; the cells come as BMS12 modules 0 and 1 (8 + up to
 8), the current (when the BMS16 has a shunt) on ID 40. SoC = remaining Ah /
 ``config.pack_capacity_ah``, NaN while that is unset, as for the EVMS3. A status frame at the

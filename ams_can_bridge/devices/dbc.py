@@ -1,7 +1,7 @@
 """
 Any BMS from its DBC: a team's DBC and a short mapping -> BatteryState and diagnostics.
 
-docs/protocols.md section 8, README "Your own BMS". The mapping (``devices.dbc_mapping``)
+doc/protocols.md section 8, doc/own_bms.md. The mapping (``devices.dbc_mapping``)
 is checked whole at start; the device consumes exactly the messages it references. Each
 frame is decoded by the compiled decoder of its message (``protocols.dbc_codec``) and kept
 whole, with the time it came, as its *group* (a multiplexed message: one group per

@@ -6,7 +6,7 @@ A validity flag is read as the DBC means it: a flag whose value table names its 
 (foxBMS 2 names its flags ``CellVoltage_000_invalidFlag`` and sends 1 "Valid"). Without
 such a table, ``invalid:`` means "any value but 0 is invalid" and ``valid:`` "0 is
 invalid"; ``{signal: ..., when: V}`` says the value explicitly, and a ``when`` that
-contradicts the table stops the bridge. README "Your own BMS" documents the keys.
+contradicts the table stops the bridge. doc/own_bms.md documents the keys.
 """
 from __future__ import annotations
 

@@ -5,7 +5,7 @@ The checks of each entry of a dbc mapping, collecting every problem instead of s
 entry to a ``Builder``: a "Message.signal" reference (the closest names when it is not in the
 DBC; a broken message or a duplicated name refused; the unit converted to what the field
 wants), a BatteryState scalar or enum, a diagnostics level or value list. Arrays are
-``devices.dbc_arrays``'. docs/protocols.md section 8 holds the rules.
+``devices.dbc_arrays``'. doc/protocols.md section 8 holds the rules.
 """
 from __future__ import annotations
 
@@ -121,7 +121,7 @@ class Builder:
         target = QUANTITY_NAMES[wanted]
         if unit is not None and (known is None or known.quantity != wanted):
             self.problems.append(f'{where}: unit {unit!r} is not {target} unit this package '
-                                 'knows (README "Your own BMS": units)')
+                                 'knows (doc/own_bms.md: units)')
             return None
         if known is None:
             if scale is None and offset is None:

@@ -1,7 +1,7 @@
 """
 The mapping of a ``dbc`` device: a team's DBC signals -> BatteryState fields and diagnostics.
 
-README "Your own BMS" documents the file; docs/protocols.md section 8 the decisions. Loading
+doc/own_bms.md documents the file; doc/protocols.md section 8 the decisions. Loading
 checks everything at once and raises ``MappingError`` listing every problem (the bridge
 stops with exit 2): each referenced message and signal must exist (the error names the
 closest names) and be usable (not in a broken message, not a duplicated name), the primary

@@ -2,7 +2,7 @@
 The checked form of a dbc device's mapping (``Plan``) and the tables it is checked with.
 
 ``devices.dbc_mapping`` builds a Plan from a DBC and a mapping file; ``devices.dbc`` and
-``sim.dbc`` use it. docs/protocols.md section 8 lists the units and the rules.
+``sim.dbc`` use it. doc/protocols.md section 8 lists the units and the rules.
 """
 from __future__ import annotations
 

@@ -7,13 +7,13 @@ CANdb++ users write ``V``, ``mV``, ``%``, ``degC``; the Orion BMS utility export
 hyphens and a leading ``Unit_``, so ``Amp-hours``, ``amp hours`` and ``AmpHours`` are one.
 Each known unit belongs to a quantity and converts to its base unit (the one BatteryState
 uses): ``wanted = value * factor + add``. Power, energy, resistance and time units are known
-only to say "this is not a voltage". docs/protocols.md section 8 lists them.
+only to say "this is not a voltage". doc/protocols.md section 8 lists them.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-# BatteryState's quantities: their base units as the start log and README write them
+# BatteryState's quantities: their base units as the start log and doc/own_bms.md write them
 BASE = {'V': 'V', 'A': 'A', 'Ah': 'Ah', 'fraction': '0..1', 'degC': 'degC'}
 QUANTITY_NAMES = {'V': 'a voltage', 'A': 'a current', 'Ah': 'a charge', 'fraction': 'a ratio',
                   'degC': 'a temperature', 'W': 'a power', 'Wh': 'an energy',

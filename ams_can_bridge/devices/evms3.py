@@ -10,7 +10,7 @@ The EVMS3 does not send its state of charge: SoC = remaining Ah / ``config.pack_
 (a configuration value the commanding part declares), NaN while that is unset. The current
 on the wire is positive while discharging; BatteryState wants the opposite sign.
 
-Rules from ZEVA's open EVMS3 firmware and Monitor (docs/protocols.md section 3): in stationary
+Rules from ZEVA's open EVMS3 firmware and Monitor (doc/protocols.md section 3): in stationary
 mode warning 4 (low cell) opens the main contactor and warning 6 (high cell) disables
 charging; a configuration is written only while the EVMS reports IDLE or SETUP, cell counts
 (ID 36) first, because the EVMS saves to EEPROM only when ID 35 arrives; an ID 30 with byte

@@ -1,7 +1,7 @@
 """
 EVMS3 error codes -> BatteryState health and diagnostic words, and when a write is allowed.
 
-From ZEVA's open EVMS3 firmware (docs/protocols.md section 3.1): warnings 2, 4, 6 and 10 let
+From ZEVA's open EVMS3 firmware (doc/protocols.md section 3.1): warnings 2, 4, 6 and 10 let
 the vehicle go on; in stationary mode (setting 29) the firmware opens the main contactor on
 warning 4 (low cell) and disables charging on warning 6 (high cell), so those are not GOOD.
 ZEVA's Monitor offers setup only from IDLE: the configuration is written only in IDLE/SETUP.

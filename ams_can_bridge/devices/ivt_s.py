@@ -56,7 +56,7 @@ class _Track:
     Per-result bookkeeping besides the result itself: counter health, frame interval.
 
     The counter counts the sensor's measurement cycles, not frames (a real sensor's results
-    sent every 100 ms advance it by 5, docs/protocols.md 2.1): its step is learned.
+    sent every 100 ms advance it by 5, doc/protocols.md 2.1): its step is learned.
     """
 
     counter: CounterHealth = field(

@@ -1,7 +1,7 @@
 """
 IVT-S command exchanges: send one 0x411 command, wait for its 0x511 answer. No rclpy.
 
-The sensor answers every defined command, even one it did not carry out (docs/protocols.md
+The sensor answers every defined command, even one it did not carry out (doc/protocols.md
 section 2), so each step of a sequence waits for its own answer before the next command
 goes out; that also keeps consecutive commands apart by more than the 2 ms the sensor needs.
 The link keeps the last answers of each kind for the diagnostics, whoever asked.
@@ -28,10 +28,10 @@ from ams_can_bridge.protocols.ivt_s_commands import (
 DIRECTIONAL = (IvtMux.I, IvtMux.W, IvtMux.AS, IvtMux.WH)
 # s: at least this long for the STORE answer (the datasheet: up to about 1000 ms;
 # sectioncritical/ivts waits 2 s after STORE, "plenty of time to complete the store
-# operation"; docs/protocols.md section 2)
+# operation"; doc/protocols.md section 2)
 STORE_TIMEOUT = 2.0
 # s: at least this long for each reset answer (the datasheet: 0x30 is answered at least
-# +1200 ms after the command; docs/protocols.md section 2)
+# +1200 ms after the command; doc/protocols.md section 2)
 RESET_TIMEOUT = 1.5
 
 
@@ -100,7 +100,7 @@ def config_problems(configs: dict[IvtMux, ResultConfig], instance: str, byte_ord
                         f'{byte_order}: set {instance}.byte_order to {order} (or run '
                         f'{instance}/write_config)')
     # Sign inverted expected on the directional results when the bridge's convention and the
-    # mounting disagree (docs/protocols.md section 2, "sign").
+    # mounting disagree (doc/protocols.md section 2, "sign").
     want = (not discharge_positive) != mounted_reversed
     wrong = [k for k in DIRECTIONAL if k in active and active[k].sign_inverted != want]
     if wrong:
@@ -279,7 +279,7 @@ def write_config(link: CommandLink, send: SendFrame, wanted: list[ResultConfig],
     """
     Stop, write each result (0x2n), store (0x32), run: return the steps done.
 
-    The sensor takes a configuration and STORE only in STOP (docs/protocols.md section 2).
+    The sensor takes a configuration and STORE only in STOP (doc/protocols.md section 2).
     Raises NoAnswer naming the step that failed (see ``while_stopped``).
     """
     def body(done: list[str]) -> None:
@@ -319,7 +319,7 @@ def reset_errors(link: CommandLink, send: SendFrame, timeout: float) -> tuple[in
     Read the serial number (0x7B); stop, reset all measurement and system errors (0x30), run.
 
     The sensor resets only in STOP and answers 0x30 in RUN too, resetting nothing
-    (docs/protocols.md section 2): hence the stop. Each answer (0xB0) must name the item and
+    (doc/protocols.md section 2): hence the stop. Each answer (0xB0) must name the item and
     the serial number sent. Returns the serial number and the steps done; raises NoAnswer
     as ``while_stopped`` does.
     """

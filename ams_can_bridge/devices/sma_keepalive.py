@@ -1,5 +1,5 @@
 """
-The inverter keep-alive an SMA-protocol BMS may wait for (docs/protocols.md section 5).
+The inverter keep-alive an SMA-protocol BMS may wait for (doc/protocols.md section 5).
 
 Pylontech's CAN protocol has the inverter answer every second with 0x305, eight zero bytes;
 Pylontech-family BMSs (and BMSs copying them) may stop or alarm without it. A robot has no

@@ -2,7 +2,7 @@
 How an SMA device reads 0x356's voltage: ``<name>.voltage_scale`` or the battery's evidence.
 
 ``auto`` (the default) decides with ``protocols.sma_scale.decide_voltage_scale`` from the
-battery's own 0x351 limits and cell voltages (docs/protocols.md section 5.2). Until that
+battery's own 0x351 limits and cell voltages (doc/protocols.md section 5.2). Until that
 evidence has come, the voltage is unknown; a decision the evidence settles is kept. A
 battery whose evidence never settles it within the wait gets SMA's 0.01 V with a WARN
 naming the parameter.

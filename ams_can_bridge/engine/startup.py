@@ -164,7 +164,7 @@ def security_warning(allowed: bool, environ: Mapping[str, str]) -> str | None:
             f'ROS_DOMAIN_ID {environ.get("ROS_DOMAIN_ID") or "0"} can set commands_enabled and '
             'command the bridge. Run it with SROS2: ROS_SECURITY_ENABLE=true, '
             'ROS_SECURITY_STRATEGY=Enforce, --enclave /ams_can_bridge and security/policy.xml '
-            '(README "Deploying with ROS 2 security (SROS2)")')
+            '(doc/sros2.md)')
 
 
 def start_summary(config: BusConfig, hardware_id: str, devices: Mapping[str, Device], *,

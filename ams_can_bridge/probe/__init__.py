@@ -1,5 +1,5 @@
 """
-``probe``: what is on this bus, and how does the bridge read it? (README, "to the car").
+``probe``: what is on this bus, and how does the bridge read it? (doc/real_bus.md).
 
 Listens (a log, or a live bus opened receive-only) and never sends. ``traffic`` keeps what
 every CAN ID showed (count, DLCs, rate, a sample of payloads); one recogniser per device

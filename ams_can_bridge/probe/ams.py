@@ -1,5 +1,5 @@
 """
-The Formula-Student AMS at any base ID (docs/protocols.md section 1), from its own frames.
+The Formula-Student AMS at any base ID (doc/protocols.md section 1), from its own frames.
 
 Every 11-bit ID whose frames all read as an AMS status (DLC 7, or padded to 8; a known
 state, a bank count 0..5, SOC up to 100 %) is a possible base. What makes it an AMS: the

@@ -1,5 +1,5 @@
 """
-The ZEVA BMS16 in both its forms (docs/protocols.md sections 4 and 6).
+The ZEVA BMS16 in both its forms (doc/protocols.md sections 4 and 6).
 
 Inverter form (11-bit): a status frame of DLC 7 (error code 0..8, SoC up to 100 %) at any
 base, its cells at base + 1..3 (DLC 7, 9-bit 0.01 V), 4 Hz, and usually the SMA frames

@@ -1,5 +1,5 @@
 """
-Any BMS from its DBC and mapping (``--dbc FILE --mapping FILE``; docs/protocols.md section 8).
+Any BMS from its DBC and mapping (``--dbc FILE --mapping FILE``; doc/protocols.md section 8).
 
 The mapping names the messages the dbc device reads (``devices.dbc_mapping.load_plan``, the
 device's own check of both files). Each of them is looked for by ID: heard, with a length

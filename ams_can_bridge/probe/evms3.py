@@ -1,5 +1,5 @@
 """
-The ZEVA EVMS3, its BMS12 modules and TC chargers (docs/protocols.md sections 3 and 7).
+The ZEVA EVMS3, its BMS12 modules and TC chargers (doc/protocols.md sections 3 and 7).
 
 The EVMS3 is a status frame in the EVMS3 layout at 4 Hz without the BMS16 marker, 29-bit
 unless its firmware was built with 11-bit IDs; its base ID is the status ID. The module

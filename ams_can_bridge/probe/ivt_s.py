@@ -1,5 +1,5 @@
 """
-The IVT-S shunt at any base ID (docs/protocols.md section 2), from its result frames.
+The IVT-S shunt at any base ID (doc/protocols.md section 2), from its result frames.
 
 A result frame is DLC 6 with its MuxID (0 I .. 7 Wh) in byte 0 and a 4-bit counter in
 byte 1: an ID whose frames all carry one MuxID k is result k of the sensor at ID - k.

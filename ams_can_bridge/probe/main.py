@@ -73,7 +73,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--dbc', action='append', default=[], metavar='FILE',
                    help='a BMS DBC to look for (with --mapping, repeatable in pairs)')
     p.add_argument('--mapping', action='append', default=[], metavar='FILE',
-                   help="that DBC's mapping file (README \"Your own BMS\")")
+                   help="that DBC's mapping file (doc/own_bms.md)")
     return p
 
 
@@ -94,7 +94,7 @@ def _bus_lines(live: LiveInfo | None) -> list[Setting]:
     """Return the can.* settings: where probe listened, or what to check for a log."""
     if live is None:
         return [Setting('interface', 'socketcan', 'check: a log does not say which adapter '
-                        'took it, nor at which rate: set yours (README "Bit rates")', False),
+                        'took it, nor at which rate: set yours (doc/real_bus.md)', False),
                 Setting('channel', 'can0', '', False), Setting('bitrate', 500000, '', False)]
     how = ('found by listening at the standard rates (listen-only): ' + ', '.join(
         f'{rate}: {frames} frames' for rate, frames in live.tried) if live.tried

@@ -1,5 +1,5 @@
 """
-The shipped ``dbc`` profiles (foxBMS 2, Orion BMS 2; docs/protocols.md section 8).
+The shipped ``dbc`` profiles (foxBMS 2, Orion BMS 2; doc/protocols.md section 8).
 
 Each profile's mapping is looked for as a ``--dbc/--mapping`` pair is (``dbc.match_plan``:
 the mapped messages by ID, DLC and DBC range; the primary must be among them). The frames

@@ -1,5 +1,5 @@
 """
-SMA-family batteries (docs/protocols.md section 5): the SMA frames and their dialect.
+SMA-family batteries (doc/protocols.md section 5): the SMA frames and their dialect.
 
 The IDs are fixed: 0x351 limits, 0x355 SoC, 0x356 voltage/current/temperature (the primary
 frame: one BatteryState each), 0x35A alarms, 0x35E manufacturer, 0x35F capacity. The

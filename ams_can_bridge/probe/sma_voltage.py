@@ -2,7 +2,7 @@
 The 0x356 voltage scale of an SMA-family battery, from its own frames: refines the sma candidate.
 
 0x356's voltage is in SMA's 0.01 V or in the 0.1 V a Discover Lynx II or an Orion BMS 2 send
-(docs/protocols.md section 5.2.1). The rule is the bridge's own,
+(doc/protocols.md section 5.2.1). The rule is the bridge's own,
 ``protocols.sma_scale.decide_voltage_scale``, on the battery's last 0x351 limits and cell
 voltages (0x373, or the binary 0x370); no SMA frame carries a cell count, so none is given.
 Every 0x356 voltage sampled is weighed: the scale is written when those that settle it agree

@@ -1,5 +1,5 @@
 """
-What the EVMS3 and the standard-form BMS16 share on the bus (docs/protocols.md 3 and 6).
+What the EVMS3 and the standard-form BMS16 share on the bus (doc/protocols.md 3 and 6).
 
 Both send the EVMS3 status layout at 4 Hz (byte 5 = 255 marks a BMS16) and their cells in
 BMS12 module frames (IDs 300 + 10 m + t, four cells of uint16 mV in t = 1, 2, 3). A cell

@@ -1,5 +1,5 @@
 """
-Formula-Student AMS protocol: frames <-> typed readings (docs/protocols.md section 1).
+Formula-Student AMS protocol: frames <-> typed readings (doc/protocols.md section 1).
 
 The bits are the ``LAYOUTS`` table below (checked against msg_defs/ams.dbc); every value is
 checked before it is encoded, so a bad command fails loudly instead of being clamped.
@@ -17,7 +17,7 @@ from ams_can_bridge.protocols.layout import BadValue, Layout, Signal
 
 DEFAULT_BASE_ID = 0x300
 
-# Offsets from the base ID (docs/protocols.md section 1 table).
+# Offsets from the base ID (doc/protocols.md section 1 table).
 STATUS = 0x000
 CHARGER_STATUS = 0x001
 CAR_STATUS = 0x005

@@ -1,5 +1,5 @@
 """
-ZEVA BMS12 cell modules on an EVMS3 bus: frames <-> typed readings (docs/protocols.md 3.3).
+ZEVA BMS12 cell modules on an EVMS3 bus: frames <-> typed readings (doc/protocols.md 3.3).
 
 The bits are one table (``LAYOUTS``) that ``evms3.check_dbc`` proves against
 msg_defs/evms3.dbc. The EVMS3 codec owns the IDs (``300 + 10 m + t``) and calls ``decode`` /

@@ -1,7 +1,7 @@
 """
 ZEVA BMS16, 11-bit / 500 kbit/s inverter form: frames <-> typed readings.
 
-docs/protocols.md section 4 holds the frames, codes, source and decisions. The bits are
+doc/protocols.md section 4 holds the frames, codes, source and decisions. The bits are
 ``LAYOUTS``, checked against msg_defs/bms16.dbc at the first codec; the configuration rows
 carry each setting's range, step, unit and description (protocols/settings.py); this module
 adds the 9th bits of the cells. The SMA frames a BMS16 also sends are ``protocols.sma``'s.
@@ -121,7 +121,7 @@ def _cell_frame(first: int, count: int) -> Layout:
 
 
 # The configuration frames: each byte a setting, with the range and step the BMS16 accepts
-# (docs/protocols.md section 4); the ConfigFields and the checks come from these rows.
+# (doc/protocols.md section 4); the ConfigFields and the checks come from these rows.
 _CONFIG_1 = Layout('BMS16_Config_1', 8, (
     setting('Cells', 0, 'cells', 12, 16, '', 'number of cells in series'),
     setting('PackCapacity', 1, 'pack_capacity_ah', 10, 1000, 'Ah', 'pack capacity', float, 10),

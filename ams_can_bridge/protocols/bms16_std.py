@@ -1,7 +1,7 @@
 """
 ZEVA BMS16 in its standard form: the EVMS3 protocol, 29-bit, 250 kbit/s.
 
-docs/protocols.md section 6 holds the frames and setting slots a BMS16 fills, its marker, the
+doc/protocols.md section 6 holds the frames and setting slots a BMS16 fills, its marker, the
 order of a write and their sources. The frames are the EVMS3's (``protocols.evms3``); the
 settings are the EVMS3's rows under BMS16 names, plus the slots a BMS16 reassigns.
 """
@@ -84,7 +84,7 @@ class Bms16StdSettings:
     night_brightness: int
 
 
-# The setting slots a BMS16 uses (docs/protocols.md section 6): the EVMS3's rows under BMS16
+# The setting slots a BMS16 uses (doc/protocols.md section 6): the EVMS3's rows under BMS16
 # names, and the slots it reassigns or whose range it narrows; every other byte is sent as 0.
 _EVMS3 = {s.name: s for layout in CONFIG_LAYOUTS[:4] for s in layout.signals}
 

@@ -19,7 +19,7 @@ from ams_can_bridge.errors import MalformedFrameError, MsgDefsNotFound
 
 PACKAGE = 'ams_can_bridge'
 
-# What no battery reports, whatever the bits can carry (docs/protocols.md "Physical bounds"):
+# What no battery reports, whatever the bits can carry (doc/protocols.md "Physical bounds"):
 # a decoded value beyond these makes its frame malformed, like a value outside the protocol.
 CELL_V_MAX = 10.0  # V: a cell (the highest chemistries stay under 5 V)
 TEMP_C_MAX = 200.0  # degC: a battery, a cell, a sensor on them (cells vent far below)

@@ -5,7 +5,7 @@ Each message becomes one generated function (the shifts and masks of protocols/l
 cantools' Message.decode, the reference, builds a dict per frame at several microseconds)
 returning a tuple in the order of ``CompiledMessage.signals``: a value out of range is NaN
 with its index reported, a multiplexed signal outside the frame's branch None. Float signals
-and nested multiplexers fall back to cantools, into the same tuple. docs/protocols.md section
+and nested multiplexers fall back to cantools, into the same tuple. doc/protocols.md section
 8 holds what the package decides on top of a DBC.
 """
 from __future__ import annotations

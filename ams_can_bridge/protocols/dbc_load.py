@@ -8,7 +8,7 @@ line it cannot parse). ``read_dbc`` loads strictly first. Failing that, it loads
 strict, blanking each line cantools still refuses (a message's whole block when the line is
 its ``BO_``: its ``SG_`` lines would otherwise join the message before it), and then checks
 every message as strict would, duplicated names told apart (``Blank#1``, ``Blank#2``): each
-broken message is named with its reason, the others work. docs/protocols.md section 8.
+broken message is named with its reason, the others work. doc/protocols.md section 8.
 """
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """
 ZEVA EVMS3 and its BMS12 cell modules: 29-bit frames <-> typed readings and commands.
 
-docs/protocols.md section 3 holds the frames, codes, sources and decisions. This codec owns
+doc/protocols.md section 3 holds the frames, codes, sources and decisions. This codec owns
 every ID on the bus: the BMS12 frames (``protocols.bms12``), the TC chargers
 (``protocols.tc_charger``) and the configuration (``protocols.evms3_config``, re-exported
 here). The bits are ``LAYOUTS``, checked with the others against msg_defs/evms3.dbc.

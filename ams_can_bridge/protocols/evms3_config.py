@@ -1,7 +1,7 @@
 """
 ZEVA EVMS3 configuration: the typed config, its frames (IDs 32..36) and the read-back 51..56.
 
-docs/protocols.md 3.4..3.6 hold the settings, ranges, off/never ends, the 800 V multiplier and
+doc/protocols.md 3.4..3.6 hold the settings, ranges, off/never ends, the 800 V multiplier and
 the read-back. The settings are layout rows (protocols/settings.py); this module adds the
 balance byte, the 9-bit charge voltages and the cell nibbles.
 """
@@ -18,7 +18,7 @@ from ams_can_bridge.protocols.settings import setting, Settings
 
 BALANCE_DYNAMIC = 251
 BALANCE_OFF = 252
-# Read-back: fixed IDs, not moved by base_id (docs/protocols.md 3.4)
+# Read-back: fixed IDs, not moved by base_id (doc/protocols.md 3.4)
 CORE_REQUEST_CONFIG = 51
 CORE_SEND_CONFIG1, CORE_SEND_CONFIG2, CORE_SEND_CONFIG3, CORE_SEND_CONFIG4 = range(52, 56)
 CORE_SEND_CELL_NUMS = 56
@@ -27,7 +27,7 @@ READBACK_IDS = range(CORE_SEND_CONFIG1, CORE_SEND_CELL_NUMS + 1)
 SHARED_READBACK_IDS = frozenset({CORE_SEND_CONFIG1, CORE_SEND_CONFIG2})
 READBACK_NAMES = {52: 'config 1', 53: 'config 2', 54: 'config 3', 55: 'config 4',
                   56: 'cell numbers'}
-CELLS_MIN, CELLS_MAX = 4, 12  # cells per BMS12 module, or 0 (docs/protocols.md 3.5)
+CELLS_MIN, CELLS_MAX = 4, 12  # cells per BMS12 module, or 0 (doc/protocols.md 3.5)
 
 
 def sentinel_text(name: str, value: Any) -> str | None:

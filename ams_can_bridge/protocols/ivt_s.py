@@ -1,5 +1,5 @@
 """
-Isabellenhuette IVT-S current shunt: result frames <-> typed readings (docs/protocols.md 2.1).
+Isabellenhuette IVT-S current shunt: result frames <-> typed readings (doc/protocols.md 2.1).
 
 The command (0x411) and answer (0x511) frames are in protocols/ivt_s_commands.py. The DBC can
 describe only the big-endian value; the little-endian variant is the same table with that one

@@ -1,5 +1,5 @@
 """
-IVT-S commands (0x411, host -> sensor) and answers (0x511), as docs/protocols.md 2.2-2.3 says.
+IVT-S commands (0x411, host -> sensor) and answers (0x511), as doc/protocols.md 2.2-2.3 says.
 
 Answers to the commands the bridge does not send decode as ``OtherAnswer``. msg_defs/ivt_s.dbc
 has no layout for these two IDs: the tables below (the vendor DBC's start bits) are checked

@@ -3,7 +3,7 @@ One table format for every wire layout, compiled once into straight-line code.
 
 A protocol states each message once, as a :class:`Layout` of :class:`Signal` rows; from it come
 ``decoder()`` and ``encoder()`` (generated functions, no loop and no call per signal) and
-``check_dbc()`` (the table against msg_defs/). docs/architecture.md, "Protocols", says how.
+``check_dbc()`` (the table against msg_defs/). doc/architecture.md, "Protocols", says how.
 :func:`check_value` is the one number / range / step validator of the package.
 """
 from __future__ import annotations

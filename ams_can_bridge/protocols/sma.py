@@ -1,5 +1,5 @@
 """
-SMA Sunny Island BMS protocol: frames <-> typed readings (docs/protocols.md section 5).
+SMA Sunny Island BMS protocol: frames <-> typed readings (doc/protocols.md section 5).
 
 Section 5 holds the frames, markers, accepted DLCs and the decisions on what real devices
 send. ``MESSAGES`` states each frame once (reading, DLCs, bits; the dialects' rows come from
@@ -165,7 +165,7 @@ _LIMIT_CHECK = '{value:g} A is negative (a current limit is a magnitude)'
 
 # --- the SMA frames, one row per ID; the dialects' rows are in sma_dialects ------------------
 # divide: 1234 -> 12.34. A row's check is a value no BMS may send: the frame is malformed
-# (docs/protocols.md section 5.2).
+# (doc/protocols.md section 5.2).
 def _limits(data: bytes) -> SmaLimits:
     limits = _D_LIMITS(data)
     if limits.discharge_voltage_v == 0:  # no limit sent, not 0 V

@@ -1,7 +1,7 @@
 """
 The SMA protocol's dialects (Pylontech, Victron): frames sent next to, or instead of, 0x35A.
 
-docs/protocols.md section 5.4 holds the frames, their public sources, the accepted DLCs
+doc/protocols.md section 5.4 holds the frames, their public sources, the accepted DLCs
 and the decisions. ``DIALECTS`` states each frame once, as sma.MESSAGES does the SMA ones
 (checked against msg_defs/sma.dbc by sma.check_dbc, run by sma.SmaCodec). Here too is what
 the whole family shares: ``Message``, ``sma_field``, the ASCII helpers and ``pad_unsent``.
@@ -396,7 +396,7 @@ def pad_unsent(data: bytes, layout: Layout) -> bytes:
     Pad a frame cut short with 0xFF: the fields not sent read as "not available".
 
     A field sent in part is not sent: its bytes are dropped first, or ``378 40 08 00 00 2B``
-    (DLC 5) would read 0xFFFFFF2B as the discharged energy (docs/protocols.md section 5.2).
+    (DLC 5) would read 0xFFFFFF2B as the discharged energy (doc/protocols.md section 5.2).
     """
     sent = len(data)
     if sent >= layout.length:

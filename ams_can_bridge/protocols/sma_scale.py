@@ -1,7 +1,7 @@
 """
 Which scale a battery's 0x356 voltage is in: SMA's 0.01 V, or the 0.1 V some senders use.
 
-A Discover Lynx II and an Orion BMS 2 put 0x356's voltage in 0.1 V (docs/protocols.md
+A Discover Lynx II and an Orion BMS 2 put 0x356's voltage in 0.1 V (doc/protocols.md
 section 5.2): 52.2 V arrives as 522. The battery's own evidence tells the two apart:
 0x351's voltage limits (always 0.1 V), its cell voltages (0x373, or 0x370 as Pylontech V2
 and Seplos send it) and, where known, its cell count. ``decide_voltage_scale`` is pure (no

@@ -1,5 +1,5 @@
 """
-TC / Elcon chargers 1..3 as a ZEVA EVMS3 drives them (IDs, fields, decisions: docs/protocols.md 7).
+TC / Elcon chargers 1..3 as a ZEVA EVMS3 drives them (IDs, fields, decisions: doc/protocols.md 7).
 
 ``ChargerStatus.status`` is the raw status byte, so that bits the DBC does not name still warn.
 The answer's output current is 15 bits and a direction: TC's protocol 1430 marks bit 15 of

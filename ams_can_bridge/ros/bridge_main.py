@@ -60,8 +60,9 @@ main parameters:
   autostart          lifecycle: false waits unconfigured for a manager (default true)
 
 A key the bridge does not know, a bad value or overlapping device IDs stop it (exit 2)
-naming what to change. Every parameter, service and failure mode is in README.md of the
-package (sections "Running the bridge on a real bus", "Parameters", "Failure modes").
+naming what to change. The package's documentation (its doc/ pages; on the ROS index) has
+running on a real bus (doc/real_bus.md), every parameter (doc/parameters.md), topic and
+service (doc/topics_services.md) and failure mode (doc/failure_modes.md).
 
 options:
   -h, --help         show this help and exit (ROS is not started)

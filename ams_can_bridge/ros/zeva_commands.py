@@ -34,7 +34,7 @@ from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.ros.commander import Commander, DeviceT, ServiceHost
 
 
-# docs/protocols.md 3.6: 32..36 change the EVMS3's RAM at once; only 35 saves to EEPROM.
+# doc/protocols.md 3.6: 32..36 change the EVMS3's RAM at once; only 35 saves to EEPROM.
 EVMS3_PARTIAL = ('the EVMS3 saves its configuration to EEPROM only when ID 35 arrives, so the '
                  'frames sent changed its RAM only: it runs with them until its next power-up, '
                  'which restores the saved configuration; call write_config again (all five '

@@ -24,7 +24,7 @@ timeout, and a charger may send START once); set ``charger_timeout`` to return t
 the charger commands stop for that long.
 
 ``pad=True`` sends every frame padded to 8 bytes with 0x00, as AMS firmwares with a fixed
-DLC do (the bridge must accept it: docs/protocols.md section 1). ``faults.malformed`` wins
+DLC do (the bridge must accept it: doc/protocols.md section 1). ``faults.malformed`` wins
 over it (frames one byte short of their layout).
 
 Relays (status word, 1 = closed): PRECHARGING closes AIR- and the precharge relay;

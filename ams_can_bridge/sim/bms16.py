@@ -2,7 +2,7 @@
 Simulated ZEVA BMS16: status, cells and SMA frames at 4 Hz; takes config and commands.
 
 A LiFePO4 pack (up to 16 cells in series) whose SoC follows the current profile. Reacts like
-the real BMS16 (docs/protocols.md section 4): 504/505 store the configuration (values
+the real BMS16 (doc/protocols.md section 4): 504/505 store the configuration (values
 restricted to the vendor's ranges, as the device does), 506 clears the error, 507 sets SoC
 to 100 %, 508 powers it off (silent until ``power_on()``, as a real unit stays off until its
 supply is cycled). The standard form (EVMS3 protocol) is ``sim.bms16_std``.

@@ -1,7 +1,7 @@
 """
 Simulated ZEVA BMS16 in its standard form (EVMS3 protocol, 29-bit IDs): ``--bms16-variant``.
 
-The LiFePO4 pack of ``sim.bms16`` on the frames of docs/protocols.md section 6: ID 30 with
+The LiFePO4 pack of ``sim.bms16`` on the frames of doc/protocols.md section 6: ID 30 with
 byte 5 = 255 (4 Hz), cells as BMS12 modules 0 and 1 (301, 302, 311, 312), the shunt current on
 ID 40. It stores IDs 32..35 once all four have come (35 last, as the EVMS3 saves on it),
 clears the error on 37, sets the SoC to 100 % on 38 and powers off on 39 (silent until

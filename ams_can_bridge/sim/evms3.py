@@ -5,7 +5,7 @@ What the bus of an EVMS3 conversion carries: the status (ID 30, 4 Hz), the curre
 (ID 40, 10 Hz), and every 0.5 s the EVMS polls each BMS12 module (t = 0) which answers with
 its cells (t = 1..3) and temperatures (t = 4). Remaining Ah integrates the current profile;
 pack voltage is the sum of the module cells. Reacts like ZEVA's EVMS3 firmware
-(docs/protocols.md section 3): 31 asks for Setup (entered only from IDLE, left on 0; the
+(doc/protocols.md section 3): 31 asks for Setup (entered only from IDLE, left on 0; the
 request is kept, as the firmware keeps it); 32..35 change the settings in RAM at once and 35
 then saves the RAM settings AND the RAM cell counts to EEPROM; 36 changes the cell counts in
 RAM only; ``power_cycle()`` reloads RAM from EEPROM, so cell counts sent after the last 35

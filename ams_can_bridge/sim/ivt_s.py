@@ -7,7 +7,7 @@ charge = integral of current, energy = integral of U x I, temperature warming wi
 On the wire everything with a direction (I, W, As, Wh) carries the mounting sign: the
 sensor measures current one way, and power / charge / energy follow from that current.
 
-Commands on 0x411 are answered on 0x511 as docs/protocols.md section 2 describes: RUN/STOP
+Commands on 0x411 are answered on 0x511 as doc/protocols.md section 2 describes: RUN/STOP
 (0x34, 0x74), each result's configuration (0x2n, 0x6n: trigger mode, cycle time, byte order
 and sign, applied to the frames sent; changed only while stopped), STORE (0x32), restart
 (0x3F: the stored configuration and start-up mode, As/Wh from 0, alive message 0xBF),
@@ -38,7 +38,7 @@ HEATING_C_PER_A2 = 0.0008  # steady-state rise: 120 A -> about +11.5 degC
 RESTART_S = 0.05  # the simulated sensor is back (alive message) this long after 0x3F
 # The result counters count measurement cycles of 20 ms, not frames: a real sensor's results
 # sent every 100 ms advance theirs by 5 (foxBMS 2 tools/dbc/test_log.txt), a 20 ms result's
-# by 1 (docs/protocols.md 2.1).
+# by 1 (doc/protocols.md 2.1).
 COUNTER_CYCLE_MS = 20
 SERIAL = 0x00012345
 # The commands 0x34 and 0x30 share the layouts of their answers 0xB4 and 0xB0 (the vendor

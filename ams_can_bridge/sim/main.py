@@ -77,8 +77,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help='comma list of ' + ', '.join(registry.SIMULATORS) + ' (default: '
                    + ', '.join(_ORDER) + '; none of them with --dbc)')
     p.add_argument('--dbc', default=None, metavar='FILE',
-                   help="simulate a dbc device's BMS from its DBC (with --mapping; README "
-                        '"Your own BMS"; default for --devices dbc: our AMS example)')
+                   help="simulate a dbc device's BMS from its DBC (with --mapping; "
+                        'doc/own_bms.md; default for --devices dbc: our AMS example)')
     p.add_argument('--mapping', default=None, metavar='FILE',
                    help="the dbc device's mapping file (with --dbc, or to replace a "
                         "--profile's mapping)")
