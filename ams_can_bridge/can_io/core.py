@@ -179,7 +179,7 @@ class CanIo:
 
     def clock(self) -> float:
         """
-        Return the devices' clock (s): the moment of the frame being handled, else now.
+        Return the devices' time in s: the moment of the frame being handled, else now.
 
         Live: while ``on_frame`` handles a frame, the monotonic time the frame was received
         (read with its stamp), so a stall while it is handled (a busy machine, a slow disk
