@@ -3,8 +3,8 @@ One engine: the same CAN log through the running bridge (replay) and through log
 
 The log: the simulated AMS + IVT-S + BMS16 for 6 s of simulated time, with every frame of
 1.5 s .. 4.5 s cut out, so every device goes silent (stale_timeout 1.5 s) and comes back.
-The bridge replays it in real time (its staleness follows the wall clock, log2bag's the
-log's time); both feed the one ``Engine``. What must be equal, per topic:
+The bridge replays it in real time (its periodic work on the wall clock; freshness, like
+log2bag's, on the log's time); both feed the one ``Engine``. What must be equal, per topic:
 
 - each ``<device>/battery_state`` with its arrays: every present message (header stamp,
   every value, the arrays' data), in order, and the silent spell as present: false

@@ -19,6 +19,7 @@ import pytest
 
 from ams_can_bridge.ros.demo_rig import build_simulators, device_parameters
 from ams_can_bridge.ros.demo_rig import DEVICES
+from ams_can_bridge.sim.recording import write_log
 from ams_can_bridge.sim.runner import SimRunner
 from command_rig import battery_topics, Rig
 from helpers import device_reference, same, values_of
@@ -123,3 +124,28 @@ def test_replay_publishes_what_live_published(rig_factory, tmp_path):
         replayed = published(session)
         assert bus['replay'] == 'finished' and bus['frames in'] == str(frames), (label, bus)
         check_equal(label, replayed, states)
+
+
+@pytest.mark.slow
+def test_a_replay_as_fast_as_possible_expires_what_the_log_expires(rig_factory, tmp_path):
+    """
+    A log with a silent spell, played as fast as possible: the values follow the log's time.
+
+    Every frame of 1.0 .. 2.0 s is cut out, longer than the stale_timeout of every device:
+    after it, a value not yet sent again is unknown (NaN) in the log's time, although the
+    replay hands the frames on within milliseconds. Timed by the moment of handling, the
+    replay published the values from before the spell as fresh.
+    """
+    full, path = str(tmp_path / 'full.log'), str(tmp_path / 'gap.log')
+    write_log(full, list(build_simulators(BANKS, DEVICES).values()), 3.0, start=1_790_000_000.0)
+    with can.LogReader(full) as reader, can.Logger(path) as writer:
+        for msg in reader:
+            if not 1.0 <= msg.timestamp - 1_790_000_000.0 < 2.0:
+                writer.on_message_received(msg)
+    session = start(rig_factory, interface='replay', channel=path, replay_rate=0.0)
+    session.wait(lambda: session.bus_values().get('state') == 'replay finished', 30.0,
+                 'the replay to finish')
+    wait_settled(session)
+    session.close()
+    check_equal('replay of a log with a silent spell at rate 0', published(session),
+                reference(path))

@@ -61,6 +61,8 @@ class CanIo:
     host clock: an entry whose timestamp is no time is skipped and counted as unreadable).
     ``last_stamp`` holds the stamp of the last frame (a replay's log time, for /clock; the
     log's first moment from the replay's start until its first frame is played).
+    ``clock()`` is the devices' clock (``DeviceSet(clock=...)``): what a frame brings is
+    timed by the moment it arrived, on the bus's own time (see there).
     """
 
     def __init__(self, config: BusConfig, on_frame: OnFrame,
@@ -97,6 +99,7 @@ class CanIo:
         self._garbage_at = -math.inf  # monotonic time garbage was last dropped
         self._last_unreadable_log = -_CALLBACK_LOG_EVERY
         self.last_stamp = float('nan')
+        self._received: float | None = None  # monotonic arrival of the frame in on_frame
         self._last_callback_log = 0.0
 
     # ----------------------------------------------------------------------------- public
@@ -173,6 +176,25 @@ class CanIo:
             dropped_tx_reason='' if last_drop is None else last_drop[1],
             garbage_bytes=self.garbage_bytes,
             garbage_recent=time.monotonic() - self._garbage_at < GARBAGE_WARN_S)
+
+    def clock(self) -> float:
+        """
+        Return the devices' time in s: the moment of the frame being handled, else now.
+
+        Live: while ``on_frame`` handles a frame, the monotonic time the frame was received
+        (read with its stamp), so a stall while it is handled (a busy machine, a slow disk
+        under the recording) ages nothing the devices keep; otherwise the monotonic time
+        now. In a replay: the log's time (``ReplayBus.log_time``), so what the devices keep
+        expires on the recording's clock at any rate and however late a frame is delivered,
+        as in log2bag. Monotonic time until a replay has opened its log.
+        """
+        replay = self._replay
+        if replay is not None:
+            moment = replay.log_time()
+            if moment == moment:  # NaN: a log without frames
+                return moment
+        received = self._received
+        return time.monotonic() if received is None else received
 
     def send(self, frame: Frame) -> None:
         """Send one frame now; raise CanSendError if not connected or the driver refuses."""
@@ -309,6 +331,7 @@ class CanIo:
         stop = self._stop.is_set
         on_frame = self._on_frame
         wall = time.time
+        monotonic = time.monotonic
         filtering = self._filters is not None
         std_ids, ext_ids = self._std_ids, self._ext_ids
         # the bus whose driver reports its state (None: it cannot tell, or a replay)
@@ -332,7 +355,7 @@ class CanIo:
                 self._unreadable(exc, unreadable_run)
                 continue
             unreadable_run = 0
-            now = wall()
+            now, arrived = wall(), monotonic()  # together: the stamp and the devices' clock
             if msg is not None:
                 if msg.is_error_frame:
                     self.error_frames += 1
@@ -351,11 +374,14 @@ class CanIo:
                         recorder.write(msg)
                     if not filtering or msg.arbitration_id in (
                             ext_ids if msg.is_extended_id else std_ids):
+                        self._received = arrived
                         try:
                             on_frame(msg.arbitration_id, bytes(msg.data), msg.is_extended_id,
                                      stamp)
                         except Exception as exc:
                             self._callback_failed(msg, exc)
+                        finally:
+                            self._received = None
             elif replay is not None and replay.finished:
                 return
             recorder = self._recorder

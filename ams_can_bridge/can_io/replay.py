@@ -53,6 +53,15 @@ class ReplayBus:
     next message once it is due (None while waiting), ``send`` accepts and discards (there
     is no bus behind a recording), ``shutdown`` closes the file. ``finished`` turns True
     after the last message; ``played`` counts the messages handed out.
+
+    ``log_time()`` is the replay's moment on the log's clock, the devices' clock during a
+    replay: the log time of the frame handed out last, from the moment ``recv`` returned it
+    until the receive loop asks for the next one (it is being handled: a stalled handling
+    changes nothing of what the devices see); in between, that time moved on by the wall
+    time since then (times the rate), but never past the next frame still to be handed out
+    (a delivery that falls behind the log does not age what the log holds). Before the
+    first frame it is the log's first moment; after the last it goes on moving, so the
+    devices go stale once the log has ended.
     """
 
     def __init__(self, path: str, rate: float = 1.0) -> None:
@@ -80,6 +89,15 @@ class ReplayBus:
         self._pending_due: float | None = None
         self._pending = self._next()  # read ahead: the log's first moment
         self.log_start = math.nan if self._pending is None else self._pending.timestamp
+        # the log time between frames advances this much per wall second (as fast as
+        # possible: like real time, bounded by the next frame anyway)
+        self._pace = rate if rate > 0 else 1.0
+        # (log time, monotonic time it started to move (None: a frame is being handled),
+        # the next frame's log time (inf: none)): one tuple, so that a reader on another
+        # thread never sees half of an update
+        self._clock: tuple[float, float | None, float] = (
+            self.log_start, time.monotonic(),
+            math.inf if self._pending is None else self.log_start)
 
     def _timed(self, messages: Iterator[can.Message]) -> Iterator[can.Message]:
         """Yield the messages whose timestamp is a time; count the others."""
@@ -112,16 +130,30 @@ class ReplayBus:
         self._last_due = max(due, self._last_due)
         return self._last_due
 
+    def log_time(self) -> float:
+        """Return the replay's moment on the log's clock (NaN: the log has no frame)."""
+        base, since, upcoming = self._clock
+        if since is None:  # the frame handed out last is being handled: its moment
+            return base
+        moved = base + (time.monotonic() - since) * self._pace
+        return min(moved, max(upcoming, base))
+
     def recv(self, timeout: float | None = None) -> can.Message | None:
         """Return the next message when its time has come, or None after timeout."""
+        base, since, upcoming = self._clock
+        if since is None:  # the receive loop is done with the frame handed out last
+            self._clock = (base, time.monotonic(), upcoming)
         if self._pending is None:
             if self.finished:
                 if timeout:
                     time.sleep(timeout)
                 return None
             self._pending = self._next()
+            base, since, _ = self._clock
             if self._pending is None:
+                self._clock = (base, since, math.inf)  # the end: the log time runs on
                 return None
+            self._clock = (base, since, self._pending.timestamp)
         if self._pending_due is None:
             self._pending_due = self._due(self._pending) if self.rate > 0 else 0.0
         if self.rate > 0:
@@ -133,6 +165,7 @@ class ReplayBus:
                 time.sleep(wait)
         msg, self._pending, self._pending_due = self._pending, None, None
         self.played += 1
+        self._clock = (msg.timestamp, None, msg.timestamp)
         return msg
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:

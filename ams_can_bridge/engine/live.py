@@ -36,6 +36,30 @@ class OpenBus(Protocol):
     def status(self) -> BusStatus:
         """Return a snapshot of the bus state and counters."""
 
+    def clock(self) -> float:
+        """Return the devices' clock: the handled frame's arrival, a replay's log time."""
+
+
+def device_clock(bus: Callable[[], OpenBus | None]) -> Callable[[], float]:
+    """
+    Return the devices' clock (``DeviceSet(clock=...)``): the bus's (``CanIo.clock``).
+
+    Live, the monotonic moment each frame arrived while it is handled, else now; in a
+    replay, the log's time. ``bus`` returns the open bus (None while it is closed): until
+    one opens, monotonic time (nothing has been heard to time); after it closed, the last
+    one's clock, so that a replay's devices do not jump back from the log's time.
+    """
+    last: list[OpenBus] = []
+
+    def clock() -> float:
+        current = bus()
+        if current is not None:
+            if not last or last[0] is not current:
+                last[:] = [current]
+            return current.clock()
+        return last[0].clock() if last else time.monotonic()
+    return clock
+
 
 class BusView:
     """The bus status, the stamp clock, the command keys and /clock, for the engine."""

@@ -30,7 +30,7 @@ from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.devices.base import Device
 from ams_can_bridge.engine.calls import answered
 from ams_can_bridge.engine.gate import CommandGate
-from ams_can_bridge.engine.live import live_engine, open_bus
+from ams_can_bridge.engine.live import device_clock, live_engine, open_bus
 from ams_can_bridge.engine.param_sets import apply_set, not_set_refusal, set_refusal
 from ams_can_bridge.engine.startup import (bus_settings, check_replay_clock, launch_gate,
                                            run_start_checks, security_warning, start_summary)
@@ -223,7 +223,9 @@ class BridgeNode(LifecycleNode):
         bus_log = BusStateLog(self.get_logger(), self.hardware_id, bus['channel'],
                               bus['reconnect_period'])
         check_replay_clock(settings)
-        self.device_set = DeviceSet(node['devices'], self.params.declare)
+        # the devices' clock is the bus's: arrival moments, a replay's log time (live.py)
+        self.device_set = DeviceSet(node['devices'], self.params.declare,
+                                    clock=device_clock(lambda: self.can_io))
         self.devices = self.device_set.devices
         if self.params.errors:
             return  # the node will not start (raise_errors): no bus, no publishers
