@@ -15,7 +15,7 @@ CONFIG_NOTES = {'ivt_s': '`write_config` needs every cycle time; `error_masks` u
 
 
 def device_specs(device_type: str) -> list:
-    """Return the specs of one device type: its own, then its commander's."""
+    """Return the specs of one device type: its own, then its commands'."""
     cls = registry.device_class(device_type)
     return device_params(cls)
 
@@ -76,7 +76,7 @@ def main() -> None:
             if spec.key.startswith('config.'):
                 continue
             print(row(f'{device_type}.{spec.key}', spec))
-    for device_type in registry.COMMANDERS:
+    for device_type in registry.DEVICE_TYPES:
         config = [s for s in device_specs(device_type) if s.key.startswith('config.')]
         if config:
             note = CONFIG_NOTES.get(device_type, '`write_config` needs them all')

@@ -75,7 +75,7 @@ def test_start_charging_repeats_start_every_100_ms_until_stop_charging(rig_facto
     assert rig.wait(lambda: len(charger_frames(rig, mark)) >= 4)  # the first START + 3 repeats
     again = rig.call(Trigger, '/ams/start_charging')
     assert again.success and 'already repeated' in again.message, again.message
-    repeat = rig.node.commanders['ams'].charger._thread
+    repeat = rig.node.devices['ams'].charger.thread
     second = rig.call(Trigger, '/ams/stop_charging')
     assert second.success, second.message
     assert 'the repeated START has ended' in second.message
@@ -102,8 +102,8 @@ def test_disarm_stops_the_repeated_start_at_once_and_rearming_does_not_resume_it
     mark = rig.capture.mark()
     assert rig.call(Trigger, '/ams/start_charging').success
     assert rig.wait(lambda: len(charger_frames(rig, mark)) >= 3)
-    charger = rig.node.commanders['ams'].charger
-    repeat = charger._thread
+    charger = rig.node.devices['ams'].charger
+    repeat = charger.thread
     assert rig.set_param('commands_enabled', False).successful
     frames_out = rig.frames_out()
     # at once: the repeat's thread has ended and, the heartbeat stopped too, nothing at all
@@ -113,7 +113,7 @@ def test_disarm_stops_the_repeated_start_at_once_and_rearming_does_not_resume_it
     disarmed = rig.capture.mark()
     assert rig.set_param('commands_enabled', True).successful
     # re-armed: the heartbeat is back, the repeat is not (no thread to send a START)
-    assert not charger.active and charger._thread is None
+    assert not charger.active and charger.thread is None
     assert rig.wait(lambda: len(heartbeat_commands(rig, disarmed)) >= 3)
     rig.capture.sync()
     assert charger_frames(rig, disarmed) == []

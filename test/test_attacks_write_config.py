@@ -21,7 +21,7 @@ def test_a_disarm_during_write_config_stops_it_and_the_answer_says_what_was_sent
         rig_factory, capfd):
     rig = rig_factory(evms3_params())
     evms3_in(rig, IDLE)
-    rig.node.commanders['evms3'].WRITE_GAP = GAP
+    rig.node.devices['evms3'].CONFIG_FRAME_GAP = GAP
     mark = rig.capture.mark()
     call = rig.call_in_thread(Trigger, '/evms3/write_config')
     rig.wait(lambda: sent(rig, mark), what='the first configuration frame')

@@ -316,7 +316,7 @@ def test_device_parameters_are_checked_and_applied_by_the_device(rig_factory):
     h = rig_factory({'devices': ['evms3']})
     node = h.node
     device = node.devices['evms3']
-    assert 'evms3' in node.commanders
+    assert 'evms3' in node.command_services
     before = device.config
     # within the declared ROS range (any int[]), refused by the device: 16 values needed
     refused = node.set_parameters([Parameter('evms3.config.cells_per_module', value=[12])])[0]

@@ -90,7 +90,7 @@ def test_commands_disabled_during_a_waiting_call(rig_factory):
     rig = rig_factory(ams())
     call = rig.call_in_thread(Trigger, '/ams/enable_ts')
     wait_carried(rig, ENABLE_TS)
-    heartbeat = rig.node.commanders['ams'].master._thread
+    heartbeat = rig.node.devices['ams'].master.thread
     assert rig.set_param('commands_enabled', False).successful
     frames_out = rig.frames_out()
     call['thread'].join(2)  # at once, not after ams.command_timeout (5 s)

@@ -28,9 +28,9 @@ def all_devices(enabled=False, **extra):
 
 def assert_no_periodic_sender(rig):
     """Assert that the AMS heartbeat and charger repeat of the bridge have no thread."""
-    ams = rig.node.commanders['ams']
-    assert not ams.master.running and ams.master._thread is None
-    assert not ams.charger.active and ams.charger._thread is None
+    ams = rig.node.devices['ams']
+    assert not ams.master.running and ams.master.thread is None
+    assert not ams.charger.active and ams.charger.thread is None
 
 
 def test_disabled_bridge_sends_nothing_and_refuses_every_service(rig_factory):
@@ -70,7 +70,7 @@ def test_heartbeat_period_and_counter_and_run_time_gate(rig_factory):
     # How close the period holds is a figure for bench/bench_heartbeat.py, not a test.
     assert statistics.median(b - a for a, b in zip(times, times[1:])) < 0.05 / 2
     assert len(times) - 1 <= (times[-1] - times[0]) / 0.01 + 2
-    heartbeat = rig.node.commanders['ams'].master._thread
+    heartbeat = rig.node.devices['ams'].master.thread
     assert rig.set_param('commands_enabled', False).successful
     frames_out = rig.frames_out()  # a frame in flight is on the bus when set_param returns
     assert_ended(heartbeat, 'the heartbeat')

@@ -209,11 +209,11 @@ def test_check_config_at_start_sends_nothing_while_disabled(rig_factory, sim_on)
         return result
     device.heard = spied  # the check thread looks it up at each poll
     sim = sim_on(rig, IvtSSimulator(period=0.02, byte_order='little'))
-    check = rig.node.commanders['ivt_s']
+    check = rig.node.commands.start_checks['ivt_s']
     # the check had its chances: it saw the sensor heard three times while disabled
-    rig.wait(lambda: len(looks) >= 3 or check.start_check, 10.0,
+    rig.wait(lambda: len(looks) >= 3 or check.outcome, 10.0,
              'the start check to see the simulated IVT-S')
-    assert check.start_check is None  # it did not run
+    assert check.outcome is None  # it did not run
     assert commands_before_marker(rig) == [] and sim.received == []
     assert rig.set_param('commands_enabled', True).successful  # armed: the check runs now
     status = rig.status('ivt_s', lambda s: level(s) == 2, 10.0)

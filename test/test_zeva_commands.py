@@ -1,5 +1,6 @@
 """EVMS3 and BMS16 services on a real node: exact bytes on the bus, and every refusal."""
 import contextlib
+import logging
 
 import can
 import pytest
@@ -240,27 +241,19 @@ def test_evms3_write_config_refused_to_a_bms16(rig_factory):
     refused_write_sends_nothing(rig, ('BMS16', 'byte 5 = 255'))
 
 
-class _FakeHost:
-    """Just enough node for Evms3Commands: services that go nowhere."""
-
-    service_group = None
-
-    def create_service(self, *args, **kwargs):
-        return object()
-
-
 class _FakeGate:
-    """Just enough gate for Evms3Commands: records transmits and sleeps in one timeline."""
+    """Just enough gate for the pipeline: records transmits and sleeps in one timeline."""
 
     enabled = True
 
     def __init__(self):
         self.events = []
 
-    def add_listener(self, listener):
-        pass
+    @contextlib.contextmanager
+    def calling(self, source):
+        yield
 
-    def wait_for_bus(self):
+    def wait_for_bus(self, limit=None):
         return True, ''
 
     @contextlib.contextmanager
@@ -277,16 +270,17 @@ class _FakeGate:
 def test_evms3_write_config_paces_20_ms_after_each_frame():
     # EVMS_Monitor3.c TransmitSettings: CanTX(id, data, 8, 20) = 20 ms after each frame
     from ams_can_bridge.devices.evms3 import Evms3Device
-    from ams_can_bridge.ros.zeva_commands import Evms3Commands
-    node = _FakeGate()
+    from ams_can_bridge.engine.calls import Pipeline
+    gate = _FakeGate()
     device = Evms3Device('evms3', {f'config.{k}': v for k, v in EVMS3_CONFIG.items()})
     device.handle_frame(30, bytes([IDLE, 0x03, 0xE8, 0x0F, 0xA0, 0x8C, 100, 65]), 1.0)
-    commands = Evms3Commands(node, device, 'evms3', _FakeHost())
-    commands._sleep = lambda seconds: node.events.append(('sleep', seconds))
-    response = commands._write_config(None, Trigger.Response())
-    assert response.success, response.message
+    pipeline = Pipeline(gate, logging.getLogger('test_zeva_commands'),
+                        sleep=lambda seconds: gate.events.append(('sleep', seconds)))
+    [row] = [row for row in device.COMMANDS if row.service == 'write_config']
+    ok, message = pipeline.call('evms3', device, row)
+    assert ok, message
     # one batch holds all five frames and their pauses: no other call's frame between them
-    assert node.events == ['batch'] + [event for can_id in (36, 32, 33, 34, 35)
+    assert gate.events == ['batch'] + [event for can_id in (36, 32, 33, 34, 35)
                                        for event in (('tx', can_id), ('sleep', 0.02))] + ['end']
 
 
