@@ -11,7 +11,6 @@ analyser shared with the node rig (``command_rig.Rig``).
 from __future__ import annotations
 
 import itertools
-import logging
 import os
 import threading
 import time
@@ -25,6 +24,7 @@ from ams_can_bridge.engine.commands import Commands
 from ams_can_bridge.engine.gate import CommandGate
 from ams_can_bridge.protocols.common import Frame
 from helpers import wait_for
+from shared import collecting_logger
 
 _channels = itertools.count()
 
@@ -101,31 +101,6 @@ class Capture:
         return [(t, f) for t, f in frames
                 if (arbitration_id is None or f.arbitration_id == arbitration_id)
                 and (extended is None or f.is_extended_id == extended)]
-
-
-class Lines(logging.Handler):
-    """Collect log records as (level, text)."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.lines: list[tuple[int, str]] = []
-
-    def emit(self, record: logging.LogRecord) -> None:
-        self.lines.append((record.levelno, record.getMessage()))
-
-    def at(self, level: int) -> list[str]:
-        """Return the texts logged at ``level``."""
-        return [text for lvl, text in self.lines if lvl == level]
-
-
-def collecting_logger(tag: str) -> tuple[logging.Logger, Lines]:
-    """Return a fresh stdlib logger (DEBUG, not propagated) and what it collects."""
-    logger = logging.getLogger(f'{tag}.{id(object())}')
-    logger.propagate = False
-    logger.setLevel(logging.DEBUG)
-    lines = Lines()
-    logger.addHandler(lines)
-    return logger, lines
 
 
 class Bench:
