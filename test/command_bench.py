@@ -14,7 +14,7 @@ import itertools
 import os
 import threading
 import time
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Mapping, NamedTuple
 
 import can
 
@@ -103,6 +103,20 @@ class Capture:
                 and (extended is None or f.is_extended_id == extended)]
 
 
+class Answer(NamedTuple):
+    """A call's answer, named as a service response's fields are."""
+
+    success: bool
+    message: str
+
+
+class SetResult(NamedTuple):
+    """A parameter set's outcome, named as rcl_interfaces' SetParametersResult."""
+
+    successful: bool
+    reason: str
+
+
 class Bench:
     """
     The command side of a bridge on a virtual bus, without ROS (module docstring).
@@ -154,24 +168,33 @@ class Bench:
         return True, ''
 
     # --- calls --------------------------------------------------------------------------
-    def call(self, service: str, data: bool | None = None) -> tuple[bool, str]:
-        """Call '<name>/<service>' through the pipeline: (success, answer)."""
+    def call(self, service: str, data: bool | None = None) -> Answer:
+        """Call '/<name>/<service>' through the pipeline, as its ROS service would."""
         name, _, suffix = service.strip('/').partition('/')
-        return self.commands.call(name, suffix, data)
+        return Answer(*self.commands.call(name, suffix, data))
 
     def call_in_thread(self, service: str, data: bool | None = None) -> dict[str, Any]:
-        """Start a call in a thread; the returned dict gets 'answer' when it answers."""
+        """Start a call in a thread; the returned dict gets 'response' when it answers."""
         out: dict[str, Any] = {}
 
         def run() -> None:
-            out['answer'] = self.call(service, data)
+            out['response'] = self.call(service, data)
         out['thread'] = threading.Thread(target=run, daemon=True)
         out['thread'].start()
         return out
 
-    def set_enabled(self, enabled: bool) -> None:
-        """Set commands_enabled (the gate tells the command side before this returns)."""
-        assert self.gate.set_enabled(enabled) is None
+    def set_param(self, name: str, value: Any) -> SetResult:
+        """
+        Set commands_enabled, or one '<name>.<key>' of a device.
+
+        The gate tells the command side before this returns; a device's value passes the
+        device's own check (rclpy's declared ranges are the node's).
+        """
+        if name == 'commands_enabled':
+            refused = self.gate.set_enabled(bool(value))
+            return SetResult(refused is None, refused or '')
+        instance, _, key = name.partition('.')
+        return SetResult(*self.set_config(instance, {key: value}))
 
     # --- the bus ----------------------------------------------------------------------------
     def send(self, can_id: int, data: bytes | list[int] = b'', extended: bool = False) -> None:

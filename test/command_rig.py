@@ -115,6 +115,11 @@ class Rig:
         if any(s.hardware_id == hardware_id for s in msg.status):
             self._keep('/diagnostics', msg)
 
+    @property
+    def devices(self) -> dict[str, Any]:
+        """Return the node's device instances (as a ``command_bench.Bench`` has them)."""
+        return self.node.devices
+
     # --- the bus ----------------------------------------------------------------------------
     def send(self, can_id: int, data: bytes | list[int] = b'', extended: bool = False,
              **fields: Any) -> None:

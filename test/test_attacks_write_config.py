@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from std_srvs.srv import Trigger
 
-from test_zeva_commands import EVMS3_FRAMES, evms3_in, evms3_params, IDLE, sent
+from shared import EVMS3_FRAMES, evms3_in, evms3_params, IDLE, sent
 
 GAP = 0.5  # s after each frame, instead of the Monitor's 20 ms: room for the disarm
 

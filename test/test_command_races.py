@@ -20,7 +20,7 @@ from std_srvs.srv import Trigger
 
 from ams_can_bridge.protocols import evms3 as evms3_proto
 from helpers import assert_ended
-from test_zeva_commands import bms16_params, EVMS3_CONFIG, evms3_in, evms3_params
+from shared import bms16_params, EVMS3_CONFIG, evms3_in, evms3_params
 
 HEARTBEAT = 0x305
 ENABLE_TS, ENABLE_DRIVE, ABORT = 2, 3, 4

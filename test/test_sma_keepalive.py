@@ -128,12 +128,11 @@ def test_bridge_sends_the_keepalive_only_while_commands_are_enabled():
             for v in s.values))
 
 
-def test_bridge_never_sends_it_by_default():
-    with rigs() as make:
-        rig = make(rig_params(keepalive=False))
-        commander = rig.node.devices['sma']
-        assert not commander.keepalive.running
-        assert rig.set_param('sma.inverter_keepalive', True).successful
-        assert rig.wait(lambda: len(rig.capture.since(0, 0x305)) >= 1, 10.0)
-        assert rig.set_param('sma.inverter_keepalive', False).successful
-        assert not commander.keepalive.running
+def test_bridge_never_sends_it_by_default(bench_factory):
+    bench = bench_factory(rig_params(keepalive=False))
+    device = bench.devices['sma']
+    assert not device.keepalive.running
+    assert bench.set_param('sma.inverter_keepalive', True).successful
+    assert bench.wait(lambda: len(bench.capture.since(0, 0x305)) >= 1, 10.0)
+    assert bench.set_param('sma.inverter_keepalive', False).successful
+    assert not device.keepalive.running
