@@ -6,16 +6,23 @@ that defines them says which); test files import them from here, never from one 
 """
 from __future__ import annotations
 
+import functools
 import logging
 import threading
+from pathlib import Path
 from typing import Any, Callable
 
 import can
+import yaml
 
 from ams_can_bridge.bus_state import BusState, BusStatus
 from ams_can_bridge.errors import CanSendError
+from ams_can_bridge import registry
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import Evms3Config
+from ams_can_bridge.ros.demo_rig import device_parameters, DEVICES
+from dbc_fixtures import OUR_PARAMS
+from helpers import f32
 
 
 class FakeBus:
@@ -222,3 +229,101 @@ BMS16_STD_WRITE = [
     (34, bytes.fromhex('05 28 5F 39 14 00 00 00')),
     (35, bytes.fromhex('00 00 00 00 00 01 00 03')),
 ]
+
+
+# --- one set of hand-written frames per device type (docs/protocols.md) ----------------------
+FRAMES = [
+    Frame(0x521, bytes([0, 0]) + (-12_000).to_bytes(4, 'big', signed=True)),  # IVT-S -12 A
+    Frame(0x300, bytes([0xC0, 0x21, 180, 30, 66, 1, 0])),  # AMS IDLE, SOC 66 %
+    # EVMS3 ID 30: Running (2), 123.4 Ah, 345.6 V, 13.1 V aux, 99 % isolation, 25 degC
+    Frame(30, bytes([0x02, 0x04, 0xD2, 0x0D, 0x80, 131, 99, 65]), True),
+    Frame(500, bytes([0, 81, 0x0B, 0x02, 0x7D, 0x80, 25])),  # BMS16 SoC 81 %
+    # SMA limits 55.2 / 48.0 V (they tell 0x356's 0.01 V), then 51.2 V -15.3 A
+    Frame(0x351, bytes([0x28, 0x02, 0xF4, 0x01, 0xE8, 0x03, 0xE0, 0x01])),
+    Frame(0x356, bytes([0x00, 0x14, 0x67, 0xFF, 0xE7, 0x00])),
+]
+
+
+def bms16_status(error: int, soc: int, volts_x10: int, amps_x10: int, temp: int) -> bytes:
+    """ID 500: b0 error, b1 SoC, b2..3 0.1 V LE, b4..5 (raw-32768) 0.1 A LE, b6 degC."""
+    return (bytes([error, soc]) + volts_x10.to_bytes(2, 'little')
+            + (amps_x10 + 32768).to_bytes(2, 'little') + bytes([temp]))
+
+
+# --- reading what a bridge published ----------------------------------------------------------
+def values(status: Any) -> dict[str, str]:
+    """Return a DiagnosticStatus's key/values as a dict."""
+    return {kv.key: kv.value for kv in status.values}
+
+
+def level(status: Any) -> int:
+    """Return a DiagnosticStatus's level as an int (rclpy gives bytes)."""
+    return status.level[0] if isinstance(status.level, bytes) else int(status.level)
+
+
+BATTERY_FIELDS = ('voltage', 'current', 'percentage', 'temperature', 'power_supply_status',
+                  'power_supply_health', 'present')
+
+
+def published(report: Any) -> tuple:
+    """Return what a BatteryState (or report) publishes: its fields as float32, its cells."""
+    return (tuple(f32(getattr(report, k)) if isinstance(getattr(report, k), float)
+                  else int(getattr(report, k)) for k in BATTERY_FIELDS)
+            + (tuple(f32(v) for v in report.cell_voltage),))
+
+
+def every_device() -> dict:
+    """Return the params of a bridge with one instance of every device type."""
+    return {'devices': list(registry.DEVICE_TYPES),
+            **{f'dbc.{key}': value for key, value in OUR_PARAMS.items()}}
+
+
+# --- the log2bag scenario: the demo's simulators written as a log, their parameters ---------
+SECONDS = 6.0
+BANKS = 2
+DIAGNOSTICS_PERIOD = 0.5
+
+
+def parameters() -> dict:
+    """Return the bridge parameters of the demo's devices with BANKS AMS banks."""
+    return {'devices': list(DEVICES), 'diagnostics_period': DIAGNOSTICS_PERIOD,
+            **device_parameters(BANKS)}
+
+
+def params_file(path: str) -> str:
+    """Write parameters() as the bridge's nested ROS 2 parameters file."""
+    tree: dict = {}
+    for key, value in parameters().items():
+        node = tree
+        *parents, leaf = key.split('.')
+        for part in parents:
+            node = node.setdefault(part, {})
+        node[leaf] = value
+    with open(path, 'w', encoding='utf-8') as stream:
+        yaml.safe_dump({'/**': {'ros__parameters': tree}}, stream)
+    return path
+
+
+def copy_as(src: str, dst: str) -> str:
+    """Rewrite a log in the format of dst's suffix (python-can's own writer)."""
+    with can.LogReader(src) as reader, can.Logger(dst) as writer:
+        for msg in reader:
+            writer.on_message_received(msg)
+    return dst
+
+
+@functools.cache
+def _typestore() -> Any:
+    from rosbags.typesys import get_typestore, Stores
+    return get_typestore(Stores.ROS2_JAZZY)
+
+
+def rosbags_read(bag: str) -> dict[str, list]:
+    """Return (bag time ns, message) per topic, read with rosbags."""
+    from rosbags.highlevel import AnyReader
+    out: dict[str, list] = {}
+    with AnyReader([Path(bag)], default_typestore=_typestore()) as reader:
+        for connection, t_ns, raw in reader.messages():
+            out.setdefault(connection.topic, []).append(
+                (t_ns, reader.deserialize(raw, connection.msgtype)))
+    return out
