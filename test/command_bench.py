@@ -103,6 +103,20 @@ class Capture:
                 and (extended is None or f.is_extended_id == extended)]
 
 
+def assert_silent_since(bridge: Any, frames_out: int) -> None:
+    """
+    Assert a Rig's or Bench's bridge sent nothing after its counter read frames_out.
+
+    A marker frame (``Capture.sync``) shows every frame sent before it is captured; the
+    bridge's counter and the capture must then both still stand at frames_out.
+    """
+    bridge.capture.sync()
+    captured = [f for _, f in bridge.capture.since(0)]
+    assert bridge.frames_out() == len(captured) == frames_out, (
+        f'the bridge sent {bridge.frames_out() - frames_out} frame(s) after the call '
+        f'returned: {captured[frames_out:]}')
+
+
 class Answer(NamedTuple):
     """A call's answer, named as a service response's fields are."""
 
@@ -212,11 +226,7 @@ class Bench:
 
     def assert_silent_since(self, frames_out: int) -> None:
         """Assert the bridge sent nothing after its counter read frames_out (a marker)."""
-        self.capture.sync()
-        captured = [f for _, f in self.capture.since(0)]
-        assert self.frames_out() == len(captured) == frames_out, (
-            f'the bridge sent {self.frames_out() - frames_out} frame(s) after the call '
-            f'returned: {captured[frames_out:]}')
+        assert_silent_since(self, frames_out)
 
     def wait(self, predicate: Callable[[], Any], timeout: float = 10.0,
              what: str = 'condition') -> Any:

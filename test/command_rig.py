@@ -21,7 +21,7 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import BatteryState
 
 from ams_can_bridge.ros.bridge_node import BridgeNode
-from command_bench import Capture, unique_channel
+from command_bench import assert_silent_since, Capture, unique_channel
 from helpers import wait_for
 
 __all__ = ['battery_topics', 'Capture', 'Rig', 'rigs', 'unique_channel']
@@ -141,11 +141,7 @@ class Rig:
         Read frames_out right after the call that must silence the bridge returned; a
         periodic sender's thread is shown ended with ``helpers.assert_ended``.
         """
-        self.capture.sync()
-        captured = [f for _, f in self.capture.since(0)]
-        assert self.frames_out() == len(captured) == frames_out, (
-            f'the bridge sent {self.frames_out() - frames_out} frame(s) after the call '
-            f'returned: {captured[frames_out:]}')
+        assert_silent_since(self, frames_out)
 
     # --- waiting and reading what was published ---------------------------------------------
     def wait(self, predicate: Callable[[], Any], timeout: float = 10.0,

@@ -24,8 +24,10 @@ BASE = 0x300
 HEARTBEAT = BASE + 0x005
 
 
-def ams_with_simulator(factory, runners):
-    """Return a maker of (bridge, simulated AMS with 3 banks) on one virtual channel."""
+def ams_with_simulator(factory):
+    """Yield a maker of (bridge, simulated AMS with 3 banks) on one virtual channel."""
+    runners = []
+
     def make(precharge_time=0.3, sim_options=None, **params):
         channel = unique_channel('ams')
         sim = AmsSimulator(bank_count=3, precharge_time=precharge_time, **(sim_options or {}))
@@ -36,27 +38,22 @@ def ams_with_simulator(factory, runners):
         device = bridge.devices['ams']
         assert bridge.wait(lambda: device.master_view().state == 1), 'no AMS IDLE'
         return bridge, sim
-    return make
+    yield make
+    for runner in runners:
+        runner.stop()
+        runner.bus.shutdown()
 
 
 @pytest.fixture
 def with_ams(bench_factory):
     """Make the command side and a simulated AMS (3 banks) on one channel, commands on."""
-    runners = []
-    yield ams_with_simulator(bench_factory, runners)
-    for runner in runners:
-        runner.stop()
-        runner.bus.shutdown()
+    yield from ams_with_simulator(bench_factory)
 
 
 @pytest.fixture
 def with_ams_node(rig_factory):
     """Make a node and a simulated AMS (3 banks) on one channel, commands enabled."""
-    runners = []
-    yield ams_with_simulator(rig_factory, runners)
-    for runner in runners:
-        runner.stop()
-        runner.bus.shutdown()
+    yield from ams_with_simulator(rig_factory)
 
 
 def ams_params(enabled=True, **extra):
