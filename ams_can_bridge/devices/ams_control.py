@@ -98,8 +98,7 @@ class AmsControl:
 
     def carry(self, command: proto.CarCommand) -> Carry:
         """Return a car command for the heartbeat, bounded by ``command_timeout``."""
-        if self.master is None:
-            raise RuntimeError(f'{self.name}: no master (attach_senders was not called)')
+        assert self.master is not None, 'attach_senders makes the master'
         return Carry(self.master, command, command.name,
                      float(self.config.command_timeout or 2.0))
 
@@ -112,8 +111,7 @@ class AmsControl:
         return self._charger().stop_charging(port)
 
     def _charger(self) -> ChargerRepeater:
-        if self.charger is None:
-            raise RuntimeError(f'{self.name}: no charger (attach_senders was not called)')
+        assert self.charger is not None, 'attach_senders makes the charger'
         return self.charger
 
     def heartbeat_frame(self, command: int, bank_count: int, counter: int) -> Frame:

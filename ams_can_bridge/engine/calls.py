@@ -108,9 +108,8 @@ class Pipeline:
         if isinstance(policy, Exchange):
             ok, message = method(Port(self, name, what), *args)
             return bool(ok), message
-        if isinstance(policy, Carried):
-            return self._carried(name, method(*args))
-        raise TypeError(f'{name}/{row.service}: unknown policy {policy!r}')
+        assert isinstance(policy, Carried), policy  # the three policies of commands.py
+        return self._carried(name, method(*args))
 
     # --- Frames ---------------------------------------------------------------------------
     def frames(self, name: str, what: str, build: Callable[[], Frame | Iterable[Frame]],
