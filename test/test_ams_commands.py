@@ -171,6 +171,7 @@ def test_state_command_times_out_when_no_ams_answers(bench_factory):
     assert not response.success
     assert 'timeout after 0.5 s waiting for SC_ENABLED' in response.message
     assert 'not reported yet' in response.message
+    bench.capture.sync()  # every heartbeat sent before the answer is captured by now
     commands = heartbeat_commands(bench, mark)
     assert 1 in commands  # ENABLE_SC was carried while waiting
     last = max(i for i, c in enumerate(commands) if c == 1)
@@ -270,6 +271,7 @@ def test_abort_during_a_waiting_enable_ts(with_ams):
     assert abort.success and 'AMS reports IDLE' in abort.message, abort.message
     enable = call['response']
     assert not enable.success and 'aborted' in enable.message
+    bench.capture.sync()  # every heartbeat sent before the answers is captured by now
     commands = heartbeat_commands(bench, mark)
     first_abort = commands.index(4)
     # ABORT replaced ENABLE_TS in the very next heartbeat: ...2, 2, 4... with no gap,
