@@ -13,6 +13,7 @@ import time
 
 import pytest
 
+from ams_can_bridge.devices import periodic_sender
 from ams_can_bridge.devices.periodic_sender import PeriodicSender, SlotSchedule
 from ams_can_bridge.protocols.common import Frame
 from helpers import assert_ended, wait_for
@@ -74,7 +75,10 @@ def test_a_new_period_starts_one_period_after_the_last_slot():
         schedule.rebase(0.0, 100.2)
 
 
-def test_stop_waits_for_a_send_in_flight_and_nothing_follows_it():
+def test_stop_waits_for_a_send_in_flight_and_nothing_follows_it(monkeypatch):
+    # the join gives up early here: the send lock alone must hold stop() until the frame
+    # in flight is on the bus
+    monkeypatch.setattr(periodic_sender, 'JOIN_TIMEOUT', 0.05)
     wire = Wire()
     sender = PeriodicSender('test-sender', 'the test frame', lambda: FRAME, wire.send, 0.01)
     sender.start()
@@ -85,7 +89,7 @@ def test_stop_waits_for_a_send_in_flight_and_nothing_follows_it():
     stopped = threading.Event()
     stopper = threading.Thread(target=lambda: (sender.stop(), stopped.set()), daemon=True)
     stopper.start()
-    assert not stopped.wait(0.2)  # stop() waits for the frame being sent
+    assert not stopped.wait(0.3)  # stop() waits for the frame being sent
     wire.hold.set()
     assert stopped.wait(5.0)
     count = wire.count()  # the frame in flight is in, nothing after it
