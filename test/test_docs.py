@@ -59,7 +59,8 @@ def sphinx(out: Path, strict: bool = True, hide: str | None = None) -> subproces
     return subprocess.Popen(
         # --no-color: CI may force colour (FORCE_COLOR), which wraps each warning in escapes.
         [sys.executable, '-m', 'sphinx', *(['-W'] if strict else []), '-n', '--keep-going',
-         '--no-color', '-q', '-b', 'xml', '-d', str(out / 'doctrees'), str(ROOT / 'doc'), str(out / 'xml')],
+         '--no-color', '-q', '-b', 'xml', '-d', str(out / 'doctrees'), str(ROOT / 'doc'),
+         str(out / 'xml')],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT, env=env)
 
 

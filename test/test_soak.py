@@ -122,9 +122,13 @@ def test_soak(rig_factory):
     assert bridge.node.can_io.status().callback_errors == 0
     answers = [c.result() for c in calls]
     # a call succeeds (one made while the bus is down waits for it), or, when 2 others
-    # already wait for the bus, is refused at once as defined; never anything else
+    # already wait for the bus, is refused at once as defined, or finds the bus gone again
+    # between its wait and its send (the next drop phase) and says it sent nothing; never
+    # anything else
     failed = [a.message for a in answers if not a.success]
-    assert all('2 commands already wait for it' in m for m in failed), failed
+    assert all('2 commands already wait for it' in m
+               or ('is not connected' in m and 'sent before it: nothing' in m)
+               for m in failed), failed
     done = sum(a.success for a in answers)
     assert done >= len(answers) // 2, failed
     assert bridge.wait(lambda: len(capture.since(0, RESET_SOC)) == done, timeout=5)
