@@ -53,7 +53,8 @@ def default_device(device_type: str, variant: str | None) -> Device:
 def device_services(device_type: str, variant: str | None = None) -> list[ServiceRow]:
     """Return the services of one device type (and variant): its command rows, in order."""
     cls = registry.device_class(device_type, variant)
-    return [ServiceRow(row.service, srv_type_name(row.request.value), row.what)
+    return [ServiceRow(row.service, srv_type_name(row.request.value),
+                       row.what + (f' (false: {row.what_false})' if row.what_false else ''))
             for row in cls.COMMANDS]
 
 
