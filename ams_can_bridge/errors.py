@@ -124,9 +124,9 @@ class RefusedCommand(AmsCanBridgeError):
     """
     A service call that cannot go ahead; nothing was sent (the message says what to change).
 
-    Raised while a command's frames are built (``ros/zeva_commands.py``,
-    ``ros/ams_commands.py``, the devices' command API): configuration unset, device stale,
-    nothing to acknowledge. The service answers ``success: false`` with the message.
+    Raised by a device while the command pipeline (``engine/calls.py``) builds a command's
+    frames: configuration unset, device stale, nothing to acknowledge. The service answers
+    ``success: false`` with the message.
     """
 
 

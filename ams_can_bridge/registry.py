@@ -1,5 +1,5 @@
 """
-Where each device type lives: state class, simulator class, ROS command services.
+Where each device type lives: its state class (with its command rows) and its simulator.
 
 Lazy 'module:Class' strings, so importing the registry costs nothing and a node that only
 listens to a BMS16 never imports the AMS code.
@@ -49,15 +49,6 @@ VARIANT_HELP = {
               'frames; doc/protocols.md section 4) or standard (BMS16v2 standard form: EVMS3 '
               'protocol, 29-bit, 250 kbit/s; section 6), which has its own base_id default '
               'and config.* parameters'),
-}
-
-# ROS command services per device type; only these types have any.
-COMMANDERS = {
-    'ams': 'ams_can_bridge.ros.ams_commands:AmsCommands',
-    'ivt_s': 'ams_can_bridge.ros.ivt_commands:IvtCommands',
-    'evms3': 'ams_can_bridge.ros.zeva_commands:Evms3Commands',
-    'bms16': 'ams_can_bridge.ros.zeva_commands:Bms16Commands',
-    'sma': 'ams_can_bridge.ros.sma_commands:SmaCommands',
 }
 
 

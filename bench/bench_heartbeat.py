@@ -143,7 +143,7 @@ def main() -> None:
     executor.add_node(client)
     spin = threading.Thread(target=executor.spin, daemon=True)
     spin.start()
-    master = node.commanders['ams'].master
+    master = node.devices['ams'].master
     timeout = args.frames * args.period * 3 + 10
     try:
         wait_count(capture, 0, 2, 5.0)

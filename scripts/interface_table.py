@@ -1,21 +1,19 @@
 """
-Print the bridge's topics and services as Markdown tables, from the devices and commanders.
+Print the bridge's topics and services as Markdown tables, from the devices and their rows.
 
 Usage: python scripts/interface_table.py. The doc build runs it for doc/topics_services.md
 (doc/docgen.py), so the page is whatever the code offers; test/test_docs.py compares the
 tables with what a running bridge with every device type offers.
 
-Where the rows come from is one function each: :func:`device_services` (today: the services
-each device's commander creates, recorded while the commander is built without ROS running;
-once the devices declare their commands as rows, read the rows there) and
-:func:`device_arrays` (the array topics a device publishes beside its BatteryState). In a
-doc build without ROS, doc/docgen.py runs it with Sphinx's mocks for the ROS modules: the
-service type names come out the same.
+Where the rows come from is one function each: :func:`device_services` (the command rows
+each device type declares, ``Device.COMMANDS``: the ROS adapter, ros/services.py, offers one
+service per row) and :func:`device_arrays` (the array topics a device publishes beside its
+BatteryState). Neither needs ROS: in a doc build without it, doc/docgen.py runs this with
+Sphinx's mocks for the ROS modules and the tables come out the same.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-import logging
 import sys
 from typing import Any, Callable, Iterator
 
@@ -38,7 +36,7 @@ class ServiceRow:
 
     service: str
     srv_type: str  # 'std_srvs/srv/Trigger'
-    what: str = ''  # what it does, in words (the command rows will say; empty: not known)
+    what: str = ''  # what it does, in words (the row's: a refusal says "to <what>")
 
 
 def ros_type_name(cls: Any, kind: str) -> str:
@@ -52,51 +50,18 @@ def default_device(device_type: str, variant: str | None) -> Device:
     return cls(device_type, {spec.key: spec.default for spec in device_params(cls)})
 
 
-class _RecordingHost:
-    """The node as a commander sees it (ros/commander.py ServiceHost): records services."""
-
-    service_group = None
-
-    def __init__(self) -> None:
-        self.services: list[tuple[str, Any]] = []
-        self.context = self
-
-    @staticmethod
-    def ok() -> bool:  # the context: ROS is up
-        return True
-
-    def create_service(self, srv_type: Any, srv_name: str, callback: Callable,
-                       **kwargs: Any) -> str:
-        self.services.append((srv_name, srv_type))
-        return srv_name
-
-    def destroy_service(self, service: Any) -> None:
-        """Nothing to remove: nothing was created."""
-
-    @staticmethod
-    def get_logger() -> logging.Logger:
-        return logging.getLogger('interface_table')
-
-    def set_parameters_atomically(self, parameters: list) -> Any:
-        raise RuntimeError('interface_table: no parameters are set while listing services')
-
-
 def device_services(device_type: str, variant: str | None = None) -> list[ServiceRow]:
-    """Return the services of one device type (and variant), in the order they are made."""
-    if device_type not in registry.COMMANDERS:
-        return []
-    from ams_can_bridge.engine.gate import CommandGate
-    from ams_can_bridge.ros.commander import make_commander
-    device = default_device(device_type, variant)
-    gate = CommandGate('interface_table', allowed=False, connect_wait=0.0,
-                       logger=logging.getLogger('interface_table'))
-    host = _RecordingHost()
-    commander = make_commander(gate, device, device_type, host)
-    if commander is not None:
-        commander.destroy()
-    prefix = device_type + '/'
-    return [ServiceRow(name.removeprefix(prefix), ros_type_name(srv_type, 'srv'))
-            for name, srv_type in host.services]
+    """Return the services of one device type (and variant): its command rows, in order."""
+    cls = registry.device_class(device_type, variant)
+    return [ServiceRow(row.service, srv_type_name(row.request.value),
+                       row.what + (f' (false: {row.what_false})' if row.what_false else ''))
+            for row in cls.COMMANDS]
+
+
+def srv_type_name(request: str) -> str:
+    """Return 'std_srvs/srv/Trigger' for a row's request kind 'std_srvs/Trigger'."""
+    package, _, name = request.partition('/')
+    return f'{package}/srv/{name}'
 
 
 def device_arrays(device_type: str, variant: str | None = None) -> list[str]:

@@ -19,7 +19,7 @@ CONFIG_NOTES = {'ivt_s': '`write_config` needs every cycle time; `error_masks` u
 
 
 def device_specs(device_type: str, variant: str | None = None) -> list:
-    """Return the specs of one device type (and wire form): its own, then its commander's."""
+    """Return the specs of one device type (and wire form): its own, then its commands'."""
     cls = registry.device_class(device_type, variant)
     return device_params(cls)
 
@@ -82,7 +82,7 @@ def main() -> None:
             print(row(f'{device_type}.{spec.key}', spec))
         if device_type in registry.VARIANTS:
             print(row(f'{device_type}.variant', variant_spec(device_type)))
-    for device_type in registry.COMMANDERS:
+    for device_type in registry.DEVICE_TYPES:
         config = [s for s in device_specs(device_type) if s.key.startswith('config.')]
         if config:
             note = CONFIG_NOTES.get(device_type, '`write_config` needs them all')

@@ -2,14 +2,12 @@
 The test rig: a real BridgeNode on python-can's virtual bus (``rig_factory`` in conftest.py).
 
 A separate virtual-bus client captures every frame on the channel (what a CAN analyser
-would see) and injects frames; a client node records what the bridge publishes and calls
-its services through ROS, like a user would.
+would see: ``command_bench.Capture``) and injects frames; a client node records what the
+bridge publishes and calls its services through ROS, like a user would.
 """
 from __future__ import annotations
 
 import contextlib
-import itertools
-import os
 import threading
 import time
 import traceback
@@ -22,90 +20,16 @@ from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import BatteryState
 
-from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.ros.bridge_node import BridgeNode
+from command_bench import assert_silent_since, Capture, unique_channel
 from helpers import wait_for
 
-_channels = itertools.count()
-
-
-def unique_channel(tag: str) -> str:
-    """Return a virtual channel name nobody else in this process uses."""
-    return f'cmd-{tag}-{os.getpid()}-{next(_channels)}'
+__all__ = ['battery_topics', 'Capture', 'Rig', 'rigs', 'unique_channel']
 
 
 def battery_topics(devices: list[str]) -> dict[str, type]:
     """Return the BatteryState topic of each device, for Rig(topics=...)."""
     return {f'{name}/battery_state': BatteryState for name in devices}
-
-
-class Capture:
-    """
-    Every frame seen on a virtual channel, with its monotonic receive time.
-
-    ``sync()`` proves "nothing was sent" without sleeping: it sends a marker frame on the
-    channel and waits until the capture has read it. A virtual bus delivers in send order,
-    so every frame the bridge sent before ``sync`` was called is captured by then. Markers
-    are not kept in ``frames``.
-    """
-
-    MARKER_ID = 0x1FFFFFFE  # 29-bit, used by no device of the bridge
-
-    def __init__(self, channel: str) -> None:
-        self.bus = can.Bus(interface='virtual', channel=channel)
-        self._marker_bus = can.Bus(interface='virtual', channel=channel)
-        self._markers_seen = 0
-        self._markers_sent = 0
-        self._seen = threading.Condition()
-        self.frames: list[tuple[float, Frame]] = []
-        self.lock = threading.Lock()
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
-        self._thread.start()
-
-    def _run(self) -> None:
-        while not self._stop.is_set():
-            msg = self.bus.recv(0.01)
-            if msg is not None and msg.is_extended_id and msg.arbitration_id == self.MARKER_ID:
-                with self._seen:
-                    self._markers_seen += 1
-                    self._seen.notify_all()
-            elif msg is not None and not msg.is_error_frame:
-                with self.lock:
-                    self.frames.append((time.monotonic(), Frame(
-                        msg.arbitration_id, bytes(msg.data), msg.is_extended_id)))
-
-    def close(self) -> None:
-        """Stop capturing and close the bus."""
-        self._stop.set()
-        self._thread.join(2)
-        self._marker_bus.shutdown()
-        self.bus.shutdown()
-
-    def sync(self, timeout: float = 5.0) -> None:
-        """Send a marker and wait until it is captured: every earlier frame is in by then."""
-        with self._seen:
-            self._markers_sent += 1
-            wanted = self._markers_sent
-        self._marker_bus.send(can.Message(arbitration_id=self.MARKER_ID, is_extended_id=True,
-                                          data=wanted.to_bytes(4, 'big')))
-        with self._seen:
-            if not self._seen.wait_for(lambda: self._markers_seen >= wanted, timeout):
-                raise AssertionError(f'the capture did not see its marker in {timeout} s')
-
-    def mark(self) -> int:
-        """Return the number of frames so far (a bookmark)."""
-        with self.lock:
-            return len(self.frames)
-
-    def since(self, mark: int = 0, arbitration_id: int | None = None,
-              extended: bool | None = None) -> list[tuple[float, Frame]]:
-        """Return frames captured after mark (optionally of one ID / ID kind)."""
-        with self.lock:
-            frames = self.frames[mark:]
-        return [(t, f) for t, f in frames
-                if (arbitration_id is None or f.arbitration_id == arbitration_id)
-                and (extended is None or f.is_extended_id == extended)]
 
 
 class Rig:
@@ -191,6 +115,11 @@ class Rig:
         if any(s.hardware_id == hardware_id for s in msg.status):
             self._keep('/diagnostics', msg)
 
+    @property
+    def devices(self) -> dict[str, Any]:
+        """Return the node's device instances (as a ``command_bench.Bench`` has them)."""
+        return self.node.devices
+
     # --- the bus ----------------------------------------------------------------------------
     def send(self, can_id: int, data: bytes | list[int] = b'', extended: bool = False,
              **fields: Any) -> None:
@@ -212,11 +141,7 @@ class Rig:
         Read frames_out right after the call that must silence the bridge returned; a
         periodic sender's thread is shown ended with ``helpers.assert_ended``.
         """
-        self.capture.sync()
-        captured = [f for _, f in self.capture.since(0)]
-        assert self.frames_out() == len(captured) == frames_out, (
-            f'the bridge sent {self.frames_out() - frames_out} frame(s) after the call '
-            f'returned: {captured[frames_out:]}')
+        assert_silent_since(self, frames_out)
 
     # --- waiting and reading what was published ---------------------------------------------
     def wait(self, predicate: Callable[[], Any], timeout: float = 10.0,
@@ -315,7 +240,7 @@ class Rig:
         return out
 
     def close(self) -> None:
-        """Shut everything down (node first: its commanders stop their threads); idempotent."""
+        """Shut everything down (node first: its command side stops its threads); idempotent."""
         if self._closed:
             return
         self._closed = True

@@ -43,6 +43,27 @@ def rig_factory():
         yield make
 
 
+@pytest.fixture
+def bench_factory():
+    """
+    Make ROS-free command benches (``command_bench.Bench``); all closed afterwards.
+
+    ``bench_factory(params, **kwargs)`` takes the parameters a ``rig_factory`` takes and
+    returns a bridge's command side (devices, gate, the one pipeline, the periodic senders)
+    on a virtual bus, with a capture: a command's walk to the bus without rclpy.
+    """
+    from command_bench import Bench
+    made = []
+
+    def make(params, **kwargs):
+        bench = Bench(params, **kwargs)
+        made.append(bench)
+        return bench
+    yield make
+    for bench in reversed(made):
+        bench.close()
+
+
 def examples(n: int) -> int:
     """Return n examples in CI, LONG_FACTOR x n with HYPOTHESIS_PROFILE=long."""
     return n * LONG_FACTOR if PROFILE == 'long' else n

@@ -1,4 +1,9 @@
-"""The charger role's periodic START (base + 0x010) without ROS: repeat, halt, disarm, bus down."""
+"""
+The charger role's START (base + 0x010) without ROS: repeat, halt, disarm, bus down, order.
+
+The ordering rule (no START ever after a STOP) is the device's (devices/ams_charger.py): its
+two services run one at a time, and the repeat has ended before the STOP is sent.
+"""
 import threading
 import time
 
@@ -116,3 +121,75 @@ def test_the_device_shows_the_repeat_in_its_diagnostics():
     repeater.disarm('commands_enabled was set to false')
     assert device.diagnostic_report().values['charger START repeated'] == (
         'no (last: commands_enabled was set to false)')
+
+
+class Port:
+    """The pipeline's port as the charger uses it: send_frames builds and sends on the bus."""
+
+    def __init__(self, bus):
+        self.bus = bus
+        self.hold = None  # an Event: the next send_frames waits for it
+        self.holding = threading.Event()
+
+    def send_frames(self, build):
+        frames = list(build())
+        if self.hold is not None:
+            hold, self.hold = self.hold, None
+            self.holding.set()
+            hold.wait(5.0)
+        for frame in frames:
+            ok, why = self.bus.send(frame)
+            if not ok:
+                return False, f'ams: failed: {why}'
+        return True, 'ams: start charging: sent'
+
+
+def starts_and_stops(bus):
+    """Return b0 (1 START, 2 STOP) of every charger frame on the bus, in order."""
+    return [d[0] for d in bus.data()]
+
+
+def test_stop_charging_ends_the_repeat_before_its_stop_goes_out():
+    repeater, bus, log = make()
+    repeater.arm()
+    port = Port(bus)
+    ok, message = repeater.start_charging(port)
+    assert ok and message == ('ams: start charging: sent, repeated every 10 ms until '
+                              'stop_charging or commands_enabled false')
+    wait_for(lambda: len(bus.frames) >= 5, 5.0, 'repeats')
+    again = repeater.start_charging(port)  # already repeating: nothing more is sent
+    assert again == (True, 'ams: start charging: START is already repeated every 10 ms; '
+                           'nothing more sent')
+    seen_at_stop = []
+    real = port.send_frames
+
+    def stop_sent(build):
+        seen_at_stop.append((repeater.active, bool(repeat_threads())))
+        return real(build)
+    port.send_frames = stop_sent
+    ok, message = repeater.stop_charging(port)
+    assert ok and message.endswith('; the repeated START has ended')
+    assert seen_at_stop == [(False, False)]  # no repeat could follow the STOP
+    assert starts_and_stops(bus)[-1] == 2 and set(starts_and_stops(bus)[:-1]) == {1}
+
+
+def test_a_stop_called_while_a_start_is_under_way_waits_for_it_and_comes_last():
+    repeater, bus, log = make()
+    repeater.arm()
+    port = Port(bus)
+    port.hold = release = threading.Event()
+    start = threading.Thread(target=lambda: repeater.start_charging(port), daemon=True)
+    start.start()
+    assert port.holding.wait(5.0)  # the START is being sent, its repeat not begun yet
+    stop = threading.Thread(target=lambda: repeater.stop_charging(Port(bus)), daemon=True)
+    stop.start()
+    stop.join(0.2)
+    assert stop.is_alive()  # one call at a time: the stop waits for the start
+    release.set()
+    start.join(5.0)
+    stop.join(5.0)
+    assert not start.is_alive() and not stop.is_alive()
+    assert not repeat_threads() and not repeater.active
+    # START first, the STOP last: the repeat the start began was ended by the stop
+    frames = starts_and_stops(bus)
+    assert frames[0] == 1 and frames[-1] == 2 and 2 not in frames[:-1], frames

@@ -1,4 +1,11 @@
-"""AMS services on a real node: car commands in the heartbeat, charger-role frames."""
+"""
+AMS services: car commands in the heartbeat, charger-role frames.
+
+Through the one command pipeline without ROS (``bench_factory``, ``with_ams``: the bridge's
+command side on a python-can virtual bus, the simulated AMS on the same bus); on a real node
+(``rig_factory``, ``with_ams_node``) where ROS itself is under test: rclpy's parameter ranges,
+telemetry flowing while a call waits in an executor thread, the rclpy log lines.
+"""
 import threading
 import time
 
@@ -10,16 +17,15 @@ from std_srvs.srv import Trigger
 
 from ams_can_bridge.sim.ams import AmsSimulator
 from ams_can_bridge.sim.runner import SimRunner
-from command_rig import unique_channel
+from command_bench import unique_channel
 from helpers import assert_ended
 
 BASE = 0x300
 HEARTBEAT = BASE + 0x005
 
 
-@pytest.fixture
-def with_ams(rig_factory):
-    """Node + simulated AMS (3 banks) on one virtual channel, commands enabled."""
+def ams_with_simulator(factory):
+    """Yield a maker of (bridge, simulated AMS with 3 banks) on one virtual channel."""
     runners = []
 
     def make(precharge_time=0.3, sim_options=None, **params):
@@ -28,14 +34,26 @@ def with_ams(rig_factory):
         runner = SimRunner(can.Bus(interface='virtual', channel=channel), [sim])
         runners.append(runner)
         runner.start()
-        rig = rig_factory(ams_params(**params), channel=channel)
-        device = rig.node.devices['ams']
-        assert rig.wait(lambda: device.master_view().state == 1), 'no AMS IDLE'
-        return rig, sim
+        bridge = factory(ams_params(**params), channel=channel)
+        device = bridge.devices['ams']
+        assert bridge.wait(lambda: device.master_view().state == 1), 'no AMS IDLE'
+        return bridge, sim
     yield make
     for runner in runners:
         runner.stop()
         runner.bus.shutdown()
+
+
+@pytest.fixture
+def with_ams(bench_factory):
+    """Make the command side and a simulated AMS (3 banks) on one channel, commands on."""
+    yield from ams_with_simulator(bench_factory)
+
+
+@pytest.fixture
+def with_ams_node(rig_factory):
+    """Make a node and a simulated AMS (3 banks) on one channel, commands enabled."""
+    yield from ams_with_simulator(rig_factory)
 
 
 def ams_params(enabled=True, **extra):
@@ -66,24 +84,28 @@ def charger_frames(rig, mark=0):
     return [f.data for _, f in rig.capture.since(mark, CHARGER)]
 
 
-def test_start_charging_repeats_start_every_100_ms_until_stop_charging(rig_factory):
-    rig = rig_factory(ams_params())
-    mark = rig.capture.mark()
-    first = rig.call(Trigger, '/ams/start_charging')
+def test_start_charging_repeats_start_every_100_ms_until_stop_charging(bench_factory):
+    bench = bench_factory(ams_params())
+    mark = bench.capture.mark()
+    first = bench.call('/ams/start_charging')
     assert first.success, first.message
     assert 'repeated every 100 ms until stop_charging' in first.message
-    assert rig.wait(lambda: len(charger_frames(rig, mark)) >= 4)  # the first START + 3 repeats
-    again = rig.call(Trigger, '/ams/start_charging')
+    assert bench.wait(lambda: len(charger_frames(bench, mark)) >= 4)  # the first START + 3 repeats
+    fourth = time.monotonic()
+    again = bench.call('/ams/start_charging')
     assert again.success and 'already repeated' in again.message, again.message
-    repeat = rig.node.commanders['ams'].charger._thread
-    second = rig.call(Trigger, '/ams/stop_charging')
+    repeat = bench.devices['ams'].charger.thread
+    # a tick is 1 ms: the bench answers within the ms of the repeat just seen (a ROS call
+    # takes longer), and a STOP sent in that ms would rightly carry the same tick
+    assert bench.wait(lambda: time.monotonic() - fourth > 0.002)
+    second = bench.call('/ams/stop_charging')
     assert second.success, second.message
     assert 'the repeated START has ended' in second.message
     # stopped for good: the repeat's thread has ended, so no START can follow; a marker
     # after the call shows everything sent until then, the STOP last
     assert_ended(repeat, 'the charger repeat')
-    rig.capture.sync()
-    frames = charger_frames(rig, mark)
+    bench.capture.sync()
+    frames = charger_frames(bench, mark)
     # doc/protocols.md section 1: DLC 3, b0 bits 1..0 = 1 START / 2 STOP, b1..2 = tick (BE)
     assert all(len(d) == 3 for d in frames)
     assert [d[0] for d in frames] == [1] * (len(frames) - 1) + [2]  # STOP once, last
@@ -91,42 +113,41 @@ def test_start_charging_repeats_start_every_100_ms_until_stop_charging(rig_facto
     ticks = [d[1] << 8 | d[2] for d in frames]
     steps = [(b - a) & 0xFFFF for a, b in zip(ticks, ticks[1:])]
     assert all(0 < step < 2000 for step in steps), ticks  # ms, each frame its own tick
-    status = rig.status('ams', lambda s: any(
-        kv.key == 'charger START repeated' and kv.value.startswith('no') for kv in s.values))
-    assert status is not None
+    values = bench.devices['ams'].diagnostic_report().values
+    assert values['charger START repeated'].startswith('no')
 
 
 def test_disarm_stops_the_repeated_start_at_once_and_rearming_does_not_resume_it(
-        rig_factory):
-    rig = rig_factory(ams_params())
-    mark = rig.capture.mark()
-    assert rig.call(Trigger, '/ams/start_charging').success
-    assert rig.wait(lambda: len(charger_frames(rig, mark)) >= 3)
-    charger = rig.node.commanders['ams'].charger
-    repeat = charger._thread
-    assert rig.set_param('commands_enabled', False).successful
-    frames_out = rig.frames_out()
+        bench_factory):
+    bench = bench_factory(ams_params())
+    mark = bench.capture.mark()
+    assert bench.call('/ams/start_charging').success
+    assert bench.wait(lambda: len(charger_frames(bench, mark)) >= 3)
+    charger = bench.devices['ams'].charger
+    repeat = charger.thread
+    assert bench.set_param('commands_enabled', False).successful
+    frames_out = bench.frames_out()
     # at once: the repeat's thread has ended and, the heartbeat stopped too, nothing at all
     # was sent after set_param returned: no START, and no STOP while disarmed
     assert_ended(repeat, 'the charger repeat')
-    rig.assert_silent_since(frames_out)
-    disarmed = rig.capture.mark()
-    assert rig.set_param('commands_enabled', True).successful
+    bench.assert_silent_since(frames_out)
+    disarmed = bench.capture.mark()
+    assert bench.set_param('commands_enabled', True).successful
     # re-armed: the heartbeat is back, the repeat is not (no thread to send a START)
-    assert not charger.active and charger._thread is None
-    assert rig.wait(lambda: len(heartbeat_commands(rig, disarmed)) >= 3)
-    rig.capture.sync()
-    assert charger_frames(rig, disarmed) == []
-    assert set(d[0] for d in charger_frames(rig, mark)) == {1}
+    assert not charger.active and charger.thread is None
+    assert bench.wait(lambda: len(heartbeat_commands(bench, disarmed)) >= 3)
+    bench.capture.sync()
+    assert charger_frames(bench, disarmed) == []
+    assert set(d[0] for d in charger_frames(bench, mark)) == {1}
 
 
-def test_set_charge_current_and_override_bank_count(rig_factory):
-    rig = rig_factory(ams_params(**{'ams.charge_current_a': 12.5}))
-    mark = rig.capture.mark()
-    assert rig.call(Trigger, '/ams/set_charge_current').success
-    assert rig.call(Trigger, '/ams/override_bank_count').success
-    assert rig.wait(lambda: len(commands_sent(rig, mark)) >= 2)
-    assert commands_sent(rig, mark) == [(0x350, bytes([125])), (0x351, bytes([3]))]
+def test_set_charge_current_and_override_bank_count(bench_factory):
+    bench = bench_factory(ams_params(**{'ams.charge_current_a': 12.5}))
+    mark = bench.capture.mark()
+    assert bench.call('/ams/set_charge_current').success
+    assert bench.call('/ams/override_bank_count').success
+    assert bench.wait(lambda: len(commands_sent(bench, mark)) >= 2)
+    assert commands_sent(bench, mark) == [(0x350, bytes([125])), (0x351, bytes([3]))]
 
 
 def test_charge_current_unset_or_out_of_range_is_refused_and_nothing_sent(rig_factory):
@@ -145,95 +166,96 @@ def test_charge_current_unset_or_out_of_range_is_refused_and_nothing_sent(rig_fa
 
 
 # --- car commands without an AMS on the bus --------------------------------------------
-def test_state_command_times_out_when_no_ams_answers(rig_factory):
-    rig = rig_factory(ams_params(**{'ams.command_timeout': 0.5}))
-    mark = rig.capture.mark()
+def test_state_command_times_out_when_no_ams_answers(bench_factory):
+    bench = bench_factory(ams_params(**{'ams.command_timeout': 0.5}))
+    mark = bench.capture.mark()
     t0 = time.monotonic()
-    response = rig.call(Trigger, '/ams/enable_sc')
+    response = bench.call('/ams/enable_sc')
     assert time.monotonic() - t0 >= 0.5
     assert not response.success
     assert 'timeout after 0.5 s waiting for SC_ENABLED' in response.message
     assert 'not reported yet' in response.message
-    commands = heartbeat_commands(rig, mark)
+    bench.capture.sync()  # every heartbeat sent before the answer is captured by now
+    commands = heartbeat_commands(bench, mark)
     assert 1 in commands  # ENABLE_SC was carried while waiting
     last = max(i for i, c in enumerate(commands) if c == 1)
     n = len(commands)
-    assert rig.wait(lambda: len(heartbeat_commands(rig, mark)) >= n + 3)
-    assert set(heartbeat_commands(rig, mark)[last + 1:]) == {0}  # back to NO_COMMAND
+    assert bench.wait(lambda: len(heartbeat_commands(bench, mark)) >= n + 3)
+    assert set(heartbeat_commands(bench, mark)[last + 1:]) == {0}  # back to NO_COMMAND
 
 
-def test_one_shot_commands_answer_once_carried(rig_factory):
-    rig = rig_factory(ams_params())
-    mark = rig.capture.mark()
+def test_one_shot_commands_answer_once_carried(bench_factory):
+    bench = bench_factory(ams_params())
+    mark = bench.capture.mark()
     for service, command in (('set_bank_count', 5), ('sync_time', 6)):
-        response = rig.call(Trigger, f'/ams/{service}')
+        response = bench.call(f'/ams/{service}')
         assert response.success, response.message
         assert 'sent in the heartbeat' in response.message
-    assert rig.wait(lambda: len(heartbeat_commands(rig, mark)) >= 20)
-    commands = heartbeat_commands(rig, mark)
+    assert bench.wait(lambda: len(heartbeat_commands(bench, mark)) >= 20)
+    commands = heartbeat_commands(bench, mark)
     assert commands.count(5) == 1 and commands.count(6) == 1
-    frames = rig.capture.since(mark, HEARTBEAT)
+    frames = bench.capture.since(mark, HEARTBEAT)
     assert all(f.data[0] >> 4 == 3 for _, f in frames)  # bank count from ams.bank_count
 
 
 # --- car commands against the simulated AMS ----------------------------------------------
 def test_full_sequence_sc_ts_drive_abort(with_ams):
-    rig, sim = with_ams()
+    bench, sim = with_ams()
     for service, target in (('enable_sc', 'SC_ENABLED'), ('enable_ts', 'TS_ACTIVE'),
                             ('enable_drive', 'DRIVE'), ('abort', 'IDLE')):
-        response = rig.call(Trigger, f'/ams/{service}')
+        response = bench.call(f'/ams/{service}')
         assert response.success, response.message
         assert f'AMS reports {target}' in response.message
         assert sim.state.name == target
     # TS_ACTIVE came after PRECHARGING, as the AMS reported it on the bus
-    states = [f.data[1] & 0x1F for _, f in rig.capture.since(0, BASE)]
+    states = [f.data[1] & 0x1F for _, f in bench.capture.since(0, BASE)]
     assert 7 in states and states.index(7) < states.index(3)
 
 
 def test_enable_drive_from_idle_is_refused_at_once_naming_ts_active(with_ams):
-    rig, sim = with_ams(**{'ams.command_timeout': 30.0})  # waiting it out would fail the call
-    mark = rig.capture.mark()
-    response = rig.call(Trigger, '/ams/enable_drive', timeout=10.0)
+    bench, sim = with_ams(**{'ams.command_timeout': 30.0})  # waiting it out would fail the call
+    mark = bench.capture.mark()
+    response = bench.call('/ams/enable_drive')
     assert not response.success
     assert 'ENABLE_DRIVE refused: the AMS is in IDLE' in response.message, response.message
     assert 'it must be TS_ACTIVE first (call enable_sc, then enable_ts)' in response.message
     assert 'nothing was sent' in response.message
     # nothing sent beyond the heartbeat, which runs on with NO_COMMAND
-    n = len(heartbeat_commands(rig, mark))
-    assert rig.wait(lambda: len(heartbeat_commands(rig, mark)) >= n + 5)
-    assert set(heartbeat_commands(rig, mark)) == {0}
+    n = len(heartbeat_commands(bench, mark))
+    assert bench.wait(lambda: len(heartbeat_commands(bench, mark)) >= n + 5)
+    assert set(heartbeat_commands(bench, mark)) == {0}
     bridge_ids = {BASE + 0x010, BASE + 0x050, BASE + 0x051}
-    assert not [f for _, f in rig.capture.since(mark) if f.arbitration_id in bridge_ids]
+    assert not [f for _, f in bench.capture.since(mark) if f.arbitration_id in bridge_ids]
     assert sim.state.name == 'IDLE'
 
 
 def test_an_ams_watching_the_charger_keeps_charging_while_start_repeats(with_ams):
     # an AMS that leaves CHARGING 0.5 s after the last charger command (5 missed periods)
-    rig, sim = with_ams(precharge_time=0.1, sim_options={'charger_timeout': 0.5})
-    assert rig.call(Trigger, '/ams/start_charging').success
-    assert rig.wait(lambda: sim.state.name == 'CHARGING')
-    mark = rig.capture.mark()
+    bench, sim = with_ams(precharge_time=0.1, sim_options={'charger_timeout': 0.5})
+    assert bench.call('/ams/start_charging').success
+    assert bench.wait(lambda: sim.state.name == 'CHARGING')
+    mark = bench.capture.mark()
     # 2 s of heartbeats (20 ms): four times the AMS's charger timeout, still CHARGING
-    assert rig.wait(lambda: len(heartbeat_commands(rig, mark)) >= 100)
+    assert bench.wait(lambda: len(heartbeat_commands(bench, mark)) >= 100)
     assert sim.state.name == 'CHARGING'
-    assert rig.call(Trigger, '/ams/stop_charging').success
-    assert rig.wait(lambda: sim.state.name == 'IDLE')
+    assert bench.call('/ams/stop_charging').success
+    assert bench.wait(lambda: sim.state.name == 'IDLE')
 
 
 def test_silent_ams_times_out(with_ams):
-    rig, sim = with_ams(**{'ams.command_timeout': 0.5})
+    bench, sim = with_ams(**{'ams.command_timeout': 0.5})
     sim.faults.silent = True
-    response = rig.call(Trigger, '/ams/enable_sc')
+    response = bench.call('/ams/enable_sc')
     assert not response.success
     assert 'timeout after 0.5 s waiting for SC_ENABLED' in response.message
     assert 'AMS state: IDLE' in response.message  # the last state it reported
 
 
 def test_ams_error_answers_failure_with_state_and_error_names(with_ams):
-    rig, sim = with_ams(precharge_time=10.0)
-    assert rig.call(Trigger, '/ams/enable_sc').success
-    call = rig.call_in_thread(Trigger, '/ams/enable_ts')
-    assert rig.wait(lambda: sim.state.name == 'PRECHARGING')
+    bench, sim = with_ams(precharge_time=10.0)
+    assert bench.call('/ams/enable_sc').success
+    call = bench.call_in_thread('/ams/enable_ts')
+    assert bench.wait(lambda: sim.state.name == 'PRECHARGING')
     sim.faults.error_code = 15  # PRE_TIMEOUT
     call['thread'].join(5)
     response = call['response']
@@ -243,17 +265,18 @@ def test_ams_error_answers_failure_with_state_and_error_names(with_ams):
 
 
 def test_abort_during_a_waiting_enable_ts(with_ams):
-    rig, sim = with_ams(precharge_time=10.0, **{'ams.command_timeout': 5.0})
-    assert rig.call(Trigger, '/ams/enable_sc').success
-    mark = rig.capture.mark()
-    call = rig.call_in_thread(Trigger, '/ams/enable_ts')
-    assert rig.wait(lambda: sim.state.name == 'PRECHARGING')
-    abort = rig.call(Trigger, '/ams/abort')
+    bench, sim = with_ams(precharge_time=10.0, **{'ams.command_timeout': 5.0})
+    assert bench.call('/ams/enable_sc').success
+    mark = bench.capture.mark()
+    call = bench.call_in_thread('/ams/enable_ts')
+    assert bench.wait(lambda: sim.state.name == 'PRECHARGING')
+    abort = bench.call('/ams/abort')
     call['thread'].join(5)
     assert abort.success and 'AMS reports IDLE' in abort.message, abort.message
     enable = call['response']
     assert not enable.success and 'aborted' in enable.message
-    commands = heartbeat_commands(rig, mark)
+    bench.capture.sync()  # every heartbeat sent before the answers is captured by now
+    commands = heartbeat_commands(bench, mark)
     first_abort = commands.index(4)
     # ABORT replaced ENABLE_TS in the very next heartbeat: ...2, 2, 4... with no gap,
     # and no ENABLE_TS ever after it
@@ -261,13 +284,13 @@ def test_abort_during_a_waiting_enable_ts(with_ams):
     assert 2 not in commands[first_abort:]
     assert sim.state.name == 'IDLE'
     n = len(commands)
-    assert rig.wait(lambda: len(heartbeat_commands(rig, mark)) >= n + 3)
-    assert heartbeat_commands(rig, mark)[-1] == 0  # ABORT ends once IDLE was reported
+    assert bench.wait(lambda: len(heartbeat_commands(bench, mark)) >= n + 3)
+    assert heartbeat_commands(bench, mark)[-1] == 0  # ABORT ends once IDLE was reported
 
 
-def test_telemetry_flows_while_a_command_waits(with_ams):
-    rig, sim = with_ams(precharge_time=10.0, **{'ams.command_timeout': 1.5,
-                                                'diagnostics_period': 0.2})
+def test_telemetry_flows_while_a_command_waits(with_ams_node):
+    rig, sim = with_ams_node(precharge_time=10.0, **{'ams.command_timeout': 1.5,
+                                                     'diagnostics_period': 0.2})
     stamps = []
     diag_stamps = []
     lock = threading.Lock()

@@ -5,7 +5,8 @@ import time
 
 import pytest
 
-from ams_can_bridge.devices.ams_master import AmsMaster, AmsView, HeartbeatSchedule
+from ams_can_bridge.devices.ams_master import AmsMaster, AmsView
+from ams_can_bridge.devices.periodic_sender import SlotSchedule
 from ams_can_bridge.protocols.ams import AmsState, CarCommand
 from ams_can_bridge.protocols.common import Frame
 from helpers import assert_ended, wait_for
@@ -82,7 +83,7 @@ def rig():
 
 
 def test_schedule_is_absolute_and_skips_missed_slots():
-    schedule = HeartbeatSchedule(0.05, start=100.0)
+    schedule = SlotSchedule(0.05, start=100.0)
     assert schedule.due() == 100.0
     assert schedule.take(100.001) == 0
     assert schedule.due() == pytest.approx(100.05)
@@ -93,13 +94,13 @@ def test_schedule_is_absolute_and_skips_missed_slots():
     assert schedule.take(100.26) == 0
     assert schedule.due() == pytest.approx(100.30)
     with pytest.raises(ValueError):
-        HeartbeatSchedule(0.0, 0.0)
+        SlotSchedule(0.0, 0.0)
 
 
 def test_heartbeat_counter_bank_count_and_no_command(rig):
     ams, master = rig(period=0.002)
     master.start()
-    thread = master._thread
+    thread = master.thread
     ams.wait_frames(300)
     master.stop()
     n = len(ams.frames)  # all the master sent before stop() returned
@@ -209,7 +210,7 @@ def test_stop_while_waiting_answers_failure_and_not_running_refuses(rig):
     waiter.start()
     wait_for(lambda: master.current_command() == CarCommand.ENABLE_SC, timeout=2.0,
              what='ENABLE_SC in progress')
-    thread = master._thread
+    thread = master.thread
     master.stop('commands_enabled was set to false')
     n = len(ams.frames)
     waiter.join(2)
@@ -244,7 +245,7 @@ def test_bus_down_while_waiting_fails_the_call_and_nothing_stale_is_replayed(rig
             return False, 'CAN bus virtual:x is not connected (reconnecting: unplugged)'
         sent_ok.append(frame)
         return ams.send(frame)
-    master._send = send  # the bus between master and AMS, which we can pull out
+    master.sender._send = send  # the bus between master and AMS, which we can pull out
     ams.state = AmsState.SC_ENABLED
     master.start()
     ams.wait_frames(3)

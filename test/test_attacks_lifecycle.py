@@ -99,7 +99,7 @@ def test_armed_while_unconfigured_then_configured_stays_silent_until_activated(r
     assert change(rig, Transition.TRANSITION_CONFIGURE)
     assert state(rig) == 'inactive'
     rig.wait(lambda: node.can_io.status().connected, what='the bus to open')
-    assert not node.commands_enabled and not node.commanders['ams'].master.running
+    assert not node.commands_enabled and not node.devices['ams'].master.running
     result = set_through_service(rig, 'commands_enabled', True)
     assert not result.successful and 'inactive' in result.reason, result.reason
     answer = rig.call(Trigger, 'ams/enable_sc')

@@ -21,7 +21,7 @@ from rclpy.parameter import Parameter
 from ams_can_bridge.errors import ParamError
 from ams_can_bridge.parameters import coerce, MAX_BUS_OPTIONS, MAX_DEVICES, NODE_PARAMS
 from ams_can_bridge.protocols.ams import AmsCodec, DEFAULT_BASE_ID as AMS_BASE
-from test_param_service import every_device
+from shared import every_device
 
 NODE = '/ams_can_bridge'
 HEARTBEAT = AMS_BASE + 5

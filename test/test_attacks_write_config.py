@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from std_srvs.srv import Trigger
 
-from test_zeva_commands import EVMS3_FRAMES, evms3_in, evms3_params, IDLE, sent
+from shared import EVMS3_FRAMES, evms3_in, evms3_params, IDLE, sent
 
 GAP = 0.5  # s after each frame, instead of the Monitor's 20 ms: room for the disarm
 
@@ -21,7 +21,7 @@ def test_a_disarm_during_write_config_stops_it_and_the_answer_says_what_was_sent
         rig_factory, capfd):
     rig = rig_factory(evms3_params())
     evms3_in(rig, IDLE)
-    rig.node.commanders['evms3'].WRITE_GAP = GAP
+    rig.node.devices['evms3'].CONFIG_FRAME_GAP = GAP
     mark = rig.capture.mark()
     call = rig.call_in_thread(Trigger, '/evms3/write_config')
     rig.wait(lambda: sent(rig, mark), what='the first configuration frame')

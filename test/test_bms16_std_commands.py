@@ -1,15 +1,16 @@
 """
-BMS16 standard form on a real node: telemetry, services and their refusals.
+BMS16 standard form: telemetry, services and their refusals.
 
-write_config sends IDs 36, 32..35, 20 ms apart as ZEVA's Monitor sends them; power off is
-39, acknowledge 37, reset SoC 38. Golden frames: test_protocol_bms16_std.py (written by hand
-from the Monitor firmware).
+Telemetry on a real node; the services through the one command pipeline without ROS
+(``bench_factory``), on a virtual bus. write_config sends IDs 36, 32..35, 20 ms apart as
+ZEVA's Monitor sends them; power off is 39, acknowledge 37, reset SoC 38. Golden frames:
+shared.py (BMS16_STD_*, written by hand from the Monitor firmware).
 """
 import can
-from std_srvs.srv import Trigger
 
 from command_rig import battery_topics
-from test_protocol_bms16_std import CONFIG, EVMS3_STATUS, GOLDEN_WRITE, STATUS
+from shared import (BMS16_STD_CONFIG as CONFIG, BMS16_STD_EVMS3_STATUS as EVMS3_STATUS,
+                    BMS16_STD_STATUS as STATUS, BMS16_STD_WRITE as GOLDEN_WRITE, sent)
 
 
 def params(enabled=True, config=CONFIG):
@@ -19,15 +20,15 @@ def params(enabled=True, config=CONFIG):
     return out
 
 
-def sent_after(rig, mark):
+def sent_after(bridge, mark):
     """Frames the bridge sent after mark, up to a marker frame (Capture.sync): none is late."""
-    rig.capture.sync()
-    return [(f.arbitration_id, f.data, f.is_extended_id) for _, f in rig.capture.since(mark)]
+    bridge.capture.sync()
+    return sent(bridge, mark)
 
 
-def heard(rig):
-    rig.send(30, STATUS, extended=True)
-    rig.wait(lambda: not rig.node.devices['bms16'].is_stale(), what='the BMS16 status')
+def heard(bridge):
+    bridge.send(30, STATUS, extended=True)
+    bridge.wait(lambda: not bridge.devices['bms16'].is_stale(), what='the BMS16 status')
 
 
 def test_status_reaches_battery_state(rig_factory):
@@ -38,15 +39,15 @@ def test_status_reaches_battery_state(rig_factory):
     assert round(msg.percentage, 4) == round(123.4 / 200, 4)  # config.pack_capacity_ah 200
 
 
-def test_write_config_sends_36_then_32_to_35_paced(rig_factory):
-    rig = rig_factory(params())
-    heard(rig)
-    listener = can.Bus(interface='virtual', channel=rig.channel)  # its timestamps: send time
+def test_write_config_sends_36_then_32_to_35_paced(bench_factory):
+    bench = bench_factory(params())
+    heard(bench)
+    listener = can.Bus(interface='virtual', channel=bench.channel)  # its timestamps: send time
     try:
-        mark = rig.capture.mark()
-        response = rig.call(Trigger, '/bms16/write_config')
+        mark = bench.capture.mark()
+        response = bench.call('/bms16/write_config')
         assert response.success, response.message
-        assert sent_after(rig, mark) == [(i, d, True) for i, d in GOLDEN_WRITE]
+        assert sent_after(bench, mark) == [(i, d, True) for i, d in GOLDEN_WRITE]
         stamps = []
         while len(stamps) < len(GOLDEN_WRITE):
             msg = listener.recv(2.0)
@@ -59,44 +60,44 @@ def test_write_config_sends_36_then_32_to_35_paced(rig_factory):
         listener.shutdown()
 
 
-def test_write_config_refused_while_only_an_evms3_is_heard(rig_factory):
-    rig = rig_factory(params())
-    rig.send(30, EVMS3_STATUS, extended=True)
-    rig.wait(lambda: rig.node.devices['bms16'].frames_malformed, what='the EVMS3 status')
-    mark = rig.capture.mark()
-    response = rig.call(Trigger, '/bms16/write_config')
+def test_write_config_refused_while_only_an_evms3_is_heard(bench_factory):
+    bench = bench_factory(params())
+    bench.send(30, EVMS3_STATUS, extended=True)
+    bench.wait(lambda: bench.devices['bms16'].frames_malformed, what='the EVMS3 status')
+    mark = bench.capture.mark()
+    response = bench.call('/bms16/write_config')
     assert not response.success and 'byte 5 = 255' in response.message
-    assert sent_after(rig, mark) == []
+    assert sent_after(bench, mark) == []
 
 
-def test_write_config_names_missing_values_and_sends_nothing(rig_factory):
-    rig = rig_factory(params(config={k: v for k, v in CONFIG.items() if k != 'cells'}))
-    heard(rig)
-    mark = rig.capture.mark()
-    response = rig.call(Trigger, '/bms16/write_config')
+def test_write_config_names_missing_values_and_sends_nothing(bench_factory):
+    bench = bench_factory(params(config={k: v for k, v in CONFIG.items() if k != 'cells'}))
+    heard(bench)
+    mark = bench.capture.mark()
+    response = bench.call('/bms16/write_config')
     assert not response.success and 'bms16.config.cells' in response.message
-    assert sent_after(rig, mark) == []
+    assert sent_after(bench, mark) == []
 
 
-def test_maintenance_frames(rig_factory):
-    rig = rig_factory(params(config={}))
-    heard(rig)
+def test_maintenance_frames(bench_factory):
+    bench = bench_factory(params(config={}))
+    heard(bench)
     for service, frame in (('power_off', (39, b'', True)), ('reset_soc', (38, b'', True)),
                            ('acknowledge_error', (37, b'\x0a', True))):
-        mark = rig.capture.mark()
-        response = rig.call(Trigger, f'/bms16/{service}')
+        mark = bench.capture.mark()
+        response = bench.call(f'/bms16/{service}')
         assert response.success, response.message
-        assert sent_after(rig, mark) == [frame], service
+        assert sent_after(bench, mark) == [frame], service
 
 
-def test_nothing_sent_while_commands_disabled(rig_factory):
-    rig = rig_factory(params(enabled=False))
-    heard(rig)
-    mark = rig.capture.mark()
+def test_nothing_sent_while_commands_disabled(bench_factory):
+    bench = bench_factory(params(enabled=False))
+    heard(bench)
+    mark = bench.capture.mark()
     for service in ('write_config', 'power_off'):
-        response = rig.call(Trigger, f'/bms16/{service}')
+        response = bench.call(f'/bms16/{service}')
         assert not response.success and 'commands_enabled' in response.message
-    assert sent_after(rig, mark) == []
+    assert sent_after(bench, mark) == []
 
 
 def test_config_parameters_refuse_values_outside_the_monitors_ranges(rig_factory):

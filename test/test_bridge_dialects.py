@@ -15,7 +15,7 @@ from sensor_msgs.msg import BatteryState
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.ros.bridge_node import BridgeNode
 from helpers import ros_context
-from test_bridge_node import level, values
+from shared import level, values
 
 
 def le16(*numbers: int) -> bytes:

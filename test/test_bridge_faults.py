@@ -11,7 +11,7 @@ import time
 
 from sensor_msgs.msg import BatteryState
 from slcan_peer import SlcanPeer
-from test_bridge_node import bms16_status, level, values
+from shared import bms16_status, level, values
 
 from ams_can_bridge.protocols.common import Frame
 

@@ -20,6 +20,7 @@ from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.ros.bridge_node import BridgeNode, ConfigError
 from command_rig import Rig
 from helpers import ros_context, wait_for
+from shared import bms16_status, level, values
 
 NAN = math.nan
 _ids = itertools.count()
@@ -31,16 +32,8 @@ def context():
         yield ctx
 
 
-def values(status) -> dict[str, str]:
-    return {kv.key: kv.value for kv in status.values}
-
-
 def approx_list(expected: list[float]):
     return [pytest.approx(v, rel=1e-6, nan_ok=True) for v in expected]
-
-
-def level(status) -> int:
-    return status.level[0] if isinstance(status.level, bytes) else int(status.level)
 
 
 # --- CAN bus diagnostics ------------------------------------------------------------------
@@ -134,12 +127,6 @@ def test_ivt_s_battery_state_sign_and_diagnostics(rig_factory):
 
 
 # --- BMS16 -------------------------------------------------------------------------------
-def bms16_status(error: int, soc: int, volts_x10: int, amps_x10: int, temp: int) -> bytes:
-    """ID 500: b0 error, b1 SoC, b2..3 0.1 V LE, b4..5 (raw-32768) 0.1 A LE, b6 degC."""
-    return (bytes([error, soc]) + volts_x10.to_bytes(2, 'little')
-            + (amps_x10 + 32768).to_bytes(2, 'little') + bytes([temp]))
-
-
 def bms16_cells(centivolts: list[int]) -> bytes:
     """ID 501..503: low 8 bits of each cell, then b6 bit n = 9th bit of cell n."""
     high = sum(((v >> 8) & 1) << n for n, v in enumerate(centivolts))
@@ -316,7 +303,7 @@ def test_device_parameters_are_checked_and_applied_by_the_device(rig_factory):
     h = rig_factory({'devices': ['evms3']})
     node = h.node
     device = node.devices['evms3']
-    assert 'evms3' in node.commanders
+    assert 'evms3' in node.command_services
     before = device.config
     # within the declared ROS range (any int[]), refused by the device: 16 values needed
     refused = node.set_parameters([Parameter('evms3.config.cells_per_module', value=[12])])[0]

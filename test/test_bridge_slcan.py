@@ -23,6 +23,7 @@ from sensor_msgs.msg import BatteryState
 from ams_can_bridge.protocols.common import Frame
 from executables import package_executable
 from helpers import interrupt, ros_context, wait_for
+from shared import FRAMES
 from slcan_peer import SlcanPeer
 
 BATTERY = ['ams', 'ivt', 'evms3', 'bms16', 'sma']
@@ -50,19 +51,6 @@ def params_file(path: Path, channel: str) -> Path:
       stale_timeout: 2
 """)
     return path
-
-
-# Hand-written frames of doc/protocols.md, one set per device type.
-FRAMES = [
-    Frame(0x521, bytes([0, 0]) + (-12_000).to_bytes(4, 'big', signed=True)),  # IVT-S -12 A
-    Frame(0x300, bytes([0xC0, 0x21, 180, 30, 66, 1, 0])),  # AMS IDLE, SOC 66 %
-    # EVMS3 ID 30: Running (2), 123.4 Ah, 345.6 V, 13.1 V aux, 99 % isolation, 25 degC
-    Frame(30, bytes([0x02, 0x04, 0xD2, 0x0D, 0x80, 131, 99, 65]), True),
-    Frame(500, bytes([0, 81, 0x0B, 0x02, 0x7D, 0x80, 25])),  # BMS16 SoC 81 %
-    # SMA limits 55.2 / 48.0 V (they tell 0x356's 0.01 V), then 51.2 V -15.3 A
-    Frame(0x351, bytes([0x28, 0x02, 0xF4, 0x01, 0xE8, 0x03, 0xE0, 0x01])),
-    Frame(0x356, bytes([0x00, 0x14, 0x67, 0xFF, 0xE7, 0x00])),
-]
 
 
 def frames_round(n: int) -> list[Frame]:

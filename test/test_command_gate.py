@@ -1,10 +1,10 @@
 """
 The command gate alone (engine/gate.py, no ROS): every frame the bridge sends passes it.
 
-A fake bus stands in for CanIo: its state is set by the test, ``wait_connected`` waits on a
-condition the test signals, and it records what was sent. Waits are bounded; where a test
-must know a thread is inside the gate it waits for that (bus_waiters, an event), never for
-a time.
+A fake bus (``shared.FakeBus``) stands in for CanIo: its state is set by the test,
+``wait_connected`` waits on a condition the test signals, and it records what was sent.
+Waits are bounded; where a test must know a thread is inside the gate it waits for that
+(bus_waiters, an event), never for a time.
 """
 from __future__ import annotations
 
@@ -13,61 +13,17 @@ import threading
 
 import pytest
 
-from ams_can_bridge.bus_state import BusState, BusStatus
+from ams_can_bridge.bus_state import BusState
 from ams_can_bridge.engine.gate import BUS_WAIT_SLOTS, arming_refused, CommandGate
-from ams_can_bridge.errors import CanSendError
 from ams_can_bridge.protocols.common import Frame
+from shared import collecting_logger, FakeBus, Lines
 
 WAIT = 5.0  # s: the bound of every wait in this file (never reached when the gate works)
 
 
-class FakeBus:
-    """A bus whose state the test sets; records every frame sent, in order."""
-
-    def __init__(self, state: BusState = BusState.CONNECTED) -> None:
-        self.state = state
-        self.reason = ''
-        self.sent: list[Frame] = []
-        self.fail = ''
-        self.cv = threading.Condition()
-
-    def set_state(self, state: BusState, reason: str = '') -> None:
-        with self.cv:
-            self.state, self.reason = state, reason
-            self.cv.notify_all()
-
-    def status(self) -> BusStatus:
-        return BusStatus(self.state, self.reason, 0, len(self.sent), 0, 0, 0, 'fake:0')
-
-    def wait_connected(self, timeout: float) -> BusStatus:
-        with self.cv:
-            self.cv.wait_for(lambda: self.state == BusState.CONNECTED, timeout)
-        return self.status()
-
-    def send(self, frame: Frame) -> None:
-        if self.fail:
-            raise CanSendError(self.fail)
-        self.sent.append(frame)
-
-
-class Lines(logging.Handler):
-    """Collect the gate's log lines."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.lines: list[tuple[int, str]] = []
-
-    def emit(self, record: logging.LogRecord) -> None:
-        self.lines.append((record.levelno, record.getMessage()))
-
-
 def make_gate(*, allowed: bool = True, enabled: bool = True, connect_wait: float = 2.0,
               bus: FakeBus | None = None) -> tuple[CommandGate, FakeBus, Lines]:
-    logger = logging.getLogger(f'test_command_gate.{id(object())}')
-    logger.propagate = False
-    logger.setLevel(logging.DEBUG)
-    lines = Lines()
-    logger.addHandler(lines)
+    logger, lines = collecting_logger('test_command_gate')
     gate = CommandGate('fake:0', allowed=allowed, connect_wait=connect_wait, logger=logger,
                        node_name='/car/bridge')
     bus = bus or FakeBus()

@@ -1,5 +1,9 @@
 """
-Commands under races and bus faults, on a real node and a real (virtual) bus.
+Commands under races and bus faults on a real (virtual) bus.
+
+Through the one command pipeline without ROS (``bench_factory``: concurrent calls from
+threads), and on a real node where ROS is part of the race: two clients, parameter sets
+racing a write, the executor's threads held by calls that wait for the bus.
 
 Defined behaviour (doc/commanding.md): one AMS command at a time, from
 any number of clients: a second ``enable_*`` while one waits is refused; ``abort`` is never
@@ -20,7 +24,7 @@ from std_srvs.srv import Trigger
 
 from ams_can_bridge.protocols import evms3 as evms3_proto
 from helpers import assert_ended
-from test_zeva_commands import bms16_params, EVMS3_CONFIG, evms3_in, evms3_params
+from shared import bms16_params, EVMS3_CONFIG, evms3_in, evms3_params
 
 HEARTBEAT = 0x305
 ENABLE_TS, ENABLE_DRIVE, ABORT = 2, 3, 4
@@ -44,23 +48,24 @@ def wait_carried(rig, command, mark=0):
     assert rig.wait(lambda: any(c == command for _, c, _ in heartbeats(rig, mark)))
 
 
-def test_bus_off_during_a_waiting_enable_ts_and_an_active_heartbeat(rig_factory):
-    rig = rig_factory(ams())
-    call = rig.call_in_thread(Trigger, '/ams/enable_ts')
-    wait_carried(rig, ENABLE_TS)
+def test_bus_off_during_a_waiting_enable_ts_and_an_active_heartbeat(bench_factory):
+    bench = bench_factory(ams())
+    call = bench.call_in_thread('/ams/enable_ts')
+    wait_carried(bench, ENABLE_TS)
     # the controller reports bus-off: the bridge closes the bus and reopens it alone
-    rig.capture.bus.send(can.Message(arbitration_id=CAN_ERR_BUSOFF, is_error_frame=True,
-                                     data=bytes(8)))
+    bench.capture.bus.send(can.Message(arbitration_id=CAN_ERR_BUSOFF, is_error_frame=True,
+                                       data=bytes(8)))
     call['thread'].join(5)
     response = call['response']
     assert not response.success
     assert 'not connected (bus-off' in response.message, response.message
     assert 'will not be sent later' in response.message
-    mark_down = rig.capture.mark()
-    before = heartbeats(rig)
-    assert rig.wait(
-        lambda: rig.node.can_io.status().reconnects >= 1 and len(heartbeats(rig, mark_down)) >= 5)
-    after = heartbeats(rig, mark_down)
+    bench.capture.sync()  # every heartbeat sent before the bus went down is captured now
+    mark_down = bench.capture.mark()
+    before = heartbeats(bench)
+    assert bench.wait(
+        lambda: bench.io.status().reconnects >= 1 and len(heartbeats(bench, mark_down)) >= 5)
+    after = heartbeats(bench, mark_down)
     # no stale ENABLE_TS when the bus returns; the counter goes on from the last frame sent
     assert {c for _, c, _ in after} == {0}, after
     counters = [n for _, _, n in before + after]
@@ -69,30 +74,31 @@ def test_bus_off_during_a_waiting_enable_ts_and_an_active_heartbeat(rig_factory)
 
 @pytest.mark.parametrize('service, command', [('enable_ts', ENABLE_TS),
                                               ('enable_drive', ENABLE_DRIVE)])
-def test_abort_during_a_waiting_enable(rig_factory, service, command):
-    rig = rig_factory(ams(**{'ams.command_timeout': 1.0}))  # no AMS answers anything
-    call = rig.call_in_thread(Trigger, f'/ams/{service}')
-    wait_carried(rig, command)
-    abort = rig.call(Trigger, '/ams/abort')
+def test_abort_during_a_waiting_enable(bench_factory, service, command):
+    bench = bench_factory(ams(**{'ams.command_timeout': 1.0}))  # no AMS answers anything
+    call = bench.call_in_thread(f'/ams/{service}')
+    wait_carried(bench, command)
+    abort = bench.call('/ams/abort')
     call['thread'].join(5)
     assert not call['response'].success and 'aborted' in call['response'].message
     assert not abort.success and 'waiting for IDLE' in abort.message  # nobody says IDLE
-    sent = [c for _, c, _ in heartbeats(rig)]
+    bench.capture.sync()  # every heartbeat sent before the answers is captured now
+    sent = [c for _, c, _ in heartbeats(bench)]
     first_abort = sent.index(ABORT)
     assert sent[first_abort - 1] == command  # replaced in the very next heartbeat
     assert command not in sent[first_abort:]
     n = len(sent)
-    assert rig.wait(lambda: len(heartbeats(rig)) >= n + 3)
-    assert command not in [c for _, c, _ in heartbeats(rig)][first_abort:]
+    assert bench.wait(lambda: len(heartbeats(bench)) >= n + 3)
+    assert command not in [c for _, c, _ in heartbeats(bench)][first_abort:]
 
 
-def test_commands_disabled_during_a_waiting_call(rig_factory):
-    rig = rig_factory(ams())
-    call = rig.call_in_thread(Trigger, '/ams/enable_ts')
-    wait_carried(rig, ENABLE_TS)
-    heartbeat = rig.node.commanders['ams'].master._thread
-    assert rig.set_param('commands_enabled', False).successful
-    frames_out = rig.frames_out()
+def test_commands_disabled_during_a_waiting_call(bench_factory):
+    bench = bench_factory(ams())
+    call = bench.call_in_thread('/ams/enable_ts')
+    wait_carried(bench, ENABLE_TS)
+    heartbeat = bench.devices['ams'].master.thread
+    assert bench.set_param('commands_enabled', False).successful
+    frames_out = bench.frames_out()
     call['thread'].join(2)  # at once, not after ams.command_timeout (5 s)
     assert 'response' in call, 'the waiting call did not answer when commands were disabled'
     assert not call['response'].success
@@ -100,19 +106,19 @@ def test_commands_disabled_during_a_waiting_call(rig_factory):
     # the heartbeat stopped with the switch: its thread has ended, and no frame was sent
     # after set_param returned (a marker after it is captured with nothing before it)
     assert_ended(heartbeat, 'the heartbeat')
-    rig.assert_silent_since(frames_out)
+    bench.assert_silent_since(frames_out)
 
 
-def test_commands_disabled_while_waiting_for_the_bus(rig_factory, tmp_path):
+def test_commands_disabled_while_waiting_for_the_bus(bench_factory, tmp_path):
     missing = tmp_path / 'ttyACM_never'
-    rig = rig_factory({'devices': ['bms16'], 'commands_allowed': True,
-                       'commands_enabled': True, 'can.interface': 'slcan',
-                       'can.channel': str(missing), 'can.connect_wait': 30.0},
-                      wait_connected=False)
-    call = rig.call_in_thread(Trigger, '/bms16/reset_soc')
+    bench = bench_factory({'devices': ['bms16'], 'commands_allowed': True,
+                           'commands_enabled': True, 'can.interface': 'slcan',
+                           'can.channel': str(missing), 'can.connect_wait': 30.0},
+                          wait_connected=False)
+    call = bench.call_in_thread('/bms16/reset_soc')
     # the call is waiting for the bus once it holds one of the gate's bus-wait slots
-    assert rig.wait(lambda: rig.node.gate.bus_waiters() > 0)
-    assert rig.set_param('commands_enabled', False).successful
+    assert bench.wait(lambda: bench.gate.bus_waiters() > 0)
+    assert bench.set_param('commands_enabled', False).successful
     call['thread'].join(3)
     assert 'response' in call, 'the call kept waiting for the bus after the switch'
     assert 'commands_enabled was set to false while waiting' in call['response'].message
@@ -134,19 +140,18 @@ def test_two_clients_with_conflicting_commands(rig_factory):
     assert ENABLE_DRIVE not in [c for _, c, _ in heartbeats(rig)]
 
 
-def test_concurrent_zeva_calls_never_interleave_their_frames(rig_factory):
-    rig = rig_factory(bms16_params())
-    other = rig.other_client('second_user')
+def test_concurrent_zeva_calls_never_interleave_their_frames(bench_factory):
+    bench = bench_factory(bms16_params())
     calls = []
-    for _ in range(10):
-        writer = rig.call_in_thread(Trigger, '/bms16/write_config')
-        rig.call(Trigger, '/bms16/reset_soc', client=other)
+    for _ in range(10):  # a second user's call while a write is on its way
+        writer = bench.call_in_thread('/bms16/write_config')
+        bench.call('/bms16/reset_soc')
         calls.append(writer)
     for writer in calls:
         writer['thread'].join(5)
         assert writer['response'].success, writer['response'].message
-    assert rig.wait(lambda: len(rig.capture.since(0)) >= 30)
-    ids = [f.arbitration_id for _, f in rig.capture.since(0)]
+    assert bench.wait(lambda: len(bench.capture.since(0)) >= 30)
+    ids = [f.arbitration_id for _, f in bench.capture.since(0)]
     assert ids.count(504) == ids.count(505) == ids.count(507) == 10
     assert all(ids[i + 1] == 505 for i, can_id in enumerate(ids) if can_id == 504), ids
 

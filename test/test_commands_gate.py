@@ -1,4 +1,10 @@
-"""The transmit gate and the AMS heartbeat on a real node and a real (virtual) bus."""
+"""
+The transmit gate and the AMS heartbeat on a real (virtual) bus.
+
+On a real node where the parameters, the services and their answers are under test; the
+heartbeat's period, counter and run-time gate through the command side without ROS
+(``bench_factory``).
+"""
 import os
 import statistics
 import subprocess
@@ -26,11 +32,11 @@ def all_devices(enabled=False, **extra):
     return params
 
 
-def assert_no_periodic_sender(rig):
-    """Assert that the AMS heartbeat and charger repeat of the bridge have no thread."""
-    ams = rig.node.commanders['ams']
-    assert not ams.master.running and ams.master._thread is None
-    assert not ams.charger.active and ams.charger._thread is None
+def assert_no_periodic_sender(bridge):
+    """Assert that the AMS heartbeat and charger repeat of a Rig or Bench have no thread."""
+    ams = bridge.devices['ams']
+    assert not ams.master.running and ams.master.thread is None
+    assert not ams.charger.active and ams.charger.thread is None
 
 
 def test_disabled_bridge_sends_nothing_and_refuses_every_service(rig_factory):
@@ -52,14 +58,14 @@ def test_disabled_bridge_sends_nothing_and_refuses_every_service(rig_factory):
     assert_no_periodic_sender(rig)
 
 
-def test_heartbeat_period_and_counter_and_run_time_gate(rig_factory):
-    rig = rig_factory({'devices': ['ams'], 'ams.heartbeat_period': 0.01, 'ams.bank_count': 3,
-                       'commands_allowed': True})
-    assert_no_periodic_sender(rig)  # allowed, not enabled: no heartbeat
-    rig.assert_silent_since(0)
-    assert rig.set_param('commands_enabled', True).successful
-    assert rig.wait(lambda: len(rig.capture.since(0, HEARTBEAT_ID)) >= 300, timeout=20)
-    frames = rig.capture.since(0, HEARTBEAT_ID)
+def test_heartbeat_period_and_counter_and_run_time_gate(bench_factory):
+    bench = bench_factory({'devices': ['ams'], 'ams.heartbeat_period': 0.01,
+                           'ams.bank_count': 3, 'commands_allowed': True})
+    assert_no_periodic_sender(bench)  # allowed, not enabled: no heartbeat
+    bench.assert_silent_since(0)
+    assert bench.set_param('commands_enabled', True).successful
+    assert bench.wait(lambda: len(bench.capture.since(0, HEARTBEAT_ID)) >= 300, timeout=20)
+    frames = bench.capture.since(0, HEARTBEAT_ID)
     counters = [f.data[1] for _, f in frames]
     assert all((b - a) & 0xFF == 1 for a, b in zip(counters, counters[1:])), counters
     assert any(a == 255 and b == 0 for a, b in zip(counters, counters[1:]))  # wrapped
@@ -70,17 +76,17 @@ def test_heartbeat_period_and_counter_and_run_time_gate(rig_factory):
     # How close the period holds is a figure for bench/bench_heartbeat.py, not a test.
     assert statistics.median(b - a for a, b in zip(times, times[1:])) < 0.05 / 2
     assert len(times) - 1 <= (times[-1] - times[0]) / 0.01 + 2
-    heartbeat = rig.node.commanders['ams'].master._thread
-    assert rig.set_param('commands_enabled', False).successful
-    frames_out = rig.frames_out()  # a frame in flight is on the bus when set_param returns
+    heartbeat = bench.devices['ams'].master.thread
+    assert bench.set_param('commands_enabled', False).successful
+    frames_out = bench.frames_out()  # a frame in flight is on the bus when set_param returns
     assert_ended(heartbeat, 'the heartbeat')
-    rig.assert_silent_since(frames_out)  # nothing after the switch returned
-    mark = rig.capture.mark()
-    last_sent = rig.capture.since(0, HEARTBEAT_ID)[-1][1].data[1]
+    bench.assert_silent_since(frames_out)  # nothing after the switch returned
+    mark = bench.capture.mark()
+    last_sent = bench.capture.since(0, HEARTBEAT_ID)[-1][1].data[1]
     # on again: heartbeats again, the counter continues exactly where it stopped
-    assert rig.set_param('commands_enabled', True).successful
-    assert rig.wait(lambda: len(rig.capture.since(mark)) >= 3)
-    again = [f.data[1] for _, f in rig.capture.since(mark, HEARTBEAT_ID)]
+    assert bench.set_param('commands_enabled', True).successful
+    assert bench.wait(lambda: len(bench.capture.since(mark)) >= 3)
+    again = [f.data[1] for _, f in bench.capture.since(mark, HEARTBEAT_ID)]
     assert again[:3] == [(last_sent + k) & 0xFF for k in (1, 2, 3)], (last_sent, again)
 
 

@@ -17,7 +17,7 @@ from ams_can_bridge.sim.recording import write_log
 from command_rig import battery_topics
 from dbc_fixtures import OUR_BMS_DBC, OUR_PARAMS, write_files
 from helpers import device_reference, same, values_of
-from test_log2bag import rosbags_read
+from shared import rosbags_read
 
 SECONDS = 3.0
 PARAMS = {f'dbc.{key}': value for key, value in OUR_PARAMS.items()}

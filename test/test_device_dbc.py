@@ -22,7 +22,8 @@ from ams_can_bridge.protocols import ams as proto
 from ams_can_bridge.protocols import dbc_codec
 from ams_can_bridge.protocols.ams import AmsCodec
 from dbc_fixtures import FRAMES, OUR_BMS_DBC, OUR_MAPPING, write_files
-from helpers import Clock, f32, same
+from helpers import Clock, same
+from shared import published as _published
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -319,16 +320,6 @@ def _ams_frames() -> list[tuple[int, bytes]]:
     frames.append((0x311, bytes.fromhex('2100000000000000')))  # bank 1 group 1: 0 V cells
     frames.append((0x300, bytes.fromhex('0081AF1F500500')))  # IDLE, 4 banks
     return frames
-
-
-BATTERY_FIELDS = ('voltage', 'current', 'percentage', 'temperature', 'power_supply_status',
-                  'power_supply_health', 'present')
-
-
-def _published(report) -> tuple:
-    return (tuple(f32(getattr(report, k)) if isinstance(getattr(report, k), float)
-                  else int(getattr(report, k)) for k in BATTERY_FIELDS)
-            + (tuple(f32(v) for v in report.cell_voltage),))
 
 
 def test_ams_as_dbc_publishes_what_the_ams_device_publishes():

@@ -342,7 +342,7 @@ def test_stationary_mode_warnings_say_what_the_evms_did(error, health, level, ac
 
 
 def test_stationary_mode_from_a_read_back_seen_on_the_bus():
-    from test_protocol_evms3_readback import ANSWER
+    from shared import EVMS3_ANSWER as ANSWER
     device = make()
     device.handle_frame(30, status(state=2, error=4), 1.0)
     assert device.diagnostic_report().values['stationary mode'] == 'unknown'

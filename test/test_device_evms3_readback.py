@@ -5,7 +5,8 @@ import time
 from ams_can_bridge.devices.evms3 import Evms3Device
 from ams_can_bridge.protocols.common import Frame
 from helpers import Clock
-from test_protocol_evms3_readback import ANSWER, CELLS, CONFIG
+from shared import (EVMS3_ANSWER as ANSWER, EVMS3_ANSWER_CELLS as CELLS,
+                    EVMS3_GOLDEN_CONFIG as CONFIG)
 
 STATUS_OK = bytes.fromhex('02 03 E8 0F A0 82 64 41')
 

@@ -30,7 +30,7 @@ from ams_can_bridge.offline.log2bag import convert
 from ams_can_bridge.ros.demo_rig import build_simulators, device_parameters
 from ams_can_bridge.sim.recording import write_log
 from helpers import same, values_of
-from test_log2bag import rosbags_read
+from shared import rosbags_read
 
 DEVICES = ('ams', 'ivt_s', 'bms16')
 ARRAYS = {'ams': ('temperatures', 'discharge_temperatures')}

@@ -303,7 +303,7 @@ def test_senders_armed_at_launch_start_when_the_slcan_bus_opens(tmp_path):
                               'sma.inverter_keepalive': True}.items()])
         try:
             assert not node.can_io.status().connected  # python-can sleeps before it opens
-            assert not node.commanders['ams'].master.running
+            assert not node.devices['ams'].master.running
             peer.wait_open(timeout=10)
             wait_for(lambda: len([f for f in peer.received()
                                   if f.arbitration_id == 0x405]) >= 5, 5.0, 'heartbeats')
@@ -311,7 +311,7 @@ def test_senders_armed_at_launch_start_when_the_slcan_bus_opens(tmp_path):
                      'the inverter keep-alive')
             status = node.can_io.status()
             heartbeats = [f for f in peer.received() if f.arbitration_id == 0x405]
-            keepalive = node.commanders['sma'].keepalive
+            keepalive = node.devices['sma'].keepalive
         finally:
             node.destroy_node()
     assert status.frames_dropped_tx == 0, status

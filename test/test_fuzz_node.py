@@ -26,7 +26,7 @@ from command_rig import battery_topics, rigs
 from conftest import examples
 from helpers import unphysical
 from slcan_peer import SlcanPeer
-from test_bridge_slcan import FRAMES
+from shared import FRAMES
 
 DEVICES = ['ams', 'ivt_s', 'evms3', 'bms16', 'sma']
 PARAMS = {'devices': DEVICES, 'diagnostics_period': 0.1,

@@ -1,8 +1,9 @@
 """
-IVT-S services on a real node against the simulated IVT-S.
+IVT-S services against the simulated IVT-S.
 
-Over slcan (the test plays the USB-CAN adapter and carries the simulator's frames) and on a
-virtual bus.
+On a real node over slcan (the test plays the USB-CAN adapter and carries the simulator's
+frames), and through the one command pipeline without ROS (``bench_factory``) on a virtual
+bus.
 
 Refused calls are proven silent with a marker frame: it is sent after the call and waited
 for, and no 0x411 frame may come before it.
@@ -164,41 +165,41 @@ def test_check_config_at_start_detects_little_endian_over_slcan(slcan_rig):
 
 
 # --- refusals: nothing sent ------------------------------------------------------------------
-@pytest.mark.parametrize('service, srv, fields', [
-    ('read_config', Trigger, {}), ('write_config', Trigger, {}), ('restart', Trigger, {}),
-    ('reset_errors', Trigger, {}), ('set_running', SetBool, {'data': False})])
-def test_refused_while_commands_are_disabled_sends_nothing(rig_factory, sim_on, service, srv,
-                                                           fields):
-    rig = rig_factory(params(enabled=False, **CYCLES))
-    sim = sim_on(rig, IvtSSimulator(period=0.05))
-    response = rig.call(srv, f'/ivt_s/{service}', **fields)
+@pytest.mark.parametrize('service, data', [
+    ('read_config', None), ('write_config', None), ('restart', None), ('reset_errors', None),
+    ('set_running', False)])
+def test_refused_while_commands_are_disabled_sends_nothing(bench_factory, sim_on, service,
+                                                           data):
+    bench = bench_factory(params(enabled=False, **CYCLES))
+    sim = sim_on(bench, IvtSSimulator(period=0.05))
+    response = bench.call(f'/ivt_s/{service}', data)
     assert not response.success
     assert 'commands_enabled is false' in response.message
     assert 'nothing was sent' in response.message
-    assert commands_before_marker(rig) == [] and sim.received == []
+    assert commands_before_marker(bench) == [] and sim.received == []
 
 
-def test_write_config_with_unset_values_is_refused_and_sends_nothing(rig_factory, sim_on):
-    rig = rig_factory(params(**{'ivt_s.config.i_cycle_ms': 10}))
-    sim = sim_on(rig, IvtSSimulator(period=0.05))
-    response = rig.call(Trigger, '/ivt_s/write_config')
+def test_write_config_with_unset_values_is_refused_and_sends_nothing(bench_factory, sim_on):
+    bench = bench_factory(params(**{'ivt_s.config.i_cycle_ms': 10}))
+    sim = sim_on(bench, IvtSSimulator(period=0.05))
+    response = bench.call('/ivt_s/write_config')
     assert not response.success
     assert 'ivt_s.config.u1_cycle_ms' in response.message
     assert 'nothing was sent' in response.message
-    assert commands_before_marker(rig) == [] and sim.received == []
+    assert commands_before_marker(bench) == [] and sim.received == []
 
 
-def test_no_sensor_answer_fails_after_command_timeout(rig_factory):
-    rig = rig_factory(params(**{'ivt_s.command_timeout': 0.3}))  # nobody on the bus
-    response = rig.call(Trigger, '/ivt_s/restart')
+def test_no_sensor_answer_fails_after_command_timeout(bench_factory):
+    bench = bench_factory(params(**{'ivt_s.command_timeout': 0.3}))  # nobody on the bus
+    response = bench.call('/ivt_s/restart')
     assert not response.success
     assert response.message == ('ivt_s: restart failed: no answer to RESTART (0x3F) within '
                                 '0.3 s')
 
 
-def test_check_config_at_start_sends_nothing_while_disabled(rig_factory, sim_on):
-    rig = rig_factory(params(enabled=False, **{'ivt_s.check_config_at_start': True}))
-    device = rig.node.devices['ivt_s']
+def test_check_config_at_start_sends_nothing_while_disabled(bench_factory, sim_on):
+    bench = bench_factory(params(enabled=False, **{'ivt_s.check_config_at_start': True}))
+    device = bench.devices['ivt_s']
     looks = []  # each time the start check found the sensor heard
     heard = device.heard
 
@@ -208,16 +209,16 @@ def test_check_config_at_start_sends_nothing_while_disabled(rig_factory, sim_on)
             looks.append(result)
         return result
     device.heard = spied  # the check thread looks it up at each poll
-    sim = sim_on(rig, IvtSSimulator(period=0.02, byte_order='little'))
-    check = rig.node.commanders['ivt_s']
+    sim = sim_on(bench, IvtSSimulator(period=0.02, byte_order='little'))
+    check = bench.commands.start_checks['ivt_s']
     # the check had its chances: it saw the sensor heard three times while disabled
-    rig.wait(lambda: len(looks) >= 3 or check.start_check, 10.0,
-             'the start check to see the simulated IVT-S')
-    assert check.start_check is None  # it did not run
-    assert commands_before_marker(rig) == [] and sim.received == []
-    assert rig.set_param('commands_enabled', True).successful  # armed: the check runs now
-    status = rig.status('ivt_s', lambda s: level(s) == 2, 10.0)
-    assert 'set ivt_s.byte_order to little' in status.message
+    bench.wait(lambda: len(looks) >= 3 or check.outcome, 10.0,
+               'the start check to see the simulated IVT-S')
+    assert check.outcome is None  # it did not run
+    assert commands_before_marker(bench) == [] and sim.received == []
+    assert bench.set_param('commands_enabled', True).successful  # armed: the check runs now
+    bench.wait(lambda: device.diagnostic_report().level == 2, 10.0, 'the mismatch (ERROR)')
+    assert 'set ivt_s.byte_order to little' in device.diagnostic_report().message
 
 
 def test_parameters_are_declared_with_ranges(rig_factory):

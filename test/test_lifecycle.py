@@ -52,7 +52,7 @@ def test_configure_activate_deactivate_cleanup_through_the_lifecycle_services(ri
     node = rig.node
     heartbeat = AMS_BASE + 5
     assert state(rig) == 'unconfigured'
-    assert node.can_io is None and not node.commanders
+    assert node.can_io is None and not node.command_services
 
     assert change(rig, Transition.TRANSITION_CONFIGURE)
     assert state(rig) == 'inactive'
@@ -60,7 +60,7 @@ def test_configure_activate_deactivate_cleanup_through_the_lifecycle_services(ri
     # armed at launch, but inactive: the gate is shut and the heartbeat does not run
     assert node.commands_enabled is False
     assert node.get_parameter('commands_enabled').value is False
-    assert not node.commanders['ams'].master.running
+    assert not node.devices['ams'].master.running
     rig.assert_silent_since(0)  # a marker: nothing was sent while inactive
     assert not rig.set_param('commands_enabled', True).successful
     rig.send(BMS16_STATUS, status(11))  # decoded, not published
@@ -74,11 +74,11 @@ def test_configure_activate_deactivate_cleanup_through_the_lifecycle_services(ri
     rig.send(BMS16_STATUS, status(22))
     rig.wait(lambda: 22 in socs(rig), what='the frame published')
 
-    heartbeat = node.commanders['ams'].master._thread
+    heartbeat = node.devices['ams'].master.thread
     assert change(rig, Transition.TRANSITION_DEACTIVATE)
     frames_out = rig.frames_out()
     assert state(rig) == 'inactive'
-    assert node.commands_enabled is False and not node.commanders['ams'].master.running
+    assert node.commands_enabled is False and not node.devices['ams'].master.running
     # a pure listener: the heartbeat's thread has ended, nothing after deactivate returned
     assert_ended(heartbeat, 'the heartbeat')
     rig.assert_silent_since(frames_out)
@@ -94,7 +94,7 @@ def test_configure_activate_deactivate_cleanup_through_the_lifecycle_services(ri
     assert change(rig, Transition.TRANSITION_DEACTIVATE)
     assert change(rig, Transition.TRANSITION_CLEANUP)
     assert state(rig) == 'unconfigured'
-    assert node.can_io is None and not node.commanders and receivers() == 0
+    assert node.can_io is None and not node.command_services and receivers() == 0
     assert node.count_publishers('bms16/battery_state') == 0
 
     assert change(rig, Transition.TRANSITION_CONFIGURE)  # again, with the same parameters

@@ -17,39 +17,17 @@ import sys
 import can
 from mcap.reader import make_reader
 import pytest
-from rosbags.highlevel import AnyReader
 from rosbags.typesys import get_typestore, Stores
-import yaml
 
 from ams_can_bridge.ros.demo_rig import build_simulators, device_parameters, DEVICES
 from ams_can_bridge.offline.log2bag import convert, main, Progress
 from ams_can_bridge.sim.recording import write_log
 from helpers import device_reference, same, values_of
+from shared import (BANKS, copy_as, DIAGNOSTICS_PERIOD, parameters, params_file, rosbags_read,
+                    SECONDS)
 
-SECONDS = 6.0
-BANKS = 2
-DIAGNOSTICS_PERIOD = 0.5
 ARRAYS = {'ams': ('temperatures', 'discharge_temperatures')}
 STORE = get_typestore(Stores.ROS2_JAZZY)
-
-
-def parameters() -> dict:
-    return {'devices': list(DEVICES), 'diagnostics_period': DIAGNOSTICS_PERIOD,
-            **device_parameters(BANKS)}
-
-
-def params_file(path: str) -> str:
-    """Write parameters() as the bridge's nested ROS 2 parameters file."""
-    tree: dict = {}
-    for key, value in parameters().items():
-        node = tree
-        *parents, leaf = key.split('.')
-        for part in parents:
-            node = node.setdefault(part, {})
-        node[leaf] = value
-    with open(path, 'w', encoding='utf-8') as stream:
-        yaml.safe_dump({'/**': {'ros__parameters': tree}}, stream)
-    return path
 
 
 @pytest.fixture(scope='module')
@@ -58,24 +36,6 @@ def base_log(tmp_path_factory) -> str:
     frames = write_log(path, list(build_simulators(BANKS, DEVICES).values()), SECONDS)
     assert frames > 500
     return path
-
-
-def copy_as(src: str, dst: str) -> str:
-    """Rewrite a log in the format of dst's suffix (python-can's own writer)."""
-    with can.LogReader(src) as reader, can.Logger(dst) as writer:
-        for msg in reader:
-            writer.on_message_received(msg)
-    return dst
-
-
-def rosbags_read(bag: str) -> dict[str, list]:
-    """Return (bag time ns, message) per topic, read with rosbags."""
-    out: dict[str, list] = {}
-    with AnyReader([__import__('pathlib').Path(bag)], default_typestore=STORE) as reader:
-        for connection, t_ns, raw in reader.messages():
-            out.setdefault(connection.topic, []).append(
-                (t_ns, reader.deserialize(raw, connection.msgtype)))
-    return out
 
 
 def mcap_read(bag: str) -> dict[str, list]:

@@ -19,7 +19,7 @@ import yaml
 from ams_can_bridge.offline.log2bag import main
 from ams_can_bridge.ros.demo_rig import build_simulators, DEVICES
 from ams_can_bridge.sim.recording import write_log
-from test_log2bag import BANKS, copy_as, params_file, SECONDS
+from shared import BANKS, copy_as, params_file, SECONDS
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 

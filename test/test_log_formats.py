@@ -25,7 +25,7 @@ import yaml
 
 from ams_can_bridge.offline.log2bag import main
 from ams_can_bridge.offline.log_frames import LogFrames
-from test_log2bag import rosbags_read
+from shared import rosbags_read
 
 LOGS = Path(__file__).parent / 'fixtures' / 'logs'
 TRC_START = 1789992000.0  # $STARTTIME=46286.5 (days after 1899-12-30, UTC)

@@ -27,7 +27,7 @@ from ams_can_bridge.offline.converter import Converter
 from ams_can_bridge.ros.demo_rig import build_simulators, DEVICES
 from ams_can_bridge.sim.recording import write_log
 from command_rig import battery_topics
-from test_log2bag import DIAGNOSTICS_PERIOD, params_file, parameters, rosbags_read
+from shared import DIAGNOSTICS_PERIOD, params_file, parameters, rosbags_read
 
 START = 1_900_000_000.0  # 2030-03-17
 GAP = 3 * 86400.0  # s: a car parked for three days

@@ -11,9 +11,7 @@ from __future__ import annotations
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 
-from ams_can_bridge import registry
-
-from dbc_fixtures import OUR_PARAMS  # a dbc instance needs its DBC and mapping files
+from shared import every_device
 
 SERVICE = '/ams_can_bridge/set_parameters'
 # A valid value of every writable array parameter (keyed by the parameter's key in its
@@ -28,12 +26,6 @@ def writable_arrays(node) -> dict[str, str]:
     return {name: name.split('.', 1)[1] if '.' in name else name
             for name, spec in node.params.specs.items()
             if isinstance(spec.type, str) and spec.type.endswith('[]') and not spec.read_only}
-
-
-def every_device() -> dict:
-    """Return the params of a bridge with one instance of every device type."""
-    return {'devices': list(registry.DEVICE_TYPES),
-            **{f'dbc.{key}': value for key, value in OUR_PARAMS.items()}}
 
 
 def set_through_service(rig, name, value):

@@ -14,7 +14,8 @@ from types import SimpleNamespace
 import pytest
 
 from ams_can_bridge.device_set import DeviceSet
-from ams_can_bridge.engine.calls import answered
+from ams_can_bridge.devices.commands import Command, EXCHANGE, TRIGGER
+from ams_can_bridge.engine.calls import Pipeline
 from ams_can_bridge.engine.gate import arming_refused, CommandGate
 from ams_can_bridge.engine.param_sets import (apply_set, device_changes, INACTIVE_REFUSAL,
                                               RUN_TIME_SET, set_refusal)
@@ -135,9 +136,11 @@ def test_commands_enabled_goes_to_the_gate_naming_how_it_was_set(devices):
     assert not gate.enabled and heard == [True, False] and gate.changes == 2
 
 
-# --- a command service call -------------------------------------------------------------------
+# --- a command service call (through the one pipeline, engine/calls.py) -----------------------
 class NamingGate:
-    """The gate's ``calling``: which service the thread answers meanwhile."""
+    """The gate's ``calling``: which service the thread answers meanwhile (commands on)."""
+
+    enabled = True
 
     def __init__(self) -> None:
         self.source: str | None = None
@@ -152,8 +155,17 @@ class NamingGate:
 
 
 def call(callback, log: Lines, gate: NamingGate | None = None):
-    wrapped = answered('ams/abort', callback, gate or NamingGate(), log)  # type: ignore
-    return wrapped(SimpleNamespace(), SimpleNamespace(success=False, message=''))
+    """Run callback(request, response) as the pipeline runs the row ams/abort; the answer."""
+    response = SimpleNamespace(success=False, message='')
+
+    def run(port):
+        answer = callback(SimpleNamespace(), response)
+        return answer.success, answer.message
+    row = Command('abort', 'abort', TRIGGER, 'run', EXCHANGE)
+    pipeline = Pipeline(gate or NamingGate(), log)  # type: ignore[arg-type]
+    response.success, response.message = pipeline.call(
+        'ams', SimpleNamespace(run=run), row)  # type: ignore[arg-type]
+    return response
 
 
 def test_an_answer_is_logged_info_when_it_succeeded_warn_when_not():

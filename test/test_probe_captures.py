@@ -22,7 +22,7 @@ from ams_can_bridge.offline.converter import NODE_NAME
 from ams_can_bridge.offline.log2bag import convert
 from ams_can_bridge.offline.params_file import load_parameters
 from ams_can_bridge.probe.main import main as probe_main
-from test_log2bag import rosbags_read
+from shared import rosbags_read
 
 FIXTURES = Path(__file__).parent / 'fixtures' / 'probe'
 PRINTED = re.compile(r'Timestamp:\s+([\d.]+)\s+ID:\s+([0-9a-fA-F]+)\s+S\s+Rx\s+DL:\s+\d+\s+(.*)')

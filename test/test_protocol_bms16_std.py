@@ -22,47 +22,15 @@ from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import (
     AcknowledgeError, BatteryCurrent, Bms12Cells, Evms3Error, Evms3State, PowerOff, ResetSoc)
 from helpers import assert_decodes_or_malformed, Clock
+from shared import (BMS16_STD_CONFIG as CONFIG, BMS16_STD_EVMS3_STATUS as EVMS3_STATUS,
+                    BMS16_STD_STATUS as STATUS, BMS16_STD_WRITE as GOLDEN_WRITE)
 
-# state RUNNING (2) | error LOW_SOC_WARNING (10) << 3 = 0x52; 123.4 Ah = 0x04D2;
-# 52.8 V = 0x0210; byte 5 = 255 (BMS16 marker); byte 6 unused; 25 degC + 40 = 0x41
-STATUS = bytes.fromhex('52 04 D2 02 10 FF 00 41')
-# the same frame from an EVMS3: byte 5 = aux voltage 12.3 V (0x7B)
-EVMS3_STATUS = bytes.fromhex('52 04 D2 02 10 7B 64 41')
 # BMS12 reply 1 of module 0 (ID 301): cells 1..4 = 3.300, 3.301, 3.302, 3.303 V (uint16 BE mV)
 CELLS_301 = bytes.fromhex('0C E4 0C E5 0C E6 0C E7')
 # reply 2 of module 1 (ID 312): cells 13..16 = 3.310, 3.311, 3.312, 3.313 V
 CELLS_312 = bytes.fromhex('0C EE 0C EF 0C F0 0C F1')
 # ID 40: 24-bit BE mA + 8388608 (0x800000): 0x802710 = +10.000 A (discharge)
 CURRENT_40 = bytes.fromhex('80 27 10')
-
-CONFIG = {
-    'pack_capacity_ah': 200,        # slot 0: x5 Ah -> 40 (0x28)
-    'soc_warning_pct': 20,          # slot 1: 20 (0x14)
-    'full_voltage_v': 58.0,         # slot 2: 1 V steps on a BMS16 -> 58 (0x3A)
-    'warn_current_a': 150,          # slot 3: x10 A -> 15 (0x0F)
-    'trip_current_a': 300,          # slot 4: x10 A -> 30 (0x1E); slot 5 unused: 0
-    'cells': 14.0,                  # slot 6 (NUM_CELLS) -> 14 (0x0E)
-    'shunt_size_a': 200,            # slot 7 (SHUNT_SIZE) -> code 2
-    'min_cell_v': 2.8,              # slot 13: 1.50 + 0.01 n -> 130 (0x82)
-    'max_cell_v': 3.65,             # slot 14: 2.00 + 0.01 n -> 165 (0xA5)
-    'balance_mode': 'static',
-    'balance_v': 3.45,              # slot 15: 2.00 + 0.01 n -> 145 (0x91)
-    'hysteresis_v': 0.05,           # slot 16: 0.01 V -> 5
-    'min_temp_c': 0,                # slot 17: n - 40 -> 40 (0x28)
-    'max_temp_c': 55,               # slot 18: n - 40 -> 95 (0x5F)
-    'max_charge_voltage_v': 57,     # slot 19: 57 (0x39)
-    'max_charge_current_a': 20,     # slot 20: 20 (0x14); slots 21..28 unused: 0
-    'stationary_mode': True,        # slot 29: 1
-    'reverse_current_display': False,  # slot 30: 0
-    'night_brightness': 3,          # slot 31: 3
-}
-GOLDEN_WRITE = [
-    (36, bytes.fromhex('68 00 00 00 00 00 00 00')),  # module 0: 8 cells, module 1: 14 - 8
-    (32, bytes.fromhex('28 14 3A 0F 1E 00 0E 02')),
-    (33, bytes.fromhex('00 00 00 00 00 82 A5 91')),
-    (34, bytes.fromhex('05 28 5F 39 14 00 00 00')),
-    (35, bytes.fromhex('00 00 00 00 00 01 00 03')),
-]
 
 
 def std_device(clock=None, **params):

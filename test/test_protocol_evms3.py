@@ -19,6 +19,7 @@ from ams_can_bridge.protocols.evms3 import (
     BmsCellNumbers, check_config_value, CONFIG_FIELDS, Evms3Codec, Evms3Settings,
     Evms3Error, Evms3State, Evms3Status, EVMS3_WARNINGS, PowerOff, ResetSoc,
     OtherTraffic, SetState, ZeroCurrentSensor)
+from shared import EVMS3_GOLDEN_CONFIG as GOLDEN_CONFIG  # written by hand: frames below
 
 CODEC = Evms3Codec()
 SCALED = ('full_voltage_v', 'max_charge_voltage_v', 'alt_charge_voltage_v')
@@ -247,16 +248,6 @@ def test_ids_base_and_module_count():
 
 
 # --- configuration (IDs 32..35) ----------------------------------------------------------------
-GOLDEN_CONFIG = Evms3Settings(
-    pack_capacity_ah=100, soc_warning_pct=20, full_voltage_v=400, warn_current_a=300,
-    trip_current_a=500, temp_warning_c=60, min_aux_voltage_v=11, min_isolation_pct=50,
-    tacho_ppr=2, fuel_gauge_full_pct=90, fuel_gauge_empty_pct=10, temp_gauge_hot_pct=80,
-    temp_gauge_cold_pct=20, bms_min_cell_v=2.8, bms_max_cell_v=3.65, balance_v=3.5,
-    balance_mode='static', bms_hysteresis_v=0.05, bms_min_temp_c=0, bms_max_temp_c=55,
-    max_charge_voltage_v=300, max_charge_current_a=30, alt_charge_voltage_v=250,
-    alt_charge_current_a=10, sleep_delay_min=3, mpi_function=1, mpo1_function=2,
-    mpo2_function=6, parallel_strings=2, enable_precharge=True, stationary_mode=False,
-    reverse_current_display=True, night_brightness=7)
 GOLDEN_CONFIG_FRAMES = [
     frame(32, '14 14 C8 1E 32 3C 0B 32'),  # 100/5, 20, 400/2, 300/10, 500/10, 60, 11, 50
     frame(33, '02 5A 0A 50 14 82 A5 96'),  # (2.80-1.50)/0.01=130, (3.65-2)/0.01=165, 150

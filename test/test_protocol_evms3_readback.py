@@ -11,22 +11,10 @@ from ams_can_bridge.errors import MalformedFrameError
 from ams_can_bridge.protocols.common import Frame, msg_defs_dir
 from ams_can_bridge.protocols.evms3 import (
     ConfigReadback, ConfigReport, Evms3Codec, OtherTraffic, RequestConfig)
-from test_protocol_evms3 import GOLDEN_CONFIG
+from shared import (EVMS3_ANSWER as ANSWER, EVMS3_ANSWER_CELLS as CELLS,
+                    EVMS3_GOLDEN_CONFIG as CONFIG)  # written and read back
 
 CODEC = Evms3Codec(bms12_modules=2)
-# The same bytes as the 32..35 golden frames of test_protocol_evms3, now on 52..55:
-ANSWER = {
-    52: bytes.fromhex('14 14 C8 1E 32 3C 0B 32'),  # 100/5, 20, 400/2, 300/10, 500/10, 60 ..
-    53: bytes.fromhex('02 5A 0A 50 14 82 A5 96'),  # .. 2.80 V = 1.50 + 1.30, 3.65, 3.50 V
-    54: bytes.fromhex('05 28 5F 2C 9E FA 0A 03'),  # 300 V: 0x2C + 9th bit in 0x9E (30 A)
-    # .. bytes 6-7: reverse current display 1, night brightness 7 (settings 30, 31)
-    55: bytes.fromhex('01 02 06 02 01 00 01 07'),
-    # module 0 = 12 (low nibble of byte 0), module 1 = 8, module 2 = 4, module 3 = 5,
-    # module 15 = 12 (high nibble of byte 7)
-    56: bytes.fromhex('8C 54 00 00 00 00 00 C0'),
-}
-CONFIG = GOLDEN_CONFIG  # the configuration of test_protocol_evms3, written and read back
-CELLS = (12, 8, 4, 5) + (0,) * 11 + (12,)
 
 
 def test_request_is_id_51_without_data():

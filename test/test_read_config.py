@@ -1,5 +1,8 @@
 """
-evms3/read_config on a real node against the simulated EVMS3 on the same virtual bus.
+evms3/read_config against the simulated EVMS3 on the same virtual bus.
+
+On a real node where the answer sets the node's parameters; the refusals, a partial answer
+and the write order through the one command pipeline without ROS (``bench_factory``).
 
 The simulator answers ID 51 like ZEVA's 2021 firmware (52..56 in the layout of 32..36). A
 capture on the bus sees what each side sends: read_config then write_config must send back
@@ -10,10 +13,11 @@ import can
 import pytest
 from std_srvs.srv import Trigger
 
+from ams_can_bridge.devices.base import device_params
 from ams_can_bridge.protocols.evms3 import Evms3State
 from ams_can_bridge.sim.evms3 import Evms3Simulator
 from ams_can_bridge.sim.runner import SimRunner
-from test_protocol_evms3_readback import CELLS, CONFIG
+from shared import EVMS3_ANSWER_CELLS as CELLS, EVMS3_GOLDEN_CONFIG as CONFIG
 
 READ = '/evms3/read_config'
 WRITE = '/evms3/write_config'
@@ -47,31 +51,36 @@ def frames(rig, mark, ids):
             if f.arbitration_id in ids]
 
 
-def config_values(rig):
-    return {name.split('.', 2)[2]: p.value for name, p in rig.node._parameters.items()
-            if name.startswith('evms3.config.')}
+def config_values(bridge):
+    """Return the evms3.config.* values: the node's parameters, or a bench's device's."""
+    if hasattr(bridge, 'node'):
+        return {name.split('.', 2)[2]: p.value for name, p in bridge.node._parameters.items()
+                if name.startswith('evms3.config.')}
+    device = bridge.devices['evms3']
+    return {spec.key.split('.', 1)[1]: device.config.value(spec.key)
+            for spec in device_params(type(device)) if spec.key.startswith('config.')}
 
 
-def test_refused_without_config_request_names_it_and_sends_nothing(rig_factory, evms3_on):
-    rig = rig_factory(params(config_request=False))
-    sim = evms3_on(rig)
-    mark = rig.capture.mark()
-    response = rig.call(Trigger, READ)
+def test_refused_without_config_request_names_it_and_sends_nothing(bench_factory, evms3_on):
+    bench = bench_factory(params(config_request=False))
+    sim = evms3_on(bench)
+    mark = bench.capture.mark()
+    response = bench.call(READ)
     assert not response.success
     assert 'evms3.config_request is false' in response.message
     assert 'throttle' in response.message and 'nothing was sent' in response.message
-    rig.capture.sync()  # a marker after the calls, no sleep
-    assert frames(rig, mark, {51}) == [] and sim.received == []
+    bench.capture.sync()  # a marker after the calls, no sleep
+    assert frames(bench, mark, {51}) == [] and sim.received == []
 
 
-def test_refused_while_commands_are_disabled(rig_factory, evms3_on):
-    rig = rig_factory(params(enabled=False))
-    evms3_on(rig)
-    mark = rig.capture.mark()
-    response = rig.call(Trigger, READ)
+def test_refused_while_commands_are_disabled(bench_factory, evms3_on):
+    bench = bench_factory(params(enabled=False))
+    evms3_on(bench)
+    mark = bench.capture.mark()
+    response = bench.call(READ)
     assert not response.success and 'commands_enabled' in response.message
-    rig.capture.sync()  # a marker after the calls, no sleep
-    assert frames(rig, mark, {51}) == []
+    bench.capture.sync()  # a marker after the calls, no sleep
+    assert frames(bench, mark, {51}) == []
 
 
 def test_read_config_sets_every_value_then_write_sends_back_the_same_frames(
@@ -121,38 +130,38 @@ def test_factory_settings_round_trip_with_dynamic_balancing(rig_factory, evms3_o
     assert sorted((i + 20, d) for i, d in frames(rig, mark, set(range(32, 37)))) == read
 
 
-def test_written_cell_counts_survive_a_power_cycle(rig_factory, evms3_on):
+def test_written_cell_counts_survive_a_power_cycle(bench_factory, evms3_on):
     # The EVMS3 saves settings and cell counts to EEPROM only when ID 35 arrives; ID 36 only
     # changes RAM. The simulator does the same: sent after 35, new counts would be lost here.
-    rig = rig_factory(params())
-    sim = evms3_on(rig)
+    bench = bench_factory(params())
+    sim = evms3_on(bench)
     sim.load(CONFIG, CELLS)
-    assert rig.call(Trigger, READ).success
+    assert bench.call(READ).success
     new = [12, 12, 4] + [0] * 13
-    assert rig.set_param('evms3.config.cells_per_module', new).successful
-    assert rig.wait(lambda: rig.node.devices['evms3'].state is Evms3State.IDLE)
-    response = rig.call(Trigger, WRITE)
+    assert bench.set_param('evms3.config.cells_per_module', new).successful
+    assert bench.wait(lambda: bench.devices['evms3'].state is Evms3State.IDLE)
+    response = bench.call(WRITE)
     assert response.success, response.message
-    assert rig.wait(lambda: sim.eeprom_writes == 1)
+    assert bench.wait(lambda: sim.eeprom_writes == 1)
     sim.power_cycle()
     assert sim.cell_numbers == tuple(new) and sim.stored_config == CONFIG
 
 
-def test_partial_answer_fails_and_sets_nothing(rig_factory, evms3_on):
-    rig = rig_factory(params(**{'evms3.read_timeout': 0.5}))
-    sim = evms3_on(rig)
+def test_partial_answer_fails_and_sets_nothing(bench_factory, evms3_on):
+    bench = bench_factory(params(**{'evms3.read_timeout': 0.5}))
+    sim = evms3_on(bench)
     sim.faults.extra['config_answer'] = [52, 53, 56]
-    response = rig.call(Trigger, READ)
+    response = bench.call(READ)
     assert not response.success
     assert response.message == (
         'evms3: read_config failed: no complete answer within 0.5 s: incomplete: missing '
         'ID 54 (config 3), ID 55 (config 4); nothing was set')
-    assert all(v is None for v in config_values(rig).values())
+    assert all(v is None for v in config_values(bench).values())
 
 
-def test_no_answer_at_all_fails_after_read_timeout(rig_factory):
-    rig = rig_factory(params(**{'evms3.read_timeout': 0.3}))  # no EVMS3 on the bus
-    response = rig.call(Trigger, READ)
+def test_no_answer_at_all_fails_after_read_timeout(bench_factory):
+    bench = bench_factory(params(**{'evms3.read_timeout': 0.3}))  # no EVMS3 on the bus
+    response = bench.call(READ)
     assert not response.success
     assert 'missing ID 52 (config 1), ID 53 (config 2), ID 54 (config 3), ID 55 (config 4), ' \
            'ID 56 (cell numbers)' in response.message

@@ -7,7 +7,7 @@ from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.sim.bms16_std import Bms16StdSimulator
 from ams_can_bridge.sim.main import build_devices, build_parser
 from helpers import Clock
-from test_protocol_bms16_std import CONFIG, GOLDEN_WRITE
+from shared import BMS16_STD_CONFIG as CONFIG, BMS16_STD_WRITE as GOLDEN_WRITE
 
 
 def test_cli_option_selects_the_standard_form():

@@ -17,7 +17,7 @@ from ams_can_bridge.devices.dbc import DbcDevice
 from ams_can_bridge.sim.dbc import DbcSimulator
 from dbc_fixtures import OUR_BMS_DBC, OUR_PARAMS
 from helpers import Clock, same
-from test_device_dbc import _published
+from shared import published as _published
 
 
 def run(sim: DbcSimulator, devices: list, clock: Clock, seconds: float,

@@ -18,7 +18,6 @@ import pytest
 
 from ams_can_bridge import registry
 from ams_can_bridge.protocols.common import Frame
-from ams_can_bridge.ros.commander import Commander
 from ams_can_bridge.sim.base import Periodic, SimDevice
 from ams_can_bridge.sim.main import apply_faults, build_devices
 from ams_can_bridge.sim.runner import open_bus, SimRunner
@@ -147,20 +146,10 @@ def test_faults_are_applied_by_device_name():
 
 
 def test_registry_paths_all_import():
-    """Every simulator, device and command module the registry names ships (none skipped)."""
-    for table in (registry.SIMULATORS, registry.DEVICES, registry.COMMANDERS):
+    """Every simulator and device module the registry names ships (none skipped)."""
+    for table in (registry.SIMULATORS, registry.DEVICES):
         for kind, path in table.items():
             assert isinstance(registry.load(path), type), (kind, path)
-    for kind, path in registry.COMMANDERS.items():  # the node calls the Commander methods
-        assert issubclass(registry.load(path), Commander), kind
-
-
-def test_a_commander_must_implement_destroy():
-    class Incomplete(Commander):
-        def __init__(self, node, device, name):
-            pass
-    with pytest.raises(TypeError, match='destroy'):
-        Incomplete(None, None, 'x')
 
 
 def test_build_devices_gives_each_type_its_options():

@@ -51,7 +51,7 @@ def test_runs_only_while_armed_and_enabled():
     assert ka.running
     wait_for(lambda: sink.count() >= 3, 10.0, 'three keep-alives')
     assert set(sink.frames) == {ZERO_305}
-    thread = ka._thread
+    thread = ka.thread
     ka.set_armed(False)
     stopped = sink.count()
     assert not ka.running
@@ -70,7 +70,7 @@ def test_parameter_off_stops_it_at_once_and_logs_once():
     wait_for(lambda: sink.count() >= 5, 10.0, 'five keep-alives')
     assert device.diagnostic_report().values['inverter keep-alive (0x305)'].startswith(
         'sending 0x305 every 0.02 s')
-    thread = ka._thread
+    thread = ka.thread
     device.configure({'inverter_keepalive': False})
     stopped = sink.count()
     assert not ka.running
@@ -112,8 +112,8 @@ def test_bridge_sends_the_keepalive_only_while_commands_are_enabled():
         rig = make(rig_params(), topics={'sma/battery_state': BatteryState})
         assert rig.wait(lambda: len(rig.capture.since(0, 0x305)) >= 2, 10.0)
         assert {f for _, f in rig.capture.since(0, 0x305)} == {ZERO_305}
-        keepalive = rig.node.commanders['sma'].keepalive
-        thread = keepalive._thread
+        keepalive = rig.node.devices['sma'].keepalive
+        thread = keepalive.thread
         assert rig.set_param('commands_enabled', False).successful
         frames_out = rig.frames_out()
         # stopped with the switch: its thread has ended, nothing came after set_param returned
@@ -128,12 +128,11 @@ def test_bridge_sends_the_keepalive_only_while_commands_are_enabled():
             for v in s.values))
 
 
-def test_bridge_never_sends_it_by_default():
-    with rigs() as make:
-        rig = make(rig_params(keepalive=False))
-        commander = rig.node.commanders['sma']
-        assert not commander.keepalive.running
-        assert rig.set_param('sma.inverter_keepalive', True).successful
-        assert rig.wait(lambda: len(rig.capture.since(0, 0x305)) >= 1, 10.0)
-        assert rig.set_param('sma.inverter_keepalive', False).successful
-        assert not commander.keepalive.running
+def test_bridge_never_sends_it_by_default(bench_factory):
+    bench = bench_factory(rig_params(keepalive=False))
+    device = bench.devices['sma']
+    assert not device.keepalive.running
+    assert bench.set_param('sma.inverter_keepalive', True).successful
+    assert bench.wait(lambda: len(bench.capture.since(0, 0x305)) >= 1, 10.0)
+    assert bench.set_param('sma.inverter_keepalive', False).successful
+    assert not device.keepalive.running

@@ -27,19 +27,18 @@ import time
 from typing import Any, Callable, Iterable, Mapping
 
 from ams_can_bridge.devices.ams_charger import ChargerRepeater
+from ams_can_bridge.devices.ams_control import AmsControl
 from ams_can_bridge.devices.ams_master import AmsMaster, AmsView
 from ams_can_bridge.devices.ams_status import (diagnostic_report, ERROR_STATES, error_text,
                                                health)
 from ams_can_bridge.devices.base import (
-    BatteryReport, current_status, DiagnosticReport, Device, PowerSupplyStatus, Sent)
+    BatteryReport, current_status, DiagnosticReport, Device, PowerSupplyStatus)
 from ams_can_bridge.devices.configs import AmsConfig
 from ams_can_bridge.devices.timed import CounterHealth, TimedSpans, TimedStore
 from ams_can_bridge.parameters import ParamSpec
 from ams_can_bridge.protocols import ams as proto
-from ams_can_bridge.errors import ParamError, RefusedCommand
+from ams_can_bridge.errors import ParamError
 from ams_can_bridge.protocols.ams import AmsCodec, AmsError, AmsState
-from ams_can_bridge.devices.ports import InfoLog, SendFrame
-from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.ivt_s import IvtMux
 
 NAN = math.nan
@@ -84,7 +83,7 @@ class _BankArray(TimedSpans):
         return self.read(now, max_age, banks * self.groups)
 
 
-class AmsDevice(Device[AmsConfig]):
+class AmsDevice(AmsControl, Device[AmsConfig]):
     """Formula-Student AMS (accumulator management system), doc/protocols.md section 1."""
 
     TYPE = 'ams'
@@ -111,26 +110,15 @@ class AmsDevice(Device[AmsConfig]):
                   low=1, high=proto.MAX_BANKS, step=1, read_only=False),
     ]
 
-    COMMAND_PARAMS = [
-        ParamSpec('heartbeat_period', float, 0.05,
-                  's between car-status heartbeats (base + 0x005) while commands_enabled',
-                  low=0.01, high=1.0, read_only=False),
-        ParamSpec('command_timeout', float, 2.0,
-                  's a state command (enable_*, abort) waits for the AMS to report its target '
-                  'state', low=0.1, high=60.0, read_only=False),
-        ParamSpec('charge_current_a', float, None,
-                  'charge current for set_charge_current (base + 0x050), A; no default: '
-                  'unset refuses the call', low=0.0, high=25.5, step=0.1, read_only=False),
-    ]
-
     def __init__(self, name: str, config: AmsConfig | Mapping[str, Any],
                  clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__(name, config, clock)
         base_id = self.config.base_id
         self.codec = AmsCodec(proto.DEFAULT_BASE_ID if base_id is None else int(base_id))
         self.bank_count = _bank_count(_or_one(self.config.bank_count), f'{name}.bank_count')
-        self.master: AmsMaster | None = None  # the car's side, made by attach_master()
-        self.charger: ChargerRepeater | None = None  # the periodic START, attach_charger()
+        self.master: AmsMaster | None = None  # the car's side, made by attach_senders()
+        self.charger: ChargerRepeater | None = None  # the periodic START, attach_senders()
+        self._t0 = time.monotonic()  # origin of the charger time tick
         self.current_sensor: Any = None  # an IvtSDevice, linked by DeviceSet (LINKS)
         self.current_sensor_origin = ''  # how it was chosen (diagnostics, start-up log)
         self.state = AmsState.NOT_REPORTED
@@ -152,55 +140,6 @@ class AmsDevice(Device[AmsConfig]):
         self._cells = _BankArray(proto.CELLS_PER_GROUP, proto.CELL_GROUPS)
         self._temps = _BankArray(proto.TEMPS_PER_GROUP, proto.TEMP_GROUPS)
         self._discharge = _BankArray(proto.DISCHARGE_TEMPS_PER_GROUP, proto.TEMP_GROUPS)
-
-    # --- the frames the command services send (built here, on the device's own codec) --------
-    def attach_master(self, send: SendFrame,
-                      log: Callable[[str], object] | None = None) -> AmsMaster:
-        """
-        Make this AMS's master (heartbeat, car commands; stopped) sending through ``send``.
-
-        The master follows ``heartbeat_period`` and ``bank_count`` on every configure();
-        ``log`` is told when a state command begins to be carried.
-        """
-        config = self.config
-        self.master = AmsMaster(self.heartbeat_frame, send, self.master_view,
-                                period=float(config.heartbeat_period or 0.05),
-                                bank_count=self.bank_count, log=log, name=self.name)
-        return self.master
-
-    def attach_charger(self, send: SendFrame,
-                       tick: Callable[[], int], logger: InfoLog) -> ChargerRepeater:
-        """Make this AMS's charger START repeater (disarmed) sending through ``send``."""
-        self.charger = ChargerRepeater(self.charger_frame, send, tick, logger, self.name)
-        return self.charger
-
-    def heartbeat_frame(self, command: int, bank_count: int, counter: int) -> Frame:
-        """Build the car status (base + 0x005) the AMS master sends as its heartbeat."""
-        return self.codec.encode(proto.CarStatus(proto.CarCommand(command), bank_count, counter))
-
-    def sent_ids(self, config: AmsConfig | None = None) -> dict[tuple[int, bool], Sent]:
-        """Return the heartbeat, the charger command (repeated) and the two overrides."""
-        return {(self.codec.id_of(offset), False): sent for offset, sent in (
-            (proto.CAR_STATUS, Sent('car status heartbeat', True)),
-            (proto.CHARGER_COMMANDS, Sent('charger START/STOP', True)),
-            (proto.OVERRIDE_CHARGE_CURRENT, Sent('set_charge_current')),
-            (proto.OVERRIDE_BANK_COUNT, Sent('override_bank_count')))}
-
-    def charger_frame(self, start: proto.ChargerStart, time_tick: int) -> Frame:
-        """Build a charger command (base + 0x010): start / stop at this time tick."""
-        return self.codec.encode(proto.ChargerCommand(start, time_tick))
-
-    def charge_current_frame(self) -> Frame:
-        """Build the charge current override (base + 0x050); RefusedCommand while unset."""
-        current_a = self.config.charge_current_a
-        if current_a is None:
-            raise RefusedCommand(f'{self.name}.charge_current_a is not set: set it to the '
-                                 'charge current in A (0..25.5 in steps of 0.1)')
-        return self.codec.encode(proto.OverrideChargeCurrent(float(current_a)))
-
-    def bank_count_frame(self) -> Frame:
-        """Build the bank count override (base + 0x051) with the configured bank count."""
-        return self.codec.encode(proto.OverrideBankCount(self.bank_count))
 
     @property
     def arbitration_ids(self) -> frozenset[int]:

@@ -1,20 +1,23 @@
 """
-The charger role's periodic START (base + 0x010) without ROS: doc/protocols.md section 1.
+The charger role's START/STOP (base + 0x010) without ROS: doc/protocols.md section 1.
 
 The seed gives the charger commands "Transmission Rate: Periodically: 100 ms": a charger
 keeps its request alive by repeating it. So once ``start_charging`` has put its first START
 on the bus, :class:`ChargerRepeater` repeats START, each with the current time tick, every
-``CHARGER_COMMAND_PERIOD`` from its own thread on an absolute schedule (the heartbeat's
-``HeartbeatSchedule``: no drift, late slots skipped, never a burst). It stops at once, and
-for good (a later ``start_charging`` begins anew), when:
+``CHARGER_COMMAND_PERIOD`` (one ``PeriodicSender``: its own thread, an absolute schedule, no
+drift, late slots skipped, never a burst). It stops at once, and for good (a later
+``start_charging`` begins anew), when:
 
-- ``stop_charging`` is called (the node then sends STOP once: :meth:`halt`);
+- ``stop_charging`` is called (the repeat ends first, then STOP is sent once);
 - commands are disabled (:meth:`disarm`; nothing at all is sent while disarmed, so no STOP);
 - a repeat cannot be sent (bus down): the request is dropped, never replayed when the bus
   returns, exactly as a heartbeat command is.
 
-``halt``/``disarm`` return only after a repeat being sent right now is on the bus, so no START
-ever follows them. Start and stop are logged once each, never per frame.
+The ordering rule lives here: ``start_charging`` and ``stop_charging`` run one at a time, and
+the repeat has ended (its thread joined) before the STOP is sent, so no START ever follows a
+STOP. Both send their one frame through the command pipeline's port (``CallPort``), which
+refuses while disabled, waits for the bus and words the answer. Start and stop of the repeat
+are logged once each, never per frame.
 """
 from __future__ import annotations
 
@@ -22,9 +25,9 @@ import threading
 import time
 from typing import Callable
 
-from ams_can_bridge.devices.ams_master import HeartbeatSchedule
+from ams_can_bridge.devices.periodic_sender import PeriodicSender
+from ams_can_bridge.devices.ports import CallPort, InfoLog, SendFrame
 from ams_can_bridge.protocols.ams import ChargerStart
-from ams_can_bridge.devices.ports import InfoLog, SendFrame
 from ams_can_bridge.protocols.common import Frame
 
 CHARGER_COMMAND_PERIOD = 0.1  # s, seed 003 "Charger commands ... Periodically: 100ms"
@@ -32,6 +35,8 @@ CHARGER_COMMAND_PERIOD = 0.1  # s, seed 003 "Charger commands ... Periodically: 
 
 class ChargerRepeater:
     """Repeats the charger START every 100 ms while a charging request is active and armed."""
+
+    label = 'the charger START repeat'  # an armed sender (``devices/ports.py``: ``Armed``)
 
     def __init__(self, build: Callable[[ChargerStart, int], Frame],
                  send: SendFrame, tick: Callable[[], int],
@@ -43,38 +48,90 @@ class ChargerRepeater:
         logger has info() and warning() (rclpy's logger, or logging's).
         """
         self._build = build
-        self._send = send
         self._tick = tick
         self._log = logger
         self._name = name
-        self.period = float(period)
-        self._clock = clock
-        self._cond = threading.Condition()
-        self._send_lock = threading.Lock()  # halt() returns only after an in-flight send
-        self._wake = threading.Event()
-        self._thread: threading.Thread | None = None
-        self._generation = 0
-        self._active = False
+        self._lock = threading.Lock()  # armed, and a begin against a disarm
+        self._calls = threading.Lock()  # start_charging / stop_charging one at a time
+        self._sender = PeriodicSender(f'{name}-charger-start', 'the charger command',
+                                      lambda: build(ChargerStart.START, tick()), send, period,
+                                      failed=self._failed, clock=clock)
         self.armed = False
-        self.frames_sent = 0  # repeats of this request (the first START is the caller's)
         self.last_stop = ''   # why the last request ended ('' = never ended)
 
     @property
     def active(self) -> bool:
         """Tell whether START is being repeated now."""
-        return self._active
+        return self._sender.running
+
+    @property
+    def period(self) -> float:
+        """Return the repeat period in seconds."""
+        return self._sender.period
+
+    @property
+    def frames_sent(self) -> int:
+        """Return the repeats of this request (the first START is the caller's)."""
+        return self._sender.sent
+
+    @property
+    def thread(self) -> threading.Thread | None:
+        """Return the repeat's sender, a thread; None while not repeating."""
+        return self._sender.thread
+
+    # --- the two services: the ordering rule ------------------------------------------------
+    def start_charging(self, port: CallPort) -> tuple[bool, str]:
+        """Send START once through ``port``, then repeat it until stop_charging or a disarm."""
+        with self._calls:
+            if self.active:
+                return True, (f'{self._name}: start charging: START is already repeated every '
+                              f'{self.period * 1000:g} ms; nothing more sent')
+            ok, message = port.send_frames(lambda: [self._build(ChargerStart.START,
+                                                                self._tick())])
+            if not ok:
+                return False, message
+            refused = self.begin()
+            if refused:
+                return False, f'{message}; not repeated: {refused}'
+            return True, (f'{message}, repeated every {self.period * 1000:g} ms until '
+                          'stop_charging or commands_enabled false')
+
+    def stop_charging(self, port: CallPort) -> tuple[bool, str]:
+        """End the repeat (its thread joined), then send STOP once: no START follows it."""
+        with self._calls:
+            repeated = self.halt('stop_charging')
+            ok, message = port.send_frames(lambda: [self._build(ChargerStart.STOP,
+                                                                self._tick())])
+            if repeated:
+                message += '; the repeated START has ended'
+            return ok, message
+
+    # --- an armed sender ----------------------------------------------------------------------
+    def starts_on_arm(self) -> bool:
+        """Tell that arming starts nothing: only start_charging does."""
+        return False
+
+    def on_arm(self) -> None:
+        """Commands are enabled and the bus is connected: allow requests."""
+        self.arm()
+
+    def on_disarm(self, shutdown: bool = False) -> None:
+        """Stop the repeat at once and refuse requests, sending nothing (no STOP)."""
+        self.disarm('the bridge is shutting down' if shutdown else
+                    'commands_enabled was set to false; no STOP sent')
 
     def arm(self) -> None:
-        """Allow requests (commands_enabled became true); nothing is resumed."""
-        with self._cond:
+        """Allow requests; nothing is resumed."""
+        with self._lock:
             self.armed = True
 
     def disarm(self, reason: str) -> bool:
         """Refuse requests and stop the repeat at once, sending nothing; True if it ran."""
-        with self._cond:
+        with self._lock:
             self.armed = False
         return self.halt(reason)
 
+    # --- the repeat ---------------------------------------------------------------------------
     def begin(self) -> str:
         """
         Start repeating START one period after the caller's first one; '' or why not.
@@ -82,19 +139,11 @@ class ChargerRepeater:
         Called right after the caller sent that first START; refused while disarmed (a
         disarm between that send and this call wins: the START is not repeated).
         """
-        with self._cond:
+        with self._lock:
             if not self.armed:
                 return 'commands_enabled is false: START is not repeated'
-            if self._active:
-                return ''
-            self._active = True
-            self._generation += 1
-            self.frames_sent = 0
-            schedule = HeartbeatSchedule(self.period, self._clock())
-            schedule.k = 1  # slot 0 was the caller's START
-            self._thread = threading.Thread(target=self._run, args=(self._generation, schedule),
-                                            name=f'{self._name}-charger-start', daemon=True)
-            self._thread.start()
+            if not self._sender.start(first_slot=1):  # slot 0 was the caller's START
+                return ''  # repeats already
         self._log.info(f'{self._name}: charger START (0x010) repeated every '
                        f'{self.period * 1000:g} ms until stop_charging or commands_enabled '
                        'false')
@@ -102,54 +151,17 @@ class ChargerRepeater:
 
     def halt(self, reason: str) -> bool:
         """Stop repeating at once (no frame sent here); True if it was running."""
-        with self._cond:
-            was_active = self._active
-            self._active = False
-            thread, self._thread = self._thread, None
-            if was_active:
-                self.last_stop = reason
-            self._cond.notify_all()
-        self._wake.set()
-        with self._send_lock:
-            pass  # a repeat being sent right now is on the bus before halt() returns
-        if thread is not None and thread is not threading.current_thread():
-            thread.join(timeout=2.0)
-        if was_active:
-            self._log.info(f'{self._name}: charger START no longer repeated ({reason}); '
-                           f'{self.frames_sent} repeats sent')
-        return was_active
+        if not self._sender.stop():  # returns once a repeat being sent is on the bus
+            return False
+        self.last_stop = reason
+        self._log.info(f'{self._name}: charger START no longer repeated ({reason}); '
+                       f'{self.frames_sent} repeats sent')
+        return True
 
-    def _alive(self, generation: int) -> bool:
-        return self._active and self._generation == generation
-
-    def _run(self, generation: int, schedule: HeartbeatSchedule) -> None:
-        while True:
-            with self._cond:
-                if not self._alive(generation):
-                    return
-                now = self._clock()
-                wait = schedule.due() - now
-                if wait <= 0:
-                    schedule.take(now)  # late slots are skipped, never sent in a burst
-            if wait > 0:
-                self._wake.wait(wait)
-                self._wake.clear()
-                continue
-            with self._send_lock:
-                if not self._alive(generation):
-                    return
-                try:
-                    ok, message = self._send(self._build(ChargerStart.START, self._tick()))
-                except Exception as exc:  # a bug must not leave a request half alive
-                    ok, message = False, f'cannot build the charger command: {exc}'
-                if ok:
-                    self.frames_sent += 1
-                    continue
-                with self._cond:
-                    self._active = False
-                    self._thread = None
-                    self.last_stop = f'a repeat was not sent: {message}'
-            self._log.warning(f'{self._name}: charger START no longer repeated: a repeat was '
-                              f'not sent ({message}); the request is dropped and will not be '
-                              'sent later: call start_charging again')
-            return
+    def _failed(self, message: str) -> bool:
+        """End the request for good: a repeat was not sent (send lock held)."""
+        self.last_stop = f'a repeat was not sent: {message}'
+        self._log.warning(f'{self._name}: charger START no longer repeated: a repeat was '
+                          f'not sent ({message}); the request is dropped and will not be '
+                          'sent later: call start_charging again')
+        return False

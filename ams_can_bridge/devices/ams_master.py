@@ -1,11 +1,11 @@
 """
 The AMS master role without ROS: the car-status heartbeat and the command/wait logic.
 
-The heartbeat (car status, base + 0x005) runs on its own thread from a monotonic absolute
-schedule: slot k is due at ``start + k * period``. Sleeping to an absolute time cannot drift;
-when the thread is late by a whole period or more (machine overloaded), the missed slots are
-skipped (never sent in a burst) and counted. The counter increments by one per frame actually
-put on the bus and wraps 255 -> 0.
+The heartbeat (car status, base + 0x005) is one ``PeriodicSender`` (devices/
+periodic_sender.py): its own thread, a monotonic absolute schedule (slot k at ``start + k *
+period``: no drift; a thread late by a period or more skips the missed slots, never a burst).
+This module keeps only what the heartbeat carries and what the AMS answers. The counter
+increments by one per frame actually put on the bus and wraps 255 -> 0.
 
 The command field carries at most one request at a time (the bus frame has one field):
 
@@ -32,15 +32,15 @@ command is carried as before: only the AMS can answer it.
 """
 from __future__ import annotations
 
-import math
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable
 
 from ams_can_bridge.devices.ams_preconditions import precondition_refusal
-from ams_can_bridge.errors import ParamError
+from ams_can_bridge.devices.commands import CommandResult
 from ams_can_bridge.protocols.ams import AmsState, CarCommand
+from ams_can_bridge.devices.periodic_sender import PeriodicSender
 from ams_can_bridge.devices.ports import SendFrame
 from ams_can_bridge.protocols.common import Frame
 
@@ -83,14 +83,6 @@ class AmsView:
         return text + (' (AMS status is stale)' if self.stale else '')
 
 
-@dataclass(frozen=True)
-class CommandResult:
-    """The answer of a command call."""
-
-    success: bool
-    message: str
-
-
 @dataclass
 class _Request:
     command: CarCommand
@@ -104,82 +96,50 @@ class _Request:
     timeout: float = 0.0             # s from started the call waits for its answer
 
 
-@dataclass
+@dataclass(frozen=True)
 class HeartbeatStats:
-    """Counters of the heartbeat thread (diagnostics and the benchmark)."""
+    """Counters of the heartbeat since its last start (diagnostics and the benchmark)."""
 
     frames_sent: int = 0
     send_failures: int = 0
     missed_slots: int = 0
     last_error: str = ''
-    send_times: list[float] = field(default_factory=list)  # only when record=True
-
-
-class HeartbeatSchedule:
-    """Absolute monotonic slots: slot k at start + k * period, late slots skipped."""
-
-    def __init__(self, period: float, start: float) -> None:
-        if not period > 0:
-            raise ParamError(f'heartbeat period {period!r} must be > 0')
-        self.period = period
-        self.start = start
-        self.k = 0
-
-    def due(self) -> float:
-        """Return the time of the next slot."""
-        return self.start + self.k * self.period
-
-    def take(self, now: float) -> int:
-        """Consume the slot due at or before now; return how many slots were skipped."""
-        latest = int(math.floor((now - self.start) / self.period + 1e-9))
-        skipped = max(0, latest - self.k)
-        self.k = max(self.k, latest) + 1
-        return skipped
-
-    def rebase(self, period: float, now: float) -> None:
-        """Change the period from now on (first slot of the new period: one period ahead)."""
-        if not period > 0:
-            raise ParamError(f'heartbeat period {period!r} must be > 0')
-        last = self.start + (self.k - 1) * self.period if self.k else now
-        self.period = period
-        self.start = max(last + period, now)
-        self.k = 0
 
 
 class AmsMaster:
-    """Heartbeat thread + command requests; the ROS layer only wires services to it."""
+    """The heartbeat (one ``PeriodicSender``) and the command requests it carries."""
+
+    label = 'the heartbeat'  # an armed sender (``devices/ports.py``: ``Armed``)
 
     def __init__(self, encode: Callable[[int, int, int], Frame],
                  send: SendFrame,
                  view: Callable[[], AmsView], period: float = 0.05, bank_count: int = 1,
-                 clock: Callable[[], float] = time.monotonic, record: bool = False,
+                 clock: Callable[[], float] = time.monotonic,
                  log: Callable[[str], object] | None = None, name: str = 'ams') -> None:
         """
         Wire the master to its codec, bus and AMS state.
 
         encode(command, bank_count, counter) builds the car status frame; send(frame)
         returns (ok, message); view() reads the AMS device state; log(line) is told when
-        the heartbeat starts carrying a state command (the answer is the caller's to log).
+        the heartbeat starts and stops, and when it starts carrying a state command (the
+        answer is the caller's to log).
         """
         self._encode = encode
-        self._send = send
         self._view = view
         self._clock = clock
         self._cond = threading.Condition()
-        self._send_lock = threading.Lock()  # stop() returns only after an in-flight send
-        self._wake = threading.Event()  # wakes the heartbeat thread before its slot
-        self._thread: threading.Thread | None = None
+        self._switch = threading.Lock()  # start() and stop() one at a time
         self._running = False
-        self._generation = 0  # a thread from before a stop/start never sends again
         self._period = float(period)
-        self._schedule: HeartbeatSchedule | None = None
         self.bank_count = int(bank_count)
         self.counter = 0
-        self.stats = HeartbeatStats()
-        self._record = record
         self._request: _Request | None = None
+        self._carrying: _Request | None = None  # the request of the frame being sent
         self._log = log
         self.name = name
+        self.sender = PeriodicSender('ams-heartbeat', 'the heartbeat', self._next_frame, send,
+                                     self._period, sent=self._sent, failed=self._failed,
+                                     log=log, clock=clock)
 
     # --- heartbeat thread --------------------------------------------------------------
     @property
@@ -188,46 +148,73 @@ class AmsMaster:
         return self._running
 
     @property
+    def thread(self) -> threading.Thread | None:
+        """Return the heartbeat's sender, a thread; None while stopped."""
+        return self.sender.thread
+
+    @property
     def period(self) -> float:
         """Return the heartbeat period in seconds."""
         return self._period
 
-    def start(self) -> None:
-        """Start the heartbeat (no-op when running)."""
-        with self._cond:
-            if self._running:
-                return
-            self._running = True
-            self._generation += 1
-            self._schedule = HeartbeatSchedule(self._period, self._clock())
-            self._thread = threading.Thread(target=self._run, args=(self._generation,),
-                                            name='ams-heartbeat', daemon=True)
-            self._thread.start()
+    @property
+    def stats(self) -> HeartbeatStats:
+        """Return the heartbeat's counters since its last start."""
+        sender = self.sender
+        return HeartbeatStats(sender.sent, sender.failed, sender.missed_slots,
+                              sender.last_error)
 
-    def stop(self, reason: str = 'the heartbeat stopped') -> None:
-        """Stop the heartbeat; a waiting call answers failure with reason, field reset."""
-        with self._cond:
-            thread = self._thread
-            self._running = False
-            self._thread = None
-            if self._request is not None:
-                self._request.cancelled = reason
-                self._request = None
-            self._cond.notify_all()
-        self._wake.set()
-        with self._send_lock:
-            pass  # a frame being sent right now is on the bus before stop() returns
-        if thread is not None and thread is not threading.current_thread():
-            thread.join(timeout=2.0)
+    def start(self) -> bool:
+        """Start the heartbeat (False: it runs already)."""
+        with self._switch:
+            with self._cond:
+                if self._running:
+                    return False
+                self._running = True
+            return self.sender.start()
+
+    def stop(self, reason: str = 'the heartbeat stopped') -> bool:
+        """Stop the heartbeat (True: it ran); a waiting call answers failure with reason."""
+        with self._switch:
+            with self._cond:
+                was = self._running
+                self._running = False
+                if self._request is not None:
+                    self._request.cancelled = reason
+                    self._request = None
+                self._cond.notify_all()
+            # outside the condition: the sender's hooks take it under the send lock
+            self.sender.stop()
+            return was
+
+    # --- an armed sender: runs while commands are enabled and the bus is connected -------
+    def starts_on_arm(self) -> bool:
+        """Tell that arming starts the heartbeat."""
+        return True
+
+    def on_arm(self) -> None:
+        """Start the heartbeat and say so (once per start)."""
+        if self.start() and self._log is not None:
+            frame = self._encode(0, self.bank_count, 0)
+            self._log(f'{self.name}: heartbeat started: car status 0x{frame.arbitration_id:X} '
+                      f'every {self._period * 1000:g} ms')
+
+    def on_disarm(self, shutdown: bool = False) -> None:
+        """Stop the heartbeat at once (a waiting call answers why) and say so."""
+        if shutdown:
+            reason = why = 'the bridge is shutting down'
+        else:
+            reason = ('commands_enabled was set to false while waiting; the heartbeat '
+                      'stopped')
+            why = 'commands_enabled is false'
+        if self.stop(reason) and self._log is not None:
+            self._log(f'{self.name}: heartbeat stopped ({why})')
 
     def set_period(self, period: float) -> None:
         """Change the heartbeat period at run time."""
         with self._cond:
             self._period = float(period)
-            if self._schedule is not None:
-                self._schedule.rebase(self._period, self._clock())
-            self._cond.notify_all()
-        self._wake.set()
+        self.sender.set_period(self._period)
 
     def set_bank_count(self, bank_count: int) -> None:
         """Set the bank count carried by every following heartbeat."""
@@ -239,59 +226,38 @@ class AmsMaster:
         with self._cond:
             return self._request.command if self._request else CarCommand.NO_COMMAND
 
-    def _alive(self, generation: int) -> bool:
-        return self._running and self._generation == generation
+    # --- the sender's hooks (its thread) ------------------------------------------------
+    def _next_frame(self) -> Frame:
+        """Build the slot's heartbeat with the command, bank count and counter of now."""
+        with self._cond:
+            request = self._request
+            command = request.command if request else CarCommand.NO_COMMAND
+            bank_count, counter = self.bank_count, self.counter
+        self._carrying = request
+        return self._encode(int(command), bank_count, counter)
 
-    def _run(self, generation: int) -> None:
-        while True:
-            # Sleep on an event of the thread's own, not on self._cond: waiting calls take the
-            # condition every few ms, and waking into a held lock makes the heartbeat late.
-            with self._cond:
-                if not self._alive(generation):
-                    return
-                now = self._clock()
-                schedule = self._schedule
-                assert schedule is not None  # made by start() before the thread
-                wait = schedule.due() - now
-                if wait <= 0:
-                    self.stats.missed_slots += schedule.take(now)
-                    request = self._request
-                    command = request.command if request else CarCommand.NO_COMMAND
-                    bank_count, counter = self.bank_count, self.counter
-            if wait > 0:
-                self._wake.wait(wait)
-                self._wake.clear()  # state changes come before set(): re-read it now
-                continue
-            try:
-                frame = self._encode(int(command), bank_count, counter)
-            except Exception as exc:  # a bad bank count must not kill the thread
-                frame = None
-                self.stats.last_error = f'cannot build the heartbeat: {exc}'
-            # send outside the condition: a slow bus must not block service calls or abort
-            with self._send_lock:
-                if not self._alive(generation):
-                    return
-                ok, message = ((False, self.stats.last_error) if frame is None
-                               else self._send(frame))
-                sent_at = self._clock()
-                view = self._view() if ok and request is not None else None
-                # still under the send lock: a stop()/start() cannot slip a frame with the
-                # same counter in between this send and its counter increment
-                with self._cond:
-                    carried = self._account(ok, message, request, view, sent_at)
-            if carried and self._log is not None:  # outside the locks: the next slot waits
-                self._log(carried)
+    def _sent(self, frame: Frame, sent_at: float) -> str:
+        """Book a heartbeat on the bus (send lock held); the line when a wait begins."""
+        request = self._carrying
+        # The AMS view is read outside self._cond (it takes the device lock); still under
+        # the send lock: a stop()/start() cannot slip a frame with the same counter in.
+        view = self._view() if request is not None else None
+        with self._cond:
+            return self._account(True, '', request, view, sent_at)
+
+    def _failed(self, message: str) -> bool:
+        """Book a heartbeat that was not sent (send lock held); the heartbeat goes on."""
+        with self._cond:
+            self._account(False, message, self._carrying, None, 0.0)
+        return True
 
     def _account(self, ok: bool, message: str, request: _Request | None,
                  view: AmsView | None, sent_at: float) -> str:
         """Book one send attempt (self._cond held); return the line when a wait begins."""
         carried = ''
         if ok:
-            self.stats.frames_sent += 1
-            if self._record:
-                self.stats.send_times.append(sent_at)
             if request is not None and not request.done and not request.cancelled:
-                assert view is not None  # taken in _run whenever a request was carried
+                assert view is not None  # read by _sent whenever a request was carried
                 if request.carried == 0:
                     request.first_counter = self.counter
                     request.status_seq_at_send = view.status_seq
@@ -304,15 +270,12 @@ class AmsMaster:
                 if request.command in ONE_SHOT and self._request is request:
                     self._request = None  # exactly one heartbeat carries it
             self.counter = (self.counter + 1) & 0xFF
-        else:
-            self.stats.send_failures += 1
-            self.stats.last_error = message
-            if request is not None and self._request is request and not request.done:
-                # A command is carried by an unbroken run of heartbeats: once one is lost
-                # (bus down) the call fails, and nothing stale goes out when the bus returns.
-                request.cancelled = (f'the heartbeat carrying it was not sent ({message}); '
-                                     'the command was dropped and will not be sent later')
-                self._request = None
+        elif request is not None and self._request is request and not request.done:
+            # A command is carried by an unbroken run of heartbeats: once one is lost
+            # (bus down) the call fails, and nothing stale goes out when the bus returns.
+            request.cancelled = (f'the heartbeat carrying it was not sent ({message}); '
+                                 'the command was dropped and will not be sent later')
+            self._request = None
         self._cond.notify_all()
         return carried
 
@@ -378,7 +341,7 @@ class AmsMaster:
                     now = self._clock()
                     if now >= deadline:
                         sent = (f'carried in {request.carried} heartbeats' if request.carried
-                                else 'never sent (' + (self.stats.last_error or 'no slot') + ')')
+                                else 'never sent (' + (self.sender.last_error or 'no slot') + ')')
                         goal = (f'waiting for {TARGETS[request.command].name}'
                                 if request.command in TARGETS else 'waiting to be sent')
                         return CommandResult(False, f'{name}: timeout after {timeout:g} s '

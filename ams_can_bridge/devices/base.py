@@ -16,7 +16,9 @@ from dataclasses import dataclass, field
 from typing import (Any, Callable, ClassVar, Generic, Iterable, Mapping, NamedTuple, Protocol,
                     TypeVar)
 
+from ams_can_bridge.devices.commands import Command
 from ams_can_bridge.devices.config import DeviceConfig
+from ams_can_bridge.devices.ports import Armed, InfoLog, SendFrame
 from ams_can_bridge.errors import ConfigError, ParamError, ProtocolError
 from ams_can_bridge.parameters import ParamSpec
 
@@ -182,6 +184,9 @@ class Device(Generic[ConfigT]):
     # the first instance of that type) and calls attach_link(); the parameter keeps the
     # value the user gave (the resolved instance shows in the diagnostics instead).
     LINKS: ClassVar[Mapping[str, str]] = {}
+    # The command services of the type, one row each (devices/commands.py): what the one
+    # command pipeline (engine/calls.py) runs and the ROS adapter offers.
+    COMMANDS: ClassVar[tuple[Command, ...]] = ()
 
     # The typed, frozen configuration class of the device type (devices/configs.py,
     # generated from device_params(); test_device_configs.py checks they agree).
@@ -249,6 +254,24 @@ class Device(Generic[ConfigT]):
 
     def _reconfigured(self, old: ConfigT, new: ConfigT) -> None:
         """Follow a configuration change (lock held); the device types that need it."""
+
+    # --- the command side (besides COMMANDS) ------------------------------------------------
+    def attach_senders(self, send: SendFrame, log: InfoLog) -> list[Armed]:
+        """
+        Make the device's periodic senders (stopped), sending through ``send``; list them.
+
+        ``send`` is the gate's periodic path (never waits). The command side arms them
+        while commands are enabled and the bus is connected, and disarms them at once.
+        """
+        return []
+
+    def start_command(self) -> str | None:
+        """Name the command run once when the device is heard while commands are enabled."""
+        return None
+
+    def heard(self) -> bool:
+        """Tell whether a valid primary frame of the device came."""
+        return self.last_seen is not None
 
     def attach_link(self, key: str, device: 'Device[Any]', origin: str) -> None:
         """

@@ -17,6 +17,7 @@ from typing import Any, Callable, Iterable, Mapping
 
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyHealth, Sent)
+from ams_can_bridge.devices.commands import Command, ONCE, TRIGGER
 from ams_can_bridge.devices.config import ConfigFields
 from ams_can_bridge.devices.configs import Bms16Config
 from ams_can_bridge.devices.sma import sma_values
@@ -76,6 +77,12 @@ class Bms16Device(Device[Bms16Config]):
     PARAMS = []
 
     COMMAND_PARAMS = config_param_specs(bms16_proto.CONFIG_FIELDS)
+    COMMANDS = (
+        Command('write_config', 'write the configuration', TRIGGER, 'config_frames', ONCE),
+        Command('acknowledge_error', 'acknowledge the error', TRIGGER, 'ack_frame', ONCE),
+        Command('reset_soc', 'reset the SoC', TRIGGER, 'reset_soc_frame', ONCE),
+        Command('power_off', 'power the BMS16 off', TRIGGER, 'power_off_frame', ONCE),
+    )
     CONFIG = ConfigFields(bms16_proto.CONFIG_FIELDS, bms16_proto.check_config_value)
     WRITE_HINT = 'set them all: the device has no read-back, a write overwrites every value'
 

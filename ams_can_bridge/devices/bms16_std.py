@@ -16,6 +16,7 @@ from typing import Any, Callable, Iterable, Mapping
 
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyStatus, Sent)
+from ams_can_bridge.devices.commands import Command, Frames, ONCE, TRIGGER
 from ams_can_bridge.devices.config import ConfigFields
 from ams_can_bridge.devices.configs import Bms16StdConfig
 from ams_can_bridge.devices.evms3_health import error_health, error_text
@@ -50,6 +51,13 @@ class Bms16StdDevice(Device[Bms16StdConfig]):
     WRITE_HINT = 'set them all: the BMS16 has no read-back, a write overwrites every value'
     # write_config: IDs 36, 32..35 with this pause after each frame (ZEVA Monitor: 20 ms)
     CONFIG_FRAME_GAP = CONFIG_GAP_S
+    COMMANDS = (
+        Command('write_config', 'write the configuration', TRIGGER, 'config_frames',
+                Frames(paced=True, say_gap=True)),
+        Command('acknowledge_error', 'acknowledge the error', TRIGGER, 'ack_frame', ONCE),
+        Command('reset_soc', 'reset the SoC', TRIGGER, 'reset_soc_frame', ONCE),
+        Command('power_off', 'power the BMS16 off', TRIGGER, 'power_off_frame', ONCE),
+    )
 
     def __init__(self, name: str, config: Bms16StdConfig | Mapping[str, Any],
                  clock: Callable[[], float] = time.monotonic) -> None:

@@ -29,8 +29,10 @@ from ams_can_bridge.devices.configs import Evms3Config
 from ams_can_bridge.devices.evms3_health import (
     error_health, error_text, WRITABLE_STATES)
 from ams_can_bridge.devices.evms3_peers import Bms12Module, Chargers
-from ams_can_bridge.devices.evms3_readback import ConfigReader, ReadResult
-from ams_can_bridge.devices.ports import SendFrame
+from ams_can_bridge.devices.evms3_readback import ConfigReader, read_back, ReadResult
+from ams_can_bridge.devices.commands import (Command, EXCHANGE, Frames, ONCE, SET_BOOL,
+                                             TRIGGER)
+from ams_can_bridge.devices.ports import CallPort, SendFrame
 from ams_can_bridge.devices.timed import TimedStore
 from ams_can_bridge.parameters import config_param_specs, ParamSpec
 from ams_can_bridge.protocols import evms3 as evms3_proto
@@ -50,6 +52,13 @@ CELLS_PER_BMS12 = 12  # t = 1..3 carry 3 x 4 cells: a module cannot report more
 BMS12_STALE_TIMEOUT = 3.0
 # TC chargers and the EVMS's commands to them come about once a second: five missed.
 CHARGER_STALE_TIMEOUT = 5.0
+
+
+# doc/protocols.md 3.6: 32..36 change the EVMS3's RAM at once; only 35 saves to EEPROM.
+EVMS3_PARTIAL = ('the EVMS3 saves its configuration to EEPROM only when ID 35 arrives, so the '
+                 'frames sent changed its RAM only: it runs with them until its next power-up, '
+                 'which restores the saved configuration; call write_config again (all five '
+                 'frames) once commands are enabled')
 
 
 class Evms3Device(Device[Evms3Config]):
@@ -82,6 +91,19 @@ class Evms3Device(Device[Evms3Config]):
                   's read_config waits for the answer (IDs 52..56) after sending ID 51',
                   low=0.1, high=30.0, read_only=False),
     ]
+
+    # write_config: IDs 36, 32..35 with this pause after each frame, as ZEVA's Monitor sends
+    # them (EVMS_Monitor3.c TransmitSettings: CanTX(..., 20)); the EVMS3 saves on ID 35
+    CONFIG_FRAME_GAP = 0.02
+    COMMANDS = (
+        Command('write_config', 'write the configuration', TRIGGER, 'config_frames',
+                Frames(paced=True, partial=EVMS3_PARTIAL)),
+        Command('set_setup_mode', 'enter Setup mode', SET_BOOL, 'setup_mode_frame', ONCE,
+                what_false='return to Idle'),
+        Command('acknowledge_error', 'acknowledge the error', TRIGGER, 'ack_frame', ONCE),
+        Command('reset_soc', 'reset the SoC', TRIGGER, 'reset_soc_frame', ONCE),
+        Command('read_config', 'read the configuration', TRIGGER, 'read_back', EXCHANGE),
+    )
 
     CONFIG = ConfigFields(evms3_proto.CONFIG_FIELDS, evms3_proto.check_config_value)
     WRITE_HINT = ('set them all, or fill them from the EVMS3 with {0}/read_config: a write '
@@ -155,6 +177,12 @@ class Evms3Device(Device[Evms3Config]):
     def read_config(self, send: SendFrame, timeout: float) -> ReadResult:
         """Send ID 51 through send(frame) -> (ok, why); wait up to timeout s for 52..56."""
         return self.reader.read(send, timeout)
+
+    def read_back(self, port: CallPort) -> tuple[bool, str]:
+        """read_config: ask with ID 51, set every config.* parameter from the answer."""
+        config = self.config
+        return read_back(self.name, self.reader, port, bool(config.config_request),
+                         float(config.read_timeout or 2.0))
 
     # --- the frames the command services send (built here, on the device's own codec) --------
     @staticmethod

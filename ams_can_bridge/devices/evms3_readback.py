@@ -16,7 +16,7 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-from ams_can_bridge.devices.ports import SendFrame
+from ams_can_bridge.devices.ports import CallPort, SendFrame
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import (
     CONFIG_FIELDS, ConfigReadback, ConfigReport, READBACK_IDS, READBACK_NAMES)
@@ -135,3 +135,31 @@ class ConfigReader:
             unit = _UNITS.get(name, '')
             values[f'config {name}' + (f' ({unit})' if unit else '')] = _text(value, name)
         return values
+
+
+def read_back(name: str, reader: ConfigReader, port: CallPort, allowed: bool,
+              timeout: float) -> tuple[bool, str]:
+    """
+    Run read_config: ask with ID 51, then set every config.* parameter from the answer.
+
+    Refused (nothing sent) unless ``allowed`` (``<name>.config_request``): ID 51 is also a
+    ZEVA motor controller's throttle frame. A partial answer sets nothing.
+    """
+    if not allowed:
+        return False, (
+            f'{name}: read_config refused: {name}.config_request is false. ID 51 asks the '
+            'EVMS3 for its configuration, but a ZEVA motor controller takes ID 51 as its '
+            f'throttle frame: set the parameter {name}.config_request to true only if no ZEVA '
+            'motor controller is on this bus; nothing was sent')
+    # the port waits for the bus outside the gate's batch lock, then sends ID 51 under it
+    result = reader.read(port, timeout)
+    readback = result.readback
+    if readback is None or not result.ok:
+        return False, f'{name}: read_config failed: {result.error}; nothing was set'
+    values = readback.parameter_values()
+    ok, reason = port.set_config({f'config.{key}': value for key, value in values.items()})
+    if not ok:
+        return False, (f'{name}: read_config: the EVMS3 answered, but its values cannot be '
+                       f'set: {reason}; nothing was set')
+    return True, (f'{name}: read_config: {readback.summary()}; set {len(values)} parameters '
+                  f'{name}.config.*')

@@ -1,17 +1,19 @@
 """
-IVT-S device side of the command services: the configuration wanted, the sequences, checks.
+IVT-S device side of the command services: the rows, the configuration wanted, the checks.
 
 A mixin of ``IvtSDevice`` (devices/ivt_s.py): it uses the device's lock, configuration,
 ``link`` (the 0x511 answers, devices/ivt_s_commands.py) and result tracks. No rclpy; the
-services in ros/ivt_commands.py call these methods with a ``send`` that applies the gate.
+command pipeline (engine/calls.py) calls these methods with a ``send`` (its ``CallPort``)
+that applies the gate and waits for the bus.
 """
 from __future__ import annotations
 
 from dataclasses import replace
 import threading
-from typing import Any, Callable, Iterable
+from typing import Any, Callable, ClassVar, Iterable
 
 from ams_can_bridge.devices import ivt_s_commands as seq
+from ams_can_bridge.devices.commands import Command, EXCHANGE, SET_BOOL, TRIGGER
 from ams_can_bridge.devices.configs import IvtSConfig
 from ams_can_bridge.devices.ivt_s_commands import config_problems, NoAnswer
 from ams_can_bridge.devices.ports import SendFrame
@@ -36,6 +38,16 @@ def _whole_ms(value: Any) -> int | None:
 
 class IvtSControl:
     """read_config, write_config, set_running, restart, reset_errors of one IVT-S."""
+
+    # Each runs its exchange (0x411 -> 0x511) through the pipeline's port (devices/commands.py)
+    COMMANDS: ClassVar[tuple[Command, ...]] = (
+        Command('read_config', 'read the configuration', TRIGGER, 'read_config', EXCHANGE),
+        Command('write_config', 'write the configuration', TRIGGER, 'write_config', EXCHANGE),
+        Command('restart', 'restart the sensor', TRIGGER, 'restart', EXCHANGE),
+        Command('reset_errors', 'reset the errors', TRIGGER, 'reset_errors', EXCHANGE),
+        Command('set_running', 'run the sensor', SET_BOOL, 'set_running', EXCHANGE,
+                what_false='stop the sensor'),
+    )
 
     name: str
     config: IvtSConfig
@@ -99,6 +111,10 @@ class IvtSControl:
             values['unknown answers'] = (f'{link.other_count}, last '
                                          f'{link.other.data.hex(" ").upper()}')
         return values
+
+    def start_command(self) -> str | None:
+        """check_config_at_start: read_config once, when heard while commands are enabled."""
+        return 'read_config' if self.config.check_config_at_start else None
 
     def heard(self) -> bool:
         """Tell whether any result frame came (check_config_at_start waits for it)."""

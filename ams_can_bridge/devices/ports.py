@@ -1,14 +1,16 @@
 """
-The ports a device's command helpers are given by the layer above (the command gate, a log).
+The ports a device's command side is given by the layer above (the command gate, a log).
 
-Devices build their frames but never reach the bus themselves: the AMS master, the charger
-START repeat, the SMA keep-alive, the EVMS3 read-back and the IVT-S exchange send through a
-``SendFrame`` the ROS adapter hands them (the gate's ``send``/``send_periodic``). Typed here,
-as Protocols, so that devices import neither the engine nor ROS.
+Devices build their frames but never reach the bus themselves: the periodic senders (the AMS
+heartbeat, the charger START repeat, the SMA keep-alive) send through a ``SendFrame`` (the
+gate's ``send_periodic``), and a command the device runs itself (an IVT-S or EVMS3 exchange,
+the charger's start and stop) through a ``CallPort`` the command pipeline hands it
+(``engine/calls.py``). Typed here, as Protocols, so that devices import neither the engine nor
+ROS.
 """
 from __future__ import annotations
 
-from typing import Protocol
+from typing import Any, Callable, Iterable, Mapping, Protocol
 
 from ams_can_bridge.protocols.common import Frame
 
@@ -18,6 +20,39 @@ class SendFrame(Protocol):
 
     def __call__(self, frame: Frame, /) -> tuple[bool, str]:
         """Send ``frame``; (False, reason) when the gate or the bus refused it."""
+
+
+class CallPort(Protocol):
+    """
+    What the pipeline hands a device for one call it runs itself (``Exchange`` rows).
+
+    Calling it sends one frame of the call (a ``SendFrame``): through the gate, waiting for a
+    (re)opening bus, with the command log line, so an exchange's steps pass it one by one.
+    """
+
+    def __call__(self, frame: Frame, /) -> tuple[bool, str]:
+        """Send one frame of the call; (False, reason) when the gate or the bus refused it."""
+
+    def send_frames(self, build: Callable[[], Iterable[Frame]]) -> tuple[bool, str]:
+        """Build and send frames as a ``Frames`` row does: (ok, the pipeline's answer)."""
+
+    def set_config(self, values: Mapping[str, Any]) -> tuple[bool, str]:
+        """Set the device's parameters {key: value} all or none: (done, why not)."""
+
+
+class Armed(Protocol):
+    """A periodic sender of a device: it runs only while armed (commands on, bus connected)."""
+
+    label: str  # what it is, in log lines ('the heartbeat')
+
+    def starts_on_arm(self) -> bool:
+        """Tell whether arming starts it now (the heartbeat: always; the repeat: never)."""
+
+    def on_arm(self) -> None:
+        """Commands are enabled and the bus is connected: run (or allow running)."""
+
+    def on_disarm(self, shutdown: bool = False) -> None:
+        """Stop at once; nothing is sent after this returns (shutdown: the bridge ends)."""
 
 
 class InfoLog(Protocol):

@@ -41,7 +41,7 @@ from ams_can_bridge.devices.sma_voltage import AUTO, SCALE_CHOICES, ScaleInUse, 
 from ams_can_bridge.devices.timed import TimedStore
 from ams_can_bridge.errors import ParamError
 from ams_can_bridge.parameters import coerce, ParamSpec
-from ams_can_bridge.devices.ports import SendFrame
+from ams_can_bridge.devices.ports import Armed, InfoLog, SendFrame
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.sma import (
     ALARMS_ID, BATTERY_ID, INFO_ID, LIMITS_ID, MANUFACTURER_ID, SmaAlarms, SmaBattery,
@@ -144,7 +144,7 @@ class SmaDevice(Device[SmaConfig]):
         self.codec = SmaCodec()
         self.readings: TimedStore[Hashable, Any] = TimedStore()  # by group_key: its type
         self.battery_stamp = NAN
-        self.keepalive: InverterKeepalive | None = None  # made by attach_keepalive()
+        self.keepalive: InverterKeepalive | None = None  # made by attach_senders()
         self.scale = VoltageScale(f'{name}.voltage_scale', self._scale_setting(self.config),
                                   self.stale_timeout)
 
@@ -160,8 +160,12 @@ class SmaDevice(Device[SmaConfig]):
         frame = self.keepalive_frame()
         return {(frame.arbitration_id, frame.is_extended_id): Sent('inverter keep-alive', True)}
 
+    def attach_senders(self, send: SendFrame, log: InfoLog) -> list[Armed]:
+        """Make the (disarmed) inverter keep-alive; armed while commands are enabled."""
+        return [self.attach_keepalive(send, log.info)]
+
     def attach_keepalive(self, send: SendFrame,
-                         log: Callable[[str], None],
+                         log: Callable[[str], object],
                          period: float = KEEPALIVE_PERIOD) -> InverterKeepalive:
         """
         Make this device's (disarmed) keep-alive sending through ``send``.

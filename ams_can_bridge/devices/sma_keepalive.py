@@ -5,19 +5,20 @@ Pylontech's CAN protocol has the inverter answer every second with 0x305, eight 
 Pylontech-family BMSs (and BMSs copying them) may stop or alarm without it. A robot has no
 inverter, so the bridge can play its part: ``sma.inverter_keepalive``.
 
-The keep-alive runs exactly while it is both *armed* (commands_enabled, set by the ROS
-layer) and *enabled* (the device's ``inverter_keepalive`` parameter): either going false
-stops it at once, and no frame is sent after ``stop`` returns. It sends its first frame
-when it starts, then one per period on an absolute schedule (no drift; a late thread skips
-missed slots rather than sending a burst). Start and stop are logged once each, never a
-line per frame; failed sends are counted for the diagnostics.
+The keep-alive runs exactly while it is both *armed* (commands enabled and the bus connected:
+the command side arms it) and *enabled* (the device's ``inverter_keepalive`` parameter):
+either going false stops it at once, and no frame is sent after that returns. It is one
+``PeriodicSender``: its first frame when it starts, then one per period on an absolute
+schedule (no drift; a late thread skips missed slots rather than sending a burst). Start and
+stop are logged once each, never a line per frame; failed sends are counted for the
+diagnostics.
 """
 from __future__ import annotations
 
 import threading
-import time
 from typing import Callable
 
+from ams_can_bridge.devices.periodic_sender import PeriodicSender
 from ams_can_bridge.devices.ports import SendFrame
 from ams_can_bridge.protocols.common import Frame
 
@@ -27,30 +28,62 @@ KEEPALIVE_PERIOD = 1.0  # s: "Inverter reply every second" (Pylontech CAN protoc
 class InverterKeepalive:
     """0x305 every period while armed and enabled; the frame comes from the device."""
 
+    label = 'the inverter keep-alive'  # an armed sender (``devices/ports.py``: ``Armed``)
+
     def __init__(self, build: Callable[[], Frame], send: SendFrame,
-                 log: Callable[[str], None], name: str = 'sma',
+                 log: Callable[[str], object], name: str = 'sma',
                  period: float = KEEPALIVE_PERIOD) -> None:
         """build() makes the frame, send(frame) -> (ok, message), log(line) reports."""
-        self._build = build
-        self._send = send
         self._log = log
         self.name = name
-        self.period = float(period)
-        self._lock = threading.Lock()  # state changes
-        self._send_lock = threading.Lock()  # stop() returns only after an in-flight send
-        self._wake = threading.Event()
+        self._lock = threading.Lock()  # armed / enabled and the start or stop they make
+        self._sender = PeriodicSender(f'{name}-keepalive', 'the keep-alive', build, send,
+                                      period)
         self._armed = False
         self._enabled = False
-        self._generation = 0
-        self._thread: threading.Thread | None = None
-        self.sent = 0
-        self.failed = 0
-        self.last_error = ''
 
     @property
     def running(self) -> bool:
         """Tell whether frames are being sent."""
-        return self._thread is not None
+        return self._sender.running
+
+    @property
+    def thread(self) -> threading.Thread | None:
+        """Return the keep-alive's sender, a thread; None while stopped."""
+        return self._sender.thread
+
+    @property
+    def period(self) -> float:
+        """Return the period in seconds."""
+        return self._sender.period
+
+    @property
+    def sent(self) -> int:
+        """Return the frames sent since it last started."""
+        return self._sender.sent
+
+    @property
+    def failed(self) -> int:
+        """Return the sends that failed since it last started."""
+        return self._sender.failed
+
+    @property
+    def last_error(self) -> str:
+        """Return why the last send failed ('' = none yet)."""
+        return self._sender.last_error
+
+    # --- an armed sender ----------------------------------------------------------------------
+    def starts_on_arm(self) -> bool:
+        """Tell whether arming starts it (inverter_keepalive is true)."""
+        return self._enabled
+
+    def on_arm(self) -> None:
+        """Run (if inverter_keepalive is true): commands are enabled, the bus is connected."""
+        self.set_armed(True)
+
+    def on_disarm(self, shutdown: bool = False) -> None:
+        """Stop at once, saying why."""
+        self.set_armed(False, 'the bridge is shutting down' if shutdown else '')
 
     def set_armed(self, armed: bool, reason: str = '') -> None:
         """Follow commands_enabled."""
@@ -71,56 +104,13 @@ class InverterKeepalive:
                 self._armed = armed
             if enabled is not None:
                 self._enabled = enabled
-            want = self._armed and self._enabled
-            thread = self._thread
-            if want and thread is None:
-                self._generation += 1
-                self._wake.clear()
-                self._thread = threading.Thread(
-                    target=self._run, args=(self._generation,), daemon=True,
-                    name=f'{self.name}-keepalive')
-                self._thread.start()
-                self._log(f'{self.name}: inverter keep-alive started: 0x305 every '
-                          f'{self.period:g} s')
-                return
-            if want or thread is None:
-                return
-            self._generation += 1  # the old thread never sends again
-            self._thread = None
-        self._wake.set()
-        with self._send_lock:
-            pass  # a frame being sent right now is on the bus before this returns
-        if thread is not threading.current_thread():
-            thread.join(timeout=2.0)
-        self._log(f'{self.name}: inverter keep-alive stopped ({reason}); '
-                  f'{self.sent} frames sent, {self.failed} failed')
-
-    def _alive(self, generation: int) -> bool:
-        return self._generation == generation
-
-    def _run(self, generation: int) -> None:
-        due = time.monotonic()
-        while True:
-            wait = due - time.monotonic()
-            if wait > 0:
-                self._wake.wait(wait)
-            with self._send_lock:
-                if not self._alive(generation):
-                    return
-                now = time.monotonic()
-                if now < due:
-                    continue  # woken early, still armed: sleep on
-                try:
-                    ok, message = self._send(self._build())
-                except Exception as exc:  # a failing send must not end the thread
-                    ok, message = False, str(exc)
-                if ok:
-                    self.sent += 1
-                else:
-                    self.failed += 1
-                    self.last_error = message
-            # next slot on the grid; after a stall skip the missed ones, never a burst
-            due += self.period * max(1, int((now - due) // self.period) + 1)
+            if self._armed and self._enabled:
+                if self._sender.start():
+                    self._log(f'{self.name}: inverter keep-alive started: 0x305 every '
+                              f'{self.period:g} s')
+            elif self._sender.stop():  # returns once a frame being sent is on the bus
+                self._log(f'{self.name}: inverter keep-alive stopped ({reason}); '
+                          f'{self.sent} frames sent, {self.failed} failed')
 
     def describe(self) -> str:
         """One diagnostics value: what the keep-alive is doing."""

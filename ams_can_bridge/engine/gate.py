@@ -2,8 +2,9 @@
 The one command path: every frame the bridge sends passes this gate (no ROS here).
 
 ``commands_allowed`` (read-only, from launch) and ``commands_enabled`` (set at run time) are
-the gate's; commanders, the AMS master, the charger repeat, the SMA keep-alive, the EVMS3
-read-back and the IVT-S exchanges reach the bus only through it (``CommandPort``):
+the gate's; the command pipeline (engine/calls.py: every command service call, the EVMS3
+read-back and the IVT-S exchanges included) and the periodic senders (the AMS heartbeat, the
+charger repeat, the SMA keep-alive) reach the bus only through it (``CommandPort``):
 
 - ``transmit`` (a service call's frame): refused naming ``commands_enabled`` while disabled;
   else waits (``wait=True``) up to ``can.connect_wait`` for a bus that is (re)opening, with
@@ -55,7 +56,7 @@ class BusPort(Protocol):
 
 
 class CommandPort(Protocol):
-    """The gate as commanders and device command helpers see it."""
+    """The gate as the command pipeline and the periodic senders see it."""
 
     @property
     def enabled(self) -> bool:

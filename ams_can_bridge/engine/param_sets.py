@@ -6,7 +6,7 @@ The node validates each value against its spec (``ros/params.py``) and then asks
 device's ``<name>.<key>`` is the device's to judge (``config_reason``). An accepted set is
 applied here: one new configuration per device and set (an atomic set stays one change,
 ``configure``), and a changed ``commands_enabled`` goes to the gate, which tells the
-commanders before it returns.
+command side (its periodic senders) before it returns.
 """
 from __future__ import annotations
 
@@ -89,7 +89,7 @@ def apply_set(changed: Mapping[str, Any], *, gate: CommandGate,
         except ValueError as exc:  # checked key by key before; only a combination is left
             log.error(f'{name}: configuration change not applied: {exc}')
     if 'commands_enabled' in changed:
-        # the gate tells the commanders (its listeners) before it returns
+        # the gate tells the command side (its listener) before it returns
         refused = gate.set_enabled(bool(changed['commands_enabled']), how=RUN_TIME_SET)
         if refused:  # checked in set_refusal: not reached
             log.error(f'commands_enabled not applied: {refused}')

@@ -5,11 +5,11 @@ A thin rclpy LifecycleNode; every decision is made below ``ros/``, without ROS: 
 checks, errors and summary (``engine/startup.py``), the engine, its bus and its periodic
 thread (``engine/live.py``, ``engine/core.py``: a primary frame is published on the bus
 thread, so the executor runs only the services), which parameter sets are allowed and what
-they change (``engine/param_sets.py``), a command service's answer (``engine/calls.py``),
-the transmit gate (``engine/gate.py``). Here: the lifecycle, the parameter declarations
-(``ros/params.py``), the publishers (``ros/sink.py``) and the services. Each device type in
-``registry.COMMANDERS`` gets ``cls(gate, device, name, node)``: the node is its
-``ServiceHost`` (``ros/commander.py``); services that wait go in ``service_group``.
+they change (``engine/param_sets.py``), the transmit gate (``engine/gate.py``), every
+command's walk from its row to the bus (``engine/calls.py``) and the periodic senders that
+follow the gate (``engine/commands.py``). Here: the lifecycle, the parameter declarations
+(``ros/params.py``), the publishers (``ros/sink.py``) and one service per command row
+(``ros/services.py``), in ``service_group`` (a call may wait).
 """
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ from rclpy.parameter import Parameter
 from ams_can_bridge.can_io import CanIo
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.devices.base import Device
-from ams_can_bridge.engine.calls import answered
+from ams_can_bridge.engine.commands import Commands
 from ams_can_bridge.engine.gate import CommandGate
 from ams_can_bridge.engine.live import device_clock, live_engine, open_bus
 from ams_can_bridge.engine.param_sets import apply_set, not_set_refusal, set_refusal
@@ -37,11 +37,11 @@ from ams_can_bridge.engine.startup import (bus_settings, check_replay_clock, lau
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.parameters import AUTOSTART, BUS_PARAMS, NODE_PARAMS
 from ams_can_bridge.ros.bus_log import BusStateLog
-from ams_can_bridge.ros.commander import Commander, make_commander
-from ams_can_bridge.ros.convert import stdlib_logger
+from ams_can_bridge.ros.convert import ContextLog, stdlib_logger
 from ams_can_bridge.ros.overrides import unapplied_overrides
 from ams_can_bridge.ros.params import ParamRegistry
 from ams_can_bridge.ros.requests import guard_services
+from ams_can_bridge.ros.services import offer_services, parameter_setter
 from ams_can_bridge.ros.sink import RosSink
 
 NODE_NAME = 'ams_can_bridge'
@@ -69,7 +69,8 @@ class BridgeNode(LifecycleNode):
         self.params = ParamRegistry(self)
         self.service_group = ReentrantCallbackGroup()
         self.devices: dict[str, Device] = {}
-        self.commanders: dict[str, Commander] = {}
+        self.commands: Commands | None = None  # made in _configure (the devices' commands)
+        self.command_services: dict[str, list[Any]] = {}  # {instance: its command services}
         self.gate: CommandGate | None = None  # made in _configure (the bus parameters)
         self.can_io: CanIo | None = None
         self.sink: RosSink | None = None  # made in _configure (the devices' topics)
@@ -176,15 +177,19 @@ class BridgeNode(LifecycleNode):
                 self.get_logger().warning(text)
 
     def _release(self) -> None:
-        """Stop the periodic work, the commanders and the bus thread; drop the publishers."""
+        """Stop the periodic work, the senders and the bus thread; drop services, publishers."""
         self._ready = self._active = False
         if getattr(self, 'periodic', None) is not None:
             self.periodic.stop()
         if self.gate is not None:
             self.gate.attach_bus(None)  # a command from now on is answered 'shutting down'
-        for commander in self.commanders.values():
-            commander.destroy()
-        self.commanders.clear()
+        if self.commands is not None:
+            self.commands.close()
+            self.commands = None
+        for services in self.command_services.values():
+            for service in services:
+                self.destroy_service(service)
+        self.command_services = {}
         if self.can_io is not None:
             self.can_io.stop()
             self.can_io = None
@@ -239,10 +244,11 @@ class BridgeNode(LifecycleNode):
             on_bus_status=bus_log.update, logger=self._stdlib_logger,
             thread_name=f'{NODE_NAME}-periodic',
             on_replay_end=self._replay_ended if settings.replay_exit else None)
-        for name, device in self.devices.items():
-            commander = make_commander(self.gate, device, name, self)
-            if commander is not None:
-                self.commanders[name] = commander
+        # after Ctrl-C the logger may be gone with the context: the senders' last lines
+        # (stopped) are then dropped
+        self.commands = Commands(self.gate, self.devices, ContextLog(self.get_logger(), self),
+                                 set_config=parameter_setter(self))
+        self.command_services = offer_services(self, self.commands, self.service_group)
         self.can_io = open_bus(self.bus_config, self.engine, self.device_set, self.gate,
                                self._stdlib_logger('can_io'))
 
@@ -273,13 +279,6 @@ class BridgeNode(LifecycleNode):
         return self.get_fully_qualified_name().lstrip('/')
 
     # --- services and parameters ------------------------------------------------------------
-    def create_service(self, srv_type: Any, srv_name: str, callback: Any,
-                       **kwargs: Any) -> Any:
-        """Create a service; a device's command service is answered and logged (calls.py)."""
-        if srv_name.split('/', 1)[0] in getattr(self, 'devices', {}) and self.gate is not None:
-            callback = answered(srv_name, callback, self.gate, self.get_logger())
-        return super().create_service(srv_type, srv_name, callback, **kwargs)
-
     def set_parameters(self, parameter_list: list[Parameter]) -> list[SetParametersResult]:
         """Set each parameter on its own (as rclpy does), NOT_SET refused (see below)."""
         return [self.set_parameters_atomically([param]) for param in parameter_list]

@@ -91,6 +91,27 @@ class RosLogHandler(logging.Handler):
             self.ros_logger.debug(text)
 
 
+class ContextLog:
+    """The node's logger while its context is up; silent once ROS is shut down (Ctrl-C)."""
+
+    def __init__(self, ros_logger: Any, node: Any) -> None:
+        """Log to ``ros_logger`` while ``node.context.ok()``."""
+        self._log = ros_logger
+        self._node = node
+
+    def info(self, message: str, /) -> object:
+        """Log at INFO."""
+        return self._node.context.ok() and self._log.info(message)
+
+    def warning(self, message: str, /) -> object:
+        """Log at WARN."""
+        return self._node.context.ok() and self._log.warning(message)
+
+    def error(self, message: str, /) -> object:
+        """Log at ERROR."""
+        return self._node.context.ok() and self._log.error(message)
+
+
 def stdlib_logger(name: str, ros_logger: Any, level: int = logging.NOTSET) -> logging.Logger:
     """Return the stdlib logger ``name`` whose records go to ``ros_logger`` only."""
     logger = logging.getLogger(name)

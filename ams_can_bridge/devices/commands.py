@@ -1,0 +1,108 @@
+"""
+What a device type declares about its commands: a table of rows, read by the one pipeline.
+
+Each device class lists its commands in ``COMMANDS``, one :class:`Command` row each: the
+service name, what it does in words (a refusal says "to <what>"), the request kind (Trigger
+or SetBool), the device method the pipeline calls and the policy. The pipeline
+(``engine/calls.py``) does the rest for every row alike: it refuses while commands are
+disabled, calls the method, turns a deliberate refusal into the answer and a bug into an
+internal error, waits for the bus, sends under one batch and words the answer and the log
+line; the ROS adapter (``ros/services.py``) offers one service per row. Adding a command is
+one builder on the device and one row here.
+
+The three policies:
+
+- :class:`Frames`: the method builds the call's frames (a ``Frame`` or a list; it raises
+  ``RefusedCommand`` / ``EncodeRangeError`` to refuse, before anything is sent); the pipeline
+  sends them in one batch, once or paced (``CONFIG_FRAME_GAP`` of the device after each).
+- :class:`Exchange`: the method runs the call itself through a ``CallPort`` (devices/
+  ports.py): commands and their answers (IVT-S 0x411 -> 0x511, EVMS3 51 -> 52..56), or a
+  frame and what follows it (the charger's START and its repeat); it returns (ok, answer).
+- :class:`Carried`: the method returns a :class:`Carry`: a command the heartbeat carries
+  until the device confirms it (the AMS car commands).
+"""
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+
+class Request(enum.Enum):
+    """The request a command service takes (std_srvs)."""
+
+    TRIGGER = 'std_srvs/Trigger'
+    SET_BOOL = 'std_srvs/SetBool'  # request.data reaches the method as its last argument
+
+
+@dataclass(frozen=True)
+class Frames:
+    """The device builds the frames; the pipeline sends them in one batch, once or paced."""
+
+    paced: bool = False  # a pause of the device's CONFIG_FRAME_GAP s after each frame
+    say_gap: bool = False  # the answer names the pause ('(20 ms apart)')
+    partial: str = ''  # what a sequence cut short leaves in the device (said in the answer)
+
+
+@dataclass(frozen=True)
+class Exchange:
+    """The device runs the call through a ``CallPort`` and words its outcome."""
+
+
+@dataclass(frozen=True)
+class Carried:
+    """The heartbeat carries the command until the device answers (the method: a Carry)."""
+
+
+Policy = Frames | Exchange | Carried
+ONCE = Frames()
+PACED = Frames(paced=True)
+EXCHANGE = Exchange()
+CARRIED = Carried()
+
+
+@dataclass(frozen=True)
+class CommandResult:
+    """The answer of a command call."""
+
+    success: bool
+    message: str
+
+
+class Carrier(Protocol):
+    """What carries a command in its periodic frame (the AMS master)."""
+
+    def command(self, command: Any, timeout: float,
+                started: float | None = None) -> CommandResult:
+        """Carry ``command`` and wait for its answer; ``timeout`` counts from ``started``."""
+
+
+@dataclass(frozen=True)
+class Carry:
+    """A command for the heartbeat: who carries it, what, its name, the call's total bound."""
+
+    carrier: Carrier
+    command: Any
+    name: str
+    timeout: float  # s, the wait for the bus included
+
+
+@dataclass(frozen=True)
+class Command:
+    """One command service of a device type (see the module docstring)."""
+
+    service: str  # '<instance>/<service>'
+    what: str  # 'reset the SoC': "commands_enabled is false: ... to reset the SoC"
+    request: Request
+    build: str  # the device method; looked up on the instance at each call
+    policy: Policy
+    args: tuple[Any, ...] = ()  # given to the method first (the AMS car command)
+    what_false: str = ''  # SetBool: the words when request.data is false ('' = what)
+
+    def words(self, data: bool | None = None) -> str:
+        """Return what the call does, in words, for this request."""
+        return self.what_false if data is False and self.what_false else self.what
+
+
+TRIGGER = Request.TRIGGER
+SET_BOOL = Request.SET_BOOL
