@@ -69,3 +69,68 @@ def test_sma_hundredths_still_win_where_both_could_agree():
     # SoC 0 with 5 as sent: 0.05 % and 0.5 % both within 1 %: SMA's own 0.01 %/bit
     soc = CODEC.decode(0x355, bytes([0, 0, 100, 0, 5, 0]))
     assert soc.hires_scale == 0.01 and soc.percent == pytest.approx(0.05)
+
+
+# --- 35.1: 0x35F's Ah is the charge left where SoC x 0x379 says so ----------------------------
+# dfch/BydCanProtocol (MIT) README.md: a BYD Battery-Box Premium LVS tower of 2 x 78 Ah to a
+# Victron GX; lib/Byd/Messages/BatteryInfo.h names 0x35F bytes 4-5 SizeAvailableAmpereHour,
+# "available capacity in Ampere hours".
+BYD_355 = bytes([0x43, 0x00, 0x64, 0x00, 0x00, 0x00, 0x00, 0x00])  # 67 %, 100 %
+BYD_356 = bytes([0xBE, 0x14, 0xF9, 0xFF, 0x8C, 0x00, 0x00, 0x00])  # 53.10 V, -0.7 A, 14.0 C
+BYD_35F = bytes([0x4C, 0x69, 0x01, 0x17, 0x69, 0x00, 0x00, 0x00])  # 105 Ah
+BYD_379 = bytes([0x9C, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00])  # 156 Ah installed
+
+
+def test_byd_35f_is_the_charge_left_of_its_156_ah():
+    device, _ = make()
+    feed(device, (0x35F, BYD_35F), (0x379, BYD_379), (0x355, BYD_355), (0x356, BYD_356))
+    report = device.battery_report()
+    assert report.capacity == 156.0 and report.design_capacity == 156.0
+    assert report.charge == 105.0
+    assert report.percentage == pytest.approx(0.67)
+    values = device.diagnostic_report().values
+    assert values['capacity reading (0x35F)'] == (
+        'charge left (auto: 0x35F 105 Ah, SoC 67 % of the installed 156 Ah is 104.52 Ah: the '
+        'charge left, not the capacity)')
+    assert values['charge left Ah (0x35F)'] == '105'
+    assert values['installed capacity Ah'] == '156'
+
+
+def test_the_issue_s_lfp_battery_50_ah_at_51_percent_of_100_ah():
+    # issue 35.1's second battery: 35F 50 Ah, 355 51 %, 379 100 Ah (frames typed from the
+    # numbers the issue quotes; its capture was not among the sources read here)
+    device, _ = make()
+    feed(device, (0x35F, bytes([0, 0, 0, 0, 50, 0, 0, 0])), (0x379, bytes([100, 0])),
+         (0x355, bytes([51, 0, 100, 0])), (0x356, BYD_356))
+    report = device.battery_report()
+    assert (report.capacity, report.charge) == (100.0, 50.0)
+
+
+def test_35f_equal_to_0x379_stays_the_capacity():
+    device, _ = make()
+    feed(device, (0x35F, bytes([0, 0, 0, 0, 156, 0])), (0x379, BYD_379), (0x355, BYD_355),
+         (0x356, BYD_356))
+    report = device.battery_report()
+    assert report.capacity == 156.0 and report.charge == pytest.approx(156 * 0.67)
+    assert device.diagnostic_report().values['capacity reading (0x35F)'].startswith(
+        'capacity (auto: 0x35F 156 Ah, SoC 67 % of the installed 156 Ah is 104.52 Ah: 0x35F is '
+        'the installed capacity')
+
+
+def test_without_0x379_0x35f_stays_the_capacity():
+    device, _ = make()
+    feed(device, (0x35F, BYD_35F), (0x355, BYD_355), (0x356, BYD_356))
+    report = device.battery_report()
+    assert report.capacity == 105.0 and report.charge == pytest.approx(105 * 0.67)
+    assert device.diagnostic_report().values['capacity reading (0x35F)'] == (
+        "capacity (undecided, SMA's TI reading: no 0x379 installed capacity and 0x355 SoC to "
+        'compare with)')
+
+
+def test_a_settled_charge_reading_is_kept_when_the_pack_is_full():
+    device, _ = make()
+    feed(device, (0x35F, BYD_35F), (0x379, BYD_379), (0x355, BYD_355), (0x356, BYD_356))
+    device.battery_report()
+    # full: 155 Ah at 99 % fits both readings; the one the evidence settled stays
+    feed(device, (0x35F, bytes([0, 0, 0, 0, 155, 0])), (0x355, bytes([99, 0, 100, 0])))
+    assert device.battery_report().charge == 155.0
