@@ -61,7 +61,7 @@ class InfoCapacity:
 
 def capacity_values(info_capacity: InfoCapacity,
                     readings: Mapping[Hashable, Any]) -> dict[str, str]:
-    """The diagnostics values of 0x35F's Ah as read: its label and the reading taken."""
+    """Return the diagnostics values of 0x35F's Ah as read: which reading, and its label."""
     _, _, why = info_capacity.read(readings)
     values = {LABEL: why} if why else {}
     info = readings.get(SmaBatteryInfo)

@@ -9,7 +9,8 @@ from __future__ import annotations
 from typing import Any, Callable, Hashable, Mapping
 
 from ams_can_bridge.protocols.sma import (
-    HIRES_AGREEMENT_PCT, HIRES_SCALES, SmaAlarms, SmaBattery, SmaBatteryInfo, SmaLimits, SmaManufacturer, SmaSoc)
+    HIRES_AGREEMENT_PCT, HIRES_SCALES, SmaAlarms, SmaBattery, SmaBatteryInfo, SmaLimits,
+    SmaManufacturer, SmaSoc)
 from ams_can_bridge.protocols.sma_dialects import (
     CELL_ID_KINDS, PYLONTECH_CONDITION_NAMES, PylontechAlarms, PylontechCellExtremes,
     PylontechCellIds, PylontechRequest, VictronBmsName, VictronCellExtremes, VictronCellId,
@@ -89,7 +90,7 @@ _FIELDS: tuple[tuple[Hashable, tuple[tuple[str, str, Callable[[Any], str]], ...]
 
 
 def hires_values(soc: SmaSoc) -> dict[str, str]:
-    """0x355's high-resolution SoC as shown: at the scale the integer SoC agrees with, or why not."""
+    """Show 0x355's high-resolution SoC: at the scale agreeing with the SoC, or why not."""
     raw = soc.hires_raw
     if raw is None:
         return {'soc high resolution %': 'not available'}
