@@ -88,3 +88,14 @@ def test_a_byte_cp1252_lacks_falls_back_to_latin_1(tmp_path):
     loaded = read_dbc(odd)
     assert loaded.db.get_message_by_name('BmsPack') is not None
     assert 'DBC read as LATIN-1' in loaded.info
+
+
+def test_line_numbers_of_other_dropped_lines_stay_those_of_the_file(tmp_path):
+    text = CANDB_EXPORT.read_bytes().decode('utf-8')
+    text += 'VAL_ 1712 NoSuchSignal 1 "On" 0 "Off" ;\r\n'  # a table of no signal, after them
+    odd = tmp_path / 'odd.dbc'
+    odd.write_bytes(text.encode('utf-8'))
+    line = text.splitlines().index('VAL_ 1712 NoSuchSignal 1 "On" 0 "Off" ;') + 1
+    assert read_dbc(odd).notes() == [
+        f'DBC line {line} dropped (value table of no signal): VAL_ 1712 NoSuchSignal 1 "On" '
+        '0 "Off" ;']

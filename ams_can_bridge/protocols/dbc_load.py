@@ -151,8 +151,10 @@ def _without_placeholder(text: str) -> tuple[str, list[str]]:
         words = line.split(None, 2)
         if len(words) > 1 and words[0] in ('VAL_', 'SIG_VALTYPE_') and words[1] == ident:
             tables += 1
-            continue
+            line = ''  # blanked, not removed: the line numbers other notes give stay true
         kept.append(line)
+    if not tables:  # cantools leaves the message out quietly: nothing to say
+        return text, []
     return '\n'.join(kept), [
         f"DBC: CANdb++'s placeholder message {PLACEHOLDER} (ID {ident}: signals in no "
         f'message, never on the bus) left out with its {tables} value table(s)']
