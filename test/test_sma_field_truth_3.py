@@ -6,9 +6,8 @@ or a vendor's own code), never produced by our simulator or codec (doc/protocols
 """
 import pytest
 
-from ams_can_bridge.devices.sma import SmaDevice
 from ams_can_bridge.protocols.sma import SmaCodec
-from helpers import Clock
+from test_sma_field_truth import BYD_355, BYD_356, BYD_35F, BYD_379, feed, make
 
 CODEC = SmaCodec()
 
@@ -24,16 +23,6 @@ ORION_355_950 = bytes([0x5F, 0x00, 0x64, 0x00, 0xB6, 0x03, 0x06, 0x18])
 ORION_355_895 = bytes([0x50, 0x00, 0x64, 0x00, 0x7F, 0x03, 0x06, 0x18])
 ORION_351 = bytes([0xAC, 0x0B, 0x64, 0x00, 0x10, 0x04, 0x00, 0x09])  # 298.8 V .. 230.4 V
 ORION_356 = bytes([0x6E, 0x0B, 0x00, 0x00, 0xA0, 0x00])  # 292.6 V at 0.1 V
-
-
-def make():
-    clock = Clock(50.0)
-    return SmaDevice('sma', {}, clock=clock), clock
-
-
-def feed(device, *frames):
-    for can_id, data in frames:
-        device.handle_frame(can_id, data, 1.0)
 
 
 # --- 35.2: 0x355 bytes 4-5 in 0.01 % or 0.1 %, decided against bytes 0-1 -------------------
@@ -75,10 +64,8 @@ def test_sma_hundredths_still_win_where_both_could_agree():
 # dfch/BydCanProtocol (MIT) README.md: a BYD Battery-Box Premium LVS tower of 2 x 78 Ah to a
 # Victron GX; lib/Byd/Messages/BatteryInfo.h names 0x35F bytes 4-5 SizeAvailableAmpereHour,
 # "available capacity in Ampere hours".
-BYD_355 = bytes([0x43, 0x00, 0x64, 0x00, 0x00, 0x00, 0x00, 0x00])  # 67 %, 100 %
-BYD_356 = bytes([0xBE, 0x14, 0xF9, 0xFF, 0x8C, 0x00, 0x00, 0x00])  # 53.10 V, -0.7 A, 14.0 C
-BYD_35F = bytes([0x4C, 0x69, 0x01, 0x17, 0x69, 0x00, 0x00, 0x00])  # 105 Ah
-BYD_379 = bytes([0x9C, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00])  # 156 Ah installed
+# Its frames (test_sma_field_truth.py): 355 = 67 %, 100 %; 356 = 53.10 V, -0.7 A, 14.0 C;
+# 35F = 105 Ah; 379 = 156 Ah installed.
 
 
 def test_byd_35f_is_the_charge_left_of_its_156_ah():
