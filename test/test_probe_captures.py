@@ -220,11 +220,12 @@ SMA = {  # capture -> (dialect, written settings, unplaced IDs, hand-decoded 0x3
     'sma_pylontech': ('pylontech', {'sma.voltage_scale': 0.01}, set(),
                       dict(voltage=48.66, current=0.0, temperature=33.0, percentage=0.26)),
     # 351 48 02 .. AE 01: 58.4 V, 43.0 V; 356 BE 14 F9 FF 8C 00: 5310 = 53.10 V at 0.01 V,
-    # -7 x 0.1 A, 140 x 0.1 degC; 355 43 00: 67 %; 35F capacity 0x0069 = 105 Ah
+    # -7 x 0.1 A, 140 x 0.1 degC; 355 43 00: 67 %; 35F 0x0069 = 105 Ah is the charge left:
+    # 67 % of 0x379's 156 Ah (issue 35.1)
     'sma_byd_lvs': ('victron', {'sma.inverter_keepalive': False, 'sma.voltage_scale': 0.01},
                     {0x35B, 0x360},
                     dict(voltage=53.10, current=-0.7, temperature=14.0, percentage=0.67,
-                         capacity=105.0)),
+                         capacity=156.0, charge=105.0)),
     # 351 2E 02 .. B0 01: 55.8 V, 43.2 V; 356 0A 02 11 FF BE 00: 522 = 52.2 V at 0.1 V
     # (5.22 V at SMA's 0.01 V is far below 43.2 V), -239 x 0.1 A, 190 x 0.1 degC; 355 3E 00:
     # 62 %

@@ -59,7 +59,9 @@ def test_byd_zero_padding_publishes_the_integer_soc():
     assert report.percentage == pytest.approx(0.67)
     assert report.charge == pytest.approx(105 * 0.67)
     assert report.capacity == 105.0
-    assert device.diagnostic_report().values['soc high resolution %'] == '0'
+    assert device.diagnostic_report().values['soc high resolution %'] == (
+        'not used: 0 as sent (0 % at 0.01 %/bit, 0 % at 0.1 %/bit) is not within 1 % of the '
+        'SoC 67 %')
 
 
 def test_agreeing_high_resolution_soc_is_used():

@@ -311,10 +311,11 @@ class DbcDevice(Device[DbcConfig]):
         if missing:
             level = max(level, Level.WARN)
             parts += missing
-        for notes, what in ((self.warnings, 'mapping'), (self.dbc_notes, 'DBC')):
-            if notes:
-                level = max(level, Level.WARN)
-                parts.append(f'{len(notes)} {what} warning(s)')
+        if self.warnings:
+            level = max(level, Level.WARN)
+            parts.append(f'{len(self.warnings)} mapping warning(s)')
+        # The DBC's notes are of parts the mapping does not use (a mapped broken message or
+        # duplicated name stops the start): said once in the start log, never a level.
         _, silent = self.groups.split(now, lambda key: self.group_timeout(key[0]))
         expired = sorted({plan.messages[m].name for m, mux in silent if mux is None})
         if expired:
@@ -327,7 +328,7 @@ class DbcDevice(Device[DbcConfig]):
                 self.raw(ref, now), plan.messages[ref.message].signals[ref.signal].choices))
             values.update({f'unknown {n + 1}': text for n, text in enumerate(missing)})
             values.update(listed('mapping warning', self.warnings))
-            values.update(listed('DBC warning', self.dbc_notes))
+            values.update(listed('DBC note', self.dbc_notes))
             if expired:
                 values['messages expired'] = ', '.join(expired)
         return DiagnosticReport(level, '; '.join(parts), values)
@@ -337,8 +338,9 @@ class DbcDevice(Device[DbcConfig]):
         notes = self.dbc_notes[:WARNINGS_CAP]
         if len(self.dbc_notes) > WARNINGS_CAP:
             notes.append(f'... and {len(self.dbc_notes) - WARNINGS_CAP} more DBC warnings '
-                         '(the diagnostics count them)')
-        return start_lines(self.plan, self.stale_timeout), self.warnings + notes
+                         '(parts of the DBC the mapping does not use)')
+        info = start_lines(self.plan, self.stale_timeout) + self.plan.dbc_info
+        return info, self.warnings + notes
 
     def config_problems(self, config: DbcConfig,
                         keys: Iterable[str] | None = None) -> list[str]:

@@ -81,7 +81,8 @@ def build_plan(loaded: LoadedDbc, mapping: Any) -> Plan:
     if diagnostics.get('values', 'all') in (None, 'all'):
         values = [ref for m in range(len(b.messages)) for ref in b.all_of(m)]
     plan = Plan(messages=b.messages, primary=primary, levels=levels, values=values,
-                warnings=b.warnings, dbc_notes=loaded.notes(), mapped=frozenset(b.used),
+                warnings=b.warnings, dbc_notes=loaded.notes(), dbc_info=loaded.info,
+                mapped=frozenset(b.used),
                 sources=b.sources, scalars=plan_parts['scalars'], enums=plan_parts['enums'],
                 arrays=plan_parts['arrays'])
     _timeouts(plan, given)

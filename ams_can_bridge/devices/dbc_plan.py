@@ -172,6 +172,7 @@ class Plan:
     values: list[Ref] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)  # the mapping's
     dbc_notes: list[str] = field(default_factory=list)  # lines dropped, broken messages
+    dbc_info: list[str] = field(default_factory=list)  # the encoding, CANdb++'s placeholder
     # message -> s, from the mapping's timeouts or the DBC's period (else stale_timeout)
     timeouts: dict[int, float] = field(default_factory=dict)
     timeout_origin: dict[int, str] = field(default_factory=dict)  # message -> why

@@ -6,7 +6,9 @@ voltage in SMA's 0.01 V or the 0.1 V some senders use (``voltage_scale``, device
 sma_voltage.py: unknown until the battery's 0x351 tells). SoC comes from 0x355 (the
 high-resolution SoC only where it agrees with the integer one: real BMSs put zeros there),
 capacity from 0x35F (0 = not sent: then Victron's installed capacity 0x379), and charge =
-capacity x SoC while both are known and fresh (NaN otherwise). The wire current is already
+capacity x SoC while both are known and fresh (NaN otherwise); where the battery's evidence
+says 0x35F is the charge left (it agrees with SoC x 0x379: devices/sma_capacity.py), the
+charge is 0x35F and the capacity 0x379. The wire current is already
 positive while charging, the ROS sign. "Not available" markers become NaN.
 
 Commands: the only frame this device sends is the inverter keep-alive 0x305
@@ -35,6 +37,7 @@ from typing import Any, Callable, Hashable, Iterable, Mapping
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyHealth, Sent)
 from ams_can_bridge.devices.configs import SmaConfig
+from ams_can_bridge.devices.sma_capacity import capacity_values, InfoCapacity
 from ams_can_bridge.devices.sma_keepalive import InverterKeepalive, KEEPALIVE_PERIOD
 from ams_can_bridge.devices.sma_values import fmt, sma_values
 from ams_can_bridge.devices.sma_voltage import AUTO, SCALE_CHOICES, ScaleInUse, VoltageScale
@@ -111,15 +114,6 @@ VOLTAGE_SCALE = ParamSpec(
     '(SMA) / 0.1 (e.g. Discover Lynx II, Orion BMS 2)', choices=SCALE_CHOICES)
 
 
-def _capacity_ah(readings: Mapping[Hashable, Any]) -> int | None:
-    """Return the capacity: 0x35F's, else Victron's installed capacity 0x379 (section 5.2)."""
-    for key in (SmaBatteryInfo, VictronInstalledCapacity):
-        reading = readings.get(key)
-        if reading is not None and reading.capacity_ah is not None:
-            return int(reading.capacity_ah)
-    return None
-
-
 class SmaDevice(Device[SmaConfig]):
     """One BMS speaking the SMA Sunny Island protocol or its Pylontech / Victron dialects."""
 
@@ -147,6 +141,7 @@ class SmaDevice(Device[SmaConfig]):
         self.keepalive: InverterKeepalive | None = None  # made by attach_senders()
         self.scale = VoltageScale(f'{name}.voltage_scale', self._scale_setting(self.config),
                                   self.stale_timeout)
+        self.info_capacity = InfoCapacity()  # what 0x35F's Ah is, from the evidence
 
     # --- commands ------------------------------------------------------------------------
     def keepalive_frame(self) -> Frame:
@@ -200,6 +195,7 @@ class SmaDevice(Device[SmaConfig]):
     def _reconfigured(self, old: SmaConfig, new: SmaConfig) -> None:
         if (old.voltage_scale, old.stale_timeout) != (new.voltage_scale, new.stale_timeout):
             self.scale.reset(self._scale_setting(new), self.stale_timeout)
+        self.info_capacity.reset()
 
     def _handle(self, reading: Any, stamp: float) -> bool:
         key = group_key(reading)
@@ -241,11 +237,13 @@ class SmaDevice(Device[SmaConfig]):
         soc = readings.get(SmaSoc)
         if soc is not None:
             report.percentage = _nan(soc.percent) / 100
-        capacity = _capacity_ah(readings)
+        capacity, charge, _ = self.info_capacity.read(readings)
         if capacity is not None:
-            report.capacity = report.design_capacity = float(capacity)
+            report.capacity = report.design_capacity = capacity
             # Remaining Ah only where both are known and fresh: NaN times anything is NaN.
             report.charge = report.capacity * report.percentage
+        if charge is not None:  # 0x35F is the charge left (devices/sma_capacity.py)
+            report.charge = charge
         if any(k in readings for k in ALARM_GROUPS):
             report.power_supply_health = self._health(readings)
         battery = readings.get(SmaBattery)
@@ -290,6 +288,8 @@ class SmaDevice(Device[SmaConfig]):
             values['frames expired'] = ', '.join(
                 f'0x{GROUP_IDS[k]:X} ({s:.1f} s ago)' for k, s in sorted(
                     expired.items(), key=lambda item: GROUP_IDS[item[0]]))
+        if with_values and readings.get(SmaBatteryInfo) is not None:
+            values.update(capacity_values(self.info_capacity, readings))
         level = Level.OK
         parts: list[str] = []
         in_use, voltage = self._scale(readings)

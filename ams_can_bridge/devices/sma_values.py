@@ -9,7 +9,8 @@ from __future__ import annotations
 from typing import Any, Callable, Hashable, Mapping
 
 from ams_can_bridge.protocols.sma import (
-    SmaAlarms, SmaBattery, SmaBatteryInfo, SmaLimits, SmaManufacturer, SmaSoc)
+    HIRES_AGREEMENT_PCT, HIRES_SCALES, SmaAlarms, SmaBattery, SmaBatteryInfo, SmaLimits,
+    SmaManufacturer, SmaSoc)
 from ams_can_bridge.protocols.sma_dialects import (
     CELL_ID_KINDS, PYLONTECH_CONDITION_NAMES, PylontechAlarms, PylontechCellExtremes,
     PylontechCellIds, PylontechRequest, VictronBmsName, VictronCellExtremes, VictronCellId,
@@ -52,8 +53,7 @@ _FIELDS: tuple[tuple[Hashable, tuple[tuple[str, str, Callable[[Any], str]], ...]
                  ('charge current limit A', 'charge_current_a', fmt),
                  ('discharge current limit A', 'discharge_current_a', fmt),
                  ('discharge voltage limit V', 'discharge_voltage_v', fmt))),
-    (SmaSoc, (('soc %', 'soc_pct', fmt), ('soh %', 'soh_pct', fmt),
-              ('soc high resolution %', 'soc_hires_pct', fmt))),
+    (SmaSoc, (('soc %', 'soc_pct', fmt), ('soh %', 'soh_pct', fmt))),
     (SmaBattery, (('voltage V', 'voltage_v', fmt),
                   ('current A (positive = charging)', 'current_a', fmt),
                   ('temperature degC', 'temperature_c', fmt))),
@@ -89,6 +89,21 @@ _FIELDS: tuple[tuple[Hashable, tuple[tuple[str, str, Callable[[Any], str]], ...]
 )
 
 
+def hires_values(soc: SmaSoc) -> dict[str, str]:
+    """Show 0x355's high-resolution SoC: at the scale agreeing with the SoC, or why not."""
+    raw = soc.hires_raw
+    if raw is None:
+        return {'soc high resolution %': 'not available'}
+    scale = soc.hires_scale
+    if scale is not None:
+        return {'soc high resolution %': fmt(soc.hires_percent),
+                'soc high resolution scale': f'{scale:g} %/bit (agrees with the SoC '
+                                             f'{fmt(soc.soc_pct)} %)'}
+    at = ', '.join(f'{raw / round(1 / s):g} % at {s:g} %/bit' for s in HIRES_SCALES)
+    return {'soc high resolution %': f'not used: {raw} as sent ({at}) is not within '
+                                     f'{HIRES_AGREEMENT_PCT:g} % of the SoC {fmt(soc.soc_pct)} %'}
+
+
 def sma_values(readings: Mapping[Any, Any], prefix: str = '') -> dict[str, str]:
     """
     Diagnostic values of every SMA message in readings (keyed by ``group_key``).
@@ -102,6 +117,9 @@ def sma_values(readings: Mapping[Any, Any], prefix: str = '') -> dict[str, str]:
         if reading is not None:
             for label, attribute, show in fields:
                 values[prefix + label] = show(getattr(reading, attribute))
+    soc = readings.get(SmaSoc)
+    if soc is not None:
+        values.update({prefix + k: v for k, v in hires_values(soc).items()})
     alarms = readings.get(SmaAlarms)
     if alarms is not None:
         values[prefix + 'alarms active'] = ', '.join(alarms.active_alarms) or 'none'

@@ -29,6 +29,13 @@ MAX_DROPPED = 200
 DUPLICATE_MARK = '#'  # Blank, Blank -> Blank#1, Blank#2 (no DBC name may hold a '#')
 # The Orion BMS utility exports a message's period only as a comment
 ORION_PERIOD = re.compile(r'Transmits at (\d+(?:\.\d+)?) ms', re.IGNORECASE)
+# CANdb++ keeps signals that are in no message in a placeholder message of this name (ID
+# 0xC0000000, DLC 0); cantools leaves it out, and its value tables with it.
+PLACEHOLDER = 'VECTOR__INDEPENDENT_SIG_MSG'
+_PLACEHOLDER_BO = re.compile(r'^\s*BO_\s+(\d+)\s+' + PLACEHOLDER + r'\s*:', re.MULTILINE)
+# A DBC's text: UTF-8 as most tools write it now (the IVT-S vendor DBC's "°C"), else cp1252
+# as CANdb++ writes it, else latin-1 (which reads any byte).
+ENCODINGS = ('utf-8-sig', 'cp1252', 'latin-1')
 
 _SYNTAX = re.compile(r'Invalid syntax at line (\d+), column \d+')
 _UNUSED_VAL = re.compile(r'^\s*VAL_ (\d+) (\S+)\s*$', re.MULTILINE)
@@ -48,6 +55,7 @@ class LoadedDbc:
     dropped: list[str] = field(default_factory=list)  # 'line N (reason): text'
     broken: dict[str, str] = field(default_factory=dict)  # message name -> why unusable
     duplicates: dict[str, dict[str, int]] = field(default_factory=dict)  # msg -> {name: n}
+    info: list[str] = field(default_factory=list)  # said once at start (INFO), not a fault
 
     def notes(self) -> list[str]:
         """Say, one line each, what was dropped and which messages are broken (WARN)."""
@@ -62,15 +70,19 @@ class LoadedDbc:
 
 
 def read_dbc(path: str | Path) -> LoadedDbc:
-    """Load a DBC file (cp1252, as CANdb++ writes it); DbcLoadError when nothing loads."""
-    text = _decode(Path(path).read_bytes())
+    """Load a DBC file (UTF-8, else cp1252 as CANdb++ writes); DbcLoadError when nothing loads."""
+    data = Path(path).read_bytes()
+    text, encoding = _decode(data)
+    text, info = _without_placeholder(text)
+    if not data.isascii():  # where it matters: units such as °C, texts in comments
+        info.insert(0, f'DBC read as {encoding}')
     try:
         with _quiet_cantools():
             db = cantools.database.load_string(text, database_format='dbc', strict=True)
     except cantools.database.Error:
         pass
     else:
-        loaded = LoadedDbc(db, strict=True)  # type: ignore[arg-type]  # a CAN database
+        loaded = LoadedDbc(db, strict=True, info=info)  # type: ignore[arg-type]  # CAN db
         _check_messages(loaded)  # duplicate definitions load even strictly
         return loaded
     lines = text.splitlines()
@@ -94,7 +106,8 @@ def read_dbc(path: str | Path) -> LoadedDbc:
                 lines[i] = ''
     else:
         raise DbcLoadError(f'more than {MAX_DROPPED} lines cantools cannot read')
-    loaded = LoadedDbc(db, strict=False, dropped=dropped)  # type: ignore[arg-type]
+    loaded = LoadedDbc(db, strict=False, dropped=dropped,  # type: ignore[arg-type]
+                       info=info)
     _check_messages(loaded)
     return loaded
 
@@ -111,14 +124,41 @@ def _quiet_cantools() -> Iterator[None]:
         logger.setLevel(level)
 
 
-def _decode(data: bytes) -> str:
-    """Return the file's text: cp1252 as CANdb++ writes (cantools' choice), else UTF-8."""
-    for encoding in ('cp1252', 'utf-8'):
+def _decode(data: bytes) -> tuple[str, str]:
+    """Return the file's text and the encoding it was read in (the first of ENCODINGS)."""
+    *strict, last = ENCODINGS
+    for encoding in strict:
         try:
-            return data.decode(encoding)
+            return data.decode(encoding), encoding.removesuffix('-sig').upper()
         except UnicodeDecodeError:
             continue
-    return data.decode('cp1252', errors='replace')  # a stray byte in a comment, most likely
+    return data.decode(last), last.upper()  # latin-1 reads any byte
+
+
+def _without_placeholder(text: str) -> tuple[str, list[str]]:
+    """
+    Leave out the value tables of CANdb++'s placeholder message, and say so (INFO).
+
+    Its signals are in no message, so no frame carries them; cantools drops the message and
+    then refuses its value tables as "unused VAL_ entries" (a whole CANdb++ export would
+    otherwise fail the strict load, and every table be named as a table of no signal).
+    """
+    match = _PLACEHOLDER_BO.search(text)
+    if match is None:
+        return text, []
+    ident = match.group(1)
+    kept, tables = [], 0
+    for line in text.splitlines():
+        words = line.split(None, 2)
+        if len(words) > 1 and words[0] in ('VAL_', 'SIG_VALTYPE_') and words[1] == ident:
+            tables += 1
+            line = ''  # blanked, not removed: the line numbers other notes give stay true
+        kept.append(line)
+    if not tables:  # cantools leaves the message out quietly: nothing to say
+        return text, []
+    return '\n'.join(kept), [
+        f"DBC: CANdb++'s placeholder message {PLACEHOLDER} (ID {ident}: signals in no "
+        f'message, never on the bus) left out with its {tables} value table(s)']
 
 
 def _offending(reason: str, lines: list[str]) -> tuple[list[int], str]:

@@ -30,6 +30,9 @@ INFO_ID = 0x35F
 SMA_IDS = frozenset({LIMITS_ID, SOC_ID, BATTERY_ID, ALARMS_ID, MANUFACTURER_ID, INFO_ID})
 # %: the high-resolution SoC counts only within this of the integer SoC (section 5).
 HIRES_AGREEMENT_PCT = 1.0
+# %/bit of 0x355 bytes 4-5, tried in this order: SMA's 0.01 %, and the 0.1 % an Orion BMS 2
+# sends (its own DBC: HvBatterySOChighdef 0.1 %; 835 at SoC 83 %). The integer SoC decides.
+HIRES_SCALES = (0.01, 0.1)
 # 0x35A byte 7 bits 2-3: Victron's system status (2 = online, 1 = offline), not a warning.
 ONLINE_CODES = (None, False, True, None)  # pair value -> online
 # 0x355 as BMS families send it: 'sma' SoC, SoH, high-resolution SoC (6 bytes); 'byd' SoC,
@@ -71,23 +74,56 @@ class SmaLimits:
 
 @dataclass(frozen=True)
 class SmaSoc:
-    """0x355: SoC and SoH in %, the optional high-resolution SoC in 0.01 %."""
+    """
+    0x355: SoC and SoH in %, the optional high-resolution SoC.
+
+    ``soc_hires_pct`` is bytes 4-5 read at SMA's 0.01 %/bit (as decoded and encoded); the
+    scale the sender meant is decided against the integer SoC (``hires_scale``).
+    """
 
     soc_pct: int | None
     soh_pct: int | None
     soc_hires_pct: float | None = None
 
     @property
+    def hires_raw(self) -> int | None:
+        """Return bytes 4-5 as sent (None: not sent or the 0xFFFF marker)."""
+        return None if self.soc_hires_pct is None else round(self.soc_hires_pct * 100)
+
+    @property
+    def hires_scale(self) -> float | None:
+        """
+        Return the %/bit at which bytes 4-5 agree with the integer SoC (None: at none).
+
+        835 with SoC 83 is 83.5 % at 0.1 %/bit (8.35 % at 0.01 disagrees); zeros with SoC 67
+        agree at neither. Where both agree (a SoC below about 1 %) SMA's 0.01 is taken.
+        """
+        raw = self.hires_raw
+        if raw is None or self.soc_pct is None:
+            return None
+        for scale in HIRES_SCALES:
+            if abs(raw / round(1 / scale) - self.soc_pct) <= HIRES_AGREEMENT_PCT:
+                return scale
+        return None
+
+    @property
     def hires_used(self) -> bool:
         """Tell whether the high-resolution SoC agrees with the integer one (and is used)."""
-        return (self.soc_pct is not None and self.soc_hires_pct is not None
-                and abs(self.soc_hires_pct - self.soc_pct) <= HIRES_AGREEMENT_PCT)
+        return self.hires_scale is not None
+
+    @property
+    def hires_percent(self) -> float | None:
+        """Return the high-resolution SoC (%) at the agreeing scale, None where none agrees."""
+        scale = self.hires_scale
+        raw = self.hires_raw
+        return None if scale is None or raw is None else raw / round(1 / scale)
 
     @property
     def percent(self) -> float | None:
         """Return the SoC (%) to publish: the high-resolution one where it agrees, else integer."""
-        if self.hires_used:
-            return self.soc_hires_pct
+        hires = self.hires_percent
+        if hires is not None:
+            return hires
         return None if self.soc_pct is None else float(self.soc_pct)
 
 
