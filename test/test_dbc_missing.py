@@ -175,4 +175,9 @@ def test_a_mapping_that_reads_the_dbc_wrong_shows_wrong_values_in_simulation(tmp
     clock = Clock(0.0)
     device = DbcDevice('pack', files, clock)
     _run(sim, device, clock, 1.0)
-    assert device.battery_report().voltage > 1000.0  # mV read as V: visibly wrong
+    # mV read as V: 400000 V, no pack's (issue 35.6): never published, counted, named
+    assert math.isnan(device.battery_report().voltage)
+    diag = device.diagnostic_report()
+    assert diag.level == Level.WARN and device.frames_malformed > 0
+    assert 'implausible: BMS_PackValues.batteryVoltage = ' in diag.message
+    assert 'implausible for voltage 0..1500 V' in device.last_malformed

@@ -30,8 +30,10 @@ from ams_can_bridge.devices.dbc_mapping import load_plan
 from ams_can_bridge.devices.dbc_plan import (
     Array, Enum, FlagRule, MappingError, Plan, Ref, Scalar)
 from ams_can_bridge.devices.dbc_profiles import PROFILES
+from ams_can_bridge.devices.dbc_units import unit_text
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
 from ams_can_bridge.errors import ConfigError, ProtocolError
+from ams_can_bridge.protocols import dbc_codec
 from ams_can_bridge.parameters import ParamSpec
 
 _GroupKey = tuple[int, Any]
@@ -83,6 +85,8 @@ class DbcDevice(Device[DbcConfig]):
             raise ConfigError('the mapping uses one CAN ID as a standard and an '
                               'extended message: map only one of them')
         self.groups: TimedStore[_GroupKey, tuple] = TimedStore()
+        # (message, signal) -> the last implausible value refused, and when
+        self.implausible: dict[tuple[int, int], tuple[str, float]] = {}
         self._stamp = NAN
         # validity flags per message: (flag signal index, its rule, element label) for the
         # malformed count
@@ -139,7 +143,7 @@ class DbcDevice(Device[DbcConfig]):
                 self.started = now
             self.frames_received += 1
             if bad or flags:
-                self._check(compiled, arbitration_id, values, bad, flags)
+                self._check(compiled, key[0], arbitration_id, data, values, bad, flags, now)
             old = None if compiled.compiled else self.groups.latest(key)
             if old is not None:
                 # nested multiplexing: each frame carries one branch; keep the others' last
@@ -158,10 +162,10 @@ class DbcDevice(Device[DbcConfig]):
                 self.last_seen = now
             return primary
 
-    def _check(self, compiled: Any, arbitration_id: int, values: tuple, bad: Any,
-               flags: list[tuple[int, FlagRule, str]]) -> None:
+    def _check(self, compiled: Any, m: int, arbitration_id: int, data: bytes, values: tuple,
+               bad: Any, flags: list[tuple[int, FlagRule, str]], now: float) -> None:
         """Count a frame with a value out of range or a flag saying invalid (lock held)."""
-        problems = [compiled.signals[i].name + ' outside its DBC range' for i in bad]
+        problems = [self._out_of_range(compiled, m, i, data, now) for i in bad]
         # a flag of another multiplexer branch is absent (None): not this frame's
         problems += [f'{label} flagged invalid' for flag, rule, label in flags
                      if values[flag] is not None and rule.invalid(values[flag])]
@@ -169,6 +173,28 @@ class DbcDevice(Device[DbcConfig]):
             self.frames_malformed += 1
             self.last_malformed = f'{compiled.name} 0x{arbitration_id:X}: ' + ', '.join(
                 problems)
+
+    def _out_of_range(self, compiled: Any, m: int, i: int, data: bytes, now: float) -> str:
+        """
+        Say why a signal's value was refused: outside its DBC range, or implausible.
+
+        An implausible value (beyond the bounds of the field it is mapped to, or not a
+        finite number) is kept to be named in the diagnostics (the decoder gave NaN: the
+        value is read again here, only for a refused frame).
+        """
+        info = compiled.signals[i]
+        bound = self.plan.bounds.get((m, i))
+        try:
+            value = float(self.plan.sources[m].decode(
+                bytes(data[:compiled.length]), decode_choices=False)[info.name])
+        except Exception:  # a branch cantools cannot read: say the range only
+            return f'{info.name} outside its DBC range'
+        if bound is None or (math.isfinite(value) and not dbc_codec.in_range(info, value)):
+            return f'{info.name} outside its DBC range'
+        unit = f' {unit_text(info.unit)}' if info.unit else ''
+        text = f'{compiled.name}.{info.name} = {value:g}{unit} (implausible for {bound})'
+        self.implausible[(m, i)] = (text, now)
+        return text
 
     @staticmethod
     def _put_slots(slots: list, values: tuple, now: float) -> None:
@@ -311,6 +337,14 @@ class DbcDevice(Device[DbcConfig]):
         if missing:
             level = max(level, Level.WARN)
             parts += missing
+        odd = [text for (m, _), (text, seen) in self.implausible.items()
+               if now - seen <= self.group_timeout(m)]
+        if odd:
+            level = max(level, Level.WARN)
+            parts.append('implausible: ' + ', '.join(odd) + ' (not published)' + (
+                f"; the BMS may not send profile {self.config.profile}'s layout (messages "
+                "customised in its utility?): give your own DBC and mapping"
+                if self.config.profile and not self.config.mapping_file else ''))
         for notes, what in ((self.warnings, 'mapping'), (self.dbc_notes, 'DBC')):
             if notes:
                 level = max(level, Level.WARN)

@@ -52,7 +52,9 @@ def match_plan(traffic: Traffic, plan: Plan) -> PlanMatch:
         try:
             for data in entry.payloads:
                 _, out_of_range = message.decode(data)
-                bad |= {message.signals[i].name for i in out_of_range}
+                bad |= {message.signals[i].name + (
+                    f' (or beyond {plan.bounds[(index, i)]})' if (index, i) in plan.bounds
+                    else '') for i in out_of_range}
         except MalformedFrameError as exc:
             match.evidence.append(f'{where}: {exc.reason}')
             continue

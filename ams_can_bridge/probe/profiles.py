@@ -108,15 +108,15 @@ def _candidate(name: str, plan: Plan, match: PlanMatch, traffic: Traffic,
                           'heard in range, and the device publishes one BatteryState per frame')
         return cand
     cand.confidence = 0.5 + 0.4 * match.score
-    report, malformed = _read_back(name, plan, traffic)
+    device = read_back({'profile': name}, plan, traffic)
+    report = device.battery_report()
     cand.facts['pack_voltage_v'] = report.voltage
-    cand.evidence.append('the bridge would publish ' + _published(report))
-    if malformed:
-        cand.evidence.append(malformed)
+    say_published(cand, device, report)
     marks = [_checksum(shipped, traffic, cand)] + _arrays(plan, traffic, cand)
     if any(marks):
         cand.confidence = min(1.0, cand.confidence + 0.1)
-    odd = _implausible(report)
+    odd = ', '.join(filter(None, [_implausible(report)] + [
+        text for text, _ in device.implausible.values()]))
     if odd:
         cand.confidence = min(cand.confidence, IMPLAUSIBLE)
         cand.notes.append(f'not written: {odd}: no {shipped.title} sends that; its DBC is '
@@ -131,10 +131,10 @@ def _candidate(name: str, plan: Plan, match: PlanMatch, traffic: Traffic,
     return cand
 
 
-def _read_back(name: str, plan: Plan, traffic: Traffic) -> tuple[BatteryReport, str]:
-    """Feed the frames heard to the dbc device with the profile; its report, what it refused."""
+def read_back(config: dict, plan: Plan, traffic: Traffic) -> DbcDevice:
+    """Feed the frames heard to a dbc device with this configuration (a profile, files)."""
     now = traffic.last if traffic.last == traffic.last else 0.0
-    device = DbcDevice('probe', {'profile': name}, lambda: now)
+    device = DbcDevice('probe', config, lambda: now)
     frames: list[tuple[float, int, bytes]] = []
     later: list[tuple[int, bytes]] = []
     for message in plan.messages:
@@ -147,9 +147,15 @@ def _read_back(name: str, plan: Plan, traffic: Traffic) -> tuple[BatteryReport, 
         device.handle_frame(can_id, data, now)
     for can_id, data in later:
         device.handle_frame(can_id, data, now)
-    refused = (f'{device.frames_malformed} of the frames read count as malformed (the last: '
-               f'{device.last_malformed})' if device.frames_malformed else '')
-    return device.battery_report(), refused
+    return device
+
+
+def say_published(cand: Candidate, device: DbcDevice, report: BatteryReport) -> None:
+    """Say what the bridge would publish from the frames heard, and what it would refuse."""
+    cand.evidence.append('the bridge would publish ' + _published(report))
+    if device.frames_malformed:
+        cand.evidence.append(f'{device.frames_malformed} of the frames read count as '
+                             f'malformed (the last: {device.last_malformed})')
 
 
 def _published(report: BatteryReport) -> str:
