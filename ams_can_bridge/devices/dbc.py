@@ -37,6 +37,10 @@ from ams_can_bridge.protocols import dbc_codec
 from ams_can_bridge.parameters import ParamSpec
 
 _GroupKey = tuple[int, Any]
+# A message's timeout is never below LEARNED_PERIODS x the period it is heard at; an
+# interval OUTLIER x the period so far is a pause, not a new rate (see DbcDevice._learn).
+LEARNED_PERIODS = 3
+OUTLIER = 4.0
 
 
 def _fmt(value: float | None, choices: Mapping[int, str] | None = None) -> str:
@@ -102,11 +106,18 @@ class DbcDevice(Device[DbcConfig]):
             if array.slot_message is not None:
                 self._slots.setdefault(array.slot_message, []).append(
                     (key, array, TimedSpans.uniform(1, array.count)))
+        # per message, what its traffic taught (see _learn): [last arrival, period, outliers
+        # in a row, learned timeout, first arrival, groups seen, groups seen twice]
+        self.rates = [[NAN, NAN, 0, 0.0, NAN, 1, 0] for _ in plan.messages]
+        # per message (multiplexed or positioned): group (mux value or position) -> arrivals
+        # (counted up to 2)
+        self.arrivals: list[dict[Any, int]] = [{} for _ in plan.messages]
         # per CAN ID, all the receive thread needs: (message, group key, invalid flags,
-        # positioned arrays, primary?)
+        # positioned arrays, primary?, its rate, its arrivals)
         self._handlers = {
             m.frame_id: (m, (i, None), self._flags.get(i, []), self._slots.get(i, []),
-                         i == plan.primary) for i, m in enumerate(plan.messages)}
+                         i == plan.primary, self.rates[i], self.arrivals[i])
+            for i, m in enumerate(plan.messages)}
 
     @property
     def frame_ids(self) -> frozenset[tuple[int, bool]]:
@@ -129,7 +140,7 @@ class DbcDevice(Device[DbcConfig]):
         entry = self._handlers.get(arbitration_id)
         if entry is None:
             return False
-        compiled, key, flags, slots, primary = entry
+        compiled, key, flags, slots, primary, rate, arrivals = entry
         try:
             values, bad = compiled.decode(data)
         except ProtocolError as exc:
@@ -149,14 +160,28 @@ class DbcDevice(Device[DbcConfig]):
                 # nested multiplexing: each frame carries one branch; keep the others' last
                 values = tuple(o if v is None else v for v, o in zip(values, old))
             self.groups.put(key, values, now)
+            group = None
             if compiled.mux_index is not None:
                 mux = values[compiled.mux_index]
                 if mux == mux:
                     info = compiled.signals[compiled.mux_index]
-                    self.groups.put((key[0], round((mux - info.offset) / info.scale)),
-                                    values, now)
+                    group = round((mux - info.offset) / info.scale)
+                    self.groups.put((key[0], group), values, now)
             if slots:
-                self._put_slots(slots, values, now)
+                group = self._put_slots(slots, values, now)
+            if group is not None and arrivals.get(group, 0) < 2:
+                self._arrived(rate, arrivals, group)
+            last, rate[0] = rate[0], now
+            if last == last:
+                # learn the period (see _learn), inline: this runs for every frame
+                interval, period = now - last, rate[1]
+                if interval <= OUTLIER * period and not rate[2]:
+                    rate[1] = period = period + (interval - period) * 0.25
+                    rate[3] = LEARNED_PERIODS * period * rate[5]
+                else:
+                    self._learn(rate, interval)
+            else:
+                rate[4] = now
             if primary:
                 self._stamp = stamp
                 self.last_seen = now
@@ -197,7 +222,40 @@ class DbcDevice(Device[DbcConfig]):
         return text
 
     @staticmethod
-    def _put_slots(slots: list, values: tuple, now: float) -> None:
+    def _arrived(rate: list, arrivals: dict[Any, int], group: Any) -> None:
+        """Count a group's first and second arrival (lock held; see all_arrived_twice)."""
+        count = arrivals.get(group, 0)
+        arrivals[group] = count + 1
+        if count:
+            rate[6] += 1
+        else:
+            rate[5] = len(arrivals)
+
+    @staticmethod
+    def _learn(rate: list, interval: float) -> None:
+        """
+        Learn a message's period from the time between its frames (lock held).
+
+        A smoothed interval; one far longer than the period so far (OUTLIER x: the sender
+        paused, the bus was lost) is not learned unless the next ones are as long (the
+        sender was set to a slower rate). The learned timeout is LEARNED_PERIODS x that
+        period x the groups of a rotation: a message's values never expire between its
+        frames, whatever rate the vendor's utility set.
+        """
+        period = rate[1]
+        if period != period or rate[2] >= 2:
+            rate[1], rate[2] = interval, 0
+        elif interval <= OUTLIER * period:
+            rate[1], rate[2] = period + (interval - period) * 0.25, 0
+        else:
+            rate[2] += 1
+            return
+        rate[3] = LEARNED_PERIODS * rate[1] * rate[5]
+
+    @staticmethod
+    def _put_slots(slots: list, values: tuple, now: float) -> int | None:
+        """Put a positioned frame's elements; return its position (None: not placed)."""
+        placed = None
         for _, array, elements in slots:
             position = 0.0
             for i, first, stride in array.selectors:
@@ -214,11 +272,30 @@ class DbcDevice(Device[DbcConfig]):
                     elements.put_elements(base + low, [
                         NAN if values[i] is None else values[i] * factor + add
                         for i in signals[low:high]], now)
+                    if placed is None:
+                        placed = base
+        return placed
 
     # --- reports: what the engine publishes (lock held) ---------------------------------------
     def group_timeout(self, message: int) -> float:
-        """Return how long a message's groups stay fresh (s)."""
-        return self.plan.timeouts.get(message, self.stale_timeout)
+        """Return how long a message's groups stay fresh (s): never below what it taught."""
+        return max(self.plan.timeouts.get(message, self.stale_timeout),
+                   self.rates[message][3])
+
+    def all_arrived_twice(self, message: int) -> bool:
+        """
+        Tell whether every group heard of a message has come twice (lock held).
+
+        A group (multiplexer value, position) not heard by then is missing: its sender is
+        silent, not late (issue 35.7).
+        """
+        rate = self.rates[message]
+        return bool(self.arrivals[message]) and rate[6] >= rate[5]
+
+    def learned_periods(self) -> dict[str, float]:
+        """Return the period each message was heard at (s), by message name (lock held)."""
+        return {m.name: rate[1] for m, rate in zip(self.plan.messages, self.rates)
+                if rate[1] == rate[1]}
 
     def slot_elements(self, key: str) -> TimedSpans:
         """Return the timed elements of a positioned array."""

@@ -119,6 +119,9 @@ def _state(device: Any, key: tuple[int, Any], seen: float, now: float) -> str:
     """Return 'fresh', WAITING, NOT_RECEIVED or EXPIRED for one group (or position)."""
     timeout = device.group_timeout(key[0])
     if seen == NEVER:
+        # missing once its message's other groups each came twice without it
+        if key[1] is not None and device.all_arrived_twice(key[0]):
+            return NOT_RECEIVED
         return WAITING if now - device.started <= timeout else NOT_RECEIVED
     return 'fresh' if now - seen <= timeout else EXPIRED
 
