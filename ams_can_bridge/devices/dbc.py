@@ -26,7 +26,7 @@ from ams_can_bridge.devices.base import (
 from ams_can_bridge.devices.configs import DbcConfig
 from ams_can_bridge.devices.dbc_describe import start_lines
 from ams_can_bridge.devices.dbc_diag import capped_values, listed, missing_report, WARNINGS_CAP
-from ams_can_bridge.devices.dbc_mapping import load_plan
+from ams_can_bridge.devices.dbc_mapping import given_timeouts, load_plan
 from ams_can_bridge.devices.dbc_plan import (
     Array, Enum, FlagRule, MappingError, Plan, Ref, Scalar)
 from ams_can_bridge.devices.dbc_profiles import PROFILES
@@ -69,6 +69,10 @@ class DbcDevice(Device[DbcConfig]):
                   "a shipped, tested DBC and mapping instead of dbc_file and mapping_file "
                   "(mapping_file, when given, replaces the profile's mapping)",
                   choices=('', *PROFILES)),
+        ParamSpec('timeouts', 'str[]', [],
+                  "'Message=seconds' per message: how long its values stay fresh, over the "
+                  "mapping's timeouts and the DBC's periods (probe writes what it heard; "
+                  'the device also learns each period from the traffic)', max_length=1024),
     ]
 
     def __init__(self, name: str, config: DbcConfig | Mapping[str, Any],
@@ -80,6 +84,7 @@ class DbcDevice(Device[DbcConfig]):
         except MappingError as exc:
             raise ConfigError(str(exc)) from None  # its lines as they are: YAML's own too
         plan = self.plan
+        given_timeouts(plan, self.config.timeouts)
         self.warnings = list(plan.warnings)  # the mapping's
         self.dbc_notes = list(plan.dbc_notes)  # what the DBC lacked: dropped lines, broken
         self.started = clock()  # missing data counts from here (log2bag: its first frame)

@@ -13,8 +13,9 @@ each entry are ``devices.dbc_builder``'s and ``devices.dbc_arrays``'.
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterable
 
 import yaml
 
@@ -151,6 +152,33 @@ def _given_timeouts(b: Builder, spec: Any) -> dict[int, float]:
         elif m is not None:
             timeouts[m] = float(seconds)
     return timeouts
+
+
+def given_timeouts(plan: Plan, items: Iterable[str]) -> None:
+    """
+    Apply the ``timeouts`` parameter ('Message=seconds' each) over the plan's timeouts.
+
+    ConfigError names every entry that is not a mapped message with 0.01..3600 s.
+    """
+    names = {m.name: n for n, m in enumerate(plan.messages)}
+    problems = []
+    for item in items:
+        name, sep, text = str(item).partition('=')
+        name = name.strip()
+        try:
+            seconds = float(text) if sep else math.nan
+        except ValueError:
+            seconds = math.nan
+        if name not in names:
+            problems.append(f'timeouts: {item!r}: {name!r} is not a message the mapping reads'
+                            + dbc_codec.closest(name, list(names)))
+        elif not 0.01 <= seconds <= 3600:
+            problems.append(f"timeouts: {item!r}: write 'Message=seconds' (0.01..3600 s)")
+        else:
+            plan.timeouts[names[name]] = seconds
+            plan.timeout_origin[names[name]] = 'the timeouts parameter'
+    if problems:
+        raise ConfigError(listing(problems))
 
 
 def _timeouts(plan: Plan, given: dict[int, float]) -> None:
