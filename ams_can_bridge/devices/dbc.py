@@ -28,7 +28,7 @@ from ams_can_bridge.devices.dbc_describe import start_lines
 from ams_can_bridge.devices.dbc_diag import capped_values, listed, missing_report, WARNINGS_CAP
 from ams_can_bridge.devices.dbc_mapping import given_timeouts, load_plan
 from ams_can_bridge.devices.dbc_plan import (
-    Array, Enum, FlagRule, MappingError, Plan, Ref, Scalar)
+    Array, Enum, FlagRule, LEARNED_PERIODS, MappingError, OUTLIER, Plan, Ref, Scalar)
 from ams_can_bridge.devices.dbc_profiles import PROFILES
 from ams_can_bridge.devices.dbc_units import unit_text
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
@@ -37,10 +37,6 @@ from ams_can_bridge.protocols import dbc_codec
 from ams_can_bridge.parameters import ParamSpec
 
 _GroupKey = tuple[int, Any]
-# A message's timeout is never below LEARNED_PERIODS x the period it is heard at; an
-# interval OUTLIER x the period so far is a pause, not a new rate (see DbcDevice._learn).
-LEARNED_PERIODS = 3
-OUTLIER = 4.0
 
 
 def _fmt(value: float | None, choices: Mapping[int, str] | None = None) -> str:

@@ -36,6 +36,11 @@ LEVELS = {'OK': Level.OK, 'WARN': Level.WARN, 'ERROR': Level.ERROR}
 # multiplexed message), never shorter than MIN_TIMEOUT (a loaded host delivers late).
 TIMEOUT_PERIODS = 5
 MIN_TIMEOUT = 0.1  # s
+# ... and never below LEARNED_PERIODS x the period it is heard at (a vendor's utility may set
+# a slower rate than its DBC says); an interval OUTLIER x the period so far is a pause, not a
+# new rate (devices.dbc DbcDevice._learn).
+LEARNED_PERIODS = 3
+OUTLIER = 4.0
 
 
 # What no battery reports, in each field's unit (doc/protocols.md "Physical bounds", section
