@@ -66,7 +66,7 @@ def test_leaf_soc_given_in_the_wrong_unit_is_never_published_and_named(tmp_path)
     assert device.frames_malformed == 1
     diag = device.diagnostic_report()
     assert diag.level == Level.WARN
-    assert 'implausible: x55B.LB_SOC = 805 %+1 (implausible for percentage 0..1 0..1)' \
+    assert 'implausible: x55B.LB_SOC = 805 %+1 (implausible for percentage 0..1)' \
         in diag.message
 
 

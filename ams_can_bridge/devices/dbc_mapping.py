@@ -105,7 +105,8 @@ def _bounds(plan: Plan) -> None:
         if ref is None or factor == 0:
             return
         low, high = FIELD_BOUNDS[key]
-        text = f'{key} {low:g}..{high:g} {base_unit(SCALAR_UNITS.get(key) or ARRAY_UNITS[key])}'
+        unit = base_unit(SCALAR_UNITS.get(key) or ARRAY_UNITS[key])
+        text = f'{key} {low:g}..{high:g}' + ('' if unit == '0..1' else f' {unit}')
         ends = sorted(((low - add_) / factor, (high - add_) / factor))
         where = (ref.message, ref.signal)
         old = limits.get(where)
