@@ -1,0 +1,112 @@
+"""
+Random interleavings of everything a user and the world do to a bridge (issue 34).
+
+Hypothesis's stateful testing drives ``interleavings.ModelBridge`` (the bridge below ROS on
+a virtual bus with an adapter that can be unplugged, simulated devices that can go silent)
+through sequences of: run-time parameter sets (the same or a new value, single, bursts,
+thousands of copies, a huge list on a scalar), every command row of the AMS, IVT-S and
+EVMS3 (in flight side by side), every valid lifecycle transition (shutdown included),
+``commands_enabled`` toggles, bus unplug / replug and devices going silent; every step is
+followed by the invariants of doc/failure_modes.md (``ModelBridge.check``). The ci profile
+(test/conftest.py) is derandomized: the same sequences every run, under a minute in all;
+``./dev bench --only interleavings --minutes N`` runs new ones for as long as asked.
+"""
+from __future__ import annotations
+
+import time
+
+from hypothesis import HealthCheck, settings, strategies as st
+from hypothesis.stateful import (initialize, invariant, precondition, rule,
+                                 RuleBasedStateMachine, run_state_machine_as_test)
+
+from interleavings import (gil_like_the_bridge, HUGE, MAX_PENDING, ModelBridge,
+                           TRANSITIONS, VALUES)
+
+SEQUENCES = 30  # the CI lane: sequences of STEPS steps (about 25 s in all)
+STEPS = 40
+
+
+class Interleavings(RuleBasedStateMachine):
+    """One random sequence against one model bridge (the module docstring)."""
+
+    sequences = 0  # run so far in this process (the bench counts them)
+
+    def __init__(self) -> None:
+        super().__init__()
+        gil_like_the_bridge()
+        self.bridge = ModelBridge()
+        Interleavings.sequences += 1
+
+    @initialize()
+    def start_armed(self) -> None:
+        # configured, active and armed: most sequences should start where it matters
+        self.bridge.transition('configure')
+        self.bridge.transition('activate')
+        self.bridge.arm()
+        self.bridge.bus_up()
+
+    @rule(name=st.sampled_from(sorted(VALUES)), pick=st.integers(0, 2),
+          copies=st.sampled_from([1, 1, 1, 30, 2000]))
+    def set_parameter(self, name: str, pick: int, copies: int) -> None:
+        values = VALUES[name]
+        self.bridge.set_param(name, values[pick % len(values)], copies)
+
+    @rule(name=st.sampled_from(sorted(VALUES)), size=st.sampled_from(sorted(HUGE)))
+    def set_a_huge_list_on_a_scalar(self, name: str, size: int) -> None:
+        started = time.monotonic()
+        reason = self.bridge.huge_set(name, size)
+        assert len(reason) < 300 and time.monotonic() - started < 1.0, reason[:300]
+
+    @precondition(lambda self: self.bridge.commands is not None
+                  and len(self.bridge.live_calls()) < MAX_PENDING)
+    @rule(data=st.data())
+    def call(self, data: st.DataObject) -> None:
+        name, service, takes_data = data.draw(st.sampled_from(self.bridge.rows()))
+        self.bridge.call(name, service, data.draw(st.booleans()) if takes_data else None)
+
+    @rule()
+    def arm(self) -> None:
+        self.bridge.arm()
+
+    @rule()
+    def disarm(self) -> None:
+        self.bridge.disarm(how='the model')
+
+    @precondition(lambda self: self.bridge.state != 'finalized')
+    @rule(data=st.data())
+    def transition(self, data: st.DataObject) -> None:
+        self.bridge.transition(data.draw(st.sampled_from(TRANSITIONS[self.bridge.state])))
+
+    @rule(plugged=st.booleans())
+    def adapter(self, plugged: bool) -> None:
+        self.bridge.plug(plugged)
+        self.bridge.bus_up()
+
+    @rule(talk=st.booleans())
+    def devices(self, talk: bool) -> None:
+        self.bridge.devices_talk(talk)
+
+    @rule(seconds=st.sampled_from([0.02, 0.1, 0.3]))
+    def time_passes(self, seconds: float) -> None:
+        time.sleep(seconds)
+
+    @invariant()
+    def invariants_hold(self) -> None:
+        self.bridge.check()
+
+    def teardown(self) -> None:
+        try:
+            self.bridge.check()
+        finally:
+            self.bridge.close()
+
+
+def run(sequences: int = SEQUENCES, steps: int = STEPS, **options: object) -> None:
+    """Run ``sequences`` random sequences of up to ``steps`` steps (the bench: more)."""
+    run_state_machine_as_test(Interleavings, settings=settings(
+        settings.default, max_examples=sequences, stateful_step_count=steps, deadline=None,
+        suppress_health_check=list(HealthCheck), **options))
+
+
+def test_no_invariant_breaks_under_random_interleavings():
+    run()
