@@ -121,6 +121,8 @@ class PluggableBus(can.BusABC):
 # VALID_INTERFACES (a frozenset): both learn the test's own interface
 can.interfaces.BACKENDS['pluggable'] = (__name__, 'PluggableBus')
 can.util.VALID_INTERFACES = can.interfaces.VALID_INTERFACES | {'pluggable'}  # type: ignore
+# ... and the bridge's own check of can.interface (can_io/config.py), for the live run
+can.interfaces.VALID_INTERFACES = can.util.VALID_INTERFACES  # type: ignore
 
 
 class Pending:
@@ -143,6 +145,9 @@ class Pending:
 
 class ModelBridge:
     """The bridge below ROS under one random sequence (module docstring)."""
+
+    heartbeat_slack = HEARTBEAT_SLACK
+    disarm_bound = DISARM_BOUND
 
     def __init__(self, label: str = 'model') -> None:
         """Make the wire and the simulators; the bridge starts unconfigured."""
@@ -308,7 +313,7 @@ class ModelBridge:
         self.enabled = False
         self._window(False)
         self._quiet()
-        if took > DISARM_BOUND:
+        if took > self.disarm_bound:
             raise InvariantBroken(f'the disarm was answered after {took * 1000:.0f} ms '
                                   f'with {len(self.live_calls())} call(s) in flight')
 
@@ -370,24 +375,28 @@ class ModelBridge:
                                       f'{pending.bound:.2f} s)' if pending.answer else
                                       f'{pending.name} not answered after {took:.2f} s')
         self.pending = [p for p in self.pending if p.answer is None]
-        if self.window is not None and self.io is not None and self.io.status().connected:
+        if self.window is not None and self.bus_connected():
             self._check_heartbeat()
 
     def _check_heartbeat(self) -> None:
         assert self.window is not None
         start = self.window + max(self.window_periods) + 0.2  # the heartbeat has started
         times = [t for t, f in self.capture.since(0, HEARTBEAT) if t >= start]
-        bound = max(self.window_periods) + HEARTBEAT_SLACK
+        bound = max(self.window_periods) + self.heartbeat_slack
         for a, b in zip(times, times[1:]):
             if b - a > bound:
                 raise InvariantBroken(f'a {(b - a) * 1000:.0f} ms heartbeat gap (bound '
                                       f'{bound * 1000:.0f} ms)')
 
+    def bus_connected(self) -> bool:
+        """Tell whether the bridge's bus is connected now."""
+        return self.io is not None and self.io.status().connected
+
     def bus_up(self) -> None:
         """Wait until a plugged adapter is connected again, then open the heartbeat window."""
-        if self.io is not None and self.plugged:
+        if self.state != 'unconfigured' and self.state != 'finalized' and self.plugged:
             deadline = time.monotonic() + 5.0
-            while not self.io.status().connected and time.monotonic() < deadline:
+            while not self.bus_connected() and time.monotonic() < deadline:
                 time.sleep(0.01)
             self._window(True)
 
