@@ -39,7 +39,9 @@ def one(seed: int, steps: int = STEPS) -> str:
     except BaseException as exc:  # an invariant (or anything) broke: report it whole
         if isinstance(exc, KeyboardInterrupt):
             raise
-        return f'{type(exc).__name__}: {exc}\n{out.getvalue()}\n{traceback.format_exc()}'
+        steps = '\n'.join(f'    {line}' for line in test_interleavings.Interleavings.last_steps)
+        return (f'{type(exc).__name__}: {exc}\n  the steps of the last sequence run '
+                f'(monotonic s):\n{steps}\n{out.getvalue()}\n{traceback.format_exc()}')
     finally:
         hypothesis.core.global_force_seed = None
     return ''

@@ -16,7 +16,7 @@ After every step ``check()`` asserts the invariants (doc/failure_modes.md):
   already handed to the adapter is on the wire before the answer: the capture's marker,
   sent after the answer, comes after it);
 - while armed, active and the bus up, consecutive heartbeats at most one period +
-  ``HEARTBEAT_SLACK`` apart;
+  ``HEARTBEAT_SLACK`` apart, by the times the frames were put on the wire;
 - a disarm answered within ``DISARM_BOUND``, whatever is in flight;
 - every call answered within its bound (``CALL_BOUND``);
 - nothing escapes a thread (the node would exit).
@@ -347,7 +347,7 @@ class ModelBridge:
 
     def _window(self, open_: bool) -> None:
         if open_ and self.window is None and self.enabled and self.state == 'active':
-            self.window = time.monotonic()
+            self.window = time.time()  # the wire's clock (Capture.wire_times)
             self.window_periods = {float(self.values['ams.heartbeat_period'])}
         elif not open_:
             self.window = None
@@ -381,7 +381,7 @@ class ModelBridge:
     def _check_heartbeat(self) -> None:
         assert self.window is not None
         start = self.window + max(self.window_periods) + 0.2  # the heartbeat has started
-        times = [t for t, f in self.capture.since(0, HEARTBEAT) if t >= start]
+        times = [t for t in self.capture.wire_times_of(HEARTBEAT) if t >= start]
         bound = max(self.window_periods) + self.heartbeat_slack
         for a, b in zip(times, times[1:]):
             if b - a > bound:

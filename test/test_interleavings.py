@@ -30,12 +30,14 @@ class Interleavings(RuleBasedStateMachine):
     """One random sequence against one model bridge (the module docstring)."""
 
     sequences = 0  # run so far in this process (the bench counts them)
+    last_steps: list[str] = []  # the steps of the latest sequence (the bench prints them)
 
     def __init__(self) -> None:
         super().__init__()
         gil_like_the_bridge()
         self.bridge = ModelBridge()
         Interleavings.sequences += 1
+        Interleavings.last_steps = self.bridge.steps
 
     @initialize()
     def start_armed(self) -> None:
@@ -49,10 +51,12 @@ class Interleavings(RuleBasedStateMachine):
           copies=st.sampled_from([1, 1, 1, 30, 2000]))
     def set_parameter(self, name: str, pick: int, copies: int) -> None:
         values = VALUES[name]
+        self.step(f'set {name} = {values[pick % len(values)]!r} x {copies}')
         self.bridge.set_param(name, values[pick % len(values)], copies)
 
     @rule(name=st.sampled_from(sorted(VALUES)), size=st.sampled_from(sorted(HUGE)))
     def set_a_huge_list_on_a_scalar(self, name: str, size: int) -> None:
+        self.step(f'set {name} = a list of {size} values')
         started = time.monotonic()
         reason = self.bridge.huge_set(name, size)
         assert len(reason) < 300 and time.monotonic() - started < 1.0, reason[:300]
@@ -62,33 +66,46 @@ class Interleavings(RuleBasedStateMachine):
     @rule(data=st.data())
     def call(self, data: st.DataObject) -> None:
         name, service, takes_data = data.draw(st.sampled_from(self.bridge.rows()))
-        self.bridge.call(name, service, data.draw(st.booleans()) if takes_data else None)
+        value = data.draw(st.booleans()) if takes_data else None
+        self.step(f'call {name}/{service}' + ('' if value is None else f' {value}'))
+        self.bridge.call(name, service, value)
 
     @rule()
     def arm(self) -> None:
+        self.step('commands_enabled = true')
         self.bridge.arm()
 
     @rule()
     def disarm(self) -> None:
+        self.step('commands_enabled = false')
         self.bridge.disarm(how='the model')
 
     @precondition(lambda self: self.bridge.state != 'finalized')
     @rule(data=st.data())
     def transition(self, data: st.DataObject) -> None:
-        self.bridge.transition(data.draw(st.sampled_from(TRANSITIONS[self.bridge.state])))
+        name = data.draw(st.sampled_from(TRANSITIONS[self.bridge.state]))
+        self.step(f'lifecycle {name}')
+        self.bridge.transition(name)
 
     @rule(plugged=st.booleans())
     def adapter(self, plugged: bool) -> None:
+        self.step('adapter ' + ('plugged in' if plugged else 'unplugged'))
         self.bridge.plug(plugged)
         self.bridge.bus_up()
 
     @rule(talk=st.booleans())
     def devices(self, talk: bool) -> None:
+        self.step('devices ' + ('talk' if talk else 'silent'))
         self.bridge.devices_talk(talk)
 
     @rule(seconds=st.sampled_from([0.02, 0.1, 0.3]))
     def time_passes(self, seconds: float) -> None:
+        self.step(f'{seconds:g} s pass')
         time.sleep(seconds)
+
+    def step(self, text: str) -> None:
+        """Note a step (the bench prints a broken sequence's steps)."""
+        self.bridge.steps.append(f'{time.monotonic():.3f} {text}')
 
     @invariant()
     def invariants_hold(self) -> None:
