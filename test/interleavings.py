@@ -28,13 +28,14 @@ from __future__ import annotations
 
 import itertools
 import os
-import sys
 import threading
 import time
 from typing import Any, Callable
 
 import can
 from can.interfaces.virtual import VirtualBus
+from hypothesis import strategies as st
+from hypothesis.stateful import invariant, rule, RuleBasedStateMachine
 
 from ams_can_bridge.can_io import BusConfig, CanIo
 from ams_can_bridge.device_set import DeviceSet
@@ -49,6 +50,7 @@ from ams_can_bridge.sim.evms3 import Evms3Simulator
 from ams_can_bridge.sim.ivt_s import IvtSSimulator
 from ams_can_bridge.sim.runner import SimRunner
 from command_bench import Capture
+from helpers import gil_like_the_bridge  # noqa: F401 (the machines use it from here)
 from shared import collecting_logger
 
 HEARTBEAT = AMS_BASE + 5
@@ -412,6 +414,37 @@ class ModelBridge:
         threading.excepthook = self._old_hook
 
 
-def gil_like_the_bridge() -> None:
-    """Hand the GIL over as the bridge's executable does (bridge_main.GIL_SWITCH_INTERVAL)."""
-    sys.setswitchinterval(0.001)
+class Checked(RuleBasedStateMachine):
+    """What the model's and the live machine share: the world's rules, the invariants."""
+
+    bridge: ModelBridge
+
+    def step(self, text: str) -> None:
+        """Note a step (the bench prints a broken sequence's steps)."""
+        self.bridge.steps.append(f'{time.monotonic():.3f} {text}')
+
+    @rule(plugged=st.booleans())
+    def adapter(self, plugged: bool) -> None:
+        self.step('adapter ' + ('plugged in' if plugged else 'unplugged'))
+        self.bridge.plug(plugged)
+        self.bridge.bus_up()
+
+    @rule(talk=st.booleans())
+    def devices(self, talk: bool) -> None:
+        self.step('devices ' + ('talk' if talk else 'silent'))
+        self.bridge.devices_talk(talk)
+
+    @rule(seconds=st.sampled_from([0.02, 0.1, 0.3]))
+    def time_passes(self, seconds: float) -> None:
+        self.step(f'{seconds:g} s pass')
+        time.sleep(seconds)
+
+    @invariant()
+    def invariants_hold(self) -> None:
+        self.bridge.check()
+
+    def teardown(self) -> None:
+        try:
+            self.bridge.check()
+        finally:
+            self.bridge.close()

@@ -16,6 +16,7 @@ from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 
 from ams_can_bridge.protocols.ams import DEFAULT_BASE_ID
+from helpers import gil_like_the_bridge
 
 HEARTBEAT = DEFAULT_BASE_ID + 5
 PERIOD = 0.05
@@ -70,6 +71,11 @@ def test_new_values_of_other_keys_and_of_the_period_never_delay_a_heartbeat(benc
 
 
 def test_one_request_with_thousands_of_copies_leaves_the_heartbeat_alone(rig_factory):
+    with gil_like_the_bridge():  # the bridge's executable hands the GIL over every 1 ms
+        one_request_with_thousands_of_copies(rig_factory)
+
+
+def one_request_with_thousands_of_copies(rig_factory) -> None:
     rig = rig_factory(ams_params())
     mark = started(rig)
     copies = [Parameter('ams.command_timeout', value=2.0).to_parameter_msg()] * 5000
@@ -79,6 +85,7 @@ def test_one_request_with_thousands_of_copies_leaves_the_heartbeat_alone(rig_fac
     rig.wait(lambda: len(rig.capture.since(mark, HEARTBEAT)) >= 5, what='heartbeats after')
     rig.capture.sync()
     seen = gaps(rig, mark)
-    # the ROS node shares the GIL with the request's 5,000 callbacks: 100 ms of slack
-    assert max(seen) < PERIOD + 0.1, f'a {max(seen) * 1000:.0f} ms heartbeat gap'
+    # the ROS node shares the GIL with the request's 5,000 callbacks and parameter events,
+    # the machine with the other tests: 200 ms of slack (the bug's gap: 0.5 to 1.3 s)
+    assert max(seen) < PERIOD + 0.2, f'a {max(seen) * 1000:.0f} ms heartbeat gap'
     assert rig.failures == [], rig.failures

@@ -16,17 +16,17 @@ from __future__ import annotations
 import time
 
 from hypothesis import HealthCheck, settings, strategies as st
-from hypothesis.stateful import (initialize, invariant, precondition, rule,
-                                 RuleBasedStateMachine, run_state_machine_as_test)
+from hypothesis.stateful import (initialize, precondition, rule,
+                                 run_state_machine_as_test)
 
-from interleavings import (gil_like_the_bridge, HUGE, MAX_PENDING, ModelBridge,
+from interleavings import (Checked, gil_like_the_bridge, HUGE, MAX_PENDING, ModelBridge,
                            TRANSITIONS, VALUES)
 
 SEQUENCES = 30  # the CI lane: sequences of STEPS steps (about 25 s in all)
 STEPS = 40
 
 
-class Interleavings(RuleBasedStateMachine):
+class Interleavings(Checked):
     """One random sequence against one model bridge (the module docstring)."""
 
     sequences = 0  # run so far in this process (the bench counts them)
@@ -34,7 +34,6 @@ class Interleavings(RuleBasedStateMachine):
 
     def __init__(self) -> None:
         super().__init__()
-        gil_like_the_bridge()
         self.bridge = ModelBridge()
         Interleavings.sequences += 1
         Interleavings.last_steps = self.bridge.steps
@@ -87,42 +86,13 @@ class Interleavings(RuleBasedStateMachine):
         self.step(f'lifecycle {name}')
         self.bridge.transition(name)
 
-    @rule(plugged=st.booleans())
-    def adapter(self, plugged: bool) -> None:
-        self.step('adapter ' + ('plugged in' if plugged else 'unplugged'))
-        self.bridge.plug(plugged)
-        self.bridge.bus_up()
-
-    @rule(talk=st.booleans())
-    def devices(self, talk: bool) -> None:
-        self.step('devices ' + ('talk' if talk else 'silent'))
-        self.bridge.devices_talk(talk)
-
-    @rule(seconds=st.sampled_from([0.02, 0.1, 0.3]))
-    def time_passes(self, seconds: float) -> None:
-        self.step(f'{seconds:g} s pass')
-        time.sleep(seconds)
-
-    def step(self, text: str) -> None:
-        """Note a step (the bench prints a broken sequence's steps)."""
-        self.bridge.steps.append(f'{time.monotonic():.3f} {text}')
-
-    @invariant()
-    def invariants_hold(self) -> None:
-        self.bridge.check()
-
-    def teardown(self) -> None:
-        try:
-            self.bridge.check()
-        finally:
-            self.bridge.close()
-
 
 def run(sequences: int = SEQUENCES, steps: int = STEPS, **options: object) -> None:
     """Run ``sequences`` random sequences of up to ``steps`` steps (the bench: more)."""
-    run_state_machine_as_test(Interleavings, settings=settings(
-        settings.default, max_examples=sequences, stateful_step_count=steps, deadline=None,
-        suppress_health_check=list(HealthCheck), **options))
+    with gil_like_the_bridge():
+        run_state_machine_as_test(Interleavings, settings=settings(
+            settings.default, max_examples=sequences, stateful_step_count=steps,
+            deadline=None, suppress_health_check=list(HealthCheck), **options))
 
 
 def test_no_invariant_breaks_under_random_interleavings():

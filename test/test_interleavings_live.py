@@ -16,8 +16,7 @@ from typing import Any
 
 from hypothesis import HealthCheck, settings, strategies as st
 import pytest
-from hypothesis.stateful import (invariant, precondition, rule, RuleBasedStateMachine,
-                                 run_state_machine_as_test)
+from hypothesis.stateful import precondition, rule, run_state_machine_as_test
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState
 from rcl_interfaces.srv import SetParameters
@@ -25,8 +24,8 @@ from rclpy.parameter import Parameter
 from std_srvs.srv import SetBool, Trigger
 
 from command_rig import Rig
-from interleavings import (CONNECT_WAIT, gil_like_the_bridge, InvariantBroken, MAX_PENDING,
-                           ModelBridge, Pending, RECONNECT, TRANSITIONS, VALUES)
+from interleavings import (Checked, CONNECT_WAIT, gil_like_the_bridge, InvariantBroken,
+                           MAX_PENDING, ModelBridge, Pending, RECONNECT, TRANSITIONS, VALUES)
 
 NODE = '/ams_can_bridge'
 SEQUENCES = 12  # the CI lane: a few short sequences (about 20 s in all)
@@ -154,12 +153,11 @@ class LiveBridge(ModelBridge):
         super().close()
 
 
-class LiveInterleavings(RuleBasedStateMachine):
+class LiveInterleavings(Checked):
     """A random sequence against a real node (module docstring)."""
 
     def __init__(self) -> None:
         super().__init__()
-        gil_like_the_bridge()
         self.bridge = LiveBridge()
 
     @precondition(lambda self: self.bridge.state != 'finalized')
@@ -196,32 +194,10 @@ class LiveInterleavings(RuleBasedStateMachine):
     def transition(self, data: st.DataObject) -> None:
         self.bridge.transition(data.draw(st.sampled_from(TRANSITIONS[self.bridge.state])))
 
-    @rule(plugged=st.booleans())
-    def adapter(self, plugged: bool) -> None:
-        self.bridge.plug(plugged)
-        self.bridge.bus_up()
-
-    @rule(talk=st.booleans())
-    def devices(self, talk: bool) -> None:
-        self.bridge.devices_talk(talk)
-
-    @rule(seconds=st.sampled_from([0.05, 0.3]))
-    def time_passes(self, seconds: float) -> None:
-        time.sleep(seconds)
-
-    @invariant()
-    def invariants_hold(self) -> None:
-        self.bridge.check()
-
-    def teardown(self) -> None:
-        try:
-            self.bridge.check()
-        finally:
-            self.bridge.close()
-
 
 @pytest.mark.ros  # each sequence starts its own Rig (out of the lanes' sight)
 def test_no_invariant_breaks_on_the_real_node():
-    run_state_machine_as_test(LiveInterleavings, settings=settings(
-        settings.default, max_examples=SEQUENCES, stateful_step_count=STEPS, deadline=None,
-        suppress_health_check=list(HealthCheck)))
+    with gil_like_the_bridge():
+        run_state_machine_as_test(LiveInterleavings, settings=settings(
+            settings.default, max_examples=SEQUENCES, stateful_step_count=STEPS,
+            deadline=None, suppress_health_check=list(HealthCheck)))
