@@ -19,11 +19,12 @@ from hypothesis import HealthCheck, settings, strategies as st
 from hypothesis.stateful import (initialize, precondition, rule,
                                  run_state_machine_as_test)
 
-from interleavings import (Checked, gil_like_the_bridge, HUGE, MAX_PENDING, ModelBridge,
-                           TRANSITIONS, VALUES)
+from interleavings import (Checked, gil_like_the_bridge, HEARTBEAT_SLACK, HUGE, MAX_PENDING,
+                           ModelBridge, TRANSITIONS, VALUES)
 
 SEQUENCES = 30  # the CI lane: sequences of STEPS steps (about 25 s in all)
 STEPS = 40
+CI_HEARTBEAT_SLACK = 0.1  # s: the CI lane's bound on a shared machine (run's docstring)
 
 
 class Interleavings(Checked):
@@ -87,8 +88,17 @@ class Interleavings(Checked):
         self.bridge.transition(name)
 
 
-def run(sequences: int = SEQUENCES, steps: int = STEPS, **options: object) -> None:
-    """Run ``sequences`` random sequences of up to ``steps`` steps (the bench: more)."""
+def run(sequences: int = SEQUENCES, steps: int = STEPS,
+        heartbeat_slack: float = HEARTBEAT_SLACK, **options: object) -> None:
+    """
+    Run ``sequences`` random sequences of up to ``steps`` steps (the bench: more).
+
+    ``heartbeat_slack``: s a heartbeat may be late beyond its period. The model's figure is
+    20 ms (the bench checks it); the CI lane allows CI_HEARTBEAT_SLACK, as the live run:
+    on 2 cores shared with other test runs (load 4-5) the OS alone delays a thread that
+    long, whatever the bridge does.
+    """
+    ModelBridge.heartbeat_slack = heartbeat_slack
     with gil_like_the_bridge():
         run_state_machine_as_test(Interleavings, settings=settings(
             settings.default, max_examples=sequences, stateful_step_count=steps,
@@ -96,4 +106,4 @@ def run(sequences: int = SEQUENCES, steps: int = STEPS, **options: object) -> No
 
 
 def test_no_invariant_breaks_under_random_interleavings():
-    run()
+    run(heartbeat_slack=CI_HEARTBEAT_SLACK)
