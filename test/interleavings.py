@@ -420,7 +420,7 @@ class Checked(RuleBasedStateMachine):
     bridge: ModelBridge
 
     def step(self, text: str) -> None:
-        """Note a step (the bench prints a broken sequence's steps)."""
+        """Note what a step does: the bench prints the steps of a broken sequence."""
         self.bridge.steps.append(f'{time.monotonic():.3f} {text}')
 
     @rule(plugged=st.booleans())
