@@ -155,10 +155,24 @@ def coerce(name: str, spec: ParamSpec, value: Any) -> Any:
     raise ParamError(f'{name}: unsupported parameter type {spec.type!r}')
 
 
+SHORT_TEXT = 200  # characters of a refused value quoted in its reason
+SHORT_ITEMS = 8  # elements of a refused list quoted in its reason
+
+
 def _short(value: Any) -> str:
-    """Return repr(value), cut to a readable length (a refused value may be huge)."""
+    """
+    Return repr(value) cut to a readable length, without ever writing out a huge value.
+
+    A refused value may have millions of elements (issue 34, point 12): only a short prefix
+    is ever turned into text, so the refusal costs the same whatever its size.
+    """
+    if isinstance(value, (list, tuple, array.array)) and len(value) > SHORT_ITEMS:
+        head = ', '.join(repr(v)[:SHORT_TEXT // SHORT_ITEMS] for v in value[:SHORT_ITEMS])
+        return f'[{head}, ...] ({len(value)} values)'
+    if isinstance(value, (str, bytes)) and len(value) > SHORT_TEXT:
+        return repr(value[:SHORT_TEXT]) + f'... ({len(value)} characters)'
     text = repr(value)
-    return text if len(text) <= 200 else text[:200] + '...'
+    return text if len(text) <= SHORT_TEXT else text[:SHORT_TEXT] + '...'
 
 
 def raise_param_errors(errors: list[str]) -> None:

@@ -2,6 +2,7 @@
 The benchmark suite: every figure of the bridge beside the reference it must beat.
 
     ./dev bench [--quick] [--soak] [--only NAME,...] [--json bench/results.json]
+    ./dev bench --only interleavings --minutes 30 [--seed N]
 
 Each scenario runs the installed code in processes of its own, as on a car (the bridge, a
 simulator or probe on the other side of a linked pair of serial ports speaking slcan, a
@@ -9,7 +10,8 @@ subscriber), and measures the reference in the same run: a bare python-can recei
 on the same bus, options and frames, or a bare python-can -> rclpy pipeline. Machines are
 noisy: compare the ratios, not the absolute figures across runs. The 10-minute memory soak
 runs only with --soak. Results are printed as one table and written as JSON (schema in
-bench/README.md).
+bench/README.md). ``interleavings`` (the random-interleaving model of
+test/test_interleavings.py, for --minutes, from --seed on) runs only when named.
 """
 from __future__ import annotations
 
@@ -321,6 +323,17 @@ def dbc_device(seconds: float) -> None:
         f"{figures['median_us']['cantools']:.2f} us cantools")
 
 
+def interleavings(minutes: float, seed: int) -> None:
+    """The interleaving model for minutes: sequences run, invariants broken (their seeds)."""
+    import bench_interleavings
+    figures = bench_interleavings.run(minutes, seed)
+    broken = figures['broken_seeds']
+    row('interleavings', f"sequences in {figures['minutes']:g} min", figures['sequences'],
+        None, 'seq', 'none broken', not broken,
+        f"up to {figures['steps_each']} steps each, seeds {seed}.."
+        f"{seed + figures['seeds'] - 1}; broken: {broken or 'none'}")
+
+
 SCENARIOS = {
     'cpu_slcan': lambda q: cpu_slcan(5.0 if q else 10.0),
     'cpu_virtual': lambda q: cpu_virtual(5.0 if q else 10.0),
@@ -341,7 +354,11 @@ def main() -> None:
     parser.add_argument('--soak', action='store_true', help='also the 10-minute memory soak')
     parser.add_argument('--soak-minutes', type=float, default=10.0)
     parser.add_argument('--only', default='', help='comma-separated scenarios: '
-                        + ', '.join(SCENARIOS) + ', soak')
+                        + ', '.join(SCENARIOS) + ', soak, interleavings')
+    parser.add_argument('--minutes', type=float, default=1.0,
+                        help='interleavings: how long to run new sequences')
+    parser.add_argument('--seed', type=int, default=1,
+                        help='interleavings: the first sequence\'s seed')
     parser.add_argument('--json', default=os.path.join(harness.BENCH, 'results.json'))
     parser.add_argument('--update-readme', metavar='FILE', nargs='?', default='',
                         const=os.path.join(harness.BENCH, 'README.md'),
@@ -360,6 +377,9 @@ def main() -> None:
     for name in names:
         if name == 'soak':  # --only soak: the soak alone
             args.soak = True
+            continue
+        if name == 'interleavings':  # only when named: it runs for --minutes
+            interleavings(args.minutes, args.seed)
             continue
         SCENARIOS[name](args.quick)
     if args.soak:

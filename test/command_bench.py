@@ -53,6 +53,9 @@ class Capture:
         self._markers_sent = 0
         self._seen = threading.Condition()
         self.frames: list[tuple[float, Frame]] = []
+        # the time each frame was put on the wire (python-can's virtual bus stamps it at
+        # the send, wall clock): gaps free of this thread's own scheduling
+        self.wire_times: list[float] = []
         self.lock = threading.Lock()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
@@ -69,6 +72,7 @@ class Capture:
                 with self.lock:
                     self.frames.append((time.monotonic(), Frame(
                         msg.arbitration_id, bytes(msg.data), msg.is_extended_id)))
+                    self.wire_times.append(msg.timestamp)
 
     def close(self) -> None:
         """Stop capturing and close the bus."""
@@ -87,6 +91,12 @@ class Capture:
         with self._seen:
             if not self._seen.wait_for(lambda: self._markers_seen >= wanted, timeout):
                 raise AssertionError(f'the capture did not see its marker in {timeout} s')
+
+    def wire_times_of(self, arbitration_id: int, mark: int = 0) -> list[float]:
+        """Return the wire times of the frames of one ID captured after mark."""
+        with self.lock:
+            return [stamp for (_, f), stamp in zip(self.frames[mark:], self.wire_times[mark:])
+                    if f.arbitration_id == arbitration_id]
 
     def mark(self) -> int:
         """Return the number of frames so far (a bookmark)."""

@@ -9,6 +9,7 @@ import os
 import signal
 import struct
 import subprocess
+import sys
 import threading
 import time
 from typing import Any, Callable, Iterable, Iterator
@@ -244,3 +245,15 @@ def run_sim(sim: Any, device: Any, seconds: float, step: float = 0.05,
                 device.handle_frame(frame.arbitration_id, frame.data, t)
         t += step
     return frames
+
+
+@contextlib.contextmanager
+def gil_like_the_bridge() -> Iterator[None]:
+    """Hand the GIL over as the bridge's executable does, meanwhile (GIL_SWITCH_INTERVAL)."""
+    from ams_can_bridge.ros.bridge_main import GIL_SWITCH_INTERVAL
+    old = sys.getswitchinterval()
+    sys.setswitchinterval(GIL_SWITCH_INTERVAL)
+    try:
+        yield
+    finally:
+        sys.setswitchinterval(old)

@@ -65,14 +65,30 @@ def test_absolute_slots_at_the_period_never_a_burst():
     assert sender.sent == wire.count()
 
 
-def test_a_new_period_starts_one_period_after_the_last_slot():
-    # the absolute grid and its skipped slots: test_ams_master.py
+def test_a_new_period_applies_from_the_next_slot_which_never_moves_later():
+    # the absolute grid and its skipped slots: test_ams_master.py; issue 34 point 1
     schedule = SlotSchedule(0.05, start=100.0)
     assert schedule.take(100.001) == 0 and schedule.take(100.05) == 0
     schedule.rebase(0.1, 100.06)
-    assert schedule.due() == pytest.approx(100.15)  # the last slot was at 100.05
+    assert schedule.due() == pytest.approx(100.10)  # kept: not one new period after 100.05
+    schedule.take(100.10)
+    assert schedule.due() == pytest.approx(100.20)  # the new period from then on
+    schedule.rebase(0.01, 100.12)  # a shorter one: one new period after the last slot
+    assert schedule.due() == pytest.approx(100.12)  # 100.11 has passed: now, never earlier
     with pytest.raises(ValueError):
         schedule.rebase(0.0, 100.2)
+
+
+def test_the_same_period_again_changes_nothing_however_often():
+    schedule = SlotSchedule(0.05, start=100.0)
+    schedule.take(100.0)
+    for k in range(1000):  # a slider setting the value it has, 1000 times before the slot
+        schedule.rebase(0.05, 100.0 + k * 0.00004)
+    assert schedule.due() == pytest.approx(100.05)
+    schedule.rebase(0.1, 100.01)
+    for k in range(100):  # new values every ms: the next slot never moves later
+        schedule.rebase(0.1 + (k % 2) * 0.05, 100.01 + k * 0.0001)
+        assert schedule.due() <= 100.05 + 1e-9
 
 
 def test_stop_waits_for_a_send_in_flight_and_nothing_follows_it(monkeypatch):

@@ -15,8 +15,8 @@ from typing import Callable, ClassVar
 from ams_can_bridge.devices.ams_charger import ChargerRepeater
 from ams_can_bridge.devices.ams_master import AmsMaster, AmsView
 from ams_can_bridge.devices.base import Sent
-from ams_can_bridge.devices.commands import (CARRIED, Carry, Command, EXCHANGE, ONCE,
-                                             TRIGGER)
+from ams_can_bridge.devices.commands import (CARRIED, Carry, Command, EXCHANGE_BUS_FIRST,
+                                             ONCE, TRIGGER)
 from ams_can_bridge.devices.configs import AmsConfig
 from ams_can_bridge.devices.ports import Armed, CallPort, InfoLog, SendFrame
 from ams_can_bridge.errors import RefusedCommand
@@ -47,8 +47,10 @@ class AmsControl:
               ('abort', proto.CarCommand.ABORT, 'abort (open TS and SC, back to IDLE)'),
               ('set_bank_count', proto.CarCommand.SET_BANK_COUNT, 'send SET_BANK_COUNT'),
               ('sync_time', proto.CarCommand.SYNC_TIME, 'send SYNC_TIME'))),
-        Command('start_charging', 'start charging', TRIGGER, 'start_charging', EXCHANGE),
-        Command('stop_charging', 'stop charging', TRIGGER, 'stop_charging', EXCHANGE),
+        Command('start_charging', 'start charging', TRIGGER, 'start_charging',
+                EXCHANGE_BUS_FIRST),
+        Command('stop_charging', 'stop charging', TRIGGER, 'stop_charging',
+                EXCHANGE_BUS_FIRST),
         Command('set_charge_current', 'set the charge current', TRIGGER,
                 'charge_current_frame', ONCE),
         Command('override_bank_count', 'override the bank count', TRIGGER,

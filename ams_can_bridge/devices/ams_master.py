@@ -211,8 +211,10 @@ class AmsMaster:
             self._log(f'{self.name}: heartbeat stopped ({why})')
 
     def set_period(self, period: float) -> None:
-        """Change the heartbeat period at run time."""
+        """Change the heartbeat period from its next slot on; the same period changes nothing."""
         with self._cond:
+            if float(period) == self._period:
+                return
             self._period = float(period)
         self.sender.set_period(self._period)
 

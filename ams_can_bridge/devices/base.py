@@ -239,9 +239,11 @@ class Device(Generic[ConfigT]):
         Apply parameter changes ({key: value}) as one new configuration, swapped in whole.
 
         Raises ParamError (a ValueError, naming the parameter) and keeps the old
-        configuration when a value is not usable.
+        configuration when a value is not usable. The values it has already change nothing.
         """
         new = self.config.replace(changes)
+        if new == self.config:  # the values it has: nothing changes (no swap, no follow-up)
+            return new
         problems = self.config_problems(new, changes)
         if problems:
             raise ParamError('; '.join(problems))

@@ -48,6 +48,11 @@ class Frames:
 class Exchange:
     """The device runs the call through a ``CallPort`` and words its outcome."""
 
+    # The pipeline waits for a (re)opening bus before the method runs, and the call's
+    # frames then never wait: for a method that holds a lock of its own around its frames
+    # (the charger's ordering lock), so no call waits for the bus holding it.
+    bus_first: bool = False
+
 
 @dataclass(frozen=True)
 class Carried:
@@ -58,6 +63,7 @@ Policy = Frames | Exchange | Carried
 ONCE = Frames()
 PACED = Frames(paced=True)
 EXCHANGE = Exchange()
+EXCHANGE_BUS_FIRST = Exchange(bus_first=True)
 CARRIED = Carried()
 
 

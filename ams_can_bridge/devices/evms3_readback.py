@@ -16,7 +16,7 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-from ams_can_bridge.devices.ports import CallPort, SendFrame
+from ams_can_bridge.devices.ports import CallPort, CANCEL_POLL, cancel_reason, SendFrame
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import (
     CONFIG_FIELDS, ConfigReadback, ConfigReport, READBACK_IDS, READBACK_NAMES)
@@ -92,9 +92,15 @@ class ConfigReader:
                 return ReadResult(None, f'ID 51 was not sent: {why}')
             deadline = time.monotonic() + timeout
             with self._cv:
-                self._cv.wait_for(lambda: len(waiting) == len(READBACK_IDS),
-                                  max(0.0, deadline - time.monotonic()))
+                while len(waiting) < len(READBACK_IDS) and not cancel_reason(send):
+                    left = deadline - time.monotonic()
+                    if left <= 0:
+                        break
+                    self._cv.wait(min(left, CANCEL_POLL))  # a transition may end the call
                 got, malformed = dict(waiting), list(self._malformed)
+            ended = cancel_reason(send)
+            if ended and len(got) < len(READBACK_IDS):
+                return ReadResult(None, f'cancelled by {ended} while waiting for IDs 52..56')
         finally:
             with self._cv:
                 self._waiting = None

@@ -16,7 +16,7 @@ import time
 from typing import Callable, Iterable
 
 from ams_can_bridge.errors import AmsCanBridgeError
-from ams_can_bridge.devices.ports import SendFrame
+from ams_can_bridge.devices.ports import CANCEL_POLL, cancel_reason, SendFrame
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.ivt_s import DBC_NAME, IvtMux
 from ams_can_bridge.protocols import ivt_s_commands as cmd
@@ -210,7 +210,11 @@ class CommandLink:
                 if left <= 0:
                     raise NoAnswer(f'no answer to {what} (0x{frame.data[0]:02X}) within '
                                    f'{timeout:g} s')
-                self._cv.wait(left)
+                ended = cancel_reason(send)
+                if ended:
+                    raise NoAnswer(f'ended while waiting for the answer to {what} '
+                                   f'(0x{frame.data[0]:02X}): cancelled by {ended}')
+                self._cv.wait(min(left, CANCEL_POLL))
 
 
 # --- sequences (service threads) ------------------------------------------------------------

@@ -9,6 +9,9 @@ What the bridge needs beyond it:
 - slot k is due at ``start + k * period`` on the monotonic clock: sleeping to an absolute
   time cannot drift, and a thread late by a period or more skips the missed slots (counted
   in ``missed_slots``), never sends them in a burst;
+- the slots are a fixed grid: a period change takes effect from the next slot on and never
+  moves that slot later, and setting the period it has changes nothing (a stream of
+  parameter sets must never starve a heartbeat);
 - ``stop`` returns only once a frame being sent right now is on the bus and the thread has
   ended, so nothing is sent after it returns; a generation counter makes a thread of an
   earlier start return without sending, whenever it wakes;
@@ -58,12 +61,23 @@ class SlotSchedule:
         return skipped
 
     def rebase(self, period: float, now: float) -> None:
-        """Change the period from now on (first slot of the new period: one period ahead)."""
+        """
+        Change the period from the next slot on; the same period changes nothing.
+
+        The slots are a fixed grid: a change never moves the next slot later (a stream of
+        sets would otherwise starve the frame), only earlier, to one new period after the
+        last slot taken when that comes sooner; the slots after it are the new period apart.
+        """
         if not period > 0:
             raise ParamError(f'period {period!r} must be > 0 s')
-        last = self.start + (self.k - 1) * self.period if self.k else now
+        if period == self.period:
+            return
+        upcoming = self.due()
+        if self.k:  # a slot was taken: a shorter period brings the next one closer
+            last = self.start + (self.k - 1) * self.period
+            upcoming = min(upcoming, max(last + period, now))
         self.period = period
-        self.start = max(last + period, now)
+        self.start = upcoming
         self.k = 0
 
 
@@ -156,10 +170,17 @@ class PeriodicSender:
         return True
 
     def set_period(self, period: float) -> None:
-        """Change the period at run time: the next slot is one new period after the last."""
+        """
+        Change the period at run time, from the next slot on (``SlotSchedule.rebase``).
+
+        The same period changes nothing at all (the thread is not even woken): a slider
+        that sets the value it has must not touch the schedule.
+        """
         if not period > 0:
             raise ParamError(f'{self.what}: period {period!r} must be > 0 s')
         with self._lock:
+            if float(period) == self._period:
+                return
             self._period = float(period)
             if self._schedule is not None:
                 self._schedule.rebase(self._period, self._clock())

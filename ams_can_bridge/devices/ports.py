@@ -36,6 +36,9 @@ class CallPort(Protocol):
     def send_frames(self, build: Callable[[], Iterable[Frame]]) -> tuple[bool, str]:
         """Build and send frames as a ``Frames`` row does: (ok, the pipeline's answer)."""
 
+    def cancelled(self) -> str:
+        """Return why a lifecycle transition ended the call ('' while it runs)."""
+
     def set_config(self, values: Mapping[str, Any]) -> tuple[bool, str]:
         """Set the device's parameters {key: value} all or none: (done, why not)."""
 
@@ -63,3 +66,17 @@ class InfoLog(Protocol):
 
     def warning(self, message: str) -> object:
         """Log a problem the user should see."""
+
+
+CANCEL_POLL = 0.02  # s: a device waiting for an answer looks at its call's cancel this often
+
+
+def cancel_reason(send: Any) -> str:
+    """
+    Return why the call of ``send`` was ended ('' while it runs, or for a plain sender).
+
+    A device waiting for an answer asks this every ``CANCEL_POLL`` s: a lifecycle
+    transition ends the calls in flight before it goes on (engine/calls.py).
+    """
+    cancelled = getattr(send, 'cancelled', None)
+    return str(cancelled()) if callable(cancelled) else ''

@@ -16,9 +16,16 @@ Every command of every device passes ``Pipeline.call`` (the rows: devices/comman
 4. anything else the device raises is a bug: logged with its traceback (ERROR) and
    answered as an internal error, never as a refusal;
 5. the answer is logged (INFO when it succeeded, WARN when not).
+
+Every call in flight is known (``Call``): a lifecycle transition ends them all first
+(``cancel_calls``: a bus wait returns, a device waiting for an answer stops within
+``devices.ports.CANCEL_POLL``, nothing more is sent) and they answer ``success: false``,
+"cancelled by <transition>"; ``wait_calls`` then waits until they have returned (issue 34,
+point 3).
 """
 from __future__ import annotations
 
+import threading
 import time
 import traceback
 from functools import partial
@@ -31,6 +38,15 @@ from ams_can_bridge.errors import EncodeRangeError, RefusedCommand
 from ams_can_bridge.protocols.common import Frame
 
 SetConfig = Callable[[str, Mapping[str, Any]], tuple[bool, str]]  # (instance, {key: value})
+
+
+class Call:
+    """One call in flight: its name and, once a transition ended it, why."""
+
+    def __init__(self, source: str) -> None:
+        """Begin the call ``source`` ('<instance>/<service>')."""
+        self.source = source
+        self.cancelled = ''  # 'deactivate', ...: set once, by cancel_calls
 
 
 class Log(Protocol):
@@ -75,18 +91,29 @@ class Pipeline:
         self._set_config = set_config
         self._bus_ready = bus_ready
         self._sleep = sleep
+        self._flight = threading.Condition()  # the calls in flight
+        self._calls: set[Call] = set()
 
     def call(self, name: str, device: Device, row: Command, data: bool | None = None,
              source: str | None = None) -> tuple[bool, str]:
         """Run one call of ``row`` on instance ``name``: (success, answer); never raises."""
         source = source or f'{name}/{row.service}'
+        call = Call(source)
+        with self._flight:
+            self._calls.add(call)
         try:
             with self.gate.calling(source):
-                ok, message = self._run(name, device, row, data)
+                ok, message = self._run(name, device, row, data, call)
         except Exception as exc:  # a bug, not a refusal: say so, keep the traceback
             self._log.error(f'{source}: internal error:\n' + traceback.format_exc())
             ok, message = False, (f'{source}: internal error: {type(exc).__name__}: {exc}; '
                                   'see the log')
+        finally:
+            with self._flight:
+                self._calls.discard(call)
+                self._flight.notify_all()
+        if call.cancelled and not ok:
+            message = f'cancelled by {call.cancelled}: {message}'
         answer = f'{source}: answered success={ok}: {message}'
         if ok:
             self._log.info(answer)
@@ -94,8 +121,30 @@ class Pipeline:
             self._log.warning(answer)
         return ok, message
 
+    # --- the calls in flight (lifecycle transitions) -------------------------------------
+    def in_flight(self) -> int:
+        """Return how many calls run now."""
+        with self._flight:
+            return len(self._calls)
+
+    def cancel_calls(self, why: str) -> int:
+        """End every call in flight (answered 'cancelled by <why>'); return how many."""
+        with self._flight:
+            for call in self._calls:
+                call.cancelled = call.cancelled or why
+            count = len(self._calls)
+        self.gate.end_waits()  # a call waiting for the bus returns now
+        return count
+
+    def wait_calls(self, timeout: float) -> bool:
+        """Wait up to timeout s until no call is in flight; True when none is."""
+        deadline = time.monotonic() + timeout
+        with self._flight:
+            return self._flight.wait_for(lambda: not self._calls,
+                                         max(0.0, deadline - time.monotonic()))
+
     def _run(self, name: str, device: Device, row: Command,
-             data: bool | None) -> tuple[bool, str]:
+             data: bool | None, call: Call) -> tuple[bool, str]:
         what = row.words(data)
         if not self.gate.enabled:
             return False, f'{name}: {self.gate.refusal(what)}'
@@ -104,17 +153,28 @@ class Pipeline:
         policy = row.policy
         if isinstance(policy, Frames):
             gap = float(getattr(device, 'CONFIG_FRAME_GAP', 0.0)) if policy.paced else 0.0
-            return self.frames(name, what, partial(method, *args), gap, policy)
+            return self.frames(name, what, partial(method, *args), gap, policy, call=call)
         if isinstance(policy, Exchange):
-            ok, message = method(Port(self, name, what), *args)
+            port = Port(self, name, what, call)
+            if policy.bus_first:  # before the method takes its own lock (commands.py)
+                ok, message = self.wait_for_bus(name)
+                if not ok:
+                    return False, f'{name}: cannot {what}: {message}; nothing was sent'
+                port.waited = True
+            ok, message = method(port, *args)
             return bool(ok), message
         assert isinstance(policy, Carried), policy  # the three policies of commands.py
         return self._carried(name, method(*args))
 
     # --- Frames ---------------------------------------------------------------------------
     def frames(self, name: str, what: str, build: Callable[[], Frame | Iterable[Frame]],
-               gap: float = 0.0, policy: Frames = Frames()) -> tuple[bool, str]:
-        """Build a call's frames, wait for the bus once, send them in one batch; answer."""
+               gap: float = 0.0, policy: Frames = Frames(), *, wait: bool = True,
+               call: Call | None = None) -> tuple[bool, str]:
+        """
+        Build a call's frames, wait for the bus once, send them in one batch; answer.
+
+        ``wait=False``: the call has waited for the bus already (a bus lost since fails it).
+        """
         try:
             # Validation happens here, before anything is sent; a device builds a write from
             # one configuration object, so a parameter set meanwhile cannot mix two sets.
@@ -124,13 +184,16 @@ class Pipeline:
         frames = [built] if isinstance(built, Frame) else list(built)
         # A bus still opening (or reconnecting) is waited for once, before the first frame
         # and outside the batch, so calls wait side by side, not one after the other.
-        ok, message = self.wait_for_bus(name)
+        ok, message = self.wait_for_bus(name) if wait else (True, '')
         if not ok:
             return False, f'{name}: cannot {what}: {message}; nothing was sent'
         sent: list[str] = []
         with self.gate.batch():  # the pause after each frame too: nothing else lands there
             for k, frame in enumerate(frames):
-                ok, message = self.gate.transmit(frame, wait=False)
+                if call is not None and call.cancelled:
+                    ok, message = False, f'cancelled by {call.cancelled}'
+                else:
+                    ok, message = self.gate.transmit(frame, wait=False)
                 if not ok:
                     done = ', '.join(sent) if sent else 'nothing'
                     left = ', '.join(f'ID {f.arbitration_id}' for f in frames[k:])
@@ -170,19 +233,30 @@ class Pipeline:
 class Port:
     """The ``CallPort`` of one call (devices/ports.py): what an ``Exchange`` device uses."""
 
-    def __init__(self, pipeline: Pipeline, name: str, what: str) -> None:
+    def __init__(self, pipeline: Pipeline, name: str, what: str,
+                 call: Call | None = None) -> None:
         """Serve one call of instance ``name`` that does ``what``."""
         self._pipeline = pipeline
         self._name = name
         self._what = what
+        self._call = call
+        self.waited = False  # the pipeline waited for the bus: the frames never wait
 
     def __call__(self, frame: Frame, /) -> tuple[bool, str]:
         """Send one frame of the call: the gate, the bus wait, the command log line."""
-        return self._pipeline.gate.transmit(frame)
+        call = self._call
+        if call is not None and call.cancelled:
+            return False, f'cancelled by {call.cancelled}; not sent'
+        return self._pipeline.gate.transmit(frame, wait=not self.waited)
+
+    def cancelled(self) -> str:
+        """Return why a transition ended the call ('' while it runs): its waits end."""
+        return self._call.cancelled if self._call is not None else ''
 
     def send_frames(self, build: Callable[[], Iterable[Frame]]) -> tuple[bool, str]:
         """Build and send frames as a ``Frames`` row does (the call's words)."""
-        return self._pipeline.frames(self._name, self._what, build)
+        return self._pipeline.frames(self._name, self._what, build, wait=not self.waited,
+                                     call=self._call)
 
     def set_config(self, values: Mapping[str, Any]) -> tuple[bool, str]:
         """Set the instance's parameters {key: value}, all or none."""

@@ -79,6 +79,9 @@ class CommandPort(Protocol):
     def send_periodic(self, frame: Frame) -> tuple[bool, str]:
         """Send one frame of a periodic sender, never waiting: (ok, message)."""
 
+    def end_waits(self) -> None:
+        """End every bus wait in flight now."""
+
     def start_when_connected(self, start: Callable[[], None]) -> PendingStart:
         """Call ``start`` once the bus is connected, while commands stay enabled."""
 
@@ -126,6 +129,7 @@ class CommandGate:
         self._batch_lock = threading.RLock()
         self._io_lock = threading.Lock()
         self._listeners: list[Listener] = []
+        self._waits_ended = 0  # end_waits(): the bus waits begun before it return
         self._call = threading.local()  # the service a thread is answering (log line)
 
     # --- state ------------------------------------------------------------------------
@@ -210,7 +214,8 @@ class CommandGate:
         Wait for a bus that is opening or reconnecting: (connected, why not) - never raises.
 
         Waits at most ``connect_wait`` s (and at most ``limit`` s, a state command's own
-        timeout); returns early when commands are disabled meanwhile.
+        timeout); returns early when commands are disabled or ``end_waits`` is called
+        meanwhile. Beyond ``BUS_WAIT_SLOTS`` waiting calls a call is refused at once.
         """
         bus = self._bus
         if bus is None:
@@ -231,6 +236,10 @@ class CommandGate:
                 self._bus_waits.release()
         return self._wait_for_bus(bus, status, wait, limit)
 
+    def end_waits(self) -> None:
+        """End every bus wait in flight now (a lifecycle transition ends the calls first)."""
+        self._waits_ended += 1
+
     def bus_waiters(self) -> int:
         """Return how many calls wait for the bus now."""
         return BUS_WAIT_SLOTS - self._bus_waits._value
@@ -238,7 +247,10 @@ class CommandGate:
     def _wait_for_bus(self, bus: BusPort, status: BusStatus, wait: float,
                       limit: float | None) -> tuple[bool, str]:
         deadline = time.monotonic() + wait
+        ended = self._waits_ended
         while status.state in RETRY_STATES and self._enabled:
+            if self._waits_ended != ended:
+                return False, 'the call was ended while waiting for the CAN bus'
             left = deadline - time.monotonic()
             if left <= 0:
                 break

@@ -20,7 +20,6 @@ import traceback
 from typing import Any, Callable
 
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.duration import Duration
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from rclpy.parameter import Parameter
@@ -37,6 +36,7 @@ from ams_can_bridge.engine.startup import (bus_settings, check_replay_clock, lau
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.parameters import AUTOSTART, BUS_PARAMS, NODE_PARAMS
 from ams_can_bridge.ros.bus_log import BusStateLog
+from ams_can_bridge.ros.call_group import CommandGroup
 from ams_can_bridge.ros.convert import ContextLog, stdlib_logger
 from ams_can_bridge.ros.overrides import unapplied_overrides
 from ams_can_bridge.ros.params import ParamRegistry
@@ -46,6 +46,9 @@ from ams_can_bridge.ros.sink import RosSink
 
 NODE_NAME = 'ams_can_bridge'
 REPLAY_EXIT_ACK_WAIT = 1.0  # s the publishers wait for their subscribers' acks before an exit
+# s a transition waits for the calls it ended to answer (they end within tens of ms; a
+# device's own bound, ivt_s.command_timeout and the like, is the worst case)
+CALLS_END_WAIT = 5.0
 
 __all__ = ['BridgeNode', 'ConfigError', 'NODE_NAME']
 
@@ -67,7 +70,7 @@ class BridgeNode(LifecycleNode):
         self._on_exit = on_exit
         guard_services(self)  # parameter and lifecycle services: a bad request is answered
         self.params = ParamRegistry(self)
-        self.service_group = ReentrantCallbackGroup()
+        self.service_group = CommandGroup()  # never every executor thread (call_group.py)
         self.devices: dict[str, Device] = {}
         self.commands: Commands | None = None  # made in _configure (the devices' commands)
         self.command_services: dict[str, list[Any]] = {}  # {instance: its command services}
@@ -136,12 +139,14 @@ class BridgeNode(LifecycleNode):
         return TransitionCallbackReturn.SUCCESS
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
-        """Become a pure listener: commands off (nothing is sent), nothing published."""
+        """Become a pure listener: calls ended, commands off (nothing sent), nothing published."""
         self._active = False
+        ended = self._cancel_calls('deactivate')
         if self.commands_enabled:
             self.set_parameters([Parameter('commands_enabled', value=False)])
         if self.gate is not None:  # whatever became of that set: nothing is sent now
             self.gate.set_enabled(False, how='the bridge was deactivated')
+        self._wait_calls(ended, 'deactivate')
         self.periodic.stop()
         if self.sink is not None:
             self.sink.enabled = False
@@ -150,13 +155,28 @@ class BridgeNode(LifecycleNode):
 
     def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Release everything configure built: bus closed, threads joined, services gone."""
-        self._release()
+        self._release('cleanup')
         return TransitionCallbackReturn.SUCCESS
 
     def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Release everything, from whichever state."""
-        self._release()
+        self._release('shutdown')
         return TransitionCallbackReturn.SUCCESS
+
+    def _cancel_calls(self, transition: str) -> int:
+        """End the command calls in flight (answered 'cancelled by <transition>')."""
+        return self.commands.pipeline.cancel_calls(transition) if self.commands else 0
+
+    def _wait_calls(self, ended: int, transition: str) -> None:
+        """Wait until the ended calls have returned and their answers are sent (bounded)."""
+        calls_done = self.commands is None or self.commands.pipeline.wait_calls(CALLS_END_WAIT)
+        # rclpy sends an answer after its callback returned: the group counts it until then
+        answered = self.service_group.wait_idle(CALLS_END_WAIT)
+        if not (calls_done and answered):
+            self.get_logger().error(f'{transition}: calls still running after '
+                                    f'{CALLS_END_WAIT:g} s')
+        elif ended:
+            self.get_logger().info(f'{transition}: {ended} call(s) in flight ended first')
 
     def _setup(self) -> None:
         """Configure (raise ConfigError naming every bad value), then open the bus."""
@@ -176,15 +196,22 @@ class BridgeNode(LifecycleNode):
             if text:
                 self.get_logger().warning(text)
 
-    def _release(self) -> None:
-        """Stop the periodic work, the senders and the bus thread; drop services, publishers."""
+    def _release(self, transition: str = 'shutdown') -> None:
+        """
+        End the calls in flight; stop the periodic work, the senders and the bus thread.
+
+        The services are destroyed only once their callbacks have returned (and rclpy has
+        sent their answers): a service destroyed under a running callback ends the executor.
+        """
         self._ready = self._active = False
+        ended = self._cancel_calls(transition)
         if getattr(self, 'periodic', None) is not None:
             self.periodic.stop()
         if self.gate is not None:
             self.gate.attach_bus(None)  # a command from now on is answered 'shutting down'
         if self.commands is not None:
             self.commands.close()
+            self._wait_calls(ended, transition)
             self.commands = None
         for services in self.command_services.values():
             for service in services:
