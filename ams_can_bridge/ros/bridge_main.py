@@ -14,6 +14,7 @@ itself in its constructor, so a bad parameter still ends the process with exit 2
 """
 from __future__ import annotations
 
+import os
 import re
 import signal
 import sys
@@ -127,8 +128,12 @@ def main(args: list[str] | None = None) -> int:
     from ams_can_bridge.devices.dbc_plan import set_params_files
     from ams_can_bridge.ros.bridge_node import BridgeNode, ConfigError, NODE_NAME
     from ams_can_bridge.ros.params import (
-        params_file_problems, params_files, unmatched_params_files)
+        node_name_from_argv, params_file_problems, params_files, unmatched_params_files)
     set_params_files(params_files(argv))  # a dbc device's files beside its params file
+    unusable = params_file_paths_problems(params_files(argv))
+    if unusable:  # rcl would say "Error opening YAML file", or block on a FIFO
+        rclpy.logging.get_logger(NODE_NAME).error('cannot start: ' + '\n'.join(unusable))
+        return 2
     sys.setswitchinterval(GIL_SWITCH_INTERVAL)
     signals = StopSignals()
     try:
@@ -138,7 +143,7 @@ def main(args: list[str] | None = None) -> int:
         return 2
     node = None
     try:
-        problems = params_file_problems(argv)
+        problems = params_file_problems(argv, node_name_from_argv(argv, NODE_NAME))
         if problems:  # before the node exists: nothing armed, the bus not opened
             rclpy.logging.get_logger(NODE_NAME).error('cannot start: ' + '\n'.join(problems))
             return 2
@@ -205,6 +210,20 @@ def _watch_for_a_namesake(node: Any) -> None:
             timer.cancel()  # checked enough: the timer stays idle until the node goes
 
     timer = node.create_timer(NAME_CHECK_PERIOD, check)
+
+
+def params_file_paths_problems(paths: list[str]) -> list[str]:
+    """Return a line per --params-file that is no readable regular file, with its full path."""
+    from ams_can_bridge.input_files import file_problem
+    problems = []
+    for path in paths:
+        problem = file_problem(path)
+        if problem:
+            full = os.path.abspath(os.path.expanduser(path))
+            given = '' if full == path else f' (given as {path})'
+            problems.append(f'params file {full}{given} {problem}: give the path of a '
+                            'params file (--params-file PARAMS.yaml)')
+    return problems
 
 
 def user_arguments(argv: list[str]) -> list[str]:
