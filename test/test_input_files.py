@@ -45,7 +45,7 @@ def alias_bomb(levels: int = 6, width: int = 10) -> str:
 
 @pytest.fixture
 def special_paths(tmp_path: Path) -> dict[str, str]:
-    """A FIFO, a directory and /dev/zero: each exists, none is a regular file."""
+    """Return a FIFO, a directory and /dev/zero: each exists, none is a regular file."""
     fifo = tmp_path / 'pipe.log'
     os.mkfifo(fifo)
     folder = tmp_path / 'folder.log'
@@ -125,7 +125,8 @@ def test_replay_says_a_log_is_not_a_regular_file(special_paths):
 def test_a_mapping_or_dbc_that_is_not_a_regular_file_is_named(special_paths):
     dbc, mapping = profile_files('foxbms2')
     for kind, path in special_paths.items():
-        with pytest.raises(MappingError, match=re.escape(f"mapping_file '{path}' is {kind}, not a ")):
+        with pytest.raises(MappingError,
+                           match=re.escape(f"mapping_file '{path}' is {kind}, not a ")):
             load_plan(str(dbc), path)
         with pytest.raises(MappingError, match=re.escape(f"dbc_file '{path}' is {kind}, not a ")):
             load_plan(path, str(mapping))

@@ -276,7 +276,8 @@ def test_an_absent_adapter_is_not_a_configuration_error():
 
 
 def test_replay_of_a_missing_file_stops_at_start():
-    with pytest.raises(ValueError, match="can.channel = '/nonexistent.log': the log file to replay does not exist"):
+    with pytest.raises(ValueError, match="can.channel = '/nonexistent.log': the log file to "
+                                         'replay does not exist'):
         BusConfig(interface='replay', channel='/nonexistent.log').check()
 
 
