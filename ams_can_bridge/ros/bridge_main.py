@@ -40,6 +40,7 @@ NAME_CHECK_PERIOD = 0.5  # s
 NAME_CHECK_FOR = 5.0  # s after the start
 
 USAGE = f"""usage: bridge [-h] --ros-args --params-file PARAMS.yaml [-p NAME:=VALUE ...]
+       ams-can-bridge [-h] --ros-args ...   (the same program)
        ros2 run ams_can_bridge bridge --ros-args --params-file PARAMS.yaml
        ros2 launch ams_can_bridge bridge.launch.py params_file:=PARAMS.yaml
 
@@ -48,7 +49,11 @@ any BMS from its DBC) to sensor_msgs/BatteryState and /diagnostics. Parameters c
 --ros-args: a params file (--params-file, sections '/**:' or '<node name>:', then
 'ros__parameters:') and single values (-p can.interface:=slcan). The example params files
 are installed in
-$(ros2 pkg prefix ams_can_bridge)/share/ams_can_bridge/config/*.yaml.
+  {{config}}/*.yaml
+
+'bridge' is also iproute2's /usr/sbin/bridge: outside the venv, or after a colcon install
+without 'ros2 run', 'bridge' may run that one ('Option "-ros-args" is unknown'). Use
+'ams-can-bridge' there: the same program under a name nothing else has.
 
 main parameters:
   can.interface      python-can interface: socketcan (default), slcan, pcan, virtual, replay
@@ -113,7 +118,7 @@ def main(args: list[str] | None = None) -> int:
     argv = list(sys.argv if args is None else args)
     own = user_arguments(argv)
     if '-h' in own or '--help' in own:
-        print(USAGE, end='')
+        print(USAGE.replace('{config}', _config_dir()), end='')
         return 0
     if own:
         print(f'bridge: unknown argument(s) {" ".join(own)}: parameters go after --ros-args '
@@ -210,6 +215,15 @@ def _watch_for_a_namesake(node: Any) -> None:
             timer.cancel()  # checked enough: the timer stays idle until the node goes
 
     timer = node.create_timer(NAME_CHECK_PERIOD, check)
+
+
+def _config_dir() -> str:
+    """Return the installed example params files' folder (no ROS needed to find it)."""
+    try:
+        from ams_can_bridge.protocols.common import msg_defs_dir
+        return str(msg_defs_dir().parent / 'config')
+    except (ImportError, FileNotFoundError):  # cantools or msg_defs missing: say what it is
+        return '<the share folder of ams_can_bridge>/config'
 
 
 def params_file_paths_problems(paths: list[str]) -> list[str]:
