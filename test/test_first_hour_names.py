@@ -43,3 +43,37 @@ def test_the_install_check_runs_the_second_name_on_both_paths():
     assert 'for exe in bridge ams-can-bridge ' in text and 'venv/bin/ams-can-bridge' in text
     for page in ('getting_started.md', 'real_bus.md'):
         assert 'ams-can-bridge' in (ROOT / 'doc' / page).read_text(), page
+
+
+# The Python keys of package.xml as ros/rosdistro's rosdep/python.yaml has them (checked at
+# its commit 8468e88c, 2026-08-22): cantools and rosbags only as pip keys, canmatrix not at all.
+ROSDEP_PYTHON_KEYS = {'python3-can', 'python3-cantools-pip', 'python3-serial', 'python3-yaml',
+                      'python3-rosbags-pip', 'python3-pytest', 'python3-hypothesis'}
+
+
+def install_section() -> str:
+    text = (ROOT / 'doc' / 'getting_started.md').read_text()
+    return text.split('\n## Installing in a ROS 2 workspace\n', 1)[1].split('\n## ', 1)[0]
+
+
+def pins(path: Path) -> dict[str, str]:
+    return dict(re.findall(r'^([\w-]+)==([\w.]+)', path.read_text(), re.M))
+
+
+def test_the_workspace_recipe_is_rosdep_first_with_real_keys_and_a_pinned_fallback():
+    """Issue 38, 9: `pip install` into the system Python fails on Ubuntu 24.04 (PEP 668)."""
+    blocks = re.findall(r'```bash\n(.*?)```', install_section(), re.S)
+    assert 'rosdep install --from-paths src -y --ignore-src' in blocks[0]
+    assert 'pip install' not in blocks[0]  # PEP 668: refused on the system Python
+    manifest = (ROOT / 'package.xml').read_text()
+    python_keys = set(re.findall(r'<(?:exec_|test_)?depend>(python3-[\w-]+)</', manifest))
+    assert python_keys <= ROSDEP_PYTHON_KEYS, python_keys - ROSDEP_PYTHON_KEYS
+    # the fallback: a venv that sees ROS, the versions CI tests, colcon run from the venv
+    fallback = blocks[1]
+    assert 'python3 -m venv --system-site-packages' in fallback
+    assert 'python -m colcon build' in fallback and 'COLCON_IGNORE' in fallback
+    tested = pins(ROOT / 'requirements.txt') | pins(ROOT / 'requirements-dev.txt')
+    given = dict(re.findall(r'([\w-]+)==([\w.]+)', install_section()))
+    assert {'python-can', 'cantools', 'rosbags', 'canmatrix'} <= set(given)
+    assert all(tested[name] == version for name, version in given.items()), given
+    assert 'PIP_BREAK_SYSTEM_PACKAGES' in install_section()
