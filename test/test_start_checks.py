@@ -315,7 +315,7 @@ def test_help_prints_usage_and_exits_0_without_starting_ros():
                       '-p NAME:=VALUE', 'can.interface', 'can.channel', 'devices',
                       'commands_allowed', 'doc/parameters.md', 'doc/topics_services.md',
                       'doc/failure_modes.md', 'doc/real_bus.md',
-                      'share/ams_can_bridge/config'):
+                      'config/*.yaml', 'ams-can-bridge'):
             assert words in proc.stdout, words
 
 
