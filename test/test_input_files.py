@@ -30,6 +30,7 @@ from ams_can_bridge.ros.params import node_name_from_argv
 from slcan_peer import SlcanPeer
 from test_attacks_start import stopped_before_the_adapter
 from test_bridge_slcan import bridge_executable
+from test_probe_cli import one_line_error
 from test_start_checks import assert_nothing_reached, run_bridge, slcan_yaml
 
 NODE = 'ams_can_bridge'
@@ -112,6 +113,12 @@ def test_log2bag_says_a_log_is_not_a_regular_file(special_paths, tmp_path, capsy
         assert log2bag([path, str(tmp_path / 'bag'), '--params-file', str(params)]) == 2
         err = capsys.readouterr().err
         assert f'is {kind}, not a regular file' in err and 'does not exist' not in err, err
+
+
+def test_probe_says_a_log_is_not_a_regular_file(special_paths, capsys):
+    for kind, path in special_paths.items():
+        line = one_line_error(capsys, [path])
+        assert f"log file '{path}' is {kind}, not a regular file" in line, line
 
 
 def test_replay_says_a_log_is_not_a_regular_file(special_paths):
