@@ -114,20 +114,24 @@ def compose_yaml(text: str, where: str, aliases: bool = True) -> yaml.Node | Non
     return yaml.compose(text, Loader=yaml.SafeLoader)
 
 
-def read_yaml(path: str | os.PathLike[str], what: str, aliases: bool = True) -> Any:
-    """
-    Read and load a YAML file; ConfigError naming ``what`` and the path when it cannot be.
-
-    A file that is not YAML raises yaml.YAMLError (the caller words it with the line).
-    """
+def read_text(path: str | os.PathLike[str], what: str) -> str:
+    """Return a user's text file; ConfigError naming ``what`` and the path when it cannot be."""
     where = f'{what} {str(path)!r}'
     problem = file_problem(path)
     if problem:
         raise ConfigError(f'{where} {problem}')
     try:
         with open(path, encoding='utf-8') as stream:
-            text = stream.read()
+            return stream.read()
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f'{where} cannot be read: {getattr(exc, "strerror", None) or exc}') \
             from None
-    return load_yaml(text, where, aliases)
+
+
+def read_yaml(path: str | os.PathLike[str], what: str, aliases: bool = True) -> Any:
+    """
+    Read and load a YAML file; ConfigError naming ``what`` and the path when it cannot be.
+
+    A file that is not YAML raises yaml.YAMLError (the caller words it with the line).
+    """
+    return load_yaml(read_text(path, what), f'{what} {str(path)!r}', aliases)

@@ -26,7 +26,7 @@ import yaml
 
 from ams_can_bridge.device_set import unknown_parameter_errors
 from ams_can_bridge.errors import ConfigError, ParamError
-from ams_can_bridge.input_files import compose_yaml, file_problem, load_yaml
+from ams_can_bridge.input_files import compose_yaml, load_yaml, read_text
 from ams_can_bridge.parameters import coerce, ParamSpec, raise_param_errors
 
 PARAMETERS_KEY = 'ros__parameters'
@@ -156,16 +156,10 @@ def read_params_file(path: str, fully_qualified_name: str | None = None) -> Any:
     Ambiguous: a key given twice, a second section for one node, a key given in two sections
     that apply to ``fully_qualified_name`` (``duplicate_problems``).
     """
-    problem = file_problem(path)
-    if problem:
-        raise ConfigError(f'parameters file {path!r} {problem}')
+    text = read_text(path, 'parameters file')
     try:
-        with open(path, encoding='utf-8') as stream:
-            text = stream.read()
         problems = duplicate_problems(path, text, fully_qualified_name)
         document = load_yaml(text, f'params file {path}', aliases=False)
-    except OSError as exc:
-        raise ConfigError(f'parameters file {path!r}: {exc.strerror or exc}') from None
     except yaml.YAMLError as exc:
         raise ConfigError(f'parameters file {path!r} is not valid YAML: {exc}') from None
     if problems:
