@@ -32,6 +32,8 @@ setup(
     entry_points={
         'console_scripts': [
             'bridge = ams_can_bridge.ros.bridge_main:main',
+            # the same program under a name iproute2's /usr/sbin/bridge cannot shadow
+            'ams-can-bridge = ams_can_bridge.ros.bridge_main:main',
             'simulator = ams_can_bridge.sim.main:main',
             'demo = ams_can_bridge.ros.demo:main',
             'monitor = ams_can_bridge.ros.monitor:main',

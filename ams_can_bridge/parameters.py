@@ -10,6 +10,7 @@ from __future__ import annotations
 import array
 from dataclasses import dataclass
 import math
+import re
 from typing import Any, Iterable
 
 from ams_can_bridge.errors import ConfigError, EncodeRangeError, ParamError
@@ -110,13 +111,27 @@ def _is_number(text: str) -> bool:
     return True
 
 
+# '500k', '1M', '250 kbit/s': a rate as people say it, which no parameter reads
+_SCALED = re.compile(r'\s*(\d+(?:\.\d+)?)\s*([kKmM])(?:bit|bps|b)?(?:/s)?\s*')
+
+
+def _suffix_hint(value: Any) -> str:
+    """Return ': write 500000' for '500k' (a number with a k or M), else ''."""
+    match = _SCALED.fullmatch(value) if isinstance(value, str) else None
+    if match is None:
+        return ''
+    number = float(match.group(1)) * (1e3 if match.group(2) in 'kK' else 1e6)
+    return f': write {number:.0f} (the plain number, no k or M)'
+
+
 def coerce(name: str, spec: ParamSpec, value: Any) -> Any:
     """Return value as spec.type (None stays None = unset) or raise ParamError saying why."""
     if value is None:
         return None
     if spec.type is float or spec.type is int:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ParamError(f'{name} = {_short(value)} must be a number')
+            raise ParamError(f'{name} = {_short(value)} must be a number'
+                             + _suffix_hint(value))
         if spec.type is int:
             if isinstance(value, float) and (not math.isfinite(value) or value != int(value)):
                 raise ParamError(f'{name} = {_short(value)} must be a whole number')

@@ -62,6 +62,8 @@ nitpick_ignore_regex = [
 ]
 
 html_title = f'ams_can_bridge {release}'
+html_static_path = ['_static']
+html_css_files = ['wide_code.css']  # wide code blocks scroll, never cut off
 
 
 def setup(app):

@@ -121,7 +121,13 @@ class Parts:
         self.scripts = console_scripts(root)
         jobs = {'parameters': ['table', str(root / 'scripts' / 'param_table.py')],
                 'interfaces': ['table', str(root / 'scripts' / 'interface_table.py')]}
+        # a second name of one program (ams-can-bridge for bridge): its page points to the first
+        self.aliases: dict[str, str] = {}
         for name, target in self.scripts:
+            first = next(other for other, aim in self.scripts if aim == target)
+            if first != name:
+                self.aliases[name] = first
+                continue
             jobs['help:' + name] = ['help', target, name, '--help']
         modules = ','.join(dependency_modules(root))
         # as the messages name them
@@ -171,6 +177,10 @@ class Parts:
                              'interfaces or executables')
 
     def _executable(self, name: str, target: str) -> str:
+        if name in self.aliases:
+            first = self.aliases[name]
+            return (f'## `{name}`\n\nThe same program as [`{first}`](#{first}) (entry point '
+                    f'`{target}`), under a second name: `{name} --help` is `{first}`\'s.\n')
         code, text = self.output('help:' + name)
         head = f'## `{name}`\n\n`ros2 run ams_can_bridge {name} --help` (entry point `{target}`)'
         if code == MISSING:

@@ -45,7 +45,8 @@ mkdir -p "$pkg"
 (cd "$scratch/ws" && PATH="$bin:$PATH" "$bin/colcon" build --event-handlers console_direct- \
    > "$scratch/colcon.log" 2>&1) || { tail -40 "$scratch/colcon.log"; fail "colcon build"; }
 inst="$scratch/ws/install/ams_can_bridge"
-for f in lib/ams_can_bridge/bridge lib/ams_can_bridge/simulator lib/ams_can_bridge/demo \
+for f in lib/ams_can_bridge/bridge lib/ams_can_bridge/ams-can-bridge \
+         lib/ams_can_bridge/simulator lib/ams_can_bridge/demo \
          lib/ams_can_bridge/log2bag lib/ams_can_bridge/monitor lib/ams_can_bridge/probe \
          share/ams_can_bridge/config/foxglove_layout.json \
          share/ams_can_bridge/package.xml share/ams_can_bridge/launch/bridge.launch.py \
@@ -73,6 +74,10 @@ done
 (cd "$scratch" && set +u && source ws/install/setup.bash && set -u && \
   PATH="$bin:$PATH" timeout 60 ws/install/ams_can_bridge/lib/ams_can_bridge/probe --help \
   >/dev/null) || fail "installed probe --help"
+# the bridge's second name: what a colcon user runs without `ros2 run` (iproute2 owns bridge)
+(cd "$scratch" && set +u && source ws/install/setup.bash && set -u && \
+  PATH="$bin:$PATH" timeout 60 ws/install/ams_can_bridge/lib/ams_can_bridge/ams-can-bridge \
+  --help | grep -q 'ams-can-bridge') || fail "installed ams-can-bridge --help"
 echo "colcon build: OK ($inst)"
 
 echo "== pip install . into a fresh venv"
@@ -82,7 +87,7 @@ echo "== pip install . into a fresh venv"
   || fail "pip install ."
 (cd "$scratch" && "$scratch/venv/bin/python" -c "$probe" "$scratch/venv") \
   || fail "pip-installed package does not find its msg_defs"
-for exe in bridge simulator demo log2bag monitor probe; do
+for exe in bridge ams-can-bridge simulator demo log2bag monitor probe; do
   [ -x "$scratch/venv/bin/$exe" ] || fail "pip install lacks the $exe executable"
 done
 (cd "$scratch" && timeout 60 "$scratch/venv/bin/simulator" --help >/dev/null) \
@@ -93,4 +98,6 @@ done
   || fail "pip-installed monitor --help"
 (cd "$scratch" && timeout 60 "$scratch/venv/bin/probe" --help >/dev/null) \
   || fail "pip-installed probe --help"
+(cd "$scratch" && timeout 60 "$scratch/venv/bin/ams-can-bridge" --help | grep -q 'config/\*.yaml') \
+  || fail "pip-installed ams-can-bridge --help"
 echo "pip install: OK ($scratch/venv)"

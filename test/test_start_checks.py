@@ -23,10 +23,10 @@ from ams_can_bridge.can_io.config import BusConfig, parse_options
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.errors import ConfigError, ParamError
 from ams_can_bridge.offline.converter import Converter
-from ams_can_bridge.offline.params_file import load_parameters
+from ams_can_bridge.offline.params_file import load_parameters, section_applies
 from ams_can_bridge.parameters import coerce
 from ams_can_bridge.ros.bridge_node import BridgeNode
-from ams_can_bridge.ros.params import section_applies, unmatched_params_files
+from ams_can_bridge.ros.params import unmatched_params_files
 from ams_can_bridge.sim import main as sim_main
 from helpers import ros_context, wait_for
 from slcan_peer import SlcanPeer
@@ -276,7 +276,8 @@ def test_an_absent_adapter_is_not_a_configuration_error():
 
 
 def test_replay_of_a_missing_file_stops_at_start():
-    with pytest.raises(ValueError, match="can.channel = '/nonexistent.log': no such log file"):
+    with pytest.raises(ValueError, match="can.channel = '/nonexistent.log': the log file to "
+                                         'replay does not exist'):
         BusConfig(interface='replay', channel='/nonexistent.log').check()
 
 
@@ -314,7 +315,7 @@ def test_help_prints_usage_and_exits_0_without_starting_ros():
                       '-p NAME:=VALUE', 'can.interface', 'can.channel', 'devices',
                       'commands_allowed', 'doc/parameters.md', 'doc/topics_services.md',
                       'doc/failure_modes.md', 'doc/real_bus.md',
-                      'share/ams_can_bridge/config'):
+                      'config/*.yaml', 'ams-can-bridge'):
             assert words in proc.stdout, words
 
 

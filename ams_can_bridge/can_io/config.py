@@ -4,10 +4,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import difflib
 import inspect
-import os
 import re
 
 from ams_can_bridge.errors import ConfigError
+from ams_can_bridge.input_files import file_problem
 
 
 # python-can options the bridge sets unless can.options gives them. slcan: python-can reads
@@ -135,9 +135,11 @@ class BusConfig:
         """
         import can.interfaces  # python-can's list of interfaces, plugins included
         if self.interface in OWN_INTERFACES:
-            if not os.path.isfile(self.channel):
-                raise ConfigError(f'can.channel = {self.channel!r}: no such log file to replay '
-                                  '(can.interface is replay: can.channel names the log)')
+            problem = file_problem(self.channel)
+            if problem:
+                raise ConfigError(f'can.channel = {self.channel!r}: the log file to replay '
+                                  f'{problem} (can.interface is replay: can.channel names '
+                                  'the log)')
             ignored = sorted(self.options) + (['can.bitrate'] if self.bitrate else [])
             return [f'replay ignores {", ".join(ignored)}'] if ignored else []
         valid = sorted(set(can.interfaces.VALID_INTERFACES) | set(OWN_INTERFACES))

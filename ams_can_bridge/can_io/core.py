@@ -250,6 +250,8 @@ class CanIo:
             try:
                 bus = self._open()
             except Exception as exc:
+                if self._stop.is_set():  # a stop ended the open (the slcan settling wait)
+                    break
                 state = BusState.RECONNECTING if self._ever_connected else BusState.ERROR
                 self._set_state(state, _open_failure(self.config.interface, exc),
                                 logging.WARNING)
@@ -282,7 +284,8 @@ class CanIo:
                 self.last_stamp = replay.log_start
             bus: can.BusABC | ReplayBus = replay
         elif cfg.interface == 'slcan':  # opened exclusively; read in blocks unless told
-            bus = open_bulk_slcan(cfg.channel, cfg.slcan_bulk_read, **cfg.bus_kwargs())
+            bus = open_bulk_slcan(cfg.channel, cfg.slcan_bulk_read, stop=self._stop,
+                                  **cfg.bus_kwargs())
         else:
             # the options are whatever the interface takes (checked by BusConfig.check)
             bus = can.Bus(interface=cfg.interface, channel=cfg.channel,

@@ -2,13 +2,13 @@
 from __future__ import annotations
 
 import math
-import os
 import time
 from typing import Iterator
 
 import can
 
 from ams_can_bridge.errors import ConfigError, LogFileError
+from ams_can_bridge.input_files import file_problem
 
 # A ROS time holds its seconds in an int32 (builtin_interfaces/Time): 2038-01-19 03:14:08 UTC
 # is the first moment it cannot stamp.
@@ -68,10 +68,9 @@ class ReplayBus:
         """Open the log and read its first frame (``log_start``; NaN when there is none)."""
         if not path:
             raise ConfigError('replay: can.channel must name the log file to play')
-        if not os.path.isfile(path):
-            raise LogFileError(f'replay: log file {path!r} does not exist')
-        if not os.access(path, os.R_OK):
-            raise LogFileError(f'replay: log file {path!r} is not readable')
+        problem = file_problem(path)
+        if problem:
+            raise LogFileError(f'replay: log file {path!r} {problem}')
         self.path = path
         self.rate = rate
         # LogReader picks the format from the extension and raises ValueError for others.

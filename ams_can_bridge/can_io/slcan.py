@@ -28,6 +28,7 @@ from __future__ import annotations
 import errno
 import logging
 import os
+import threading
 import time
 
 import can
@@ -43,6 +44,8 @@ _MAX_READ = 4096
 # DLC, 128 data digits, 4 timestamp digits, CR) is 143 characters.
 MAX_LINE = 200
 _log = logging.getLogger(__name__)
+# python-can's default wait after opening the port (an adapter that resets on open boots)
+SLEEP_AFTER_SERIAL_OPEN = float(getattr(slcanBus, '_SLEEP_AFTER_SERIAL_OPEN', 2.0))  # s
 
 try:  # POSIX; on Windows a COM port is exclusive to one program anyway
     import fcntl
@@ -124,18 +127,31 @@ class BulkReadSlcanBus(slcanBus):
     garbage_lines = 0  # runs of bytes longer than MAX_LINE without a line end, dropped
     garbage_bytes = 0
 
+    _settle_for = 0.0  # s still to wait after the port opened, before the first command
+    _stop: threading.Event | None = None
+
     def __init__(self, channel: str, *args: object, bulk_read: bool = True,
-                 **kwargs: object) -> None:
+                 stop: threading.Event | None = None, **kwargs: object) -> None:
         """
         Lock the port, then open as python-can does; check what the block reader relies on.
 
         Raises CanInitializationError, before python-can has touched the port, when another
         program holds it (``lock_serial_port``). ``bulk_read`` False keeps python-can's reader.
+        python-can sleeps ``sleep_after_open`` (2 s) after opening the port, where Ctrl-C
+        waited it out: here that wait is on ``stop``, before the first command, and a stop
+        during it ends the open at once (CanInitializationError, the port closed).
         """
         self._lock_fd = lock_serial_port(str(channel))
+        self._stop = stop
+        settle = kwargs.pop('sleep_after_open', SLEEP_AFTER_SERIAL_OPEN)
+        self._settle_for = float(settle) if isinstance(settle, (int, float, str)) else 0.0
+        kwargs['sleep_after_open'] = 0
         try:
             super().__init__(channel, *args, **kwargs)  # type: ignore[arg-type]  # passed on
         except BaseException:
+            port = getattr(self, 'serialPortOrig', None)
+            if port is not None:
+                port.close()
             self._unlock()
             raise
         # python-can's own line buffer and pyserial port: if a python-can release renames
@@ -146,6 +162,31 @@ class BulkReadSlcanBus(slcanBus):
         if bulk_read and not self._bulk:
             _log.warning("slcan: python-can's slcanBus internals changed; reading with "
                          "python-can's own byte-per-call reader")
+
+    def _settle(self) -> None:
+        """Wait what python-can would have slept after opening, unless a stop comes first."""
+        wait, self._settle_for = self._settle_for, 0.0
+        if wait <= 0:
+            return
+        if self._stop is None:
+            time.sleep(wait)
+        elif self._stop.wait(wait):
+            raise CanInitializationError('stopped while the adapter settled after opening')
+
+    def set_bitrate(self, bitrate: int, data_bitrate: int | None = None) -> None:
+        """Set the bit rate as python-can does, after the settling wait."""
+        self._settle()
+        super().set_bitrate(bitrate, data_bitrate)
+
+    def set_bitrate_reg(self, btr: str) -> None:
+        """Set the bit timing register as python-can does, after the settling wait."""
+        self._settle()
+        super().set_bitrate_reg(btr)
+
+    def open(self) -> None:
+        """Open the CAN channel as python-can does, after the settling wait."""
+        self._settle()
+        super().open()
 
     def shutdown(self) -> None:
         """Close as python-can does, then release the port's lock."""
@@ -214,9 +255,13 @@ class BulkReadSlcanBus(slcanBus):
             self._garbage(len(raw))  # the end of a run of garbage: no line either
 
 
-def open_bulk_slcan(channel: str, bulk_read: bool = True,
+def open_bulk_slcan(channel: str, bulk_read: bool = True, stop: threading.Event | None = None,
                     **kwargs: object) -> BulkReadSlcanBus:
-    """Open it as ``can.Bus(interface='slcan', ...)`` would (python-can's config merged)."""
+    """
+    Open it as ``can.Bus(interface='slcan', ...)`` would (python-can's config merged).
+
+    ``stop``: set, it ends the wait after opening the port (see ``BulkReadSlcanBus``).
+    """
     config = can.util.load_config(config={'interface': 'slcan', 'channel': channel, **kwargs})
     del config['interface']
-    return BulkReadSlcanBus(config.pop('channel'), bulk_read=bulk_read, **config)
+    return BulkReadSlcanBus(config.pop('channel'), bulk_read=bulk_read, stop=stop, **config)

@@ -26,6 +26,7 @@ from ams_can_bridge.devices.dbc_plan import (
     MIN_TIMEOUT, Plan, Ref, Scalar, SCALAR_UNITS, TIMEOUT_PERIODS, TOP_LEVEL)
 from ams_can_bridge.devices.dbc_profiles import profile_files
 from ams_can_bridge.errors import ConfigError
+from ams_can_bridge.input_files import file_problem, load_yaml
 from ams_can_bridge.protocols import dbc_codec
 from ams_can_bridge.protocols.dbc_load import cycle_time, DbcLoadError, LoadedDbc, read_dbc
 
@@ -253,7 +254,10 @@ def load_plan(dbc_file: str | None, mapping_file: str | None,
                          problems)
     if mapping_path is not None:
         try:
-            mapping = yaml.safe_load(mapping_path.read_text(encoding='utf-8'))
+            mapping = load_yaml(mapping_path.read_text(encoding='utf-8'),
+                                f'mapping_file {str(mapping_path)!r}')
+        except ConfigError as exc:  # an alias bomb
+            problems.append(str(exc))
         except OSError as exc:
             problems.append(f'mapping_file {str(mapping_path)!r} cannot be read: '
                             f'{exc.strerror}')
@@ -275,6 +279,11 @@ def _find(key: str, given: str | None, what: str, problems: list[str]) -> Path |
     path, looked = locate(given)
     if path is None:
         problems.append(not_found(key, given, looked))
+        return None
+    problem = file_problem(path)
+    if problem:  # found, but a directory, a FIFO, /dev/zero: reading it fails or never ends
+        problems.append(f'{key} {str(path)!r} {problem}')
+        return None
     return path
 
 

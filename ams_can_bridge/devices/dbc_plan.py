@@ -233,15 +233,15 @@ def locate(path: str) -> tuple[Path | None, list[Path]]:
     ``config/ams_dbc_mapping.yaml`` work from anywhere).
     """
     given = Path(os.path.expanduser(path))
-    if given.is_absolute():
-        return (given if given.is_file() else None), [given]
+    if given.is_absolute():  # a FIFO or directory is found too: the caller says what it is
+        return (given if given.exists() else None), [given]
     places = [Path.cwd() / given] + [folder / given for folder in _params_folders]
     try:
         places.append(msg_defs_dir().parent / given)
     except FileNotFoundError:
         pass
     for place in places:
-        if place.is_file():
+        if place.exists():
             return place, places
     return None, places
 

@@ -28,6 +28,7 @@ import can
 
 from ams_can_bridge.can_io.replay import open_log, stamp_problem
 from ams_can_bridge.errors import LogFileError
+from ams_can_bridge.input_files import file_problem
 
 # Readers that re-read a header when iterated anew: a blank line stands in for it.
 _NEEDS_HEADER_LINE = (can.CSVReader, can.ASCReader)
@@ -116,10 +117,9 @@ class LogFrames:
 
     def __init__(self, path: str) -> None:
         """Open the log; raise LogFileError naming what is wrong."""
-        if not os.path.isfile(path):
-            raise LogFileError(f'log file {path!r} does not exist')
-        if not os.access(path, os.R_OK):
-            raise LogFileError(f'log file {path!r} is not readable')
+        problem = file_problem(path)
+        if problem:
+            raise LogFileError(f'log file {path!r} {problem}')
         try:
             self.reader = open_log(path)
         except ValueError as exc:

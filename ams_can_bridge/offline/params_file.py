@@ -12,18 +12,23 @@ A key given twice (``commands_allowed: false`` and later ``commands_allowed: tru
 section: rcl takes the last, a reader of the top of the file sees the first), or a second
 section for the same node, makes the file unusable: ``duplicate_problems`` names the key and
 both lines, for log2bag here and for the bridge before it starts (``ros/bridge_main.py``).
+Sections are compared by whether they apply to the node (``section_applies``: rcl's
+wildcards ``/**`` and ``/*`` against the node's fully qualified name), not by their
+spelling: ``/**:`` with ``commands_allowed: false`` and ``ams_can_bridge:`` (or
+``/**/ams_can_bridge:``, ``/*:``) with ``true`` would start the bridge armed.
 """
 from __future__ import annotations
 
+import re
 from typing import Any
 
 import yaml
 
 from ams_can_bridge.device_set import unknown_parameter_errors
 from ams_can_bridge.errors import ConfigError, ParamError
+from ams_can_bridge.input_files import compose_yaml, load_yaml, read_text
 from ams_can_bridge.parameters import coerce, ParamSpec, raise_param_errors
 
-WILDCARDS = ('/**', '**')
 PARAMETERS_KEY = 'ros__parameters'
 
 
@@ -74,17 +79,41 @@ def _flat_names(prefix: str, node: yaml.MappingNode, section: str,
                 'once nested; rcl would take the last one: keep one of them')
 
 
-def duplicate_problems(path: str, text: str) -> list[str]:
+def section_applies(section: str, fully_qualified_name: str) -> bool:
+    """
+    Tell whether a params file's top-level key applies to the node, as rcl matches it.
+
+    rcl puts a '/' before a key without one, then reads ``/**`` as any number of name parts
+    and ``/*`` (``*``) as exactly one (rclcpp's ``parameter_map_from``; rclpy the same).
+    """
+    name = section if section.startswith('/') else '/' + section
+    pattern = ''
+    for part in re.split(r'(/\*\*|\*)', name):
+        if part == '/**':
+            pattern += '(/[^/]+)*'
+        elif part == '*':
+            pattern += '[^/]+'
+        else:
+            pattern += re.escape(part)
+    return re.fullmatch(pattern, fully_qualified_name) is not None
+
+
+def duplicate_problems(path: str, text: str,
+                       fully_qualified_name: str | None = None) -> list[str]:
     """
     Return a problem per key given twice and per second section of one node, with lines.
 
-    Raises yaml.YAMLError for text that is not YAML (the caller words it).
+    With the node's ``fully_qualified_name``, a key given in two sections that both apply to
+    the node (``/**:`` and ``ams_can_bridge:``) is one too, naming both sections. Raises
+    yaml.YAMLError for text that is not YAML (the caller words it), YamlAliasError for any
+    alias (rcl takes none in a params file).
     """
-    root = yaml.compose(text, Loader=yaml.SafeLoader)
+    root = compose_yaml(text, f'params file {path}', aliases=False)
     if not isinstance(root, yaml.MappingNode):
         return []
     problems: list[str] = []
     sections: dict[str, tuple[str, int]] = {}
+    applying: dict[str, tuple[str, int, str]] = {}  # key -> section, line, value
     for key_node, value_node in root.value:
         if not isinstance(key_node, yaml.ScalarNode):
             continue
@@ -100,26 +129,37 @@ def duplicate_problems(path: str, text: str) -> list[str]:
         if not isinstance(value_node, yaml.MappingNode):
             continue
         _repeated(f'{name}: ', value_node.value, problems, path)
+        found: dict[str, tuple[int, str, int]] = {}
         for inner_key, inner in value_node.value:
             if getattr(inner_key, 'value', None) == PARAMETERS_KEY \
                     and isinstance(inner, yaml.MappingNode):
-                _flat_names('', inner, f'{name}: {PARAMETERS_KEY}', {}, problems, path)
+                _flat_names('', inner, f'{name}: {PARAMETERS_KEY}', found, problems, path)
+        if fully_qualified_name is None or not section_applies(name, fully_qualified_name):
+            continue
+        for key, (key_line, value, _) in found.items():
+            if key in applying:
+                other, other_line, other_value = applying[key]
+                problems.append(
+                    f'params file {path}: {key} is given in two sections that both apply to '
+                    f'the node {fully_qualified_name}: line {other_line} ({other}: {key} = '
+                    f'{other_value}) and line {key_line} ({name}: {key} = {value}); rcl '
+                    'would take the last one: keep it in one section')
+            else:
+                applying[key] = (name, key_line, value)
     return problems
 
 
-def read_params_file(path: str) -> Any:
+def read_params_file(path: str, fully_qualified_name: str | None = None) -> Any:
     """
     Return a parameters file's document; ConfigError for a missing, non-YAML or ambiguous file.
 
-    Ambiguous: a key given twice or a second section for one node (``duplicate_problems``).
+    Ambiguous: a key given twice, a second section for one node, a key given in two sections
+    that apply to ``fully_qualified_name`` (``duplicate_problems``).
     """
+    text = read_text(path, 'parameters file')
     try:
-        with open(path, encoding='utf-8') as stream:
-            text = stream.read()
-        problems = duplicate_problems(path, text)
-        document = yaml.safe_load(text)
-    except OSError as exc:
-        raise ConfigError(f'parameters file {path!r}: {exc.strerror or exc}') from None
+        problems = duplicate_problems(path, text, fully_qualified_name)
+        document = load_yaml(text, f'params file {path}', aliases=False)
     except yaml.YAMLError as exc:
         raise ConfigError(f'parameters file {path!r} is not valid YAML: {exc}') from None
     if problems:
@@ -142,18 +182,20 @@ def load_parameters(path: str, node_name: str) -> dict[str, Any]:
     """
     Return the flat parameters the node ``node_name`` gets from a parameters file.
 
-    Wildcard entries apply first, the node's own entries ('name' or '/name') override them,
-    as rcl does. Raises ConfigError for a file that is missing or not a parameters file.
+    Every section that applies to the node ``/<node_name>`` (``/**``, ``/*``, ``name``,
+    ``/name``, ``/**/name``) counts, in the file's order, as rcl reads it; a key in two of
+    them is refused (``duplicate_problems``). Raises ConfigError for a file that is missing
+    or not a parameters file.
     """
-    document = read_params_file(path)
+    fully_qualified_name = '/' + node_name.lstrip('/')
+    document = read_params_file(path, fully_qualified_name)
     if not isinstance(document, dict):
         raise ConfigError(f'parameters file {path!r}: expected "<node name>: ros__parameters:'
                           ' ..." at the top (see config/*.yaml)')
     values: dict[str, Any] = {}
     matched = False
-    for key in (*WILDCARDS, node_name, '/' + node_name):
-        entry = document.get(key)
-        if entry is None:
+    for key, entry in document.items():
+        if not section_applies(str(key), fully_qualified_name):
             continue
         if not isinstance(entry, dict) or not isinstance(entry.get('ros__parameters'), dict):
             raise ConfigError(f'parameters file {path!r}: {key!r} has no ros__parameters '

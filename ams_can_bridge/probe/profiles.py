@@ -24,12 +24,12 @@ from pathlib import Path
 from typing import Iterable
 
 from cantools.database.can import Message
-import yaml
 
 from ams_can_bridge.devices.dbc_mapping import build_plan
 from ams_can_bridge.devices.dbc_plan import ARRAY_LABELS, Plan
 from ams_can_bridge.devices.dbc_profiles import profile_files, PROFILES
 from ams_can_bridge.errors import MalformedFrameError
+from ams_can_bridge.input_files import read_yaml
 from ams_can_bridge.probe.dbc import DEFAULT_STALE_S, match_plan, PlanMatch
 from ams_can_bridge.probe.dbc_publish import read_back, say_published, timeouts_setting
 from ams_can_bridge.probe.evidence import Candidate, stale_setting, WEAK
@@ -60,7 +60,7 @@ def loaded(name: str) -> tuple[Plan, tuple[Message, ...], Path]:
     """Return a profile's plan, its DBC's other messages and its mapping (read once)."""
     dbc_path, mapping_path = profile_files(name)
     dbc = read_dbc(dbc_path)
-    plan = build_plan(dbc, yaml.safe_load(mapping_path.read_text(encoding='utf-8')))
+    plan = build_plan(dbc, read_yaml(mapping_path, 'mapping file'))
     mapped = {(m.frame_id, m.is_extended_id) for m in plan.messages}
     others = tuple(m for m in dbc.db.messages if m.name not in dbc.broken
                    and (m.frame_id, bool(m.is_extended_frame)) not in mapped)

@@ -14,6 +14,7 @@ itself in its constructor, so a bad parameter still ends the process with exit 2
 """
 from __future__ import annotations
 
+import os
 import re
 import signal
 import sys
@@ -39,6 +40,7 @@ NAME_CHECK_PERIOD = 0.5  # s
 NAME_CHECK_FOR = 5.0  # s after the start
 
 USAGE = f"""usage: bridge [-h] --ros-args --params-file PARAMS.yaml [-p NAME:=VALUE ...]
+       ams-can-bridge [-h] --ros-args ...   (the same program)
        ros2 run ams_can_bridge bridge --ros-args --params-file PARAMS.yaml
        ros2 launch ams_can_bridge bridge.launch.py params_file:=PARAMS.yaml
 
@@ -47,7 +49,11 @@ any BMS from its DBC) to sensor_msgs/BatteryState and /diagnostics. Parameters c
 --ros-args: a params file (--params-file, sections '/**:' or '<node name>:', then
 'ros__parameters:') and single values (-p can.interface:=slcan). The example params files
 are installed in
-$(ros2 pkg prefix ams_can_bridge)/share/ams_can_bridge/config/*.yaml.
+  {{config}}/*.yaml
+
+'bridge' is also iproute2's /usr/sbin/bridge: outside the venv, or after a colcon install
+without 'ros2 run', 'bridge' may run that one ('Option "-ros-args" is unknown'). Use
+'ams-can-bridge' there: the same program under a name nothing else has.
 
 main parameters:
   can.interface      python-can interface: socketcan (default), slcan, pcan, virtual, replay
@@ -112,7 +118,7 @@ def main(args: list[str] | None = None) -> int:
     argv = list(sys.argv if args is None else args)
     own = user_arguments(argv)
     if '-h' in own or '--help' in own:
-        print(USAGE, end='')
+        print(USAGE.replace('{config}', _config_dir()), end='')
         return 0
     if own:
         print(f'bridge: unknown argument(s) {" ".join(own)}: parameters go after --ros-args '
@@ -127,8 +133,12 @@ def main(args: list[str] | None = None) -> int:
     from ams_can_bridge.devices.dbc_plan import set_params_files
     from ams_can_bridge.ros.bridge_node import BridgeNode, ConfigError, NODE_NAME
     from ams_can_bridge.ros.params import (
-        params_file_problems, params_files, unmatched_params_files)
+        node_name_from_argv, params_file_problems, params_files, unmatched_params_files)
     set_params_files(params_files(argv))  # a dbc device's files beside its params file
+    unusable = params_file_paths_problems(params_files(argv))
+    if unusable:  # rcl would say "Error opening YAML file", or block on a FIFO
+        rclpy.logging.get_logger(NODE_NAME).error('cannot start: ' + '\n'.join(unusable))
+        return 2
     sys.setswitchinterval(GIL_SWITCH_INTERVAL)
     signals = StopSignals()
     try:
@@ -138,7 +148,7 @@ def main(args: list[str] | None = None) -> int:
         return 2
     node = None
     try:
-        problems = params_file_problems(argv)
+        problems = params_file_problems(argv, node_name_from_argv(argv, NODE_NAME))
         if problems:  # before the node exists: nothing armed, the bus not opened
             rclpy.logging.get_logger(NODE_NAME).error('cannot start: ' + '\n'.join(problems))
             return 2
@@ -205,6 +215,29 @@ def _watch_for_a_namesake(node: Any) -> None:
             timer.cancel()  # checked enough: the timer stays idle until the node goes
 
     timer = node.create_timer(NAME_CHECK_PERIOD, check)
+
+
+def _config_dir() -> str:
+    """Return the installed example params files' folder (no ROS needed to find it)."""
+    try:
+        from ams_can_bridge.protocols.common import msg_defs_dir
+        return str(msg_defs_dir().parent / 'config')
+    except (ImportError, FileNotFoundError):  # cantools or msg_defs missing: say what it is
+        return '<the share folder of ams_can_bridge>/config'
+
+
+def params_file_paths_problems(paths: list[str]) -> list[str]:
+    """Return a line per --params-file that is no readable regular file, with its full path."""
+    from ams_can_bridge.input_files import file_problem
+    problems = []
+    for path in paths:
+        problem = file_problem(path)
+        if problem:
+            full = os.path.abspath(os.path.expanduser(path))
+            given = '' if full == path else f' (given as {path})'
+            problems.append(f'params file {full}{given} {problem}: give the path of a '
+                            'params file (--params-file PARAMS.yaml)')
+    return problems
 
 
 def user_arguments(argv: list[str]) -> list[str]:

@@ -238,8 +238,11 @@ class BridgeNode(LifecycleNode):
         self.diagnostics_period = node['diagnostics_period']
         settings = bus_settings(bus)  # collected: every problem of the file at once
         self.params.errors += settings.errors
-        for warning in settings.warnings:
-            self.get_logger().warning(warning)
+        # a can.* value that is unusable was replaced by its default: warnings about that
+        # default ('can.bitrate is 0 with slcan' for '500k') would contradict the error
+        if not any(error.startswith('can.') for error in self.params.errors):
+            for warning in settings.warnings:
+                self.get_logger().warning(warning)
         if settings.config is not None:
             self.bus_config = settings.config
         self.hardware_id = settings.hardware_id

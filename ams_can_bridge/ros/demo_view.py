@@ -122,6 +122,9 @@ COLUMNS = (
     ('CELLS', 14, True), ('TEMP', 8, True), ('DIAG', 5, False),
 )
 WIDTH = 80  # columns of a default terminal: every line of the view fits
+# A longer state ('CHARGE_ERROR', the head of a message: '96 of 96 cell v.') widens the STATE
+# column of every row as a long name widens DEVICE: it spilled into VOLTAGE, the row alone.
+STATE_WIDTH_MAX = 16
 # A longer instance name widens the DEVICE column (the row then passes 80 columns) up to
 # this, and is cut beyond it: a column per row would break the alignment.
 DEVICE_WIDTH_MAX = 16
@@ -134,10 +137,10 @@ def fmt_cells(low: float, high: float, missing: str) -> str:
     return f'{low:.3f}..{high:.3f} V'
 
 
-def _cells(row: DeviceRow, missing: str, degree: str, name_width: int) -> list[str]:
+def _cells(row: DeviceRow, missing: str, degree: str, widths: list[int]) -> list[str]:
     pct = row.percentage * 100.0 if isinstance(row.percentage, (int, float)) else NAN
     return [
-        _cut(row.name, name_width), row.state or missing,
+        _cut(row.name, widths[0]), _cut(row.state, widths[1]) or missing,
         fmt_value(row.voltage, 'V', 1, missing),
         fmt_value(row.current, 'A', 1, missing),
         fmt_value(pct, '%', 1, missing),
@@ -147,12 +150,11 @@ def _cells(row: DeviceRow, missing: str, degree: str, name_width: int) -> list[s
     ]
 
 
-def _line(texts: list[str], colours: list[str | None], colour: bool, name_width: int) -> str:
+def _line(texts: list[str], colours: list[str | None], colour: bool, widths: list[int]) -> str:
     parts = []
     last = len(COLUMNS) - 1
-    for index, ((_, width, right), text, code) in enumerate(zip(COLUMNS, texts, colours)):
-        if index == 0:
-            width = name_width
+    for index, ((_, _, right), text, code) in enumerate(zip(COLUMNS, texts, colours)):
+        width = widths[index]
         # The last column is not padded: trailing blanks inside a colour would survive rstrip.
         width = max(width, len(text)) if index < last else len(text)
         padded = text.rjust(width) if right else text.ljust(width)
@@ -174,9 +176,12 @@ def render(view: View, colour: bool = False, unicode: bool = True,
     degree = '\u00b0C' if unicode else 'C'
     frames = (f'in {view.frames_in if view.frames_in is not None else missing}'
               f' / out {view.frames_out if view.frames_out is not None else missing}')
-    bus_level = view.bus_level or missing
+    bus_level = _cut(view.bus_level, len('LEVEL 255')) or missing
     title = _cut(view.title, width)
-    name_width = min(DEVICE_WIDTH_MAX, max([COLUMNS[0][1]] + [len(r.name) for r in view.rows]))
+    widths = [column[1] for column in COLUMNS]
+    widths[0] = min(DEVICE_WIDTH_MAX, max([widths[0]] + [len(r.name) for r in view.rows]))
+    widths[1] = min(STATE_WIDTH_MAX,
+                    max([widths[1]] + [len(printable(r.state)) for r in view.rows]))
     # cut before painting: colour codes take no column but count as characters
     status = _cut(f' ({view.bus_state or "no status yet"})   frames {frames}',
                   width - len('CAN bus: ') - len(bus_level))
@@ -186,15 +191,15 @@ def render(view: View, colour: bool = False, unicode: bool = True,
             width - len(title)),
         f'CAN bus: {_paint(bus_level, COLOURS.get(bus_level), colour)}{status}',
         '',
-        _paint(_line([c[0] for c in COLUMNS], [None] * len(COLUMNS), False, name_width),
+        _paint(_line([c[0] for c in COLUMNS], [None] * len(COLUMNS), False, widths),
                BOLD, colour),
     ]
     for row in view.rows:
-        texts = _cells(row, missing, degree, name_width)
+        texts = _cells(row, missing, degree, widths)
         colours: list[str | None] = [None] * len(COLUMNS)
         colours[1] = STATE_COLOURS.get(row.state)
         colours[-1] = COLOURS.get(row.level)
-        lines.append(_line(texts, colours, colour, name_width))
+        lines.append(_line(texts, colours, colour, widths))
     lines.append('')
     for row in view.rows:
         if row.message:
@@ -209,8 +214,20 @@ def render(view: View, colour: bool = False, unicode: bool = True,
     return '\n'.join(lines)
 
 
+# Control and format characters (ESC, CR, BEL, bidi overrides): a /diagnostics message
+# carrying '\x1b[2J' cleared the terminal of whoever watched. Every text from a message is
+# shown with them escaped, as Python writes them.
+_CONTROL = re.compile(r'[\x00-\x1f\x7f-\x9f\u200b-\u200f\u202a-\u202e\u2066-\u2069]')
+
+
+def printable(text: str) -> str:
+    """Return text with its control characters escaped (ESC as backslash x1b), the rest kept."""
+    return _CONTROL.sub(lambda m: m.group().encode('unicode_escape').decode('ascii'), text)
+
+
 def _cut(text: str, width: int) -> str:
-    """Cut text to width characters, marking the cut with '...'."""
+    """Cut text (control characters escaped first) to width characters, marking the cut."""
+    text = printable(text)
     return text if len(text) <= width else text[:max(0, width - 3)] + '...'
 
 
@@ -269,7 +286,7 @@ def state_of(values: dict[str, str], message: str, level: str = '') -> str:
     head = message.split(';')[0].strip()
     if _READING.match(head):  # the IVT-S leads with its current ('-27.71 A, 222.9 V')
         return 'measuring'
-    return head if len(head) <= 16 else head[:15] + '.'
+    return head if len(head) <= STATE_WIDTH_MAX else head[:STATE_WIDTH_MAX - 1] + '.'
 
 
 def to_int(text: str | None) -> int | None:

@@ -16,7 +16,8 @@ from typing import Any, Iterable
 
 import yaml
 
-from ams_can_bridge.ros.params import ros_flag_values, section_applies
+from ams_can_bridge.offline.params_file import section_applies
+from ams_can_bridge.ros.params import ros_flag_values
 
 # rcl's reading of a -p value (rcl_yaml_param_parser get_value): these words are booleans,
 # then strtoll (base 0: 0x10, 010 octal), then strtod, else a string; quoted: a string.

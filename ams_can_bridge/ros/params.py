@@ -9,7 +9,6 @@ a reason that names the parameter, the value and what is allowed.
 """
 from __future__ import annotations
 
-import re
 from typing import Any, Iterable
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
@@ -19,8 +18,9 @@ from rclpy.parameter import Parameter
 import yaml
 
 from ams_can_bridge.device_set import unknown_parameter_errors
-from ams_can_bridge.errors import ParamError
-from ams_can_bridge.offline.params_file import duplicate_problems
+from ams_can_bridge.errors import ConfigError, ParamError
+from ams_can_bridge.input_files import load_yaml
+from ams_can_bridge.offline.params_file import duplicate_problems, section_applies
 from ams_can_bridge.parameters import (
     allowed_text, coerce, numeric_choices, ParamSpec, raise_param_errors)
 
@@ -157,36 +157,43 @@ def params_files(argv: Iterable[str]) -> list[str]:
     return ros_flag_values(argv, ('--params-file',))
 
 
-def params_file_problems(argv: Iterable[str]) -> list[str]:
+def node_name_from_argv(argv: Iterable[str], node_name: str) -> str:
+    """
+    Return the fully qualified name a node called ``node_name`` gets from the command line.
+
+    Read from the ``-r``/``--remap`` rules ``__node:=`` (``__name:=``) and ``__ns:=``, a rule
+    prefixed ``<node>:`` only for that node, as rcl applies them (the last one wins).
+    """
+    name, namespace = node_name, '/'
+    for rule in ros_flag_values(argv, ('-r', '--remap')):
+        left, separator, value = rule.partition(':=')
+        prefix, _, key = left.rpartition(':')
+        if not separator or prefix not in ('', node_name):
+            continue
+        if key in ('__node', '__name'):
+            name = value
+        elif key == '__ns':
+            namespace = value if value.startswith('/') else '/' + value
+    return namespace.rstrip('/') + '/' + name
+
+
+def params_file_problems(argv: Iterable[str], fully_qualified_name: str) -> list[str]:
     """
     Return why the params files of a command line cannot be used as written ([] = fine).
 
     rcl takes the last of a key given twice (``commands_allowed: false`` at the top, ``true``
-    further down starts the bridge armed): such a key, or a second section for the node,
-    stops the bridge before it is built, naming the key and both lines.
+    further down or in another section that applies to the node starts the bridge armed):
+    such a key, or a second section for the node, stops the bridge before it is built,
+    naming the key, both lines and both sections.
     """
     problems = []
     for path in params_files(argv):
         try:
             with open(path, encoding='utf-8') as stream:
-                problems += duplicate_problems(path, stream.read())
-        except (OSError, yaml.YAMLError):
+                problems += duplicate_problems(path, stream.read(), fully_qualified_name)
+        except (OSError, yaml.YAMLError, ConfigError):
             continue  # rcl has refused it already, with its own message
     return problems
-
-
-def section_applies(section: str, fully_qualified_name: str) -> bool:
-    """Tell whether a params file's top-level key applies to the node, as rcl matches it."""
-    name = section if section.startswith('/') else '/' + section
-    pattern = ''
-    for part in re.split(r'(/\*\*|\*)', name):
-        if part == '/**':
-            pattern += '(/[^/]+)*'
-        elif part == '*':
-            pattern += '[^/]+'
-        else:
-            pattern += re.escape(part)
-    return re.fullmatch(pattern, fully_qualified_name) is not None
 
 
 def unmatched_params_files(argv: Iterable[str], fully_qualified_name: str) -> list[str]:
@@ -200,8 +207,8 @@ def unmatched_params_files(argv: Iterable[str], fully_qualified_name: str) -> li
     for path in params_files(argv):
         try:
             with open(path, encoding='utf-8') as stream:
-                document = yaml.safe_load(stream)
-        except (OSError, yaml.YAMLError):
+                document = load_yaml(stream.read(), f'params file {path}', aliases=False)
+        except (OSError, yaml.YAMLError, ConfigError):
             continue  # rcl has refused it already, with its own message
         if not isinstance(document, dict):
             continue

@@ -31,6 +31,11 @@ DISCOVERY_PERIOD = 1.0  # s between looks at the ROS graph for the bridge's topi
 # A device counts as silent after max(stale_after, this many diagnostics periods as seen):
 # a bridge publishing /diagnostics every 5 s is not called stopped between two of them.
 DIAGNOSTICS_PERIODS = 2.5
+# A device row is a ROS name: a status naming anything else ('a/../b', '9x', '') would give a
+# topic rclpy refuses, and its exception ended the executor thread: the view froze.
+_DEVICE = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
+MAX_ROWS = 64  # the bridge has at most 32 instances: more names are a hostile publisher
+MAX_OTHERS = 16  # other bridges' prefixes kept for the "bridges seen" note
 
 
 class BridgeWatcher(Node):
@@ -63,6 +68,8 @@ class BridgeWatcher(Node):
         self.last_diagnostics: float | None = None
         self.diagnostics_period = 0.0     # as seen between the bridge's last two arrays
         self.others: set[str] = set()     # other bridges' prefixes seen in /diagnostics
+        self.skipped = 0                  # statuses not shown (no ROS name, too many rows)
+        self.last_skipped = ''            # why the last one was skipped
         self._topic = re.compile(
             rf'^/{re.escape(self.namespace) + "/" if self.namespace else ""}'
             r'([A-Za-z_][A-Za-z0-9_]*)/battery_state$')
@@ -72,14 +79,27 @@ class BridgeWatcher(Node):
         self.create_timer(DISCOVERY_PERIOD, self.discover)
 
     def _watch(self, name: str) -> None:
-        """Show a device and subscribe to its battery_state (once)."""
+        """Show a device and subscribe to its battery_state (once); skip a name that cannot."""
         with self.lock:
             if name in self.rows:
                 return
+            if not _DEVICE.fullmatch(name) or len(self.rows) >= MAX_ROWS:
+                self._skip(name, 'no ROS name' if len(self.rows) < MAX_ROWS
+                           else f'more than {MAX_ROWS} devices')
+                return
             self.rows.append(name)
         topic = f'/{self.namespace}/{name}' if self.namespace else f'/{name}'
-        self.create_subscription(BatteryState, f'{topic}/battery_state',
-                                 partial(self._on_battery, name), 10)
+        try:
+            self.create_subscription(BatteryState, f'{topic}/battery_state',
+                                     partial(self._on_battery, name), 10)
+        except Exception as exc:  # rclpy refuses the topic: the row stays, without numbers
+            with self.lock:
+                self._skip(name, f'{type(exc).__name__}')
+
+    def _skip(self, name: str, why: str) -> None:
+        """Count a status the view does not show (the caller holds the lock)."""
+        self.skipped += 1
+        self.last_skipped = f'{name!r}: {why}'
 
     def _on_battery(self, name: str, msg: BatteryState) -> None:
         with self.lock:
@@ -89,19 +109,24 @@ class BridgeWatcher(Node):
     def _on_diagnostics(self, msg: DiagnosticArray) -> None:
         now = time.monotonic()
         head = f'{self.prefix}: '
-        found = []
+        found: list[str] = []
         with self.lock:
             mine = False
             for status in msg.status:
                 name = status.name
                 if not name.startswith(head):
-                    if name.endswith(f': {BUS_STATUS}'):
+                    if name.endswith(f': {BUS_STATUS}') and len(self.others) < MAX_OTHERS:
                         self.others.add(name[:-len(BUS_STATUS) - 2])
                     continue
                 mine = True
                 device = name[len(head):]
                 if device == BUS_STATUS:
                     self.bus, self.bus_seen = status, now
+                    continue
+                if not _DEVICE.fullmatch(device) or (
+                        device not in self.rows and len(self.rows) + len(found) >= MAX_ROWS):
+                    self._skip(device, 'no ROS name' if _DEVICE.fullmatch(device) is None
+                               else f'more than {MAX_ROWS} devices')
                     continue
                 self.statuses[device] = status
                 self.seen[device] = now
@@ -134,7 +159,11 @@ class BridgeWatcher(Node):
             seen, rows, bus, bus_seen = dict(self.seen), list(self.rows), self.bus, self.bus_seen
             others = sorted(self.others - {self.prefix})
             limit = max(self.stale_after, DIAGNOSTICS_PERIODS * self.diagnostics_period)
+            skipped, last_skipped = self.skipped, self.last_skipped
         view = View(title=self.title, uptime_s=uptime, last_command=None)
+        if skipped:
+            view.notes.append(f'{skipped} /diagnostics status(es) skipped, the last '
+                              f'{last_skipped}')
         if bus is not None:
             values = {kv.key: kv.value for kv in bus.values}
             view.bus = bus.hardware_id
