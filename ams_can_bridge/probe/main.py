@@ -68,7 +68,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help='python-can interface option, repeatable (e.g. sleep_after_open=0)')
     p.add_argument('--output', metavar='PARAMS.yaml',
                    help='write the params file of the devices found (checked with the '
-                   "bridge's start-up checks; commands_allowed: false)")
+                   "bridge's start-up checks; commands_allowed: false); never the log "
+                   'it reads; an existing file only with --force')
+    p.add_argument('--force', action='store_true',
+                   help='replace an existing --output file')
     p.add_argument('--json', action='store_true', help='print the report as JSON')
     p.add_argument('--dbc', action='append', default=[], metavar='FILE',
                    help='a BMS DBC to look for (with --mapping, repeatable in pairs)')
@@ -111,6 +114,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     _check(parser, args)
     live: LiveInfo | None = None
     try:
+        if args.output:
+            output.check_target(args.output, [p for p in [args.log, *args.dbc, *args.mapping]
+                                              if p is not None], args.force)
         recognisers = [*BUILT_IN]
         if args.dbc:
             recognisers.append(DbcRecogniser(list(zip(args.dbc, args.mapping))))
@@ -135,6 +141,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                       'commands_allowed: false')
     except (ConfigError, LogFileError, ValueError) as exc:
         print(f'probe: {exc}', file=sys.stderr)
+        return 2
+    except OSError as exc:  # e.g. the folder of --output is not writable
+        print(f'probe: {exc.filename or ""}: {exc.strerror or exc}', file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print('probe: interrupted', file=sys.stderr)
