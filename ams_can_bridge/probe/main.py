@@ -21,7 +21,7 @@ from ams_can_bridge.probe import output, report
 from ams_can_bridge.probe.dbc import DbcRecogniser
 from ams_can_bridge.probe.evidence import Setting
 from ams_can_bridge.probe.recognise import BUILT_IN, recognise
-from ams_can_bridge.probe.sources import listen_live, LiveInfo, read_log, STANDARD_RATES
+from ams_can_bridge.probe.sources import listen_live, LiveInfo, read_log, AUTO_RATES
 
 DEFAULT_DURATION_S = 10.0
 
@@ -60,7 +60,7 @@ def build_parser() -> argparse.ArgumentParser:
                    'pcan, ...)')
     p.add_argument('--channel', help='its channel (/dev/ttyACM0, can0, ...)')
     p.add_argument('--bitrate', type=_bitrate, default=0, metavar='BITS|auto',
-                   help='bit/s; auto tries ' + ', '.join(str(r) for r in STANDARD_RATES)
+                   help='bit/s; auto tries ' + ', '.join(str(r) for r in AUTO_RATES)
                    + ' listen-only (slcan); default: leave the adapter as it is')
     p.add_argument('--duration', type=_seconds, default=DEFAULT_DURATION_S, metavar='S',
                    help=f'seconds to listen live (default {DEFAULT_DURATION_S:g})')
@@ -99,9 +99,16 @@ def _bus_lines(live: LiveInfo | None) -> list[Setting]:
         return [Setting('interface', 'socketcan', 'check: a log does not say which adapter '
                         'took it, nor at which rate: set yours (doc/real_bus.md)', False),
                 Setting('channel', 'can0', '', False), Setting('bitrate', 500000, '', False)]
-    how = ('found by listening at the standard rates (listen-only): ' + ', '.join(
-        f'{rate}: {frames} frames' for rate, frames in live.tried) if live.tried
-        else 'where probe listened')
+    tried = ', '.join(f'{rate}: {frames} frames' for rate, frames in live.tried)
+    how = (f'found by listening at the standard rates (listen-only): {tried}' if live.tried
+           else 'where probe listened')
+    if not live.rate_determined:
+        return [Setting('interface', live.interface, 'where probe listened'),
+                Setting('channel', live.channel, 'where probe listened'),
+                Setting('bitrate', live.bitrate, 'check: frames came at more than one rate '
+                        f'({tried}): the link has no bit rate of its own (a pty or a '
+                        "software link?), so the rate was not determined: set your bus's",
+                        False)]
     return [Setting('interface', live.interface, 'where probe listened'),
             Setting('channel', live.channel, 'where probe listened'),
             Setting('bitrate', live.bitrate, how)]

@@ -87,7 +87,7 @@ def render(findings: Findings, bus: list[Setting], source: str) -> str:
              '#   log2bag LOG BAG --params-file <this file>',
              '/**:', '  ros__parameters:']
     depth = 2
-    if all(b.decided for b in bus):
+    if any(b.decided for b in bus):  # live: an undecided rate is commented out on its own
         lines.append(f'{INDENT * depth}can:')
         lines += _entries(bus, depth + 1)
     else:  # a log: one check for the block
