@@ -69,7 +69,8 @@ def test_cells_not_received_are_counted_and_named_by_multiplexer_value(tmp_path)
     report = device.battery_report()
     assert report.cell_voltage[:4] == pytest.approx([3.7, 3.701, 3.702, 3.703])
     assert all(math.isnan(v) for v in report.cell_voltage[4:])  # BatteryState stays honest
-    clock.now += 3.0  # mux 0 expired too
+    # mux 0 expired too: it came 3 s apart, so its timeout is 3 x 3 s (issue 35.5)
+    clock.now += 9.5
     device.handle_frame(0x220, bytes(8), clock.now)
     assert '16 of 16 cell voltages unknown: f_CellVoltages mux 1..3 not received, mux 0 ' \
         'expired;' in device.diagnostic_report().message
@@ -175,4 +176,9 @@ def test_a_mapping_that_reads_the_dbc_wrong_shows_wrong_values_in_simulation(tmp
     clock = Clock(0.0)
     device = DbcDevice('pack', files, clock)
     _run(sim, device, clock, 1.0)
-    assert device.battery_report().voltage > 1000.0  # mV read as V: visibly wrong
+    # mV read as V: 400000 V, no pack's (issue 35.6): never published, counted, named
+    assert math.isnan(device.battery_report().voltage)
+    diag = device.diagnostic_report()
+    assert diag.level == Level.WARN and device.frames_malformed > 0
+    assert 'implausible: BMS_PackValues.batteryVoltage = ' in diag.message
+    assert 'implausible for voltage 0..1500 V' in device.last_malformed

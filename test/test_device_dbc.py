@@ -245,7 +245,7 @@ def test_known_units_convert_without_a_scale(tmp_path):
            .replace('batteryVoltage : 7|16@0+ (10,0) [0|600000] "mV"',
                     'batteryVoltage : 7|16@0+ (1e-05,0) [0|0.6] "kV"')  # 40000 -> 0.4 kV
            .replace('maximumCellTemp : 0|8@1- (1,0) [-40|125] "degC"',
-                    'maximumCellTemp : 0|8@1+ (2,0) [0|510] "K"')  # 0x23 -> 70 K
+                    'maximumCellTemp : 0|8@1+ (10,0) [0|2550] "K"')  # 0x23 -> 350 K
            .replace('packSoc : 0|10@1+ (0.1,0) [0|100] "%"',
                     'packSoc : 0|10@1+ (1,0) [0|1000] "\u2030"'))  # 875 per mille
     device = make(tmp_path, dbc=dbc)
@@ -253,7 +253,7 @@ def test_known_units_convert_without_a_scale(tmp_path):
     feed(device, *ALL)
     report = device.battery_report()
     assert report.voltage == pytest.approx(400.0)
-    assert report.temperature == pytest.approx(70 - 273.15)
+    assert report.temperature == pytest.approx(350 - 273.15)
     assert report.percentage == pytest.approx(0.875)
     assert report.current == pytest.approx(-50.0)  # mA and the mapping's scale -1
 

@@ -233,7 +233,7 @@ class DbcConfig(DeviceConfig):
 
     KEYS: ClassVar[tuple[str, ...]] = (
         'frame_id', 'location', 'serial_number', 'stale_timeout', 'dbc_file', 'mapping_file',
-        'profile',
+        'profile', 'timeouts',
     )
 
     frame_id: str = ''
@@ -243,3 +243,4 @@ class DbcConfig(DeviceConfig):
     dbc_file: str | None = None
     mapping_file: str | None = None
     profile: str = ''
+    timeouts: tuple[str, ...] = ()

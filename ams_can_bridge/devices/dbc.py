@@ -26,12 +26,14 @@ from ams_can_bridge.devices.base import (
 from ams_can_bridge.devices.configs import DbcConfig
 from ams_can_bridge.devices.dbc_describe import start_lines
 from ams_can_bridge.devices.dbc_diag import capped_values, listed, missing_report, WARNINGS_CAP
-from ams_can_bridge.devices.dbc_mapping import load_plan
+from ams_can_bridge.devices.dbc_mapping import given_timeouts, load_plan
 from ams_can_bridge.devices.dbc_plan import (
-    Array, Enum, FlagRule, MappingError, Plan, Ref, Scalar)
+    Array, Enum, FlagRule, LEARNED_PERIODS, MappingError, OUTLIER, Plan, Ref, Scalar)
 from ams_can_bridge.devices.dbc_profiles import PROFILES
+from ams_can_bridge.devices.dbc_units import unit_text
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
 from ams_can_bridge.errors import ConfigError, ProtocolError
+from ams_can_bridge.protocols import dbc_codec
 from ams_can_bridge.parameters import ParamSpec
 
 _GroupKey = tuple[int, Any]
@@ -63,6 +65,10 @@ class DbcDevice(Device[DbcConfig]):
                   "a shipped, tested DBC and mapping instead of dbc_file and mapping_file "
                   "(mapping_file, when given, replaces the profile's mapping)",
                   choices=('', *PROFILES)),
+        ParamSpec('timeouts', 'str[]', [],
+                  "'Message=seconds' per message: how long its values stay fresh, over the "
+                  "mapping's timeouts and the DBC's periods (probe writes what it heard; "
+                  'the device also learns each period from the traffic)', max_length=1024),
     ]
 
     def __init__(self, name: str, config: DbcConfig | Mapping[str, Any],
@@ -74,6 +80,7 @@ class DbcDevice(Device[DbcConfig]):
         except MappingError as exc:
             raise ConfigError(str(exc)) from None  # its lines as they are: YAML's own too
         plan = self.plan
+        given_timeouts(plan, self.config.timeouts)
         self.warnings = list(plan.warnings)  # the mapping's
         self.dbc_notes = list(plan.dbc_notes)  # what the DBC lacked: dropped lines, broken
         self.started = clock()  # missing data counts from here (log2bag: its first frame)
@@ -83,6 +90,8 @@ class DbcDevice(Device[DbcConfig]):
             raise ConfigError('the mapping uses one CAN ID as a standard and an '
                               'extended message: map only one of them')
         self.groups: TimedStore[_GroupKey, tuple] = TimedStore()
+        # (message, signal) -> the last implausible value refused, and when
+        self.implausible: dict[tuple[int, int], tuple[str, float]] = {}
         self._stamp = NAN
         # validity flags per message: (flag signal index, its rule, element label) for the
         # malformed count
@@ -98,11 +107,18 @@ class DbcDevice(Device[DbcConfig]):
             if array.slot_message is not None:
                 self._slots.setdefault(array.slot_message, []).append(
                     (key, array, TimedSpans.uniform(1, array.count)))
+        # per message, what its traffic taught (see _learn): [last arrival, period, outliers
+        # in a row, learned timeout, first arrival, groups seen, groups seen twice]
+        self.rates = [[NAN, NAN, 0, 0.0, NAN, 1, 0] for _ in plan.messages]
+        # per message (multiplexed or positioned): group (mux value or position) -> arrivals
+        # (counted up to 2)
+        self.arrivals: list[dict[Any, int]] = [{} for _ in plan.messages]
         # per CAN ID, all the receive thread needs: (message, group key, invalid flags,
-        # positioned arrays, primary?)
+        # positioned arrays, primary?, its rate, its arrivals)
         self._handlers = {
             m.frame_id: (m, (i, None), self._flags.get(i, []), self._slots.get(i, []),
-                         i == plan.primary) for i, m in enumerate(plan.messages)}
+                         i == plan.primary, self.rates[i], self.arrivals[i])
+            for i, m in enumerate(plan.messages)}
 
     @property
     def frame_ids(self) -> frozenset[tuple[int, bool]]:
@@ -125,7 +141,7 @@ class DbcDevice(Device[DbcConfig]):
         entry = self._handlers.get(arbitration_id)
         if entry is None:
             return False
-        compiled, key, flags, slots, primary = entry
+        compiled, key, flags, slots, primary, rate, arrivals = entry
         try:
             values, bad = compiled.decode(data)
         except ProtocolError as exc:
@@ -139,29 +155,43 @@ class DbcDevice(Device[DbcConfig]):
                 self.started = now
             self.frames_received += 1
             if bad or flags:
-                self._check(compiled, arbitration_id, values, bad, flags)
+                self._check(compiled, key[0], arbitration_id, data, values, bad, flags, now)
             old = None if compiled.compiled else self.groups.latest(key)
             if old is not None:
                 # nested multiplexing: each frame carries one branch; keep the others' last
                 values = tuple(o if v is None else v for v, o in zip(values, old))
             self.groups.put(key, values, now)
+            group = None
             if compiled.mux_index is not None:
                 mux = values[compiled.mux_index]
                 if mux == mux:
                     info = compiled.signals[compiled.mux_index]
-                    self.groups.put((key[0], round((mux - info.offset) / info.scale)),
-                                    values, now)
+                    group = round((mux - info.offset) / info.scale)
+                    self.groups.put((key[0], group), values, now)
             if slots:
-                self._put_slots(slots, values, now)
+                group = self._put_slots(slots, values, now)
+            if group is not None and arrivals.get(group, 0) < 2:
+                self._arrived(rate, arrivals, group)
+            last, rate[0] = rate[0], now
+            if last == last:
+                # learn the period (see _learn), inline: this runs for every frame
+                interval, period = now - last, rate[1]
+                if interval <= OUTLIER * period and not rate[2]:
+                    rate[1] = period = period + (interval - period) * 0.25
+                    rate[3] = LEARNED_PERIODS * period * rate[5]
+                else:
+                    self._learn(rate, interval)
+            else:
+                rate[4] = now
             if primary:
                 self._stamp = stamp
                 self.last_seen = now
             return primary
 
-    def _check(self, compiled: Any, arbitration_id: int, values: tuple, bad: Any,
-               flags: list[tuple[int, FlagRule, str]]) -> None:
+    def _check(self, compiled: Any, m: int, arbitration_id: int, data: bytes, values: tuple,
+               bad: Any, flags: list[tuple[int, FlagRule, str]], now: float) -> None:
         """Count a frame with a value out of range or a flag saying invalid (lock held)."""
-        problems = [compiled.signals[i].name + ' outside its DBC range' for i in bad]
+        problems = [self._out_of_range(compiled, m, i, data, now) for i in bad]
         # a flag of another multiplexer branch is absent (None): not this frame's
         problems += [f'{label} flagged invalid' for flag, rule, label in flags
                      if values[flag] is not None and rule.invalid(values[flag])]
@@ -170,8 +200,63 @@ class DbcDevice(Device[DbcConfig]):
             self.last_malformed = f'{compiled.name} 0x{arbitration_id:X}: ' + ', '.join(
                 problems)
 
+    def _out_of_range(self, compiled: Any, m: int, i: int, data: bytes, now: float) -> str:
+        """
+        Say why a signal's value was refused: outside its DBC range, or implausible.
+
+        An implausible value (beyond the bounds of the field it is mapped to, or not a
+        finite number) is kept to be named in the diagnostics (the decoder gave NaN: the
+        value is read again here, only for a refused frame).
+        """
+        info = compiled.signals[i]
+        bound = self.plan.bounds.get((m, i))
+        try:
+            value = float(self.plan.sources[m].decode(
+                bytes(data[:compiled.length]), decode_choices=False)[info.name])
+        except Exception:  # a branch cantools cannot read: say the range only
+            return f'{info.name} outside its DBC range'
+        if bound is None or (math.isfinite(value) and not dbc_codec.in_range(info, value)):
+            return f'{info.name} outside its DBC range'
+        unit = f' {unit_text(info.unit)}' if info.unit else ''
+        text = f'{compiled.name}.{info.name} = {value:g}{unit} (implausible for {bound})'
+        self.implausible[(m, i)] = (text, now)
+        return text
+
     @staticmethod
-    def _put_slots(slots: list, values: tuple, now: float) -> None:
+    def _arrived(rate: list, arrivals: dict[Any, int], group: Any) -> None:
+        """Count a group's first and second arrival (lock held; see all_arrived_twice)."""
+        count = arrivals.get(group, 0)
+        arrivals[group] = count + 1
+        if count:
+            rate[6] += 1
+        else:
+            rate[5] = len(arrivals)
+
+    @staticmethod
+    def _learn(rate: list, interval: float) -> None:
+        """
+        Learn a message's period from the time between its frames (lock held).
+
+        A smoothed interval; one far longer than the period so far (OUTLIER x: the sender
+        paused, the bus was lost) is not learned unless the next ones are as long (the
+        sender was set to a slower rate). The learned timeout is LEARNED_PERIODS x that
+        period x the groups of a rotation: a message's values never expire between its
+        frames, whatever rate the vendor's utility set.
+        """
+        period = rate[1]
+        if period != period or rate[2] >= 2:
+            rate[1], rate[2] = interval, 0
+        elif interval <= OUTLIER * period:
+            rate[1], rate[2] = period + (interval - period) * 0.25, 0
+        else:
+            rate[2] += 1
+            return
+        rate[3] = LEARNED_PERIODS * rate[1] * rate[5]
+
+    @staticmethod
+    def _put_slots(slots: list, values: tuple, now: float) -> int | None:
+        """Put a positioned frame's elements; return its position (None: not placed)."""
+        placed = None
         for _, array, elements in slots:
             position = 0.0
             for i, first, stride in array.selectors:
@@ -188,11 +273,30 @@ class DbcDevice(Device[DbcConfig]):
                     elements.put_elements(base + low, [
                         NAN if values[i] is None else values[i] * factor + add
                         for i in signals[low:high]], now)
+                    if placed is None:
+                        placed = base
+        return placed
 
     # --- reports: what the engine publishes (lock held) ---------------------------------------
     def group_timeout(self, message: int) -> float:
-        """Return how long a message's groups stay fresh (s)."""
-        return self.plan.timeouts.get(message, self.stale_timeout)
+        """Return how long a message's groups stay fresh (s): never below what it taught."""
+        return max(self.plan.timeouts.get(message, self.stale_timeout),
+                   self.rates[message][3])
+
+    def all_arrived_twice(self, message: int) -> bool:
+        """
+        Tell whether every group heard of a message has come twice (lock held).
+
+        A group (multiplexer value, position) not heard by then is missing: its sender is
+        silent, not late (issue 35.7).
+        """
+        rate = self.rates[message]
+        return bool(self.arrivals[message]) and rate[6] >= rate[5]
+
+    def learned_periods(self) -> dict[str, float]:
+        """Return the period each message was heard at (s), by message name (lock held)."""
+        return {m.name: rate[1] for m, rate in zip(self.plan.messages, self.rates)
+                if rate[1] == rate[1]}
 
     def slot_elements(self, key: str) -> TimedSpans:
         """Return the timed elements of a positioned array."""
@@ -311,6 +415,14 @@ class DbcDevice(Device[DbcConfig]):
         if missing:
             level = max(level, Level.WARN)
             parts += missing
+        odd = [text for (m, _), (text, seen) in self.implausible.items()
+               if now - seen <= self.group_timeout(m)]
+        if odd:
+            level = max(level, Level.WARN)
+            parts.append('implausible: ' + ', '.join(odd) + ' (not published)' + (
+                f"; the BMS may not send profile {self.config.profile}'s layout (messages "
+                "customised in its utility?): give your own DBC and mapping"
+                if self.config.profile and not self.config.mapping_file else ''))
         if self.warnings:
             level = max(level, Level.WARN)
             parts.append(f'{len(self.warnings)} mapping warning(s)')

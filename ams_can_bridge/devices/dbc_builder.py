@@ -29,6 +29,26 @@ def natural_key(text: str) -> tuple:
                  for part in re.split(r'(\d+)', text))
 
 
+def _within_fraction(info: dbc_codec.SignalInfo) -> bool:
+    """Tell whether a signal's DBC range says it is a ratio 0..1 already."""
+    return (info.minimum is not None and info.maximum is not None
+            and info.minimum >= 0 and info.maximum <= 1)
+
+
+def _fraction_problem(where: str, name: str, spelled: str,
+                      info: dbc_codec.SignalInfo) -> str:
+    """Say that a ratio's unit must be given: a percentage published as 805 is no ratio."""
+    top = info.maximum
+    guess = {100.0: "'%'", 1000.0: "'‰' (0.1 % per bit)", 10000.0: "'0.01%'"}.get(
+        float(top) if top is not None else -1.0)
+    span = (f'its DBC range {info.minimum:g}..{top:g}' if top is not None
+            and info.minimum is not None else 'the DBC gives it no range')
+    return (f'{where}: {name} has unit {spelled!r}, which is not a ratio unit we know, and '
+            f'{span} is not 0..1: give its unit with unit: ('
+            + (f'{guess} reads that range as 0..100 %; ' if guess else '')
+            + "'%', '‰', '0.1%', '0.01%' or '0..1'; doc/own_bms.md: units)")
+
+
 class Builder:
     """Walks the mapping, collecting every problem instead of stopping at the first."""
 
@@ -124,6 +144,10 @@ class Builder:
                                  'knows (doc/own_bms.md: units)')
             return None
         if known is None:
+            if wanted == 'fraction' and scale is None and offset is None \
+                    and not _within_fraction(info):
+                self.problems.append(_fraction_problem(where, name, spelled, info))
+                return None
             if scale is None and offset is None:
                 self.warnings.append(
                     f'{where}: {name} has unit {spelled!r}, which is not {target} unit we '

@@ -9,7 +9,8 @@ message its timeout and where it comes from.
 from __future__ import annotations
 
 from ams_can_bridge.devices.dbc_plan import (
-    ARRAY_UNITS, base_unit, CONDITION_TEXT, Enum, ENUMS, Plan, Ref, Scalar, SCALAR_UNITS)
+    ARRAY_UNITS, base_unit, CONDITION_TEXT, Enum, ENUMS, LEARNED_PERIODS, Plan, Ref, Scalar,
+    SCALAR_UNITS)
 
 
 def formula(ref: Ref, named: bool = True) -> str:
@@ -88,4 +89,10 @@ def start_lines(plan: Plan, stale_timeout: float) -> list[str]:
         seconds = plan.timeouts.get(m, stale_timeout)
         lines.append(f'timeout {compiled.name} (0x{compiled.frame_id:X}): {seconds:g} s, '
                      f'{plan.timeout_origin.get(m, "stale_timeout")}')
+    lines.append(f'timeouts grow to {LEARNED_PERIODS} x the period each message is heard at '
+                 '(learned from the traffic); the timeouts parameter sets one from the start')
+    if plan.bounds:
+        lines.append('refused as implausible (never published, the frame malformed): '
+                     + '; '.join(f'{plan.messages[m].name}.{plan.messages[m].signals[i].name} '
+                                 f'beyond {text}' for (m, i), text in plan.bounds.items()))
     return lines

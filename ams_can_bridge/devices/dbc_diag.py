@@ -5,7 +5,9 @@ Missing data is never OK: a mapped field or array element that is unknown becaus
 message (or multiplexer group, or array element) has not arrived within its timeout since
 start, or has expired, makes the device WARN with a message that counts and names what is
 missing (``12 of 16 cell voltages unknown: f_CellVoltages mux 1..3 not received``); an
-element the BMS flags invalid, or a value outside its DBC range, is named too. The
+element the BMS flags invalid, or a value outside its DBC range (or implausible for its
+field: the device names those), is named too. A multiplexer value or position never heard
+is missing as soon as every other group of its message came twice. The
 BatteryState stays honest (NaN) as before.
 
 A status carries at most VALUES_CAP signal values besides the mapped ones (the signals a
@@ -24,7 +26,8 @@ WARNINGS_CAP = 30  # warnings listed one by one (in the log and as values)
 
 # why an element is unknown (the order the message lists them in)
 NOT_RECEIVED, EXPIRED, INVALID, OUT_OF_RANGE, WAITING = (
-    'not received', 'expired', 'flagged invalid', 'outside its DBC range', 'waiting')
+    'not received', 'expired', 'flagged invalid', 'outside its DBC range or implausible',
+    'waiting')
 
 
 def ranges(numbers: Iterable[int]) -> str:
@@ -119,6 +122,9 @@ def _state(device: Any, key: tuple[int, Any], seen: float, now: float) -> str:
     """Return 'fresh', WAITING, NOT_RECEIVED or EXPIRED for one group (or position)."""
     timeout = device.group_timeout(key[0])
     if seen == NEVER:
+        # missing once its message's other groups each came twice without it
+        if key[1] is not None and device.all_arrived_twice(key[0]):
+            return NOT_RECEIVED
         return WAITING if now - device.started <= timeout else NOT_RECEIVED
     return 'fresh' if now - seen <= timeout else EXPIRED
 

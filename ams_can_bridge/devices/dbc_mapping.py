@@ -13,16 +13,17 @@ each entry are ``devices.dbc_builder``'s and ``devices.dbc_arrays``'.
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterable
 
 import yaml
 
 from ams_can_bridge.devices.dbc_arrays import build_array
 from ams_can_bridge.devices.dbc_builder import Builder
 from ams_can_bridge.devices.dbc_plan import (
-    Array, ARRAY_UNITS, Enum, ENUMS, locate, MappingError, MIN_TIMEOUT, Plan, Scalar,
-    SCALAR_UNITS, TIMEOUT_PERIODS, TOP_LEVEL)
+    Array, ARRAY_UNITS, base_unit, Enum, ENUMS, FIELD_BOUNDS, locate, MappingError,
+    MIN_TIMEOUT, Plan, Ref, Scalar, SCALAR_UNITS, TIMEOUT_PERIODS, TOP_LEVEL)
 from ams_can_bridge.devices.dbc_profiles import profile_files
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols import dbc_codec
@@ -86,7 +87,51 @@ def build_plan(loaded: LoadedDbc, mapping: Any) -> Plan:
                 sources=b.sources, scalars=plan_parts['scalars'], enums=plan_parts['enums'],
                 arrays=plan_parts['arrays'])
     _timeouts(plan, given)
+    _bounds(plan)
     return plan
+
+
+def _bounds(plan: Plan) -> None:
+    """
+    Give every signal a field reads the bounds of that field (FIELD_BOUNDS), in its DBC unit.
+
+    The pack voltage is not bounded by the cells mapped: a mapping may read only some of the
+    pack's cells (a team's test fixture maps 4 of a 400 V pack). Each message with a bounded
+    signal is compiled again with them: its decoder reports a value beyond them as it does
+    one outside the DBC's [min|max] (NaN, the frame malformed).
+    """
+    limits: dict[tuple[int, int], tuple[float, float]] = {}
+
+    def add(key: str, ref: Ref | None, factor: float, add_: float) -> None:
+        if ref is None or factor == 0:
+            return
+        low, high = FIELD_BOUNDS[key]
+        unit = base_unit(SCALAR_UNITS.get(key) or ARRAY_UNITS[key])
+        text = f'{key} {low:g}..{high:g}' + ('' if unit == '0..1' else f' {unit}')
+        ends = sorted(((low - add_) / factor, (high - add_) / factor))
+        where = (ref.message, ref.signal)
+        old = limits.get(where)
+        if old is not None:
+            ends = [max(ends[0], old[0]), min(ends[1], old[1])]
+            text = plan.bounds[where] + ', ' + text
+        limits[where] = (ends[0], ends[1])
+        plan.bounds[where] = text
+
+    for key, scalar in plan.scalars.items():
+        step: Scalar | None = scalar
+        while step is not None:
+            if step.ref is not None:
+                add(key, step.ref, step.ref.factor, step.ref.add)
+            step = step.fallback
+    for key, array in plan.arrays.items():
+        for ref in array.refs:
+            add(key, ref, ref.factor, ref.add)
+        if array.slot_message is not None and array.sample is not None:
+            for signal in array.slot_signals:
+                add(key, Ref(array.slot_message, signal, None, '', ''), array.factor, array.add)
+    for m in sorted({m for m, _ in limits}):
+        plan.messages[m] = dbc_codec.compile_message(
+            plan.sources[m], {i: ends for (n, i), ends in limits.items() if n == m})
 
 
 def listing(problems: list[str]) -> str:
@@ -109,6 +154,33 @@ def _given_timeouts(b: Builder, spec: Any) -> dict[int, float]:
         elif m is not None:
             timeouts[m] = float(seconds)
     return timeouts
+
+
+def given_timeouts(plan: Plan, items: Iterable[str]) -> None:
+    """
+    Apply the ``timeouts`` parameter ('Message=seconds' each) over the plan's timeouts.
+
+    ConfigError names every entry that is not a mapped message with 0.01..3600 s.
+    """
+    names = {m.name: n for n, m in enumerate(plan.messages)}
+    problems = []
+    for item in items:
+        name, sep, text = str(item).partition('=')
+        name = name.strip()
+        try:
+            seconds = float(text) if sep else math.nan
+        except ValueError:
+            seconds = math.nan
+        if name not in names:
+            problems.append(f'timeouts: {item!r}: {name!r} is not a message the mapping reads'
+                            + dbc_codec.closest(name, list(names)))
+        elif not 0.01 <= seconds <= 3600:
+            problems.append(f"timeouts: {item!r}: write 'Message=seconds' (0.01..3600 s)")
+        else:
+            plan.timeouts[names[name]] = seconds
+            plan.timeout_origin[names[name]] = 'the timeouts parameter'
+    if problems:
+        raise ConfigError(listing(problems))
 
 
 def _timeouts(plan: Plan, given: dict[int, float]) -> None:

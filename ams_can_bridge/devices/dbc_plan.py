@@ -16,7 +16,7 @@ from ams_can_bridge.devices.base import (
 from ams_can_bridge.devices.dbc_units import BASE
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols import dbc_codec
-from ams_can_bridge.protocols.common import msg_defs_dir
+from ams_can_bridge.protocols.common import CELL_V_MAX, msg_defs_dir, TEMP_C_MAX
 
 # BatteryState field -> the quantity it wants (dbc_units; None: an enum or a name).
 SCALAR_UNITS = {'voltage': 'V', 'current': 'A', 'charge': 'Ah', 'capacity': 'Ah',
@@ -36,6 +36,27 @@ LEVELS = {'OK': Level.OK, 'WARN': Level.WARN, 'ERROR': Level.ERROR}
 # multiplexed message), never shorter than MIN_TIMEOUT (a loaded host delivers late).
 TIMEOUT_PERIODS = 5
 MIN_TIMEOUT = 0.1  # s
+# ... and never below LEARNED_PERIODS x the period it is heard at (a vendor's utility may set
+# a slower rate than its DBC says); an interval OUTLIER x the period so far is a pause, not a
+# new rate (devices.dbc DbcDevice._learn).
+LEARNED_PERIODS = 3
+OUTLIER = 4.0
+
+
+# What no battery reports, in each field's unit (doc/protocols.md "Physical bounds", section
+# 8): a mapped signal's value beyond its field's bounds is implausible, its frame malformed,
+# whatever the DBC's [min|max] allows. The built-in devices' bounds (cells, temperatures,
+# no negative pack voltage), and what a dbc field can be wrong by on top: a DBC read with the
+# wrong layout or unit gives values no battery has.
+PACK_V_MAX = 1500.0  # V: the top of low voltage (DC); no battery pack of a vehicle is above
+CURRENT_A_MAX = 4000.0  # A: beyond the largest shunt (IVT-S: 2500 A) and any pack's fuse
+CHARGE_AH_MAX = 100000.0  # Ah: 100 kAh (a 48 V, 5 MWh storage); a counter may be negative
+COLDEST_C = -90.0  # degC: colder than any air on Earth's surface (-89.2 degC, Vostok 1983)
+FIELD_BOUNDS = {'voltage': (0.0, PACK_V_MAX), 'current': (-CURRENT_A_MAX, CURRENT_A_MAX),
+                'charge': (-CHARGE_AH_MAX, CHARGE_AH_MAX), 'capacity': (0.0, CHARGE_AH_MAX),
+                'design_capacity': (0.0, CHARGE_AH_MAX), 'percentage': (0.0, 1.0),
+                'temperature': (COLDEST_C, TEMP_C_MAX), 'cell_voltage': (0.0, CELL_V_MAX),
+                'cell_temperature': (COLDEST_C, TEMP_C_MAX)}
 
 
 class MappingError(ConfigError):
@@ -179,6 +200,9 @@ class Plan:
     mapped: frozenset[tuple[int, int]] = frozenset()  # (message, signal) any rule reads
     files: tuple[str, str] = ('', '')  # the DBC and the mapping as found
     sources: list[Any] = field(default_factory=list)  # the cantools message of each message
+    # (message, signal) -> what the field it is mapped to can be (FIELD_BOUNDS) as the
+    # start log and a refused frame say it: 'percentage 0..1'
+    bounds: dict[tuple[int, int], str] = field(default_factory=dict)
 
 
 def base_unit(quantity: str) -> str:

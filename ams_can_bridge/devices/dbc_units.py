@@ -55,7 +55,9 @@ def _table() -> dict[str, Unit]:
                                      'coulombs')),
         'mAs': ('Ah', 1 / 3.6e6, 0.0, ('mas',)),
         '%': ('fraction', 0.01, 0.0, ('%', 'percent', 'percents', 'pct', 'percentage')),
-        '‰': ('fraction', 0.001, 0.0, ('‰', 'permille', 'promille')),
+        '‰': ('fraction', 0.001, 0.0, ('‰', 'permille', 'promille', '01%')),  # '0.1 %'
+        '0.01%': ('fraction', 1e-4, 0.0, ('001%', '‱', 'permyriad', 'basispoint')),
+        '0..1': ('fraction', 1.0, 0.0, ('01', 'ratio', 'fraction')),  # '0..1'
         'degC': ('degC', 1.0, 0.0, ('degc', '°c', 'c', 'degreec', 'degreesc', 'celsius',
                                     'degcelsius', 'degreecelsius', 'degreescelsius', '℃',
                                     'degrecelsi')),

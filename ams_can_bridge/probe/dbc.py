@@ -5,8 +5,10 @@ The mapping names the messages the dbc device reads (``devices.dbc_mapping.load_
 device's own check of both files). Each of them is looked for by ID: heard, with a length
 the DBC message fits in, and with values inside the signals' DBC ranges (the compiled
 decoder the device uses says which are not). The primary message must be among them: it
-makes the BatteryState. ``match_plan`` is what a shipped profile (foxBMS 2, Orion BMS 2)
-reuses to recognise itself.
+makes the BatteryState. The frames heard then go through the dbc device as the bridge
+would read them (``probe.dbc_publish``): what it would publish and refuse, the mapping's
+warnings, the timeouts the rates heard need. ``match_plan`` is what a shipped profile
+(foxBMS 2, Orion BMS 2) reuses to recognise itself.
 """
 from __future__ import annotations
 
@@ -17,6 +19,7 @@ import re
 from ams_can_bridge.devices.dbc_mapping import load_plan
 from ams_can_bridge.devices.dbc_plan import MappingError, Plan, resolve_path
 from ams_can_bridge.errors import ConfigError, MalformedFrameError
+from ams_can_bridge.probe.dbc_publish import read_back, say_published, timeouts_setting
 from ams_can_bridge.probe.evidence import Candidate, stale_setting
 from ams_can_bridge.probe.traffic import id_label, Key, rate_text, Traffic
 
@@ -52,7 +55,9 @@ def match_plan(traffic: Traffic, plan: Plan) -> PlanMatch:
         try:
             for data in entry.payloads:
                 _, out_of_range = message.decode(data)
-                bad |= {message.signals[i].name for i in out_of_range}
+                bad |= {message.signals[i].name + (
+                    f' (or beyond {plan.bounds[(index, i)]})' if (index, i) in plan.bounds
+                    else '') for i in out_of_range}
         except MalformedFrameError as exc:
             match.evidence.append(f'{where}: {exc.reason}')
             continue
@@ -104,12 +109,18 @@ class DbcRecogniser:
             cand = Candidate('dbc', name, f'{os.path.basename(dbc_file)} ({name})',
                              match.score if match.primary_heard else min(match.score, 0.4),
                              frozenset(match.ids), match.evidence, user_given=True)
-            if not match.primary_heard:
+            device = read_back({'dbc_file': dbc_file, 'mapping_file': mapping_file}, plan,
+                               traffic)
+            if match.primary_heard:
+                say_published(cand, device, device.battery_report(), 'BMS')
+            else:
                 cand.notes.append('the primary message was not heard in range: the device '
                                   'would publish nothing')
+                cand.notes += [f'mapping warning: {w}' for w in device.warnings]
             cand.set('dbc_file', dbc_file, 'the DBC given')
             cand.set('mapping_file', mapping_file, 'the mapping given')
             stale_setting(cand, match.primary_period_s, DEFAULT_STALE_S,
                           'the primary message comes')
+            timeouts_setting(cand, device, traffic)
             out.append(cand)
         return out

@@ -26,13 +26,12 @@ from typing import Iterable
 from cantools.database.can import Message
 import yaml
 
-from ams_can_bridge.devices.base import BatteryReport
-from ams_can_bridge.devices.dbc import DbcDevice
 from ams_can_bridge.devices.dbc_mapping import build_plan
 from ams_can_bridge.devices.dbc_plan import ARRAY_LABELS, Plan
 from ams_can_bridge.devices.dbc_profiles import profile_files, PROFILES
 from ams_can_bridge.errors import MalformedFrameError
 from ams_can_bridge.probe.dbc import DEFAULT_STALE_S, match_plan, PlanMatch
+from ams_can_bridge.probe.dbc_publish import read_back, say_published, timeouts_setting
 from ams_can_bridge.probe.evidence import Candidate, stale_setting, WEAK
 from ams_can_bridge.probe.traffic import id_label, IdTraffic, Key, Traffic
 from ams_can_bridge.protocols import dbc_codec
@@ -53,13 +52,6 @@ class Shipped:
 
 SHIPPED = {'foxbms2': Shipped('foxbms2', 'foxBMS 2'),
            'orion_bms2': Shipped('orion', 'Orion BMS 2', (0x6B0, 0x6B1, 0x36))}
-# What a BMS's published values can be (the IVT-S's bounds for the pack; a Li-ion, LFP or
-# LTO cell): outside them the DBC reads frames that are not this BMS's
-PLAUSIBLE = {'voltage': (0.0, 1500.0), 'current': (-4000.0, 4000.0),
-             'percentage': (0.0, 1.0), 'temperature': (-60.0, 150.0)}
-PLAUSIBLE_ARRAYS = {'cell_voltage': (0.5, 5.0), 'cell_temperature': (-60.0, 150.0)}
-UNITS = {'voltage': 'V', 'current': 'A', 'temperature': 'degC'}
-IMPLAUSIBLE = 0.45  # the confidence of a match whose values cannot be a BMS's: not written
 SAME_PACK = 0.05  # an SMA voltage within 5 % of the profile's pack voltage is the same pack
 
 
@@ -108,75 +100,22 @@ def _candidate(name: str, plan: Plan, match: PlanMatch, traffic: Traffic,
                           'heard in range, and the device publishes one BatteryState per frame')
         return cand
     cand.confidence = 0.5 + 0.4 * match.score
-    report, malformed = _read_back(name, plan, traffic)
+    device = read_back({'profile': name}, plan, traffic)
+    report = device.battery_report()
     cand.facts['pack_voltage_v'] = report.voltage
-    cand.evidence.append('the bridge would publish ' + _published(report))
-    if malformed:
-        cand.evidence.append(malformed)
     marks = [_checksum(shipped, traffic, cand)] + _arrays(plan, traffic, cand)
     if any(marks):
         cand.confidence = min(1.0, cand.confidence + 0.1)
-    odd = _implausible(report)
-    if odd:
-        cand.confidence = min(cand.confidence, IMPLAUSIBLE)
-        cand.notes.append(f'not written: {odd}: no {shipped.title} sends that; its DBC is '
-                          'reading frames of another sender')
+    say_published(cand, device, report, shipped.title)
     _others(cand, shipped.title, others, traffic, found)
     _same_pack(cand, shipped.title, found)
     cand.set('profile', name, f'{round(match.score * len(plan.messages))} of the '
              f"{len(plan.messages)} messages {name}'s mapping reads heard in range, its "
              f'primary {primary.name} among them')
     stale_setting(cand, match.primary_period_s, DEFAULT_STALE_S, f'{primary.name} comes')
+    timeouts_setting(cand, device, traffic)
     _mapping_check(cand, shipped.title, plan, mapping)
     return cand
-
-
-def _read_back(name: str, plan: Plan, traffic: Traffic) -> tuple[BatteryReport, str]:
-    """Feed the frames heard to the dbc device with the profile; its report, what it refused."""
-    now = traffic.last if traffic.last == traffic.last else 0.0
-    device = DbcDevice('probe', {'profile': name}, lambda: now)
-    frames: list[tuple[float, int, bytes]] = []
-    later: list[tuple[int, bytes]] = []
-    for message in plan.messages:
-        entry = traffic.get(message.frame_id, message.is_extended_id)
-        if entry is not None:
-            frames += [(stamp, entry.can_id, data) for stamp, data in entry.samples]
-            sampled = set(entry.payloads)  # a multiplexer value first heard after the samples
-            later += [(entry.can_id, d) for d in entry.by_byte0.values() if d not in sampled]
-    for _, can_id, data in sorted(frames, key=lambda f: f[0]):
-        device.handle_frame(can_id, data, now)
-    for can_id, data in later:
-        device.handle_frame(can_id, data, now)
-    refused = (f'{device.frames_malformed} of the frames read count as malformed (the last: '
-               f'{device.last_malformed})' if device.frames_malformed else '')
-    return device.battery_report(), refused
-
-
-def _published(report: BatteryReport) -> str:
-    parts = [f'{getattr(report, key):.4g} {unit}' if math.isfinite(getattr(report, key))
-             else f'{key} unknown' for key, unit in UNITS.items()]
-    parts.insert(2, f'SoC {100 * report.percentage:.4g} %' if math.isfinite(report.percentage)
-                 else 'SoC unknown')
-    for key in PLAUSIBLE_ARRAYS:
-        values = [v for v in getattr(report, key) if math.isfinite(v)]
-        count = len(getattr(report, key))
-        if count:
-            ends = (f'{min(values):.4g}', f'{max(values):.4g}') if values else ()
-            span = list(dict.fromkeys(ends))  # one value when all read alike
-            parts.append(f'{len(values)} of {count} {ARRAY_LABELS[key]} read'
-                         + (f' ({"..".join(span)})' if span else ''))
-    return ', '.join(parts)
-
-
-def _implausible(report: BatteryReport) -> str:
-    """Say which published value no BMS sends ('' when all are plausible)."""
-    odd = [f'{key} {value:.4g}' for key, (low, high) in PLAUSIBLE.items()
-           if math.isfinite(value := getattr(report, key)) and not low <= value <= high]
-    for key, (low, high) in PLAUSIBLE_ARRAYS.items():
-        outside = [v for v in getattr(report, key) if math.isfinite(v) and not low <= v <= high]
-        if outside:
-            odd.append(f'{len(outside)} {ARRAY_LABELS[key]} outside {low:g}..{high:g}')
-    return ', '.join(odd)
 
 
 def _checksum(shipped: Shipped, traffic: Traffic, cand: Candidate) -> bool:

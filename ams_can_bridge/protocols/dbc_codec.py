@@ -84,13 +84,29 @@ def _info(message: Message) -> tuple[SignalInfo, ...]:
         is_signed=bool(s.is_signed)) for s in message.signals)
 
 
-def _limits(info: SignalInfo) -> tuple[float, float]:
-    """Return the DBC's [min|max] widened by layout.tolerance (inf where not stated)."""
+def _limits(info: SignalInfo, bound: tuple[float, float] | None = None
+            ) -> tuple[float, float]:
+    """
+    Return the DBC's [min|max] widened by layout.tolerance (inf where not stated).
+
+    ``bound``: what the field the signal is mapped to can be (devices.dbc_plan
+    FIELD_BOUNDS, in the signal's DBC unit): the two ranges intersected.
+    """
     # float noise: 0.1 * 51 is 5.1000000000000005, still inside a DBC range [0|5.1]
     ends = [float(e) for e in (info.minimum, info.maximum) if e is not None]
     tol = tolerance(min(ends, default=0), max(ends, default=0))
-    return (-math.inf if info.minimum is None else info.minimum - tol,
-            math.inf if info.maximum is None else info.maximum + tol)
+    low = -math.inf if info.minimum is None else info.minimum - tol
+    high = math.inf if info.maximum is None else info.maximum + tol
+    if bound is not None:
+        tol = tolerance(*bound)
+        low, high = max(low, bound[0] - tol), min(high, bound[1] + tol)
+    return low, high
+
+
+def in_range(info: SignalInfo, value: float) -> bool:
+    """Tell whether a physical value lies in the signal's DBC [min|max] (as the decoder)."""
+    low, high = _limits(info)
+    return low <= value <= high
 
 
 def _malformed(message: Message, data: bytes, mux: object) -> MalformedFrameError:
@@ -98,7 +114,8 @@ def _malformed(message: Message, data: bytes, mux: object) -> MalformedFrameErro
                                f'{message.name}: multiplexer value {mux} not in the DBC')
 
 
-def _generate(message: Message, infos: tuple[SignalInfo, ...]) -> Callable | None:
+def _generate(message: Message, infos: tuple[SignalInfo, ...],
+              bounds: dict[int, tuple[float, float]]) -> Callable | None:
     """Build the decoder of a message; None when cantools must do it."""
     if any(s.is_float for s in message.signals):
         return None
@@ -114,7 +131,7 @@ def _generate(message: Message, infos: tuple[SignalInfo, ...]) -> Callable | Non
     def value(i: int, indent: str) -> None:
         s = layout.signals[i]
         lines.append(f'{indent}v{i} = {layout.value_expression(s)}')
-        low, high = _limits(infos[i])
+        low, high = _limits(infos[i], bounds.get(i))
         carried = sorted(r * s.scale + s.offset for r in s.raw_range())
         if not low <= carried[0] <= carried[1] <= high:  # else the bits cannot leave it
             lines.extend([f'{indent}if not {low!r} <= v{i} <= {high!r}:',  # constants inline
@@ -140,10 +157,15 @@ def _generate(message: Message, infos: tuple[SignalInfo, ...]) -> Callable | Non
     return compile_function('\n'.join(lines) + '\n', f'dbc {message.name}', 'decode', scope)
 
 
-def _cantools_decoder(message: Message, infos: tuple[SignalInfo, ...]) -> Callable:
-    """Decode through cantools (the slow path), into the same tuple and range report."""
+def _cantools_decoder(message: Message, infos: tuple[SignalInfo, ...],
+                      bounds: dict[int, tuple[float, float]]) -> Callable:
+    """
+    Decode through cantools (the slow path), into the same tuple and range report.
+
+    A float signal can carry inf and NaN: neither is a value (outside any range).
+    """
     names = [s.name for s in message.signals]
-    limits = [_limits(info) for info in infos]
+    limits = [_limits(info, bounds.get(i)) for i, info in enumerate(infos)]
 
     def decode(data: bytes) -> tuple[tuple, tuple[int, ...]]:
         try:
@@ -157,7 +179,7 @@ def _cantools_decoder(message: Message, infos: tuple[SignalInfo, ...]) -> Callab
             value = decoded.get(name)
             if value is not None:
                 value = float(value)
-                if not limits[i][0] <= value <= limits[i][1]:
+                if not limits[i][0] <= value <= limits[i][1] or not math.isfinite(value):
                     value = NAN
                     bad.append(i)
             values.append(value)
@@ -165,17 +187,25 @@ def _cantools_decoder(message: Message, infos: tuple[SignalInfo, ...]) -> Callab
     return decode
 
 
-def compile_message(message: Message) -> CompiledMessage:
-    """Compile one cantools message."""
+def compile_message(message: Message,
+                    bounds: dict[int, tuple[float, float]] | None = None) -> CompiledMessage:
+    """
+    Compile one cantools message.
+
+    ``bounds``: signal index -> (low, high) physical values the signal may also not leave
+    (the plausibility of the field it is mapped to); a value beyond them is reported as one
+    out of its range.
+    """
     infos = _info(message)
-    decoder = _generate(message, infos)
+    bounds = bounds or {}
+    decoder = _generate(message, infos, bounds)
     muxes = [i for i, info in enumerate(infos) if info.is_multiplexer]
     return CompiledMessage(
         name=message.name, frame_id=message.frame_id,
         is_extended_id=bool(message.is_extended_frame), length=message.length,
         signals=infos, index={info.name: i for i, info in enumerate(infos)},
         mux_index=muxes[0] if len(muxes) == 1 else None, compiled=decoder is not None,
-        decode_values=decoder or _cantools_decoder(message, infos))
+        decode_values=decoder or _cantools_decoder(message, infos, bounds))
 
 
 def encode(message: Message, values: dict[str, float]) -> bytes:
