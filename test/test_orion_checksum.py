@@ -50,3 +50,23 @@ def test_probe_finds_the_simulated_orion_by_its_checksum():
     assert any('checksum byte (ID + 8 + bytes 0..6) right in all' in e
                for e in orion[0].evidence), orion[0].evidence
     assert not any('a real Orion BMS 2 sends it right' in n for n in orion[0].notes)
+
+
+def test_frames_the_orion_checksum_proves_are_no_evidence_for_an_evms3():
+    # A car whose ID 0x55A reads as a ZEVA status at 4 Hz (an 11-bit EVMS3 would send such),
+    # beside an Orion's cell broadcast 0x36 (= 54, an EVMS3 read-back ID) with its checksum
+    from ams_can_bridge.sim.evms3 import Evms3Simulator
+    sim = Evms3Simulator(bms12_modules=0)
+    status = next(f for t in range(10) for f in sim.tick(t * 0.25)
+                  if f.arbitration_id == sim.codec.base_id)
+    traffic = Traffic()
+    for n in range(24):
+        traffic.add(0x55A, False, bytes(status.data), n * 0.25)
+        cell = bytes((n % 12, 0x0F, 0xA0, 0x0F, 0x9C, 0x10, 0x00, 0x00))
+        traffic.add(0x36, False, orion_bms2.with_checksum(0x36, cell), n * 0.25 + 0.01)
+    evms3 = [c for c in recognise(traffic).devices if c.type == 'evms3']
+    assert evms3  # the 0x55A status is still a candidate of its own
+    for cand in evms3:
+        assert (0x36, False) not in cand.ids
+        assert not any('configuration read-back 0x036' in e for e in cand.evidence)
+        assert any('0x036 not counted as configuration read-back' in n for n in cand.notes)
