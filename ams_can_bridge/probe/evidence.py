@@ -13,12 +13,27 @@ import math
 from typing import Any
 
 from ams_can_bridge.device_set import format_ids
-from ams_can_bridge.probe.traffic import Key
+from ams_can_bridge.probe.traffic import IdTraffic, Key
+from ams_can_bridge.protocols import orion_bms2
 
 HIGH = 0.8    # confidence from here: 'high'
 MEDIUM = 0.5  # from here: 'medium', written to the params file; below: reported only
 WEAK = 0.35   # below: not even reported as a candidate (its IDs stay unplaced)
 STALE_MARGIN = 1.1  # a period this much over the default's fifth is a slower sender, not jitter
+
+
+def sender_proven_elsewhere(entry: IdTraffic) -> str:
+    """
+    Name the device whose checksum every frame of this ID carries ('' if none).
+
+    Such frames prove their sender: they are no evidence for another device that uses the
+    same ID (Orion's cell broadcast 0x36 is also an EVMS3 read-back ID, 54).
+    """
+    frames = entry.payloads
+    if (entry.can_id in orion_bms2.CHECKSUM_IDS and not entry.extended and len(frames) >= 2
+            and all(orion_bms2.checksum_right(entry.can_id, d) for d in frames)):
+        return 'an Orion BMS 2 (its checksum byte is right in every frame)'
+    return ''
 
 
 @dataclass

@@ -10,7 +10,7 @@ cells per module the highest cell input of each that read a voltage. TC chargers
 from __future__ import annotations
 
 from ams_can_bridge.probe import zeva
-from ams_can_bridge.probe.evidence import Candidate, stale_setting
+from ams_can_bridge.probe.evidence import Candidate, sender_proven_elsewhere, stale_setting
 from ams_can_bridge.probe.traffic import Key, Traffic
 from ams_can_bridge.protocols.bms12 import BMS12_MAX_MODULES
 from ams_can_bridge.protocols.evms3 import BATTERY_CURRENT, CONFIG_LAYOUTS, READBACK_IDS
@@ -73,7 +73,10 @@ def _candidate(traffic: Traffic, status: zeva.ZevaStatus) -> Candidate:
     for can_id, what in ((base + BATTERY_CURRENT, 'battery current'),
                          *((i, 'configuration read-back') for i in READBACK_IDS)):
         heard = traffic.get(can_id, extended)
-        if heard is not None:
+        if heard is not None and (other := sender_proven_elsewhere(heard)):
+            cand.notes.append(f'{heard.label()} not counted as {what}: its frames are '
+                              f'{other}')
+        elif heard is not None:
             ids.add(heard.key)
             cand.evidence.append(f'{what} {heard.label()}: {heard.count} frames')
     cand.ids = frozenset(ids)

@@ -21,7 +21,7 @@ from ams_can_bridge.probe import output, report
 from ams_can_bridge.probe.dbc import DbcRecogniser
 from ams_can_bridge.probe.evidence import Setting
 from ams_can_bridge.probe.recognise import BUILT_IN, recognise
-from ams_can_bridge.probe.sources import listen_live, LiveInfo, read_log, STANDARD_RATES
+from ams_can_bridge.probe.sources import listen_live, LiveInfo, read_log, AUTO_RATES
 
 DEFAULT_DURATION_S = 10.0
 
@@ -60,7 +60,7 @@ def build_parser() -> argparse.ArgumentParser:
                    'pcan, ...)')
     p.add_argument('--channel', help='its channel (/dev/ttyACM0, can0, ...)')
     p.add_argument('--bitrate', type=_bitrate, default=0, metavar='BITS|auto',
-                   help='bit/s; auto tries ' + ', '.join(str(r) for r in STANDARD_RATES)
+                   help='bit/s; auto tries ' + ', '.join(str(r) for r in AUTO_RATES)
                    + ' listen-only (slcan); default: leave the adapter as it is')
     p.add_argument('--duration', type=_seconds, default=DEFAULT_DURATION_S, metavar='S',
                    help=f'seconds to listen live (default {DEFAULT_DURATION_S:g})')
@@ -68,7 +68,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help='python-can interface option, repeatable (e.g. sleep_after_open=0)')
     p.add_argument('--output', metavar='PARAMS.yaml',
                    help='write the params file of the devices found (checked with the '
-                   "bridge's start-up checks; commands_allowed: false)")
+                   "bridge's start-up checks; commands_allowed: false); never the log "
+                   'it reads; an existing file only with --force')
+    p.add_argument('--force', action='store_true',
+                   help='replace an existing --output file')
     p.add_argument('--json', action='store_true', help='print the report as JSON')
     p.add_argument('--dbc', action='append', default=[], metavar='FILE',
                    help='a BMS DBC to look for (with --mapping, repeatable in pairs)')
@@ -96,9 +99,16 @@ def _bus_lines(live: LiveInfo | None) -> list[Setting]:
         return [Setting('interface', 'socketcan', 'check: a log does not say which adapter '
                         'took it, nor at which rate: set yours (doc/real_bus.md)', False),
                 Setting('channel', 'can0', '', False), Setting('bitrate', 500000, '', False)]
-    how = ('found by listening at the standard rates (listen-only): ' + ', '.join(
-        f'{rate}: {frames} frames' for rate, frames in live.tried) if live.tried
-        else 'where probe listened')
+    tried = ', '.join(f'{rate}: {frames} frames' for rate, frames in live.tried)
+    how = (f'found by listening at the standard rates (listen-only): {tried}' if live.tried
+           else 'where probe listened')
+    if not live.rate_determined:
+        return [Setting('interface', live.interface, 'where probe listened'),
+                Setting('channel', live.channel, 'where probe listened'),
+                Setting('bitrate', live.bitrate, 'check: frames came at more than one rate '
+                        f'({tried}): the link has no bit rate of its own (a pty or a '
+                        "software link?), so the rate was not determined: set your bus's",
+                        False)]
     return [Setting('interface', live.interface, 'where probe listened'),
             Setting('channel', live.channel, 'where probe listened'),
             Setting('bitrate', live.bitrate, how)]
@@ -111,6 +121,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     _check(parser, args)
     live: LiveInfo | None = None
     try:
+        if args.output:
+            output.check_target(args.output, [p for p in [args.log, *args.dbc, *args.mapping]
+                                              if p is not None], args.force)
         recognisers = [*BUILT_IN]
         if args.dbc:
             recognisers.append(DbcRecogniser(list(zip(args.dbc, args.mapping))))
@@ -135,6 +148,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                       'commands_allowed: false')
     except (ConfigError, LogFileError, ValueError) as exc:
         print(f'probe: {exc}', file=sys.stderr)
+        return 2
+    except OSError as exc:  # e.g. the folder of --output is not writable
+        print(f'probe: {exc.filename or ""}: {exc.strerror or exc}', file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print('probe: interrupted', file=sys.stderr)

@@ -87,7 +87,7 @@ def render(findings: Findings, bus: list[Setting], source: str) -> str:
              '#   log2bag LOG BAG --params-file <this file>',
              '/**:', '  ros__parameters:']
     depth = 2
-    if all(b.decided for b in bus):
+    if any(b.decided for b in bus):  # live: an undecided rate is commented out on its own
         lines.append(f'{INDENT * depth}can:')
         lines += _entries(bus, depth + 1)
     else:  # a log: one check for the block
@@ -123,11 +123,41 @@ def check_file(path: str) -> None:
     Converter(values, None, 'probe')  # every parameter, the device set and its overlaps
 
 
+def check_target(path: str, inputs: list[str], force: bool) -> None:
+    """
+    Refuse an output that would destroy something, before probe reads or listens.
+
+    The input log (or a DBC or mapping probe reads) is never replaced, whatever --force
+    says, also when reached through another name or a link; a directory is no file name;
+    an existing file is replaced only with --force.
+    """
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        raise ConfigError(f'--output {path!r}: the folder {folder!r} does not exist')
+    if os.path.isdir(path):
+        raise ConfigError(f'--output {path!r} is a directory: give a file name in it, e.g. '
+                          f'{os.path.join(path, "params.yaml")!r}')
+    if not os.path.lexists(path):
+        return
+    for given in inputs:
+        if os.path.exists(given) and os.path.exists(path) and os.path.samefile(path, given):
+            raise ConfigError(f'--output {path!r} is {given!r}, a file probe reads: '
+                              'give another name for the params file')
+    if not force:
+        raise ConfigError(f'--output {path!r} exists: give --force to replace it, or '
+                          'another name')
+    if not os.path.isfile(path):
+        raise ConfigError(f'--output {path!r} exists and is not a regular file: give another '
+                          'name')
+
+
 def write(path: str, text: str) -> None:
     """Write the file only if it passes the start-up checks (ConfigError otherwise)."""
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
         raise ConfigError(f'--output {path!r}: the folder {folder!r} does not exist')
+    if os.path.isdir(path):
+        raise ConfigError(f'--output {path!r} is a directory: give a file name in it')
     fd, scratch = tempfile.mkstemp(prefix='.probe-', suffix='.yaml', dir=folder)
     try:
         with os.fdopen(fd, 'w', encoding='utf-8') as stream:

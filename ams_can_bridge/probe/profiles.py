@@ -34,7 +34,7 @@ from ams_can_bridge.probe.dbc import DEFAULT_STALE_S, match_plan, PlanMatch
 from ams_can_bridge.probe.dbc_publish import read_back, say_published, timeouts_setting
 from ams_can_bridge.probe.evidence import Candidate, stale_setting, WEAK
 from ams_can_bridge.probe.traffic import id_label, IdTraffic, Key, Traffic
-from ams_can_bridge.protocols import dbc_codec
+from ams_can_bridge.protocols import dbc_codec, orion_bms2
 from ams_can_bridge.protocols.dbc_load import read_dbc
 from ams_can_bridge.protocols.sma import BATTERY_ID
 
@@ -45,13 +45,12 @@ class Shipped:
 
     instance: str  # the instance name it suggests
     title: str
-    # IDs whose byte 7 is (ID + 8 + bytes 0..6) & 0xFF: Orion's checksum
-    # (config/profiles/orion_bms2/README.md; it holds in every frame of the WE-EV capture)
+    # IDs whose byte 7 is Orion's checksum (protocols/orion_bms2.py)
     checksum_ids: tuple[int, ...] = ()
 
 
 SHIPPED = {'foxbms2': Shipped('foxbms2', 'foxBMS 2'),
-           'orion_bms2': Shipped('orion', 'Orion BMS 2', (0x6B0, 0x6B1, 0x36))}
+           'orion_bms2': Shipped('orion', 'Orion BMS 2', orion_bms2.CHECKSUM_IDS)}
 SAME_PACK = 0.05  # an SMA voltage within 5 % of the profile's pack voltage is the same pack
 
 
@@ -124,7 +123,7 @@ def _checksum(shipped: Shipped, traffic: Traffic, cand: Candidate) -> bool:
     frames = [(e.can_id, d) for e in heard for d in e.payloads if len(d) == 8]
     if not frames:
         return False
-    right = sum(1 for can_id, d in frames if d[7] == (can_id + 8 + sum(d[:7])) & 0xFF)
+    right = sum(1 for can_id, d in frames if orion_bms2.checksum_right(can_id, d))
     ids = ', '.join(e.label() for e in heard)
     if right == len(frames):
         cand.evidence.append(f'checksum byte (ID + 8 + bytes 0..6) right in all {right} frames '

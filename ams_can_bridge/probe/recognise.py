@@ -17,6 +17,7 @@ their own pack.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import math
 from typing import Callable, Sequence
 
 from ams_can_bridge.errors import ProtocolError
@@ -30,6 +31,14 @@ BUILT_IN: tuple[Recogniser, ...] = (ams.recognise, ivt_s.recognise, evms3.recogn
                                     bms16.recognise, sma.recognise, sma_voltage.recognise,
                                     profiles.recognise)
 PACK_VOLTAGE_AGREEMENT = 0.05  # an IVT-S voltage within 5 % of the AMS cell sum measures the pack
+MIN_FRAMES = 3  # a device repeats its frames: an ID heard once or twice is no device
+# Repetition is judged only on a recording this long: every device here repeats its frames
+# at least once a second, while a short excerpt (a capture of a few frames, as vendors and
+# forums publish them) may show each frame once and is still evidence of its payloads.
+JUDGE_MIN_SPAN_S = 5.0
+# A backlog: every frame of a candidate came within this share of the listening (an
+# adapter's or a pty's buffer read at once), not a device sending.
+BACKLOG_SHARE = 0.05
 
 
 @dataclass
@@ -56,6 +65,8 @@ def recognise(traffic: Traffic, recognisers: Sequence[Recogniser] = BUILT_IN) ->
             found += recogniser(traffic, found)
         except ProtocolError as exc:  # a frame it did not expect: the others still run
             failures.append(f'{recogniser.__module__.rpartition(".")[2]}: {exc}')
+    for cand in found:
+        judge_traffic(traffic, cand)
     kept, conflicts = settle([c for c in found if c.confidence >= WEAK])
     conflicts += [Conflict(other, cand, ids, why) for cand in kept
                   for other, ids, why in cand.deferred if any(k is other for k in kept)]
@@ -64,6 +75,39 @@ def recognise(traffic: Traffic, recognisers: Sequence[Recogniser] = BUILT_IN) ->
     _link(kept)
     claimed = set().union(*(c.ids for c in kept))
     return Findings(kept, conflicts, [e for e in traffic if e.key not in claimed], failures)
+
+
+def judge_traffic(traffic: Traffic, cand: Candidate) -> None:
+    """
+    Lower the confidence of a candidate whose frames do not come as a device sends them.
+
+    Whatever its payloads say: a device repeats its frames (an ID heard fewer than
+    MIN_FRAMES times is no evidence), on a cycle (frames at random times: noise, not
+    reported), and over the time probe listened (every frame within a short burst of the
+    listening is a backlog read at once: reported, never written). Judged only where the
+    recording is JUDGE_MIN_SPAN_S long.
+    """
+    entries = [e for key in cand.ids if (e := traffic.ids.get(key)) is not None]
+    if not entries or traffic.span_s < JUDGE_MIN_SPAN_S:
+        return
+    if max(e.count for e in entries) < MIN_FRAMES:
+        cand.confidence = 0.0
+        return
+    if not any(e.periodic for e in entries):
+        cand.confidence = min(cand.confidence, WEAK / 2)  # not even reported
+        return
+    first = min(e.first for e in entries)
+    last = max(e.last for e in entries)
+    span = traffic.span_s
+    if last - first <= BACKLOG_SHARE * span:
+        frames = sum(e.count for e in entries)
+        rate = frames / (last - first) if last > first else math.inf
+        cand.confidence = min(cand.confidence, MEDIUM - 0.05)
+        cand.notes.append(
+            f'all its {frames} frames came within {last - first:.3g} s of {span:.3g} s ('
+            + (f'{rate / 1000:.3g} kHz' if math.isfinite(rate) else 'at once')
+            + '), then none: a backlog read at once (an adapter or pty buffer, a device '
+            'heard before), not a device sending now; listen again')
 
 
 def settle(candidates: list[Candidate]) -> tuple[list[Candidate], list[Conflict]]:

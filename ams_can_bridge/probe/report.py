@@ -12,7 +12,9 @@ from typing import Any
 
 from ams_can_bridge.probe.evidence import Candidate, Setting
 from ams_can_bridge.probe.recognise import Findings
-from ams_can_bridge.probe.traffic import id_label, IdTraffic, rate_text, Traffic
+from ams_can_bridge.probe.traffic import id_label, IdTraffic, MAX_IDS, rate_text, Traffic
+
+UNPLACED_LINES = 60  # IDs listed in the text report (the busiest); --json lists them all
 
 
 def _setting_text(s: Setting) -> str:
@@ -40,6 +42,9 @@ def text(findings: Findings, traffic: Traffic, source: str) -> str:
     lines = [f'probe: {traffic.frames:,} frames from {source} over {traffic.span_s:.1f} s, '
              f'{len(traffic.ids)} IDs'
              + (f', {traffic.error_frames} error frames' if traffic.error_frames else '')]
+    if traffic.unkept_frames:
+        lines.append(f'{traffic.unkept_frames:,} frames of IDs beyond the first {MAX_IDS} '
+                     'not kept: a battery bus has far fewer IDs (noise, a fuzzer, another bus?)')
     lines.append(f'devices found: {len(findings.devices)}'
                  + ('' if findings.devices else ' (no frame pattern of a known device)'))
     for cand in findings.devices:
@@ -54,8 +59,12 @@ def text(findings: Findings, traffic: Traffic, source: str) -> str:
     if findings.unplaced:
         lines.append(f'IDs no device explains: {len(findings.unplaced)}')
         lines.append(f'  {"ID":<11} {"count":>8} {"DLC":>5} {"rate":>10}')
+        busiest = sorted(findings.unplaced, key=lambda e: -e.count)[:UNPLACED_LINES]
         lines += [f'  {e.label():<11} {e.count:>8} {_dlcs(e):>5} {rate_text(e.rate_hz):>10}'
-                  for e in findings.unplaced]
+                  for e in sorted(busiest, key=lambda e: (e.extended, e.can_id))]
+        if len(findings.unplaced) > UNPLACED_LINES:
+            lines.append(f'  ... and {len(findings.unplaced) - UNPLACED_LINES} more (fewer '
+                         'frames each; all in --json)')
     else:
         lines.append('every ID heard is explained by a device above')
     return '\n'.join(lines)
@@ -74,6 +83,7 @@ def as_data(findings: Findings, traffic: Traffic, source: str,
     return {
         'source': source, 'live': live, 'frames': traffic.frames,
         'error_frames': traffic.error_frames, 'span_s': traffic.span_s,
+        'unkept_frames': traffic.unkept_frames,
         'devices': [{
             'name': c.name, 'type': c.type, 'title': c.title, 'confidence': c.confidence,
             'level': c.level, 'written': c.written, 'ids': ids(c), 'evidence': c.evidence,

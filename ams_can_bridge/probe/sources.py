@@ -25,9 +25,15 @@ from ams_can_bridge.offline.log2bag import check_frames, Summary
 from ams_can_bridge.offline.log_frames import LogFrames
 from ams_can_bridge.probe.traffic import Traffic
 
-# Tried in this order by --bitrate auto: the common rates of battery buses first
+# The common rates of battery buses, most common first: --bitrate auto tries, in this order,
+# those the interface can be set to (AUTO_RATES).
 STANDARD_RATES = (500_000, 250_000, 1_000_000, 125_000, 800_000, 100_000, 50_000, 20_000,
                   10_000)
+# python-can's slcan sets a rate only from its own S0..S9 table: 800 kbit/s is not in it (its
+# S7 is 750 kbit/s), and asking for it ends in "Invalid bitrate". Only these are tried.
+SLCAN_RATES: frozenset[int] = frozenset(getattr(slcanBus, '_BITRATES', {}))
+AUTO_RATES = tuple(r for r in STANDARD_RATES if r in SLCAN_RATES) if SLCAN_RATES \
+    else tuple(r for r in STANDARD_RATES if r != 800_000)
 AUTO_WINDOW_S = 1.0  # s listened at each rate
 AUTO_FRAMES = 2      # data frames that show the rate is right
 POLL_S = 0.2         # s a receive waits before the progress line is redrawn
@@ -48,12 +54,17 @@ class LiveInfo:
     bitrate: int  # 0: left as the adapter is
     listen_only: bool
     tried: list[tuple[int, int]] = field(default_factory=list)  # --bitrate auto: (rate, frames)
+    # --bitrate auto: False when frames came at two different rates (a pty or a software link
+    # has no bit rate of its own: any rate "works"), so the rate found proves nothing
+    rate_determined: bool = True
+    refused: list[int] = field(default_factory=list)  # rates the adapter would not take
 
     def describe(self) -> str:
         """Say where and how probe listened."""
         rate = f' at {self.bitrate} bit/s' if self.bitrate else ''
-        how = [what for what, yes in (('listen-only', self.listen_only),
-                                      ('rate found by trying the standard ones', self.tried))
+        found = ('rate found by trying the standard ones' if self.rate_determined else
+                 'rate not determined: frames came at every rate tried')
+        how = [what for what, yes in (('listen-only', self.listen_only), (found, self.tried))
                if yes]
         return f'{self.interface}:{self.channel}{rate}' + (f' ({", ".join(how)})' if how else '')
 
@@ -177,7 +188,7 @@ class Listener:
 
 def listen_live(interface: str, channel: str, bitrate: int | str, seconds: float,
                 options: dict[str, Any], stream: TextIO) -> tuple[Traffic, LiveInfo]:
-    """Listen to a live bus; ``bitrate`` 'auto' tries STANDARD_RATES listen-only first."""
+    """Listen to a live bus; ``bitrate`` 'auto' tries AUTO_RATES listen-only first."""
     silent = interface == 'slcan' and slcan_listens_silently()
     listener = Listener(stream)
     if bitrate == 'auto':
@@ -209,24 +220,55 @@ def listen_live(interface: str, channel: str, bitrate: int | str, seconds: float
 
 
 def _find_rate(listener: Listener, info: LiveInfo, options: dict[str, Any]) -> ReceiveOnly:
-    """Open listen-only at each standard rate until frames come; return that bus, open."""
-    listener.say(f'--bitrate auto: trying {len(STANDARD_RATES)} standard rates, listen-only '
+    """
+    Open listen-only at each rate the interface has until frames come; return that bus, open.
+
+    A rate the adapter refuses is skipped, not the end of the search. Frames at one rate are
+    checked at one other rate: a real controller at a wrong rate sees only errors, so frames
+    there too mean the link has no bit rate of its own (a pty, a software link) and the rate
+    is reported as not determined rather than as the first one tried.
+    """
+    listener.say(f'--bitrate auto: trying {len(AUTO_RATES)} standard rates, listen-only '
                  f'({AUTO_WINDOW_S:g} s each); nothing is sent')
-    for rate in STANDARD_RATES:
+    errors: list[str] = []
+    for index, rate in enumerate(AUTO_RATES):
+        heard = _try_rate(listener, info, rate, options, errors)
+        if heard < AUTO_FRAMES:
+            continue
+        listener.say(f'{rate} bit/s: {heard} frames in {AUTO_WINDOW_S:g} s')
+        other = AUTO_RATES[index + 1] if index + 1 < len(AUTO_RATES) else AUTO_RATES[0]
+        if _try_rate(listener, info, other, options, errors) >= AUTO_FRAMES:
+            info.rate_determined = False
+            listener.say(f'{other} bit/s: frames too: the link has no bit rate of its own '
+                         '(a pty or a software link?); rate not determined')
+        listener.traffic = Traffic()
+        info.bitrate = rate
+        return open_bus(info.interface, info.channel, rate, options, True)
+    if len(errors) == len(AUTO_RATES):
+        raise ConfigError(f'--bitrate auto: {info.interface}:{info.channel} opened at no rate '
+                          f'({"; ".join(errors[:2])})')
+    refused = (f'; refused by the adapter: {", ".join(str(r) for r in info.refused)}'
+               if info.refused else '')
+    raise LogFileError(f'no traffic at any rate on {info.interface}:{info.channel} ('
+                       + ', '.join(str(r) for r in AUTO_RATES) + ' bit/s, '
+                       f'{AUTO_WINDOW_S:g} s each{refused}): is the bus running, the adapter '
+                       'wired to CAN-H and CAN-L, the bus terminated?')
+
+
+def _try_rate(listener: Listener, info: LiveInfo, rate: int, options: dict[str, Any],
+              errors: list[str]) -> int:
+    """Listen at one rate for AUTO_WINDOW_S; return the data frames heard (0 if refused)."""
+    try:
         bus = open_bus(info.interface, info.channel, rate, options, True)
-        try:
-            heard = listener.listen(bus, AUTO_WINDOW_S, f'{rate} bit/s', report_on_ctrl_c=False)
-        except KeyboardInterrupt:
-            bus.close()
-            raise
-        info.tried.append((rate, heard))
-        if heard >= AUTO_FRAMES:
-            info.bitrate = rate
-            listener.say(f'{rate} bit/s: {heard} frames in {AUTO_WINDOW_S:g} s')
-            return bus
+    except ConfigError as exc:
+        info.refused.append(rate)
+        errors.append(str(exc))
+        listener.say(f'{rate} bit/s: not taken by the adapter, skipped ({exc})')
+        return 0
+    try:
+        heard = listener.listen(bus, AUTO_WINDOW_S, f'{rate} bit/s', report_on_ctrl_c=False)
+    finally:
         bus.close()
-        listener.traffic = Traffic()  # a frame or two at a wrong rate is no traffic
-    raise LogFileError(f'no frame at any standard rate on {info.interface}:{info.channel} ('
-                       + ', '.join(str(r) for r in STANDARD_RATES) + ' bit/s, '
-                       f'{AUTO_WINDOW_S:g} s each): is the bus running, the adapter wired '
-                       'to CAN-H and CAN-L, the bus terminated?')
+    info.tried.append((rate, heard))
+    listener.traffic = Traffic()  # a frame or two at a wrong rate is no traffic
+    return heard

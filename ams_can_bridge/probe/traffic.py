@@ -15,7 +15,12 @@ import statistics
 from typing import Iterable, Iterator
 
 SAMPLES = 64  # first payloads kept per ID
+# IDs kept at most: a battery bus has tens to a few hundred; beyond this the frames of new
+# IDs are only counted, so probe's memory is bounded by the IDs kept, never by the frames
+# (a million random frames would otherwise keep a summary per random ID).
+MAX_IDS = 2048
 Key = tuple[int, bool]  # (arbitration ID, 29-bit)
+PERIODIC_SHARE = 0.6  # of the gaps within half to twice the median: a sender's cycle
 
 
 @dataclass(eq=False)
@@ -55,6 +60,23 @@ class IdTraffic:
         return statistics.median(gaps) if gaps else math.nan
 
     @property
+    def periodic(self) -> bool:
+        """
+        Tell whether the sampled frames come on a cycle, as a device sends them.
+
+        At least three frames, and most gaps (PERIODIC_SHARE) within half to twice their
+        median: frames at random times (noise, a fuzzer) have exponential gaps, of which
+        under half lie there; a device's cycle with jitter has nearly all.
+        """
+        stamps = [stamp for stamp, _ in self.samples]
+        gaps = [b - a for a, b in zip(stamps, stamps[1:]) if b > a]
+        if len(gaps) < 2:
+            return False
+        median = statistics.median(gaps)
+        near = sum(1 for g in gaps if median / 2 <= g <= 2 * median)
+        return near >= PERIODIC_SHARE * len(gaps)
+
+    @property
     def dlc(self) -> int:
         """Return the most frequent data length."""
         return max(self.dlcs, key=lambda n: self.dlcs[n])
@@ -87,15 +109,21 @@ class Traffic:
         self.remote_frames = 0
         self.first = math.nan
         self.last = math.nan
+        self.unkept_frames = 0  # frames of new IDs once MAX_IDS were kept
 
     def add(self, can_id: int, extended: bool, data: bytes | bytearray, stamp: float) -> None:
         """Take one data frame."""
         key = (can_id, extended)
         entry = self.ids.get(key)
         if entry is None:
-            entry = self.ids[key] = IdTraffic(can_id, extended, first=stamp)
             if self.frames == 0:
                 self.first = stamp
+            if len(self.ids) >= MAX_IDS:
+                self.frames += 1
+                self.last = stamp
+                self.unkept_frames += 1
+                return
+            entry = self.ids[key] = IdTraffic(can_id, extended, first=stamp)
         self.frames += 1
         self.last = stamp
         entry.count += 1

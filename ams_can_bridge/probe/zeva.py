@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from ams_can_bridge.errors import MalformedFrameError
+from ams_can_bridge.probe.evidence import sender_proven_elsewhere
 from ams_can_bridge.probe.traffic import IdTraffic, Traffic
 from ams_can_bridge.protocols.bms12 import BMS12_BASE_ID, BMS12_MAX_MODULES, decode_cells
 from ams_can_bridge.protocols.evms3 import Evms3Status, generated, LAYOUTS
@@ -55,7 +56,8 @@ def statuses(traffic: Traffic) -> list[ZevaStatus]:
     """
     out = []
     for entry in traffic:
-        if set(entry.dlcs) != {STATUS_LENGTH} or entry.can_id in BMS12_IDS:
+        if set(entry.dlcs) != {STATUS_LENGTH} or entry.can_id in BMS12_IDS \
+                or sender_proven_elsewhere(entry):
             continue
         try:
             readings = [_STATUS(entry.can_id, data) for data in entry.payloads]

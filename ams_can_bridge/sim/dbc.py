@@ -34,7 +34,7 @@ from ams_can_bridge.devices.base import PowerSupplyHealth, PowerSupplyStatus
 from ams_can_bridge.devices.dbc_mapping import load_plan
 from ams_can_bridge.devices.dbc_plan import Array, ARRAY_UNITS, Plan, Ref, SCALAR_UNITS
 from ams_can_bridge.devices.dbc_units import lookup
-from ams_can_bridge.protocols import dbc_codec
+from ams_can_bridge.protocols import dbc_codec, orion_bms2
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.dbc_load import cycle_time
 from ams_can_bridge.sim.base import Periodic, SimDevice
@@ -57,6 +57,9 @@ class DbcSimulator(SimDevice):
         if not dbc_file and not profile:
             dbc_file, mapping_file = AMS_EXAMPLE
         self.plan: Plan = load_plan(dbc_file, mapping_file, profile)
+        # a checksum byte the DBC cannot compute, set after encoding as the device sets it
+        self.checksum_ids = frozenset(orion_bms2.CHECKSUM_IDS if profile == 'orion_bms2'
+                                      else ())
         self.messages = self.plan.sources
         self.periods: list[Periodic | None] = []
         self.rotations: list[list[int]] = []  # multiplexer values sent one a frame
@@ -258,6 +261,8 @@ class DbcSimulator(SimDevice):
                     values[info.name] = self._clamp(self._to_signal(
                         self._element(key, base + j, pack), array, ARRAY_UNITS[key]), info)
             data = dbc_codec.encode(message, values)
+            if compiled.frame_id in self.checksum_ids and len(data) == 8:
+                data = orion_bms2.with_checksum(compiled.frame_id, data)
             frames.append(Frame(compiled.frame_id, data, compiled.is_extended_id))
         return frames
 
