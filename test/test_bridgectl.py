@@ -61,6 +61,19 @@ def test_the_node_name_is_the_bridges():
     assert bridgectl.BRIDGE_NODE == NODE_NAME
 
 
+@pytest.mark.parametrize('node, arm', [
+    ('/ams_can_bridge', 'bridgectl arm, or ros2 param set /ams_can_bridge commands_enabled'),
+    ('/car1/ams_can_bridge', 'bridgectl --namespace car1 arm, or ros2 param set /car1/'),
+    ('/a/b/can1', 'bridgectl --namespace a/b --node can1 arm, or ros2 param set /a/b/can1 '),
+])
+def test_a_disarmed_bridge_says_how_to_arm_it_with_bridgectl(node, arm):
+    import logging
+    from ams_can_bridge.engine.gate import CommandGate
+    gate = CommandGate('virtual:x', allowed=True, connect_wait=0.0,
+                       logger=logging.getLogger('test'), node_name=node)
+    assert arm in gate.refusal('enable the SC')
+
+
 @pytest.mark.process
 def test_help_and_usage_errors_need_no_ros():
     code = ('import sys; from ams_can_bridge.ros.bridgectl import main; '
