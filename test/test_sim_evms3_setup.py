@@ -1,6 +1,7 @@
 """
-The simulated EVMS3 can be parked (IDLE) and put into SETUP, and reports a configuration
-that fits the pack it simulates (issue 38.7): write_config can be practised without hardware.
+The simulated EVMS3 parks, enters SETUP and reports a configuration that fits its pack.
+
+Issue 38.7: write_config can be practised without hardware.
 
 The model on its own first, then read_config / set_setup_mode / write_config through the
 bridge's command side (``bench_factory``: the one pipeline, no ROS) against the simulator
