@@ -74,6 +74,18 @@ def test_a_disarmed_bridge_says_how_to_arm_it_with_bridgectl(node, arm):
     assert arm in gate.refusal('enable the SC')
 
 
+def test_bridgectl_is_in_the_readmes_ten_steps_and_on_the_executables_page():
+    import importlib.util
+    readme = (ROOT / 'README.md').read_text()
+    step10 = readme.split('\n10. ', 1)[1].split('\n## ', 1)[0]
+    assert '`bridgectl arm`' in step10 and '`bridgectl call ams/enable_sc`' in step10
+    spec = importlib.util.spec_from_file_location('docgen', ROOT / 'doc' / 'docgen.py')
+    docgen = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(docgen)
+    assert ('bridgectl', 'ams_can_bridge.ros.bridgectl:main') in docgen.console_scripts(ROOT)
+    assert '{generated} executables' in (ROOT / 'doc' / 'executables.md').read_text()
+
+
 @pytest.mark.process
 def test_help_and_usage_errors_need_no_ros():
     code = ('import sys; from ams_can_bridge.ros.bridgectl import main; '
