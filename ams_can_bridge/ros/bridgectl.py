@@ -27,12 +27,10 @@ from typing import Any, Sequence
 
 import yaml
 
-# The bridge's node name (bridge_node.NODE_NAME): importing that module would load rclpy
-# for `bridgectl --help`; test/test_bridgectl.py keeps the two equal.
-BRIDGE_NODE = 'ams_can_bridge'
+# The bridge's node name (bridge_node.NODE_NAME, kept equal by a test); monitor loads no rclpy
+from ams_can_bridge.ros.monitor import BRIDGE_NODE, check_bridge_name
 TIMEOUT = 10.0  # s: discovery on a loaded machine takes seconds; a state command answers
 #                 after ams.command_timeout (2 s) at the latest
-_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
 _SERVICE = re.compile(r'/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*')
 TRIGGER, SETBOOL = 'std_srvs/srv/Trigger', 'std_srvs/srv/SetBool'
 OK, NO, NOT_REACHED = 0, 1, 2
@@ -87,13 +85,7 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     args = parser.parse_args(argv)
     if not args.timeout > 0:
         parser.error('--timeout must be > 0 seconds')
-    args.namespace = args.namespace.strip('/')
-    if args.namespace and not all(_NAME.fullmatch(t) for t in args.namespace.split('/')):
-        parser.error(f'--namespace {args.namespace!r}: a ROS namespace is names of letters, '
-                     'digits and _ separated by /, e.g. car1')
-    if not _NAME.fullmatch(args.node):
-        parser.error(f'--node {args.node!r}: a ROS node name is letters, digits and _, '
-                     f'e.g. {BRIDGE_NODE}')
+    check_bridge_name(parser, args)  # the monitor's check: the same names, the same words
     if args.command == 'call' and not _SERVICE.fullmatch(args.service):
         parser.error(f'SERVICE {args.service!r}: a service name such as ams/enable_sc')
     return args
