@@ -39,6 +39,7 @@ setup(
             'monitor = ams_can_bridge.ros.monitor:main',
             'log2bag = ams_can_bridge.offline.log2bag:main',
             'probe = ams_can_bridge.probe.main:main',
+            'bridgectl = ams_can_bridge.ros.bridgectl:main',
         ],
     },
 )

@@ -48,6 +48,7 @@ inst="$scratch/ws/install/ams_can_bridge"
 for f in lib/ams_can_bridge/bridge lib/ams_can_bridge/ams-can-bridge \
          lib/ams_can_bridge/simulator lib/ams_can_bridge/demo \
          lib/ams_can_bridge/log2bag lib/ams_can_bridge/monitor lib/ams_can_bridge/probe \
+         lib/ams_can_bridge/bridgectl \
          share/ams_can_bridge/config/foxglove_layout.json \
          share/ams_can_bridge/package.xml share/ams_can_bridge/launch/bridge.launch.py \
          share/ams_can_bridge/security/policy.xml \
@@ -78,6 +79,9 @@ done
 (cd "$scratch" && set +u && source ws/install/setup.bash && set -u && \
   PATH="$bin:$PATH" timeout 60 ws/install/ams_can_bridge/lib/ams_can_bridge/ams-can-bridge \
   --help | grep -q 'ams-can-bridge') || fail "installed ams-can-bridge --help"
+(cd "$scratch" && set +u && source ws/install/setup.bash && set -u && \
+  PATH="$bin:$PATH" timeout 60 ws/install/ams_can_bridge/lib/ams_can_bridge/bridgectl --help \
+  >/dev/null) || fail "installed bridgectl --help"
 echo "colcon build: OK ($inst)"
 
 echo "== pip install . into a fresh venv"
@@ -87,7 +91,7 @@ echo "== pip install . into a fresh venv"
   || fail "pip install ."
 (cd "$scratch" && "$scratch/venv/bin/python" -c "$probe" "$scratch/venv") \
   || fail "pip-installed package does not find its msg_defs"
-for exe in bridge ams-can-bridge simulator demo log2bag monitor probe; do
+for exe in bridge ams-can-bridge simulator demo log2bag monitor probe bridgectl; do
   [ -x "$scratch/venv/bin/$exe" ] || fail "pip install lacks the $exe executable"
 done
 (cd "$scratch" && timeout 60 "$scratch/venv/bin/simulator" --help >/dev/null) \
@@ -100,4 +104,6 @@ done
   || fail "pip-installed probe --help"
 (cd "$scratch" && timeout 60 "$scratch/venv/bin/ams-can-bridge" --help | grep -q 'config/\*.yaml') \
   || fail "pip-installed ams-can-bridge --help"
+(cd "$scratch" && timeout 60 "$scratch/venv/bin/bridgectl" --help >/dev/null) \
+  || fail "pip-installed bridgectl --help"
 echo "pip install: OK ($scratch/venv)"

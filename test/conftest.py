@@ -1,13 +1,21 @@
 """
 Test-wide settings: DDS stays on this machine, each run on its own domain; hypothesis profiles.
 
+The domain: every test run (one pytest process) reserves a ROS_DOMAIN_ID of TEST_DOMAINS
+through ROS's ``domain_coordinator`` (it holds a local port per domain for the whole run),
+so two runs on one machine never share one, whatever ROS_DOMAIN_ID the shell has; the
+processes the tests start inherit it. ``./dev`` and the demo take theirs from 100..149 and
+the benchmarks from 150..199 (doc/getting_started.md), so a test never meets them either.
+
 Hypothesis: the ``ci`` profile (default) is derandomized, a fixed seed, so a CI run is
 reproducible; ``HYPOTHESIS_PROFILE=long ./dev test`` draws new random examples, many more
 of them (``examples(n)`` scales the explicit counts of the slow node-level fuzz tests).
 """
+import itertools
 import os
-import random
+from typing import Callable
 
+from domain_coordinator import domain_id
 from hypothesis import HealthCheck, settings
 import pytest
 
@@ -17,7 +25,30 @@ from lanes import (pytest_collection_modifyitems, pytest_configure,  # noqa: F40
 
 # Network rule: never let DDS discovery leave the machine, and keep test runs apart.
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-os.environ.setdefault('ROS_DOMAIN_ID', str(random.Random(os.getpid()).randint(100, 200)))
+TEST_DOMAINS = range(200, 233)  # 232: the highest domain Fast DDS's port mapping allows
+
+
+def _test_domains() -> Callable[[], int]:
+    """Return domain_coordinator's selector: TEST_DOMAINS in turn, from this process's place."""
+    turn = itertools.count(os.getpid())
+    return lambda: TEST_DOMAINS[next(turn) % len(TEST_DOMAINS)]
+
+
+# Entered for the whole run and never left: the port that reserves the domain stays open
+# until this process ends (kept in a global so that it is not collected).
+_RESERVATION = domain_id(selector=_test_domains())
+try:
+    os.environ['ROS_DOMAIN_ID'] = str(_RESERVATION.__enter__())
+except RuntimeError as exc:
+    raise RuntimeError(f'every ROS domain of {TEST_DOMAINS} is taken by another test run on '
+                       'this machine: wait for one to end') from exc
+
+
+def pytest_report_header() -> str:
+    """Say which domain this run has (to find its traffic with ros2 tools)."""
+    return (f"ROS_DOMAIN_ID={os.environ['ROS_DOMAIN_ID']} (reserved for this run), "
+            'ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST')
+
 
 settings.register_profile('ci', derandomize=True, deadline=None, database=None,
                           print_blob=True)

@@ -210,3 +210,29 @@ def test_demo_rig_detects_the_misconfigured_ivt_s():
             assert 'set ivt_s.byte_order to little' in report.message
         finally:
             rig.close()
+
+
+@pytest.mark.slow
+def test_the_demo_keeps_to_its_own_bridge_beside_a_foreign_one(rig_factory):
+    """
+    Issue 38.3: another bridge on the same domain, in the root namespace as the demo's was.
+
+    The foreign bridge has an AMS that never speaks (STALE rows at 1 Hz) and commands
+    disabled (every call answered REFUSED): neither may reach the demo's view or its loop.
+    """
+    from sensor_msgs.msg import BatteryState
+    foreign = rig_factory({'devices': ['ams', 'ivt_s'], 'commands_allowed': True},
+                          topics={'ams/battery_state': BatteryState})
+    assert foreign.wait(lambda: foreign.messages('ams/battery_state'), 30.0), \
+        'the foreign bridge publishes no stale ams/battery_state'
+    result = subprocess.run([demo_executable(), '--duration', '12', '--plain'],
+                            capture_output=True, text=True, timeout=90, env=dict(os.environ))
+    assert result.returncode == 0, (result.stdout + result.stderr)[-3000:]
+    shots = snapshots(result.stdout)
+    assert 'ams_can_bridge demo /demo_' in shots[-1]
+    assert 'REFUSED' not in result.stdout and 'commands_enabled' not in result.stdout
+    shown = [rows_of(shot).get('ams', ['', ''])[1] for shot in shots]
+    first = next(i for i, state in enumerate(shown) if state not in ('', 'n/a', '—'))
+    assert 'STALE' not in ' '.join(' '.join(rows_of(s).get('ams', [])) for s in shots[first:])
+    assert 'DRIVE' in shown and 'abort -> OK' in result.stdout, result.stdout[-3000:]
+    assert foreign.frames_out() == 0  # commands disabled: the foreign bridge sent nothing

@@ -42,8 +42,9 @@ def test_charging_phase_commands_and_answers_once_a_second():
     commands, answers = of(readings, ChargerCommand), of(readings, ChargerStatus)
     assert 8 <= len(commands) <= 10 and 8 <= len(answers) <= 10  # 2 chargers, ~1 Hz
     assert {c.charger for c in commands} == {1, 2} == {a.charger for a in answers}
-    # no stored config: 24 cells x 4.15 V, 10 A shared by the two chargers
-    assert commands[-1] == ChargerCommand(2, 99.6, 5.0, False)
+    # no config written: the pack's own, 24 cells x 4.15 V in whole volts (100 V), 10 A
+    # shared by the two chargers
+    assert commands[-1] == ChargerCommand(2, 100.0, 5.0, False)
     assert answers[-1].output_current_a == 5.0 and answers[-1].status == 0
     assert answers[-1].output_voltage_v == pytest.approx(of(readings, Evms3Status)[-1]
                                                          .pack_voltage_v, abs=0.3)

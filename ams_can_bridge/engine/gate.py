@@ -205,7 +205,7 @@ class CommandGate:
                     'start the bridge with commands_allowed: true (read-only, launch only), '
                     'then set commands_enabled to true; nothing was sent')
         return (f'commands_enabled is false: set the bridge parameter commands_enabled to true '
-                f'to {what} (ros2 param set {self.node_name} commands_enabled true); '
+                f'to {what} ({self._arm_commands()}); '
                 'nothing was sent')
 
     # --- the bus wait -------------------------------------------------------------------
@@ -335,7 +335,15 @@ class CommandGate:
 
     def _disabled(self) -> str:
         return ('commands are disabled: set the parameter commands_enabled to true '
-                f'(ros2 param set {self.node_name} commands_enabled true) to transmit')
+                f'({self._arm_commands()}) to transmit')
+
+    def _arm_commands(self) -> str:
+        """Return how to arm this bridge: bridgectl (no ROS install needed), or ros2."""
+        namespace, _, node = self.node_name.rpartition('/')
+        options = ''.join([f' --namespace {namespace.strip("/")}' if namespace.strip('/')
+                           else '', f' --node {node}' if node != 'ams_can_bridge' else ''])
+        return (f'bridgectl{options} arm, or ros2 param set {self.node_name} '
+                'commands_enabled true')
 
     def _send(self, frame: Frame) -> tuple[bool, str]:
         bus = self._bus

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import sys
 import threading
 import time
@@ -21,6 +22,7 @@ from typing import Any
 DEVICE_TYPES = {'ams': 'ams', 'ivt_s': 'ivt_s', 'evms3': 'evms3', 'bms16': 'bms16',
                 'sma': 'sma'}
 STEPS = ('enable_sc', 'enable_ts', 'enable_drive')
+DEMO_DOMAINS = range(100, 150)  # ROS_DOMAIN_ID when unset: ./dev's range, not the tests'
 SERVICE_TIMEOUT = 10.0  # s to wait for an AMS answer (the bridge answers by command_timeout)
 
 
@@ -46,6 +48,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                         help='seconds before the --fault starts (default 20)')
     parser.add_argument('--no-commands', action='store_true',
                         help='do not drive the AMS (bridge stays a listener)')
+    parser.add_argument('--namespace', default=None, metavar='NS',
+                        help="the demo bridge's namespace (default demo_<process id>: a "
+                        'name of its own, so its view and its commands never reach another '
+                        'bridge on the same ROS domain; monitor --namespace NS watches it)')
     parser.add_argument('--misconfigured-ivt', action='store_true',
                         help='simulate an IVT-S set up little-endian while the bridge expects '
                         'big-endian: check_config_at_start detects it (ERROR naming '
@@ -53,6 +59,11 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     args = parser.parse_args(argv)
     if args.duration < 0 or (args.interval is not None and args.interval <= 0):
         parser.error('--duration must be >= 0 and --interval > 0')
+    args.namespace = (f'demo_{os.getpid()}' if args.namespace is None
+                      else args.namespace.strip('/'))
+    if args.namespace and not re.fullmatch(r'[A-Za-z_]\w*(/[A-Za-z_]\w*)*', args.namespace):
+        parser.error(f'--namespace {args.namespace!r}: a ROS namespace is names of letters, '
+                     'digits and _ separated by /, e.g. demo')
     if args.hold is None:
         args.hold = min(6.0, max(1.0, args.duration / 5)) if args.duration else 6.0
     return args
@@ -66,12 +77,15 @@ class CommandDriver:
     round (abort is always sent) and the loop starts again after the rest.
     """
 
-    def __init__(self, node: Any, device: str, hold: float, rest: float = 2.0) -> None:
+    def __init__(self, node: Any, device: str, hold: float, rest: float = 2.0,
+                 namespace: str = '') -> None:
         from std_srvs.srv import Trigger
         self.node = node
         self.hold = hold
         self.rest = rest
-        self.clients = {step: node.create_client(Trigger, f'{device}/{step}')
+        # Absolute names in the demo bridge's namespace: only the demo's own bridge answers.
+        prefix = f'/{namespace}/{device}' if namespace else f'/{device}'
+        self.clients = {step: node.create_client(Trigger, f'{prefix}/{step}')
                         for step in STEPS + ('abort',)}
         self.request_type = Trigger.Request
         self.lock = threading.Lock()
@@ -151,7 +165,8 @@ def main(argv: list[str] | None = None) -> int:
     """Run the demo; return the process exit code."""
     # Network rule: DDS stays on this machine and on a domain of the demo's own.
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    os.environ.setdefault('ROS_DOMAIN_ID', str(100 + os.getpid() % 100))
+    # (./dev's range: test/conftest.py says which ranges are whose)
+    os.environ.setdefault('ROS_DOMAIN_ID', str(DEMO_DOMAINS[os.getpid() % len(DEMO_DOMAINS)]))
     from rclpy.utilities import remove_ros_args
 
     from ams_can_bridge.ros.watcher import run_with_ros
@@ -172,19 +187,22 @@ def _run(args: argparse.Namespace, stop: threading.Event) -> int:
 
     try:
         rig = DemoRig(banks=args.banks, commands=not args.no_commands,
-                      misconfigured_ivt=args.misconfigured_ivt)
+                      misconfigured_ivt=args.misconfigured_ivt, namespace=args.namespace)
     except ConfigError as exc:
         print(f'demo: the bridge cannot start: {exc}', file=sys.stderr)
         return 2
-    watcher = BridgeWatcher(bridge_node=NODE_NAME, devices=DEVICES,
-                            title='ams_can_bridge demo', node_name='ams_can_bridge_demo_view')
+    # The view watches the demo's own bridge only: its namespace (demo_<pid> by default)
+    # keeps it apart from any other bridge on this ROS domain (issue 38.3).
+    watcher = BridgeWatcher(namespace=args.namespace, bridge_node=NODE_NAME, devices=DEVICES,
+                            title=f'ams_can_bridge demo /{args.namespace}',
+                            node_name='ams_can_bridge_demo_view')
     executor = MultiThreadedExecutor(num_threads=4)
     executor.add_node(rig.bridge)
     executor.add_node(watcher)
     spinner = spin_in_thread(executor, 'demo-executor')
     driver = None
     if not args.no_commands:
-        driver = CommandDriver(watcher, 'ams', args.hold)
+        driver = CommandDriver(watcher, 'ams', args.hold, namespace=args.namespace)
         driver.start()
     faulted = False
 

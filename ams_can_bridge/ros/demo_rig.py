@@ -78,7 +78,7 @@ class DemoRig:
 
     def __init__(self, banks: int = 2, commands: bool = True,
                  channel: str | None = None, misconfigured_ivt: bool = False,
-                 context: Any = None) -> None:
+                 context: Any = None, namespace: str = '') -> None:
         import can
 
         from ams_can_bridge.sim.runner import SimRunner
@@ -95,7 +95,7 @@ class DemoRig:
         self.runner = SimRunner(self.sim_bus, list(self.simulators.values()))
         try:
             self.bridge = BridgeNode(
-                context=context,
+                context=context, namespace=namespace,
                 parameter_overrides=_bridge_parameters(self.channel, banks, commands, extra))
         except Exception:
             self.sim_bus.shutdown()

@@ -63,6 +63,12 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
         parser.error('--duration must be >= 0 and --interval > 0')
     if args.stale_after <= 0:
         parser.error('--stale-after must be > 0')
+    check_bridge_name(parser, args)
+    return args
+
+
+def check_bridge_name(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """Check --namespace and --node (the namespace without its slashes); exit 2 naming it."""
     args.namespace = args.namespace.strip('/')
     if args.namespace and not all(_NAME.fullmatch(t) for t in args.namespace.split('/')):
         parser.error(f'--namespace {args.namespace!r}: a ROS namespace is names of letters, '
@@ -70,7 +76,6 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     if not _NAME.fullmatch(args.node):
         parser.error(f'--node {args.node!r}: a ROS node name is letters, digits and _, '
                      f'e.g. {BRIDGE_NODE}')
-    return args
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -10,8 +10,14 @@ request is kept, as the firmware keeps it); 32..35 change the settings in RAM at
 then saves the RAM settings AND the RAM cell counts to EEPROM; 36 changes the cell counts in
 RAM only; ``power_cycle()`` reloads RAM from EEPROM, so cell counts sent after the last 35
 are lost. 37 clears the matching error, 38 resets SoC to full, 39 powers off (silent until
-``power_on()``), 51 is answered from RAM on 52..56 (FACTORY_CONFIG before any write;
-``faults.extra['config_answer']``: only these IDs of 52..56 are sent, a partial answer).
+``power_on()``), 51 is answered from RAM on 52..56 (before any write: ``pack_config()``, the
+configuration an installer gave this pack, so that read_config tells the same story as the
+status frames; ``faults.extra['config_answer']``: only these IDs of 52..56 are sent, a
+partial answer).
+
+States: RUNNING by default (key on, driving; ``state=`` or the simulator's ``--evms3-state``
+chooses another to start in). ``key_off()`` parks it in IDLE, where ID 31 puts it into
+SETUP and back, and where write_config is accepted; ``key_on()`` drives again.
 A status byte 5 of 255 (``bms16_marker``) makes it look like a BMS16 in its standard form.
 
 Charging phase (``start_charging()``, or ``charge_after_s`` after the first tick): the EVMS
@@ -27,7 +33,7 @@ lowest cell (dynamic), or to the stored static balance voltage, or not at all ('
 from __future__ import annotations
 
 import random
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from typing import Any, Callable, Sequence
 
 from ams_can_bridge.errors import ConfigError, ProtocolError
@@ -69,7 +75,7 @@ def nmc_cell_ocv(soc: float) -> float:
 
 
 class Evms3Simulator(SimDevice):
-    """An EVMS3 in RUNNING state on a pack; current_fn(t) -> A, positive = discharge."""
+    """An EVMS3 on a pack (RUNNING unless told); current_fn(t) -> A, positive = discharge."""
 
     TYPE = 'evms3'
     STATUS_PERIOD = 0.25
@@ -81,7 +87,7 @@ class Evms3Simulator(SimDevice):
                  current_fn: Callable[[float], float] | None = None,
                  capacity_ah: float = 100.0, seed: int = 0, chargers: int = 1,
                  charge_after_s: float | None = None, extended_id: bool = True,
-                 state: Evms3State = Evms3State.RUNNING) -> None:
+                 state: Evms3State | str = Evms3State.RUNNING) -> None:
         super().__init__(name)
         if not 0 <= chargers <= 3:
             raise ConfigError(f'chargers {chargers}: allowed 0..3 (TC chargers 1..3)')
@@ -107,7 +113,8 @@ class Evms3Simulator(SimDevice):
                                for _ in range(bms12_modules)]
         self.module_temps_c = [(rng.randint(22, 28), rng.randint(22, 28))
                                for _ in range(bms12_modules)]
-        self.state = Evms3State(state)
+        self.state = (Evms3State[state.upper()] if isinstance(state, str)
+                      else Evms3State(state))
         self.current_a = 0.0  # wire sign: positive = discharge
         self.powered = True
         self.bms16_marker = False
@@ -129,6 +136,36 @@ class Evms3Simulator(SimDevice):
         self._elapsed = Elapsed()
 
     # --- model --------------------------------------------------------------------
+    def key_off(self) -> None:
+        """Switch the ignition off: RUNNING or CHARGING -> IDLE (the EVMS parks)."""
+        if self.state in (Evms3State.RUNNING, Evms3State.CHARGING, Evms3State.PRECHARGING):
+            self.state = Evms3State.IDLE
+
+    def key_on(self) -> None:
+        """Switch the ignition on: IDLE -> RUNNING (a SETUP is left with ID 31 first)."""
+        if self.state == Evms3State.IDLE:
+            self.state = Evms3State.RUNNING
+
+    def pack_config(self) -> Evms3Settings:
+        """
+        Return the configuration that fits the simulated pack, in the firmware's steps.
+
+        Capacity as simulated; full and charge voltage at FULL_CELL_V per cell; BMS cell
+        limits around the NMC-like cell (3.30 V empty, 4.15 V full); dynamic balancing. The
+        other values are the firmware's defaults (FACTORY_CONFIG).
+        """
+        cells = sum(self.cells_per_module) or NOMINAL_SERIES_CELLS
+        full = cells * FULL_CELL_V
+        return replace(
+            FACTORY_CONFIG,
+            pack_capacity_ah=min(1250, max(5, 5 * round(self.capacity_ah / 5))),
+            full_voltage_v=min(502, max(10, 2 * round(full / 2))),
+            bms_min_cell_v=3.0, bms_max_cell_v=4.2,
+            max_charge_voltage_v=min(511, round(full)),  # the firmware counts whole volts
+            max_charge_current_a=round(DEFAULT_CHARGE_CURRENT_A),
+            alt_charge_voltage_v=min(511, int(cells * 4.0)),
+            alt_charge_current_a=round(DEFAULT_CHARGE_CURRENT_A))
+
     def power_on(self) -> None:
         """Power the EVMS back on after ID 39."""
         self.powered = True
@@ -162,12 +199,9 @@ class Evms3Simulator(SimDevice):
 
     def charge_command(self, charger: int) -> ChargerCommand:
         """Return what the EVMS asks of one charger now (stop once the pack is full)."""
-        cfg = self.ram_config
-        cells = sum(self.cells_per_module) or NOMINAL_SERIES_CELLS
-        target = (float(cfg.max_charge_voltage_v) if cfg is not None
-                  else round(cells * FULL_CELL_V, 1))
-        total = (float(cfg.max_charge_current_a) if cfg is not None
-                 else DEFAULT_CHARGE_CURRENT_A)
+        cfg = self.ram_config or self.pack_config()
+        target = float(cfg.max_charge_voltage_v)
+        total = float(cfg.max_charge_current_a)
         # Full: every Ah back in, or the current has tapered to its end (latched: a pack
         # that relaxes after the stop is not charged again).
         self.charge_done = self.charge_done or (
@@ -297,7 +331,7 @@ class Evms3Simulator(SimDevice):
         """Return the answer to ID 51: IDs 52..56 (only those of a config_answer fault)."""
         cells = self.cell_numbers or tuple(self.cells_per_module) + (0,) * (
             16 - len(self.cells_per_module))
-        frames = self.codec.report_frames(self.ram_config or FACTORY_CONFIG, cells)
+        frames = self.codec.report_frames(self.ram_config or self.pack_config(), cells)
         only = self.faults.extra.get('config_answer')
         if only is None:
             return frames
@@ -352,7 +386,7 @@ class Evms3Simulator(SimDevice):
             self._follow_set_state_request()
         elif isinstance(msg, Evms3ConfigPart):
             if self._ram is None:
-                self._ram = asdict(FACTORY_CONFIG)
+                self._ram = asdict(self.pack_config())
             self._ram.update(msg.values)  # each packet goes to RAM at once
             if msg.part == 4:  # CORE_RECEIVE_CONFIG4: save RAM (settings + cells) to EEPROM
                 self.stored_config = Evms3Settings(**self._ram)

@@ -95,6 +95,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--evms3-charge-after', type=float, default=None, metavar='S',
                    help='the EVMS3 starts charging after S seconds: it commands its TC '
                         'chargers (29-bit) and they answer (default: never, it drives)')
+    p.add_argument('--evms3-state', choices=('running', 'idle', 'charging'), default=None,
+                   help="the EVMS3's state at start (default running: key on, driving); "
+                        'idle: parked, where write_config is accepted and '
+                        'evms3/set_setup_mode true puts it into SETUP')
     p.add_argument('--evms3-chargers', type=int, default=None, metavar='N',
                    help='TC chargers on the EVMS3 bus, 0..3 (default 1)')
     p.add_argument('--ivt-byte-order', choices=('big', 'little'), default=None,
@@ -133,7 +137,7 @@ def build_devices(types: Sequence[str], ams_banks: int | None = None,
                   bms12_modules: int | None = None,
                   ivt_byte_order: str | None = None,
                   sma_dialect: str | None = None, evms3_charge_after: float | None = None,
-                  evms3_chargers: int | None = None,
+                  evms3_chargers: int | None = None, evms3_state: str | None = None,
                   bms16_variant: str | None = None,
                   sma_soc_frame: str | None = None,
                   ams_pad: bool = False, dbc_file: str | None = None,
@@ -158,6 +162,8 @@ def build_devices(types: Sequence[str], ams_banks: int | None = None,
                                ('charge_after_s', evms3_charge_after)):
                 if value is not None:
                     kwargs[key] = value
+            if evms3_state is not None:
+                kwargs['state'] = evms3_state  # the simulator takes the state's name
         elif kind == 'sma':
             for key, text in (('dialect', sma_dialect), ('soc_layout', sma_soc_frame),
                               ('voltage_scale', sma_voltage_scale)):
@@ -290,6 +296,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         devices = build_devices(selected_types(args), args.ams_banks, args.bms12_modules,
                                 args.ivt_byte_order, args.sma_dialect,
                                 args.evms3_charge_after, args.evms3_chargers,
+                                evms3_state=args.evms3_state,
                                 bms16_variant=args.bms16_variant,
                                 sma_soc_frame=args.sma_soc_frame, ams_pad=args.ams_pad,
                                 dbc_file=args.dbc, mapping_file=args.mapping,
