@@ -8,6 +8,7 @@ from typing import Iterator
 
 import can
 
+from ams_can_bridge.can_io.blf_bounded import BoundedBLFReader
 from ams_can_bridge.errors import ConfigError, LogFileError
 
 # A ROS time holds its seconds in an int32 (builtin_interfaces/Time): 2038-01-19 03:14:08 UTC
@@ -42,6 +43,8 @@ def open_log(path: str) -> can.io.generic.MessageReader:
     """
     if path.lower().endswith('.asc'):
         return can.LogReader(path, relative_timestamp=False)
+    if path.lower().endswith('.blf'):  # one object bounded (a compressed bomb is refused)
+        return BoundedBLFReader(path)
     return can.LogReader(path)
 
 
