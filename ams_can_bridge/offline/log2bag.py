@@ -294,7 +294,7 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
                         'own in this existing folder')
     parser.add_argument('--jobs', type=int, default=None,
                         help='with --output-dir: logs converted side by side (default: the '
-                        'cores, here %d)' % default_jobs())
+                        'cores this process may use)')
     parser.add_argument('--storage', choices=STORAGE_NAMES, default='mcap',
                         help='rosbag2 storage (default mcap)')
     parser.add_argument('--start', type=float, default=None,
