@@ -89,21 +89,26 @@ class DiagnosticsEncoder:
 
 
 def battery_state_at(report: BatteryReport, frame_id: str, sec: int, nanosec: int) -> bytes:
-    """Serialize the BatteryState of a report with header stamp (sec, nanosec)."""
-    f = reports.battery_fields(report)
+    """
+    Serialize the BatteryState of a report with header stamp (sec, nanosec).
+
+    The fields of ``reports.battery_fields`` read straight from the report (that dict was
+    half of this call, on every primary frame): ``+ 0.0`` makes -0.0 0.0 as there.
+    """
+    r = report
     frame = cdr_string(frame_id)
-    cells = reports.float32_array(f['cell_voltage'])
-    temps = reports.float32_array(f['cell_temperature'])
-    location = cdr_string(f['location'])
+    cells = reports.float32_array(r.cell_voltage)
+    temps = reports.float32_array(r.cell_temperature)
+    location = cdr_string(r.location)
     return b''.join((
         CDR_LE, _stamp(sec, nanosec), frame, _PADS[-len(frame) & 3],
         # array('f') converts as rclpy does (a C cast: out of float32 range is inf)
-        array('f', (f['voltage'], f['temperature'], f['current'], f['charge'], f['capacity'],
-                    f['design_capacity'], f['percentage'])).tobytes(),
-        bytes((f['power_supply_status'], f['power_supply_health'],
-               f['power_supply_technology'], f['present'])),
+        array('f', (r.voltage + 0.0, r.temperature + 0.0, r.current + 0.0, r.charge + 0.0,
+                    r.capacity + 0.0, r.design_capacity + 0.0, r.percentage + 0.0)).tobytes(),
+        bytes((r.power_supply_status, r.power_supply_health, r.power_supply_technology,
+               bool(r.present))),
         _U32(len(cells)), cells.tobytes(), _U32(len(temps)), temps.tobytes(),
-        location, _PADS[-len(location) & 3], cdr_string(f['serial_number'])))
+        location, _PADS[-len(location) & 3], cdr_string(r.serial_number)))
 
 
 @functools.lru_cache(maxsize=64)
