@@ -29,7 +29,7 @@ def good_blf(path: str, frames: int = 5) -> str:
 
 
 def container(inflated: bytes, declared: int) -> bytes:
-    """A LOG_CONTAINER object holding inflated zlib-compressed, declaring `declared` bytes."""
+    """Return a LOG_CONTAINER object: inflated zlib-compressed, declaring `declared` bytes."""
     packed = zlib.compress(inflated, 9)
     body = blf.LOG_CONTAINER_STRUCT.pack(blf.ZLIB_DEFLATE, declared) + packed
     size = blf.OBJ_HEADER_BASE_STRUCT.size + len(body)
