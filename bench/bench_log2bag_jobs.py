@@ -23,16 +23,9 @@ from ams_can_bridge.sim.recording import write_log
 
 
 def params_file(path: str) -> str:
-    """Write PARAMETERS as the bridge's nested parameters file."""
-    tree: dict = {}
-    for key, value in PARAMETERS.items():
-        node = tree
-        *parents, leaf = key.split('.')
-        for part in parents:
-            node = node.setdefault(part, {})
-        node[leaf] = value
+    """Write PARAMETERS as a parameters file (dotted names, as ROS 2 reads them too)."""
     with open(path, 'w', encoding='utf-8') as stream:
-        yaml.safe_dump({'/**': {'ros__parameters': tree}}, stream)
+        yaml.safe_dump({'/**': {'ros__parameters': PARAMETERS}}, stream)
     return path
 
 
