@@ -6,7 +6,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import BatteryState
 from std_msgs.msg import Float32MultiArray
 
-from ams_can_bridge import registry
+from ams_can_bridge import cdr, registry
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.devices.base import BatteryReport, DiagnosticReport, Level
 from ams_can_bridge.ros import convert, diag_cdr
@@ -75,7 +75,7 @@ def test_every_alignment_and_a_changed_value(frame_text):
 
 
 def test_a_wrong_encoding_fails_the_start_check(monkeypatch):
-    monkeypatch.setattr(diag_cdr, '_pair', lambda key, value: diag_cdr.cdr_string(key))
+    monkeypatch.setattr(cdr, '_pair', lambda key, value: cdr.cdr_string(key))
     assert not diag_cdr.DiagnosticsEncoder().check()
 
 
@@ -119,5 +119,5 @@ def test_any_battery_report(values, ints, present, cells, temps, texts, stamp):
 
 
 def test_a_wrong_telemetry_encoding_fails_the_start_check(monkeypatch):
-    monkeypatch.setattr(diag_cdr, '_BATTERY_HEADER', b'\0\0\0\0')  # big-endian claimed
+    monkeypatch.setattr(cdr, 'CDR_LE', b'\0\0\0\0')  # big-endian claimed
     assert not diag_cdr.check_telemetry()

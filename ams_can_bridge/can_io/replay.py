@@ -7,6 +7,7 @@ from typing import Iterator
 
 import can
 
+from ams_can_bridge.can_io.blf_bounded import BoundedBLFReader
 from ams_can_bridge.errors import ConfigError, LogFileError
 from ams_can_bridge.input_files import file_problem
 
@@ -42,6 +43,8 @@ def open_log(path: str) -> can.io.generic.MessageReader:
     """
     if path.lower().endswith('.asc'):
         return can.LogReader(path, relative_timestamp=False)
+    if path.lower().endswith('.blf'):  # one object bounded (a compressed bomb is refused)
+        return BoundedBLFReader(path)
     return can.LogReader(path)
 
 

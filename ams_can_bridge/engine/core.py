@@ -251,6 +251,9 @@ class Schedule:
         self.started = False
         self.last = math.nan  # the latest stamp run to
         self._longest = max((period for period, _ in tasks), default=0.0)
+        # the first task's next run: a stamp before it runs nothing (most frames of a log;
+        # run_until's caller may test it to skip the call)
+        self.due = math.inf
 
     def start(self, now: float) -> None:
         """Start the grid at ``now``: each task first runs one period later."""
@@ -258,6 +261,7 @@ class Schedule:
         self.last = now
         for task in self.tasks:
             task[0] = now + task[1]
+        self.due = min((task[0] for task in self.tasks), default=math.inf)
 
     def run_until(self, stamp: float) -> None:
         """
@@ -274,6 +278,10 @@ class Schedule:
         if stamp < self.last - self._longest:
             self.start(stamp)
             return
+        if stamp < self.due:  # nothing due (the loop below would run nothing)
+            if stamp > self.last:
+                self.last = stamp
+            return
         end = min(stamp, self.last + self.horizon)
         while True:
             task = min(self.tasks, key=lambda t: t[0])  # the first of equals: list order
@@ -287,6 +295,7 @@ class Schedule:
                 if task[0] < stamp:
                     task[0] += math.ceil((stamp - task[0]) / task[1]) * task[1]
         self.last = max(self.last, stamp)
+        self.due = min((task[0] for task in self.tasks), default=math.inf)
 
 
 def _nan_arrays(arrays: Arrays) -> Arrays:

@@ -34,7 +34,9 @@ from typing import Sequence, TextIO, TYPE_CHECKING
 
 from ams_can_bridge.devices.dbc_plan import set_params_files
 from ams_can_bridge.errors import ConfigError, LogFileError
+from ams_can_bridge.offline import log2bag_jobs
 from ams_can_bridge.offline.converter import Converter, NODE_NAME
+from ams_can_bridge.offline.log2bag_jobs import default_jobs
 from ams_can_bridge.offline.log_frames import LogFrames
 from ams_can_bridge.offline.params_file import load_parameters
 
@@ -275,14 +277,24 @@ def _convert(log: str, frames: LogFrames, converter: Converter, bag: BagOut,
 
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
-    """Parse the command line."""
+    """Parse the command line: LOG OUTPUT, or LOG... --output-dir DIR."""
     parser = argparse.ArgumentParser(
         prog='log2bag', description='Convert a CAN log (.log .asc .blf .trc .csv) into a '
-        'rosbag2 of the topics the bridge publishes, stamped with the log time.')
-    parser.add_argument('log', help='CAN log file that python-can reads')
-    parser.add_argument('output', help='bag directory to create (must not exist)')
+        'rosbag2 of the topics the bridge publishes, stamped with the log time. One log: '
+        'log2bag LOG OUTPUT --params-file P. Several logs or folders of logs, side by side: '
+        'log2bag LOG_OR_FOLDER... --output-dir DIR --params-file P [--jobs N] (one bag per '
+        'log, DIR/<log name without suffix>).')
+    parser.add_argument('paths', nargs='+', metavar='LOG',
+                        help='CAN log file that python-can reads, then the bag directory to '
+                        'create (must not exist); with --output-dir: logs and folders only')
     parser.add_argument('--params-file', required=True,
                         help="the bridge's parameters file (devices and their parameters)")
+    parser.add_argument('--output-dir', default=None,
+                        help='convert every LOG (a folder: its log files) into a bag of its '
+                        'own in this existing folder')
+    parser.add_argument('--jobs', type=int, default=None,
+                        help='with --output-dir: logs converted side by side (default: the '
+                        'cores this process may use)')
     parser.add_argument('--storage', choices=STORAGE_NAMES, default='mcap',
                         help='rosbag2 storage (default mcap)')
     parser.add_argument('--start', type=float, default=None,
@@ -298,6 +310,16 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     args = parser.parse_args(argv)
     if args.start is not None and args.end is not None and args.end < args.start:
         parser.error(f'--end {args.end:g} is before --start {args.start:g}')
+    if args.jobs is not None and args.jobs < 1:
+        parser.error(f'--jobs {args.jobs}: give at least 1')
+    if args.output_dir is None:
+        if args.jobs is not None:
+            parser.error('--jobs converts several logs: give them with --output-dir DIR')
+        if len(args.paths) != 2:
+            parser.error(f'{len(args.paths)} path(s) without --output-dir: give one LOG and '
+                         'its OUTPUT bag, or any number of logs and folders with '
+                         '--output-dir DIR')
+        args.log, args.output = args.paths
     return args
 
 
@@ -307,6 +329,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     set_params_files([args.params_file])  # a dbc device's files beside the params file
     try:
         parameters = load_parameters(args.params_file, args.node_name)
+        if args.output_dir is not None:
+            return log2bag_jobs.run(
+                log2bag_jobs.expand(args.paths), args.output_dir, parameters,
+                args.params_file, args.storage, args.start, args.end, args.node_name,
+                args.jobs or default_jobs())
         summary = convert(args.log, args.output, parameters, args.storage, args.start,
                           args.end, node_name=args.node_name)
     except (ConfigError, LogFileError) as exc:

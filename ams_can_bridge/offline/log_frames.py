@@ -22,6 +22,7 @@ from __future__ import annotations
 import itertools
 import logging
 import os
+import re
 from typing import Any, Iterator
 
 import can
@@ -37,6 +38,9 @@ _LINE_COUNT_CHUNK = 1 << 20
 _ASC_END = b'end triggerblock'
 _ASC_BEGIN = b'begin triggerblock'
 _ASC_HEAD = 1 << 16  # bytes of an .asc searched for its Begin TriggerBlock (in its header)
+# A line that is a frame entry (python-can's ASC_MESSAGE_REGEX, any first token as the time)
+_ASC_FRAME = re.compile(r'\s*\S+\s+(\d+\s+(\w+\s+(Tx|Rx)|ErrorFrame)|CANFD)',
+                        re.ASCII | re.IGNORECASE)
 # python-can's TRCReader logs these (one per line) and goes on: a line it cannot parse is
 # a bad entry, a record of another type (not a frame) is counted apart
 _TRC_LOGGER = 'can.io.trc'
@@ -45,18 +49,30 @@ _TRC_OTHER = 'TRCReader: Unsupported type'
 
 
 class _CompleteLines:
-    """A text file's lines up to the last one that ends with a newline (a cut line is left)."""
+    """
+    A text file's lines up to the last one that ends with a newline (a cut line is left).
 
-    def __init__(self, file: Any, owner: 'LogFrames') -> None:
+    For an .asc (``watch``), a line that looks like a frame entry is held as the owner's
+    ``pending`` until the reader yields its message; python-can's ASCReader drops the lines
+    it cannot read without a word (a NaN, inf or 1e308 timestamp): one still pending when
+    the next line is read is a bad entry.
+    """
+
+    def __init__(self, file: Any, owner: 'LogFrames', watch: bool = False) -> None:
         self._file = file
         self._owner = owner
-        self._lines = self._complete()
+        self._lines = self._complete(watch)
 
-    def _complete(self) -> Iterator[str]:
-        for line in self._file:
+    def _complete(self, watch: bool) -> Iterator[str]:
+        owner = self._owner
+        for number, line in enumerate(self._file, 1):
             if not line.endswith('\n'):
-                self._owner.cut_line = line
+                owner.cut_line = line
                 return
+            if watch:
+                owner.drop_pending()
+                if _ASC_FRAME.match(line):
+                    owner.pending = (number, line)
             yield line
 
     def __iter__(self) -> Iterator[str]:
@@ -137,9 +153,11 @@ class LogFrames:
         self.stopped = ''
         self.truncated = ''  # why the log looks cut short ('' = it ends as it should)
         self.cut_line: str | None = None
+        self.pending: tuple[int, str] | None = None  # an .asc frame line not yet yielded
         if isinstance(self.reader, _RESUMABLE) and hasattr(self.reader, 'file'):
             # a duck-typed text file: python-can reads it line by line only
-            self.reader.file = _CompleteLines(self.reader.file, self)  # type: ignore[assignment]
+            self.reader.file = _CompleteLines(  # type: ignore[assignment]
+                self.reader.file, self, watch=isinstance(self.reader, can.ASCReader))
         self._trc_filter: _CountTrcErrors | None = None
         if isinstance(self.reader, can.TRCReader):
             self._trc_filter = _CountTrcErrors(self)
@@ -168,6 +186,7 @@ class LogFrames:
             try:
                 msg = next(messages)
             except StopIteration:
+                self.drop_pending()
                 self._check_end()
                 return
             except Exception as exc:
@@ -180,6 +199,7 @@ class LogFrames:
                     self.reader.file = _Lines(['\n'], self.reader.file)  # type: ignore[assignment]
                 messages = iter(self.reader)
                 continue
+            self.pending = None
             problem = stamp_problem(msg.timestamp)
             if problem:
                 self.bad += 1
@@ -187,7 +207,22 @@ class LogFrames:
                 self.last_bad = (f'frame 0x{msg.arbitration_id:X} at timestamp '
                                  f'{msg.timestamp!r}: {problem}')
                 continue
+            if (not msg.is_fd and not msg.is_remote_frame and not msg.is_error_frame
+                    and len(msg.data) != min(msg.dlc, 8)):  # an .asc's 'd f 01 02'
+                self.bad += 1
+                self.last_bad = (f'frame 0x{msg.arbitration_id:X} at timestamp '
+                                 f'{msg.timestamp!r}: data length {msg.dlc} (its DLC) with '
+                                 f'{len(msg.data)} data bytes')
+                continue
             yield msg
+
+    def drop_pending(self) -> None:
+        """Count the .asc frame line the reader read without yielding a frame (bad entry)."""
+        if self.pending is not None:
+            number, line = self.pending
+            self.pending = None
+            self.bad += 1
+            self.last_bad = f'line {number}: {line.strip()[:60]!r} is no frame python-can reads'
 
     def _check_end(self) -> None:
         """Set ``truncated`` when the log was read to an end that is not its proper end."""

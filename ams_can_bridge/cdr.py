@@ -1,0 +1,127 @@
+"""
+CDR (XCDR1, little-endian) of /diagnostics, BatteryState and Float32MultiArray, without ROS.
+
+The bytes rclpy's ``serialize_message`` gives for the messages ``ros/convert.py`` builds
+from the same reports, built with ``struct`` and ``array`` in a few joins: the live bridge
+publishes them raw (``ros/diag_cdr.py`` checks them against rclpy once at start), log2bag
+writes them into its bags (issue 39: rosbags' message objects and serializer were a third
+of a conversion; test_log2bag_golden.py holds the bags byte-identical to what they gave).
+
+The layout: a 4-byte encapsulation header, then each field aligned to its size counted
+from the end of that header; a string is a uint32 length (with the NUL), its UTF-8 bytes
+and a NUL. Reusing the bytes of unchanged key/value pairs: ``DiagnosticsEncoder``.
+"""
+from __future__ import annotations
+
+from array import array
+import functools
+import struct
+from typing import Iterable
+
+from ams_can_bridge import reports
+from ams_can_bridge.devices.base import BatteryReport, DiagnosticReport
+
+CDR_LE = b'\0\1\0\0'  # encapsulation: CDR, little-endian (rclpy's and rosbags')
+
+_U32 = struct.Struct('<I').pack
+_STAMP_PACK = struct.Struct('<II').pack
+_PADS = (b'', b'\0', b'\0\0', b'\0\0\0')
+
+
+def _stamp(sec: int, nanosec: int) -> bytes:
+    # int32 sec wraps past 2038 as rclpy's C conversion does
+    return _STAMP_PACK(sec & 0xFFFFFFFF, nanosec)
+
+
+def cdr_string(text: str) -> bytes:
+    """Return a CDR string: uint32 length (with the NUL), UTF-8 bytes, NUL (4-aligned start)."""
+    data = text.encode('utf-8')
+    return _U32(len(data) + 1) + data + b'\0'
+
+
+def _pair(key: str, value: str) -> bytes:
+    """Return a key/value pair's bytes: it starts 4-aligned, so they never depend on where."""
+    key_part = cdr_string(key)
+    return key_part + _PADS[-len(key_part) & 3] + cdr_string(value)
+
+
+class DiagnosticsEncoder:
+    """Serialize DiagnosticArray messages to CDR, reusing the bytes of unchanged pairs."""
+
+    def __init__(self) -> None:
+        """Start with no pairs known."""
+        self._header = CDR_LE
+        # (status name, key) -> (value, bytes): bounded by the keys the devices report
+        self._pairs: dict[tuple[str, str], tuple[str, bytes]] = {}
+
+    def encode(self, stamp: float, statuses: Iterable[tuple[str, DiagnosticReport]],
+               hardware_id: str, frame_id: str = '') -> bytes:
+        """Return the serialized DiagnosticArray of (status name, report) at stamp."""
+        sec, nanosec = reports.stamp_parts(stamp)
+        statuses = list(statuses)
+        body = [_stamp(sec, nanosec), cdr_string(frame_id)]
+        pos = 8 + len(body[1])
+        body.append(_PADS[-pos & 3] + _U32(len(statuses)))
+        pos += (-pos & 3) + 4
+        hardware = cdr_string(hardware_id)
+        pairs = self._pairs
+        for name, report in statuses:
+            # level (1 byte), then three strings and the pair count, each 4-aligned
+            level = bytes((int(report.level),))
+            name_part, message = cdr_string(name), cdr_string(report.message)
+            pad = -(pos + 1) & 3
+            head = (level + _PADS[pad] + name_part + _PADS[-len(name_part) & 3] + message
+                    + _PADS[-len(message) & 3] + hardware + _PADS[-len(hardware) & 3]
+                    + _U32(len(report.values)))
+            body.append(head)
+            pos += len(head)
+            for key, value in report.values.items():
+                key, value = str(key), str(value)
+                known = pairs.get((name, key))
+                if known is None or known[0] != value:
+                    known = (value, _pair(key, value))
+                    pairs[(name, key)] = known
+                padding = _PADS[-pos & 3]
+                body.append(padding)
+                body.append(known[1])
+                pos += len(padding) + len(known[1])
+        return self._header + b''.join(body)
+
+
+def battery_state_at(report: BatteryReport, frame_id: str, sec: int, nanosec: int) -> bytes:
+    """
+    Serialize the BatteryState of a report with header stamp (sec, nanosec).
+
+    The fields of ``reports.battery_fields`` read straight from the report (that dict was
+    half of this call, on every primary frame): ``+ 0.0`` makes -0.0 0.0 as there.
+    """
+    r = report
+    frame = cdr_string(frame_id)
+    cells = reports.float32_array(r.cell_voltage)
+    temps = reports.float32_array(r.cell_temperature)
+    location = cdr_string(r.location)
+    return b''.join((
+        CDR_LE, _stamp(sec, nanosec), frame, _PADS[-len(frame) & 3],
+        # array('f') converts as rclpy does (a C cast: out of float32 range is inf)
+        array('f', (r.voltage + 0.0, r.temperature + 0.0, r.current + 0.0, r.charge + 0.0,
+                    r.capacity + 0.0, r.design_capacity + 0.0, r.percentage + 0.0)).tobytes(),
+        bytes((r.power_supply_status, r.power_supply_health, r.power_supply_technology,
+               bool(r.present))),
+        _U32(len(cells)), cells.tobytes(), _U32(len(temps)), temps.tobytes(),
+        location, _PADS[-len(location) & 3], cdr_string(r.serial_number)))
+
+
+@functools.lru_cache(maxsize=64)
+def _array_layout(rows: int, cols: int, labels: tuple[str, str]) -> bytes:
+    out = CDR_LE + _U32(2)
+    for label, size, stride in reports.array_dims(rows, cols, labels):
+        text = cdr_string(label)
+        out += text + _PADS[-len(text) & 3] + _U32(size) + _U32(stride)
+    return out + _U32(0)  # data_offset
+
+
+def multi_array(rows: int, cols: int, data: Iterable[float],
+                labels: tuple[str, str] = ('bank', 'sensor')) -> bytes:
+    """Serialize the Float32MultiArray of row-major rows x cols data."""
+    values = reports.float32_array(data)
+    return _array_layout(rows, cols, labels) + _U32(len(values)) + values.tobytes()
