@@ -1,5 +1,5 @@
 """
-log2bag's bags stay byte-identical: every message of every device type as at main 3a6ee7d.
+log2bag's bags stay byte-identical: every message of every device type as before the speed work.
 
 The speed work of issue 39 changes how messages are built and serialised and when the
 periodic work runs; none of it may change a byte of what is written. Each scenario's log
