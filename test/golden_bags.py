@@ -5,10 +5,10 @@ The logs (``fixtures/golden/*.log``) were written once from the simulators, with
 spell of some devices in the middle (their ``present: false`` repeats, the watch's early
 /diagnostics); the digests (``fixtures/golden/digests.json``) are what log2bag wrote for
 them before the speed work of issue 39 (at main 7b5d31f, before its merge): per scenario,
-per message, the topic, the bag time and a SHA-256 prefix of the CDR bytes. Both are committed: a digest
-taken from a pinned checkout would need the git history and a second tree at test time, and
-simulator changes would move logs regenerated on the fly. ``test_log2bag_golden.py``
-converts each log again and compares every message.
+per message, the topic, the bag time and a SHA-256 prefix of the CDR bytes. Both are
+committed: a digest taken from a pinned checkout would need the git history and a second
+tree at test time, and simulator changes would move logs regenerated on the fly.
+``test_log2bag_golden.py`` converts each log again and compares every message.
 
 Regenerate (only when a message is meant to change, and say so in the commit):
 ``.venv/bin/python test/golden_bags.py --logs --digests`` (``--logs`` rewrites the logs too).
