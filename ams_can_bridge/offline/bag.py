@@ -18,6 +18,7 @@ from ams_can_bridge.devices.base import BatteryReport, DiagnosticReport
 STORAGES = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}
 BATTERY_STATE = 'sensor_msgs/msg/BatteryState'
 MULTI_ARRAY = 'std_msgs/msg/Float32MultiArray'
+FLOAT32 = 'std_msgs/msg/Float32'
 DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
 BAG_VERSION: Literal[9] = 9  # rosbag2 metadata of Jazzy
 
@@ -34,6 +35,7 @@ class BagOut:
         self._array, self._dim = t[MULTI_ARRAY], t['std_msgs/msg/MultiArrayDimension']
         self._layout = t['std_msgs/msg/MultiArrayLayout']
         self._diag_array = t[DIAGNOSTIC_ARRAY]
+        self._float32 = t[FLOAT32]
         self._status = t['diagnostic_msgs/msg/DiagnosticStatus']
         self._key_value = t['diagnostic_msgs/msg/KeyValue']
         self.writer = Writer(path, version=BAG_VERSION, storage_plugin=STORAGES[storage])
@@ -72,6 +74,10 @@ class BagOut:
         msg = self._array(self._layout(dims, 0),
                           np.frombuffer(reports.float32_array(data), np.float32))
         self._write(topic, MULTI_ARRAY, msg, stamp)
+
+    def float32(self, topic: str, value: float, stamp: float) -> None:
+        """Write one std_msgs/Float32 at bag time stamp."""
+        self._write(topic, FLOAT32, self._float32(float(value)), stamp)
 
     def diagnostics(self, statuses: list[tuple[str, DiagnosticReport]], hardware_id: str,
                     stamp: float) -> None:
