@@ -23,12 +23,21 @@ HEALTH_ORDER = (PowerSupplyHealth.DEAD, PowerSupplyHealth.OVERHEAT,
                 PowerSupplyHealth.UNSPEC_FAILURE, PowerSupplyHealth.GOOD,
                 PowerSupplyHealth.UNKNOWN)
 
+_RANK = {int(h): i for i, h in enumerate(HEALTH_ORDER)}
+_FALLBACK = _RANK[int(PowerSupplyHealth.UNSPEC_FAILURE)]
+
 Members = Sequence[tuple[str, BatteryReport]]
+
+
+def all_known(values: Sequence[float]) -> bool:
+    """Tell whether there are values and none is NaN (or infinite): one C loop, no Python one."""
+    # a sum propagates NaN and infinities: a report of 200 cells is checked per update
+    return bool(values) and math.isfinite(sum(values))
 
 
 def known_sum(values: Sequence[float]) -> float:
     """Return the sum, NaN when any part (or all: no parts) is unknown."""
-    if not values or any(math.isnan(v) for v in values):
+    if not all_known(values):
         return NAN
     return math.fsum(values)
 
@@ -41,25 +50,23 @@ def known_mean(values: Sequence[float]) -> float:
 
 def known_min(values: Sequence[float]) -> float:
     """Return the minimum, NaN when any part is unknown (the unknown one may be lower)."""
-    if not values or any(math.isnan(v) for v in values):
+    if not all_known(values):
         return NAN
     return min(values)
 
 
 def known_max(values: Sequence[float]) -> float:
     """Return the maximum, NaN when any part is unknown (the unknown one may be higher)."""
-    if not values or any(math.isnan(v) for v in values):
+    if not all_known(values):
         return NAN
     return max(values)
 
 
 def worst_health(healths: Sequence[int]) -> int:
     """Return the worst member health by HEALTH_ORDER (a value outside it counts as failure)."""
-    rank = {int(h): i for i, h in enumerate(HEALTH_ORDER)}
-    fallback = rank[int(PowerSupplyHealth.UNSPEC_FAILURE)]
     if not healths:
         return int(PowerSupplyHealth.UNKNOWN)
-    return min((int(h) for h in healths), key=lambda h: rank.get(h, fallback))
+    return min((int(h) for h in healths), key=lambda h: _RANK.get(h, _FALLBACK))
 
 
 def parallel_percentage(reports: Sequence[BatteryReport], charge: float,
@@ -68,7 +75,7 @@ def parallel_percentage(reports: Sequence[BatteryReport], charge: float,
     if math.isfinite(charge) and math.isfinite(capacity) and capacity > 0:
         return min(max(charge / capacity, 0.0), 1.0)
     percentages = [r.percentage for r in reports]
-    if any(math.isnan(p) for p in percentages) or not percentages:
+    if not all_known(percentages):
         return NAN
     weights = [r.capacity for r in reports]
     if not all(math.isfinite(w) and w > 0 for w in weights):
@@ -97,6 +104,11 @@ def aggregate(members: Members, connection: str) -> BatteryReport:
     technology = (technologies.pop() if len(technologies) == 1
                   else int(PowerSupplyTechnology.UNKNOWN))
     stamps = [r.stamp for r in reports if r.present and math.isfinite(r.stamp)]
+    cells: list[float] = []
+    temps: list[float] = []
+    for r in reports:  # extend: a C loop over each member's array
+        cells.extend(r.cell_voltage)
+        temps.extend(r.cell_temperature)
     return BatteryReport(
         stamp=max(stamps) if stamps else NAN, voltage=voltage,
         temperature=known_max([r.temperature for r in reports]), current=current,
@@ -104,8 +116,7 @@ def aggregate(members: Members, connection: str) -> BatteryReport:
         power_supply_status=int(current_status(current)),
         power_supply_health=worst_health([r.power_supply_health for r in reports]),
         power_supply_technology=technology, present=any(r.present for r in reports),
-        cell_voltage=[v for r in reports for v in r.cell_voltage],
-        cell_temperature=[t for r in reports for t in r.cell_temperature])
+        cell_voltage=cells, cell_temperature=temps)
 
 
 def voltage_mismatches(members: Members, max_difference: float) -> list[str]:
@@ -124,11 +135,10 @@ def cell_sum_mismatches(members: Members, max_difference: float) -> list[str]:
     """Name each member whose known cells do not add up to its own measured voltage."""
     found = []
     for name, report in members:
-        cells = report.cell_voltage
-        if not cells or not all(math.isfinite(c) for c in cells) \
+        total = sum(report.cell_voltage)
+        if not report.cell_voltage or not math.isfinite(total) \
                 or not math.isfinite(report.voltage):
             continue
-        total = math.fsum(cells)
         if abs(total - report.voltage) > max_difference:
             found.append(f'{name}: cells sum to {total:.3f} V, measured {report.voltage:.3f} V '
                          f'(more than {max_difference:g} V apart)')

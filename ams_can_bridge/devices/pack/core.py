@@ -70,8 +70,9 @@ class Pack:
                 warnings += voltage_mismatches(members, s.max_voltage_difference)
             warnings += cell_sum_mismatches(members, s.max_cell_sum_difference)
             raised = self.limits.update(report, stamp)
-            charge = derated(s.max_charge_current, CHARGE_INPUTS, s.limits, report)
-            discharge = derated(s.max_discharge_current, DISCHARGE_INPUTS, s.limits, report)
+            value = self.limits.value
+            charge = derated(s.max_charge_current, CHARGE_INPUTS, s.limits, value)
+            discharge = derated(s.max_discharge_current, DISCHARGE_INPUTS, s.limits, value)
             if stale or self.limits.latched:
                 # fail-safe: a pack with a silent member or past its safety limit allows nothing
                 charge = 0.0 if not math.isnan(charge) else charge

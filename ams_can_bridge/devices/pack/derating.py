@@ -7,10 +7,9 @@ The charge limit follows ``cell_voltage_max`` and both temperature limits, the d
 from __future__ import annotations
 
 import math
-from typing import Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
-from ams_can_bridge.devices.base import BatteryReport
-from ams_can_bridge.devices.pack.limits import KINDS, limit_value
+from ams_can_bridge.devices.pack.limits import KINDS
 
 CHARGE_INPUTS = ('cell_voltage_max', 'temperature_max', 'temperature_min')
 DISCHARGE_INPUTS = ('cell_voltage_min', 'temperature_max', 'temperature_min')
@@ -27,12 +26,16 @@ def factor(name: str, value: float, levels: Sequence[float]) -> float:
 
 
 def derated(maximum: float, inputs: Sequence[str], levels: Mapping[str, Sequence[float]],
-            report: BatteryReport) -> float:
-    """Return ``maximum`` times the lowest factor of the configured inputs (NaN: no maximum)."""
+            value: Callable[[str], float]) -> float:
+    """
+    Return ``maximum`` times the lowest factor of the configured inputs (NaN: no maximum).
+
+    ``value(name)``: the watched value of a limit (``Limits.value``: computed once per report).
+    """
     if not maximum > 0:
         return math.nan  # not configured: the pack does not know a limit
     lowest = 1.0
     for name in inputs:
         if name in levels:
-            lowest = min(lowest, factor(name, limit_value(name, report), levels[name]))
+            lowest = min(lowest, factor(name, value(name), levels[name]))
     return maximum * lowest

@@ -25,6 +25,8 @@ class Severity(enum.IntEnum):
     MSL = 2  # maximum safety limit: ERROR, latched
 
 
+SEVERITIES = tuple(Severity)  # iterating the enum class itself costs a call per update
+
 @dataclass(frozen=True)
 class LimitKind:
     """A limit's value in a pack report and its direction (above or below is beyond)."""
@@ -46,7 +48,8 @@ KINDS: dict[str, LimitKind] = {
 
 def _extreme(values: Sequence[float], upper: bool) -> float:
     """Return the max (upper) or min of the values, NaN with none or an unknown one."""
-    if not values or any(math.isnan(v) for v in values):
+    # a sum propagates NaN in one C loop (max() would silently skip some NaN)
+    if not values or not math.isfinite(sum(values)):
         return math.nan
     return max(values) if upper else min(values)
 
@@ -109,6 +112,12 @@ class Limits:
     events: dict[tuple[str, Severity], Event] = field(default_factory=dict)
     _since: dict[tuple[str, Severity], float] = field(default_factory=dict)
     _values: dict[str, float] = field(default_factory=dict)
+    # limits with a level counting or raised: the others are skipped while inside MOL
+    _open: set[str] = field(default_factory=set)
+
+    def value(self, name: str) -> float:
+        """Return the value of a watched limit at the last update (NaN: unknown or none)."""
+        return self._values.get(name, math.nan)
 
     def update(self, report: BatteryReport, stamp: float) -> list[Event]:
         """Take a pack report at ``stamp``; return the events raised by it."""
@@ -118,7 +127,9 @@ class Limits:
             self._values[name] = value
             if math.isnan(value):
                 continue
-            for severity in Severity:
+            if name not in self._open and not beyond(name, value, levels[0]):
+                continue  # inside MOL, nothing counting: the common case, one comparison
+            for severity in SEVERITIES:
                 key = (name, severity)
                 event = self.events.get(key)
                 if beyond(name, value, levels[severity]):
@@ -134,6 +145,10 @@ class Limits:
                     self._since.pop(key, None)
                     if event is not None and severity is not Severity.MSL:
                         del self.events[key]
+            if any((name, s) in self._since or (name, s) in self.events for s in SEVERITIES):
+                self._open.add(name)
+            else:
+                self._open.discard(name)
         return raised
 
     @property
