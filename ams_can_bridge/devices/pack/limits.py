@@ -27,6 +27,7 @@ class Severity(enum.IntEnum):
 
 SEVERITIES = tuple(Severity)  # iterating the enum class itself costs a call per update
 
+
 @dataclass(frozen=True)
 class LimitKind:
     """A limit's value in a pack report and its direction (above or below is beyond)."""
