@@ -26,7 +26,7 @@ setup(
     maintainer='ams_can_bridge developers',
     maintainer_email='dev@ams-can-bridge.invalid',
     description=('Battery-management CAN buses (AMS + IVT-S, ZEVA EVMS3/BMS16, SMA, any BMS '
-                 'from its DBC) to ROS 2'),
+                 'from its DBC, a pack of several) to ROS 2'),
     license='Apache-2.0',
     tests_require=['pytest'],
     entry_points={

@@ -120,6 +120,11 @@ def _array_layout(rows: int, cols: int, labels: tuple[str, str]) -> bytes:
     return out + _U32(0)  # data_offset
 
 
+def float32(value: float) -> bytes:
+    """Return a std_msgs/Float32's bytes (a C cast to float, as rclpy's: out of range is inf)."""
+    return CDR_LE + array('f', (value,)).tobytes()
+
+
 def multi_array(rows: int, cols: int, data: Iterable[float],
                 labels: tuple[str, str] = ('bank', 'sensor')) -> bytes:
     """Serialize the Float32MultiArray of row-major rows x cols data."""

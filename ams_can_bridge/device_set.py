@@ -72,6 +72,8 @@ class DeviceSet:
         # '<instance>.<key>' -> what the link resolved to, for the start-up log
         self.links: dict[str, str] = {}
         self._resolve_links()
+        for device in self.devices.values():
+            device.attach_members(self.devices)  # a pack checks and takes its members
         self._check_overlaps()
         self.std: dict[int, tuple[Device, ...]] = {}
         self.ext: dict[int, tuple[Device, ...]] = {}

@@ -11,7 +11,7 @@ from typing import Any
 
 from ams_can_bridge.errors import ConfigError
 
-DEVICE_TYPES = ('ams', 'ivt_s', 'evms3', 'bms16', 'sma', 'dbc')
+DEVICE_TYPES = ('ams', 'ivt_s', 'evms3', 'bms16', 'sma', 'dbc', 'pack')
 
 DEVICES = {
     'ams': 'ams_can_bridge.devices.ams:AmsDevice',
@@ -20,6 +20,7 @@ DEVICES = {
     'bms16': 'ams_can_bridge.devices.bms16:Bms16Device',
     'sma': 'ams_can_bridge.devices.sma:SmaDevice',
     'dbc': 'ams_can_bridge.devices.dbc:DbcDevice',
+    'pack': 'ams_can_bridge.devices.pack.device:PackDevice',
 }
 
 SIMULATORS = {

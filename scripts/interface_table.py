@@ -98,6 +98,9 @@ def topics_table() -> list[str]:
             arrays.setdefault(suffix, []).append(label)
     for suffix, labels in arrays.items():
         lines.append(f'| `<name>/{suffix}` | `{MULTI_ARRAY}` | {", ".join(labels)} |')
+    for device_type in registry.DEVICE_TYPES:  # std_msgs/Float32 figures (a pack's)
+        for suffix in registry.device_class(device_type).FIGURES:
+            lines.append(f'| `<name>/{suffix}` | `std_msgs/msg/Float32` | `{device_type}` |')
     for topic, msg_type, when in NODE_TOPICS:
         lines.append(f'| `{topic}` | `{msg_type}` | the node: {when} |')
     return lines

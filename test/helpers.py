@@ -200,6 +200,7 @@ def every_device_bridge(tag: str) -> Iterator[Any]:
         node = BridgeNode(context=context, parameter_overrides=[
             Parameter('devices', value=list(registry.DEVICE_TYPES)),
             *(Parameter(f'dbc.{key}', value=value) for key, value in OUR_PARAMS.items()),
+            Parameter('pack.members', value=['evms3', 'bms16']),
             Parameter('can.interface', value='virtual'),
             Parameter('can.channel', value=f'{tag}-{os.getpid()}-{next(_bridges)}')])
         try:

@@ -274,7 +274,7 @@ def published(report: Any) -> tuple:
 
 def every_device() -> dict:
     """Return the params of a bridge with one instance of every device type."""
-    return {'devices': list(registry.DEVICE_TYPES),
+    return {'devices': list(registry.DEVICE_TYPES), 'pack.members': ['evms3', 'bms16'],
             **{f'dbc.{key}': value for key, value in OUR_PARAMS.items()}}
 
 

@@ -112,7 +112,7 @@ def test_signal_during_a_waiting_call(ros, tmp_path, signum):  # noqa: F811 (fix
 
 
 @pytest.mark.parametrize('text, expected', [
-    (None, 'Error opening YAML file'),
+    (None, 'does not exist: give the path of a params file'),
     ('/**:\n  ros__parameters:\n    devices: [bms16\n', 'Error parsing'),
     ('/**:\n  ros__parameters:\n    devices: bms16\n    diagnostics_period: fast\n',
      "diagnostics_period = 'fast' must be a number"),

@@ -17,7 +17,7 @@ import pytest
 from ams_can_bridge import registry
 from ams_can_bridge.bus_state import BusState
 from ams_can_bridge.device_set import DeviceSet
-from ams_can_bridge.devices.commands import Carried, Exchange, Frames, Request
+from ams_can_bridge.devices.commands import Carried, Exchange, Frames, Local, Request
 from ams_can_bridge.engine.calls import Pipeline
 from ams_can_bridge.engine.commands import Commands
 from ams_can_bridge.engine.gate import CommandGate
@@ -106,7 +106,7 @@ def test_every_row_names_a_method_of_its_device_and_a_policy():
         assert len(services) == len(set(services)), cls
         for row in cls.COMMANDS:
             assert callable(getattr(cls, row.build, None)), (cls, row)
-            assert isinstance(row.policy, (Frames, Exchange, Carried)), (cls, row)
+            assert isinstance(row.policy, (Frames, Exchange, Carried, Local)), (cls, row)
             assert row.what and (row.request is Request.SET_BOOL) == bool(row.what_false)
             if isinstance(row.policy, Frames) and row.policy.paced:
                 assert getattr(cls, 'CONFIG_FRAME_GAP', 0) > 0, (cls, row)

@@ -41,7 +41,7 @@ def test_the_generated_file_is_what_the_parameter_tables_give():
 def test_every_device_type_and_variant_has_its_own_class():
     names = [cls.__name__ for cls in DEVICE_CLASSES]
     assert names == ['AmsDevice', 'IvtSDevice', 'Evms3Device', 'Bms16Device', 'Bms16StdDevice',
-                     'SmaDevice', 'DbcDevice']
+                     'SmaDevice', 'DbcDevice', 'PackDevice']
     assert len({cls.Config for cls in DEVICE_CLASSES}) == len(DEVICE_CLASSES)
 
 
@@ -106,6 +106,11 @@ def test_the_common_values_are_on_the_base_class():
 def test_every_device_type_answers_its_ids_through_its_codec_or_its_own(device_cls):
     # Device.codec is a Codec (IDs, width, decode); the dbc type has none and answers itself
     from dbc_fixtures import OUR_PARAMS
+    if device_cls.TYPE == 'pack':  # reads its members' reports, never a frame: no ID at all
+        device = device_cls('x', {'members': ['a', 'b']})
+        assert device.frame_ids == frozenset() and device.arbitration_ids == frozenset()
+        assert not device.handle_frame(0x100, bytes(8), 0.0) and not device.sent_ids()
+        return
     device = device_cls('x', OUR_PARAMS if device_cls.TYPE == 'dbc' else {})
     ids = device.frame_ids
     assert ids and all(isinstance(i, int) and isinstance(e, bool) for i, e in ids)

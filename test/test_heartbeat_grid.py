@@ -86,6 +86,7 @@ def one_request_with_thousands_of_copies(rig_factory) -> None:
     rig.capture.sync()
     seen = gaps(rig, mark)
     # the ROS node shares the GIL with the request's 5,000 callbacks and parameter events,
-    # the machine with the other tests: 200 ms of slack (the bug's gap: 0.5 to 1.3 s)
-    assert max(seen) < PERIOD + 0.2, f'a {max(seen) * 1000:.0f} ms heartbeat gap'
+    # the machine with the other tests: 350 ms of slack (265 ms seen once beside a full
+    # suite on 2 loaded cores; the bug's gap: 0.5 to 1.3 s)
+    assert max(seen) < PERIOD + 0.35, f'a {max(seen) * 1000:.0f} ms heartbeat gap'
     assert rig.failures == [], rig.failures

@@ -23,7 +23,7 @@ ROOT = Path(__file__).resolve().parent.parent
 MANIFEST = ElementTree.parse(ROOT / 'package.xml').getroot()
 # How the descriptions name each device type; a new type must be added here (and there).
 NAMED = {'ams': 'AMS', 'ivt_s': 'IVT-S', 'evms3': 'EVMS3', 'bms16': 'BMS16', 'sma': 'SMA',
-         'dbc': 'DBC'}
+         'dbc': 'DBC', 'pack': 'pack'}
 ROS_PACKAGE = re.compile(r'rclpy|launch(_ros)?|\w+_(msgs|srvs|interfaces)')
 
 

@@ -187,6 +187,8 @@ class Device(Generic[ConfigT]):
     # The command services of the type, one row each (devices/commands.py): what the one
     # command pipeline (engine/calls.py) runs and the ROS adapter offers.
     COMMANDS: ClassVar[tuple[Command, ...]] = ()
+    # std_msgs/Float32 topics '<instance>/<suffix>' the engine emits for the type (a pack's)
+    FIGURES: ClassVar[tuple[str, ...]] = ()
 
     # The typed, frozen configuration class of the device type (devices/configs.py,
     # generated from device_params(); test_device_configs.py checks they agree).
@@ -282,6 +284,9 @@ class Device(Generic[ConfigT]):
         Lock order: a device reads a linked device only while NOT holding its own lock.
         """
         raise NotImplementedError(f'{type(self).__name__} declares no link {key!r}')
+
+    def attach_members(self, devices: Mapping[str, 'Device[Any]']) -> None:
+        """Take the instances of the node (in ``devices`` order); a pack picks its members."""
 
     def _stale_timeout(self, config: ConfigT) -> float:
         return float(config.stale_timeout or 5.0 * self.BROADCAST_PERIOD)

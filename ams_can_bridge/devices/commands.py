@@ -10,7 +10,7 @@ internal error, waits for the bus, sends under one batch and words the answer an
 line; the ROS adapter (``ros/services.py``) offers one service per row. Adding a command is
 one builder on the device and one row here.
 
-The three policies:
+The policies:
 
 - :class:`Frames`: the method builds the call's frames (a ``Frame`` or a list; it raises
   ``RefusedCommand`` / ``EncodeRangeError`` to refuse, before anything is sent); the pipeline
@@ -20,6 +20,9 @@ The three policies:
   frame and what follows it (the charger's START and its repeat); it returns (ok, answer).
 - :class:`Carried`: the method returns a :class:`Carry`: a command the heartbeat carries
   until the device confirms it (the AMS car commands).
+- :class:`Local`: the method answers (ok, message) from the bridge's own state and sends
+  nothing, so the transmit gate does not apply (the pack's ``clear_events``: a listen-only
+  bridge must be able to clear what it reports; doc/packs.md).
 """
 from __future__ import annotations
 
@@ -55,16 +58,22 @@ class Exchange:
 
 
 @dataclass(frozen=True)
+class Local:
+    """The device answers from its own state and sends nothing (the pack's clear_events)."""
+
+
+@dataclass(frozen=True)
 class Carried:
     """The heartbeat carries the command until the device answers (the method: a Carry)."""
 
 
-Policy = Frames | Exchange | Carried
+Policy = Frames | Exchange | Carried | Local
 ONCE = Frames()
 PACED = Frames(paced=True)
 EXCHANGE = Exchange()
 EXCHANGE_BUS_FIRST = Exchange(bus_first=True)
 CARRIED = Carried()
+LOCAL = Local()
 
 
 @dataclass(frozen=True)

@@ -244,3 +244,35 @@ class DbcConfig(DeviceConfig):
     mapping_file: str | None = None
     profile: str = ''
     timeouts: tuple[str, ...] = ()
+
+
+@dataclasses.dataclass(frozen=True)
+class PackConfig(DeviceConfig):
+    """Configuration of an instance of type pack (PackDevice)."""
+
+    KEYS: ClassVar[tuple[str, ...]] = (
+        'frame_id', 'location', 'serial_number', 'stale_timeout', 'members', 'connection',
+        'limits.cell_voltage_max', 'limits.cell_voltage_min', 'limits.temperature_max',
+        'limits.temperature_min', 'limits.charge_current_max', 'limits.discharge_current_max',
+        'limits.debounce', 'max_charge_current', 'max_discharge_current', 'time_window',
+        'max_voltage_difference', 'max_cell_sum_difference',
+    )
+
+    frame_id: str = ''
+    location: str = ''
+    serial_number: str = ''
+    stale_timeout: float = 5.0
+    members: tuple[str, ...] | None = None
+    connection: str = 'parallel'
+    limits_cell_voltage_max: tuple[float, ...] = ()
+    limits_cell_voltage_min: tuple[float, ...] = ()
+    limits_temperature_max: tuple[float, ...] = ()
+    limits_temperature_min: tuple[float, ...] = ()
+    limits_charge_current_max: tuple[float, ...] = ()
+    limits_discharge_current_max: tuple[float, ...] = ()
+    limits_debounce: float = 0.5
+    max_charge_current: float = 0.0
+    max_discharge_current: float = 0.0
+    time_window: float = 60.0
+    max_voltage_difference: float = 1.5
+    max_cell_sum_difference: float = 3.0

@@ -5,7 +5,8 @@ Every command of every device passes ``Pipeline.call`` (the rows: devices/comman
 
 1. the call is named to the gate (its command log lines name ``<instance>/<service>``);
 2. while commands are disabled it is refused, here and only here, naming the parameters,
-   and nothing is sent;
+   and nothing is sent (a ``Local`` row sends nothing at all: it answers from the bridge's
+   own state, commands enabled or not);
 3. the device's method runs as the row's policy says: ``Frames`` (the frames are built, a
    deliberate refusal, ``RefusedCommand`` or ``EncodeRangeError``, becomes the answer and
    nothing is sent; the bus is waited for once, outside the batch; the frames go out in one
@@ -32,7 +33,7 @@ from functools import partial
 from typing import Any, Callable, Iterable, Mapping, Protocol
 
 from ams_can_bridge.devices.base import Device
-from ams_can_bridge.devices.commands import Carried, Carry, Command, Exchange, Frames
+from ams_can_bridge.devices.commands import Carried, Carry, Command, Exchange, Frames, Local
 from ams_can_bridge.engine.gate import CommandGate
 from ams_can_bridge.errors import EncodeRangeError, RefusedCommand
 from ams_can_bridge.protocols.common import Frame
@@ -146,6 +147,10 @@ class Pipeline:
     def _run(self, name: str, device: Device, row: Command,
              data: bool | None, call: Call) -> tuple[bool, str]:
         what = row.words(data)
+        if isinstance(row.policy, Local):
+            # sends nothing on the bus: the transmit gate has nothing to guard (commands.py)
+            ok, message = getattr(device, row.build)(*row.args)
+            return bool(ok), message
         if not self.gate.enabled:
             return False, f'{name}: {self.gate.refusal(what)}'
         method = getattr(device, row.build)  # at each call: a device may change it

@@ -26,6 +26,7 @@ from ams_can_bridge.bus_state import BusStatus
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.devices.base import BatteryReport, Device, DiagnosticReport
 from ams_can_bridge.devices.config import DeviceConfig
+from ams_can_bridge.devices.pack.device import PackDevice
 
 Arrays = dict[str, tuple[int, int, list[float]]]
 Statuses = list[tuple[str, DiagnosticReport]]
@@ -54,6 +55,9 @@ class Sink(Protocol):
 
     def diagnostics(self, statuses: Statuses, stamp: float) -> None:
         """Emit one DiagnosticArray of (full status name, report)."""
+
+    def figures(self, name: str, values: dict[str, float], stamp: float) -> None:
+        """Emit a pack's std_msgs/Float32 topics ``<name>/<suffix>`` (at ``stamp``)."""
 
     def clock(self, stamp: float) -> None:
         """Emit the replayed log time (/clock)."""
@@ -97,6 +101,12 @@ class Engine:
         self._stale = {name: True for name in self.devices}
         self._heard: set[str] = set()
         self._clock_sent = math.nan
+        # member name -> the packs it belongs to: each member report feeds them (packs.md)
+        self._packs: dict[str, list[PackDevice]] = {}
+        for device in self.devices.values():
+            if isinstance(device, PackDevice):
+                for member in device.members:
+                    self._packs.setdefault(member.name, []).append(device)
 
     # --- bus thread -------------------------------------------------------------------------
     def on_frame(self, arbitration_id: int, data: bytes, is_extended_id: bool,
@@ -116,6 +126,19 @@ class Engine:
         elif math.isfinite(report.stamp):
             stamp = report.stamp
         self.sink.battery(name, _frame_id(device), report, arrays, stamp)
+        if name in self._packs:
+            self._feed_packs(name, report, stamp)
+
+    def _feed_packs(self, name: str, report: BatteryReport, stamp: float) -> None:
+        """Give a member's emitted report to its packs; emit what they make of it (_emit held)."""
+        for pack in self._packs[name]:
+            out = pack.take(name, report, stamp)
+            self.sink.battery(pack.name, _frame_id(pack), out.report, {}, stamp)
+            self.sink.figures(pack.name, pack.figures(out), stamp)
+            for event in out.raised:
+                log = (self.log.error if event.severity.name == 'MSL'
+                       else self.log.warning if event.severity.name == 'RSL' else self.log.info)
+                log('%s: %s', pack.name, event.describe())
 
     # --- periodic work ------------------------------------------------------------------------
     def publish_stale(self) -> None:
@@ -140,7 +163,10 @@ class Engine:
                 self._stale_msgs[name] = cached
             # "Nothing heard, as of now": stamped when emitted, never with the last frame's
             # time, which would make a silent device look as if it had just been repeated.
-            self.sink.battery(name, _frame_id(device), cached[1], cached[2], self.now())
+            now = self.now()
+            self.sink.battery(name, _frame_id(device), cached[1], cached[2], now)
+            if name in self._packs:
+                self._feed_packs(name, cached[1], now)
 
     def statuses(self) -> Statuses:
         """Return every device's report and the CAN bus's, named as the bridge names them."""

@@ -19,6 +19,7 @@ from ams_can_bridge.devices.base import BatteryReport, DiagnosticReport
 STORAGES = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}
 BATTERY_STATE = 'sensor_msgs/msg/BatteryState'
 MULTI_ARRAY = 'std_msgs/msg/Float32MultiArray'
+FLOAT32 = 'std_msgs/msg/Float32'
 DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
 BAG_VERSION: Literal[9] = 9  # rosbag2 metadata of Jazzy
 
@@ -56,6 +57,10 @@ class BagOut:
         """Write one Float32MultiArray (row-major rows x cols) at bag time stamp."""
         self._write(topic, MULTI_ARRAY, cdr.multi_array(rows, cols, data),
                     *reports.stamp_parts(stamp))
+
+    def float32(self, topic: str, value: float, stamp: float) -> None:
+        """Write one std_msgs/Float32 at bag time stamp."""
+        self._write(topic, FLOAT32, cdr.float32(value), *reports.stamp_parts(stamp))
 
     def diagnostics(self, statuses: list[tuple[str, DiagnosticReport]], hardware_id: str,
                     stamp: float) -> None:

@@ -42,6 +42,12 @@ class BagSink:
             for suffix, (rows, cols, data) in arrays.items():
                 self.bag.multi_array(f'/{name}/{suffix}', rows, cols, data, stamp)
 
+    def figures(self, name: str, values: dict[str, float], stamp: float) -> None:
+        """Write a pack's std_msgs/Float32 figures at bag time stamp."""
+        if self.enabled and self.bag is not None:
+            for suffix, value in values.items():
+                self.bag.float32(f'/{name}/{suffix}', value, stamp)
+
     def diagnostics(self, statuses: Statuses, stamp: float) -> None:
         """Write one /diagnostics at stamp."""
         if self.enabled and self.bag is not None:

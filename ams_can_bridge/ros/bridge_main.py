@@ -45,7 +45,8 @@ USAGE = f"""usage: bridge [-h] --ros-args --params-file PARAMS.yaml [-p NAME:=VA
        ros2 launch ams_can_bridge bridge.launch.py params_file:=PARAMS.yaml
 
 Bridges battery-management CAN devices (AMS + IVT-S, ZEVA EVMS3 / BMS16, SMA-protocol BMSs,
-any BMS from its DBC) to sensor_msgs/BatteryState and /diagnostics. Parameters come after
+any BMS from its DBC, a pack of several) to sensor_msgs/BatteryState and /diagnostics.
+Parameters come after
 --ros-args: a params file (--params-file, sections '/**:' or '<node name>:', then
 'ros__parameters:') and single values (-p can.interface:=slcan). The example params files
 are installed in

@@ -267,7 +267,9 @@ class BridgeNode(LifecycleNode):
         self.sink = RosSink(self, {name: list(device.extra_arrays())
                                    for name, device in self.devices.items()},
                             self.hardware_id, settings.replay_clock,
-                            alive=lambda: self._ready and self.context.ok())
+                            alive=lambda: self._ready and self.context.ok(),
+                            figures={name: device.FIGURES
+                                     for name, device in self.devices.items()})
         self.engine, self.bus_view, self.periodic = live_engine(
             self.device_set, self.sink, settings, self.gate, lambda: self.can_io,
             status_prefix=self.status_prefix(), diagnostics_period=self.diagnostics_period,

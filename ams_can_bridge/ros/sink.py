@@ -13,7 +13,7 @@ from typing import Any, Callable
 from diagnostic_msgs.msg import DiagnosticArray
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import BatteryState
-from std_msgs.msg import Float32MultiArray
+from std_msgs.msg import Float32, Float32MultiArray
 
 from ams_can_bridge.devices.base import BatteryReport
 from ams_can_bridge.engine.core import Arrays, Statuses
@@ -26,9 +26,12 @@ class RosSink:
     """Publish what the engine emits on the node's topics."""
 
     def __init__(self, node: Any, arrays: dict[str, list[str]], hardware_id: str,
-                 clock: bool, alive: Callable[[], bool]) -> None:
+                 clock: bool, alive: Callable[[], bool],
+                 figures: dict[str, tuple[str, ...]] | None = None) -> None:
         """
         Create the publishers: per device (name -> its array suffixes), /diagnostics, /clock.
+
+        ``figures``: name -> the suffixes of its std_msgs/Float32 topics (a pack's).
 
         ``alive``: False once the node is going away (a publish failing then is dropped).
         """
@@ -41,6 +44,10 @@ class RosSink:
                 suffix: node.create_publisher(
                     Float32MultiArray, f'{name}/{suffix}', TELEMETRY_DEPTH)
                 for suffix in suffixes}
+        self.figure_pubs = {
+            name: {suffix: node.create_publisher(Float32, f'{name}/{suffix}', TELEMETRY_DEPTH)
+                   for suffix in suffixes}
+            for name, suffixes in (figures or {}).items() if suffixes}
         self.diag_pub = node.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.clock_pub = node.create_publisher(Clock, '/clock', 10) if clock else None
         encoder = diag_cdr.DiagnosticsEncoder()
@@ -81,6 +88,15 @@ class RosSink:
         for publisher, msg in arrays:
             self.publish(publisher, msg)
 
+    def figures(self, name: str, values: dict[str, float], stamp: float) -> None:
+        """Publish the Float32 topics of a pack (no header: its BatteryState has the stamp)."""
+        if not self.enabled:
+            return
+        pubs = self.figure_pubs.get(name, {})
+        for suffix, value in values.items():
+            if suffix in pubs:
+                self.publish(pubs[suffix], Float32(data=float(value)))
+
     def diagnostics(self, statuses: Statuses, stamp: float) -> None:
         """Publish one DiagnosticArray (serialized here, published raw when possible)."""
         if not self.enabled:
@@ -100,6 +116,7 @@ class RosSink:
         """Return every publisher (the node destroys them on cleanup)."""
         pubs = [*self.battery_pubs.values(), self.diag_pub]
         pubs += [p for arrays in self.array_pubs.values() for p in arrays.values()]
+        pubs += [p for figures in self.figure_pubs.values() for p in figures.values()]
         return pubs + ([self.clock_pub] if self.clock_pub is not None else [])
 
     def publish(self, publisher: Any, msg: Any) -> None:

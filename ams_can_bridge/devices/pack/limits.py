@@ -1,0 +1,188 @@
+"""
+Safe operating area in three levels (foxBMS 2): MOL info, RSL warning, MSL fatal.
+
+Each limit is a list ``[MOL, RSL, MSL]``. A level is raised when its value stays beyond it for
+the debounce time (a single noisy report raises nothing); MOL and RSL fall as soon as the value
+is back inside; MSL stays latched until ``clear`` is called while the value is back inside, so
+a supervisor that looks late still sees that the pack went beyond its maximum safe limit.
+An unknown value (NaN) neither raises nor clears: nothing was measured.
+"""
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field
+from typing import Mapping, Sequence
+
+from ams_can_bridge.devices.base import BatteryReport
+
+
+class Severity(enum.IntEnum):
+    """The three levels, in list order."""
+
+    MOL = 0  # maximum operating limit: noted
+    RSL = 1  # recommended safety limit: WARN
+    MSL = 2  # maximum safety limit: ERROR, latched
+
+
+SEVERITIES = tuple(Severity)  # iterating the enum class itself costs a call per update
+
+
+@dataclass(frozen=True)
+class LimitKind:
+    """A limit's value in a pack report and its direction (above or below is beyond)."""
+
+    unit: str
+    upper: bool  # beyond = above the level; False: below
+
+
+# The limit names of shared/DESIGN.md (``pack.limits.<name>``).
+KINDS: dict[str, LimitKind] = {
+    'cell_voltage_max': LimitKind('V', True),
+    'cell_voltage_min': LimitKind('V', False),
+    'temperature_max': LimitKind('degC', True),
+    'temperature_min': LimitKind('degC', False),
+    'charge_current_max': LimitKind('A', True),
+    'discharge_current_max': LimitKind('A', True),
+}
+
+
+def _extreme(values: Sequence[float], upper: bool) -> float:
+    """Return the max (upper) or min of the values, NaN with none or an unknown one."""
+    # a sum propagates NaN in one C loop (max() would silently skip some NaN)
+    if not values or not math.isfinite(sum(values)):
+        return math.nan
+    return max(values) if upper else min(values)
+
+
+def limit_value(name: str, report: BatteryReport) -> float:
+    """Return the pack value a limit watches (NaN when unknown)."""
+    if name.startswith('cell_voltage'):
+        return _extreme(report.cell_voltage, KINDS[name].upper)
+    if name.startswith('temperature'):
+        temps = list(report.cell_temperature)
+        if math.isfinite(report.temperature) or not temps:
+            temps.append(report.temperature)
+        return _extreme(temps, KINDS[name].upper)
+    if name == 'charge_current_max':
+        return report.current  # ROS sign: positive while charging
+    return -report.current  # discharge current, positive
+
+
+def check_levels(name: str, levels: Sequence[float]) -> str | None:
+    """Return why a ``[MOL, RSL, MSL]`` list is wrong, or None."""
+    if len(levels) != 3 or not all(math.isfinite(v) for v in levels):
+        return f'pack.limits.{name} must be three numbers [MOL, RSL, MSL], got {list(levels)}'
+    upper = KINDS[name].upper
+    ordered = levels[0] < levels[1] < levels[2] if upper else levels[0] > levels[1] > levels[2]
+    if not ordered:
+        word = 'increasing' if upper else 'decreasing'
+        return (f'pack.limits.{name} must be strictly {word} [MOL, RSL, MSL] '
+                f'(a {"maximum" if upper else "minimum"}), got {list(levels)}')
+    return None
+
+
+def beyond(name: str, value: float, level: float) -> bool:
+    """Return whether a known value is beyond a level of the limit."""
+    return value > level if KINDS[name].upper else value < level
+
+
+@dataclass
+class Event:
+    """A raised level: when, and the worst value seen while it was raised."""
+
+    limit: str
+    severity: Severity
+    level: float
+    raised_at: float
+    worst: float
+
+    def describe(self) -> str:
+        """Return a one-line description for diagnostics and logs."""
+        unit = KINDS[self.limit].unit
+        return (f'{self.severity.name} {self.limit}: beyond {self.level:g} {unit} '
+                f'since {self.raised_at:.3f}, worst {self.worst:g} {unit}')
+
+
+@dataclass
+class Limits:
+    """The events of one pack: debounce, raise, fall, latch, clear."""
+
+    levels: Mapping[str, Sequence[float]]
+    debounce: float = 0.5
+    events: dict[tuple[str, Severity], Event] = field(default_factory=dict)
+    _since: dict[tuple[str, Severity], float] = field(default_factory=dict)
+    _values: dict[str, float] = field(default_factory=dict)
+    # limits with a level counting or raised: the others are skipped while inside MOL
+    _open: set[str] = field(default_factory=set)
+
+    def value(self, name: str) -> float:
+        """Return the value of a watched limit at the last update (NaN: unknown or none)."""
+        return self._values.get(name, math.nan)
+
+    def update(self, report: BatteryReport, stamp: float) -> list[Event]:
+        """Take a pack report at ``stamp``; return the events raised by it."""
+        raised = []
+        for name, levels in self.levels.items():
+            value = limit_value(name, report)
+            self._values[name] = value
+            if math.isnan(value):
+                continue
+            if name not in self._open and not beyond(name, value, levels[0]):
+                continue  # inside MOL, nothing counting: the common case, one comparison
+            for severity in SEVERITIES:
+                key = (name, severity)
+                event = self.events.get(key)
+                if beyond(name, value, levels[severity]):
+                    since = self._since.setdefault(key, stamp)
+                    if event is not None:
+                        if beyond(name, value, event.worst):
+                            event.worst = value
+                    elif stamp - since >= self.debounce:
+                        event = Event(name, severity, levels[severity], stamp, value)
+                        self.events[key] = event
+                        raised.append(event)
+                else:
+                    self._since.pop(key, None)
+                    if event is not None and severity is not Severity.MSL:
+                        del self.events[key]
+            if any((name, s) in self._since or (name, s) in self.events for s in SEVERITIES):
+                self._open.add(name)
+            else:
+                self._open.discard(name)
+        return raised
+
+    @property
+    def latched(self) -> bool:
+        """Return whether an MSL event is latched."""
+        return any(key[1] is Severity.MSL for key in self.events)
+
+    def worst_severity(self) -> Severity | None:
+        """Return the highest raised level, None when nothing is raised."""
+        return max((key[1] for key in self.events), default=None)
+
+    def clear(self) -> tuple[bool, str]:
+        """
+        Clear the latched MSL events whose value is back inside; name those still beyond.
+
+        A value that is unknown now counts as still beyond: nothing shows it is back inside.
+        """
+        still = []
+        cleared = []
+        for key, event in sorted(self.events.items()):
+            if key[1] is not Severity.MSL:
+                continue
+            value = self._values.get(event.limit, math.nan)
+            if math.isnan(value) or beyond(event.limit, value, event.level):
+                unit = KINDS[event.limit].unit
+                still.append(f'{event.limit} is {value:g} {unit}, beyond the MSL '
+                             f'{event.level:g} {unit}')
+            else:
+                del self.events[key]
+                cleared.append(event.limit)
+        if still:
+            done = f' (cleared: {", ".join(cleared)})' if cleared else ''
+            return False, 'still beyond: ' + '; '.join(still) + done
+        if cleared:
+            return True, 'cleared: ' + ', '.join(cleared)
+        return True, 'no latched event'
