@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """ament_python package ams_can_bridge: installs code, DBC files, configs and launch files."""
 from glob import glob
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The state of the CAN bus and a snapshot of its counters: the bottom layer, beside errors.py.
 

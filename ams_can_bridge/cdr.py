@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 CDR (XCDR1, little-endian) of /diagnostics, BatteryState and Float32MultiArray, without ROS.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The devices of one bus, built from parameters without ROS: the bridge node and log2bag both.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The exceptions of ams_can_bridge, in one place (as python-can's ``can/exceptions.py``).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The files the package reads from a user: one check that a path is a regular file, one YAML loader.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Parameters without ROS: the specs of the bus and the node, and the rules every value obeys.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The reference the bridge must beat: a bare python-can receive loop, nothing else.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Measure the bridge receive throughput on python-can virtual: does it keep up with a full bus.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 A dbc device against the built-in AMS device, per frame, for the same traffic, in one run.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Decode benchmark: frames per second through each protocol codec vs bare cantools.
 

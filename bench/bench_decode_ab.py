@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Decode benchmark, before against after in ONE process: two checkouts' codecs side by side.
 

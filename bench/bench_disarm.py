@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Measure a disarm sent while a 3,000,000-value parameter set is in flight (issue 26, point 3).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Measure the AMS heartbeat: period jitter idle and on a busy bus, and command latencies.
 

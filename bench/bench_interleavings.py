@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The interleaving model (test/test_interleavings.py) run for minutes: new sequences, seeded.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 log2bag benchmark: CAN log frames per second converted into a bag, beside python-can's read.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 log2bag --jobs: a folder of logs converted with 1 job, then with every core, wall time.
 

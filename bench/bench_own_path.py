@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The bridge's own cost per frame: everything but python-can's recv, at the realistic mix.
 

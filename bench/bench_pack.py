@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The cost of a pack of two members, per member report, against the engine's own per frame.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 probe benchmark: frames per second probe reads and recognises, beside log2bag on the same log.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Measure how closely a replay keeps its log's timing at several rates (figures, not a test).
 

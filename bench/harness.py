@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Shared parts of the benchmarks: linked serial ports, processes, CPU and memory readings.
 

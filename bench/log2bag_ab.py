@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 log2bag before against after: each tree's bench_log2bag.py in turns, in one time window.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Two linked serial ports without socat: ``python bench/pty_link.py A B``.
 

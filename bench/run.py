@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The benchmark suite: every figure of the bridge beside the reference it must beat.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Put the copyright and SPDX licence header at the top of every source file; idempotent.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Move multi-line docstring summaries to the second line (ament pep257 convention D213).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Write ams_can_bridge/devices/configs.py: one typed configuration class per device type.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Print the bridge's topics and services as Markdown tables, from the devices and their rows.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Print the bridge's parameters as Markdown tables, from the specs the node declares.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The ROS-free command harness: a bridge's command side on a python-can virtual bus, no rclpy.
 

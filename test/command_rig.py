@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The test rig: a real BridgeNode on python-can's virtual bus (``rig_factory`` in conftest.py).
 

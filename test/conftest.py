@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Test-wide settings: DDS stays on this machine, each run on its own domain; hypothesis profiles.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """A BMS DBC and mapping written by hand for the dbc device tests (fixtures/our_bms.*)."""
 from __future__ import annotations
 

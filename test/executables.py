@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The package's own executables (bridge, simulator, demo, monitor, log2bag), as tests start them.
 

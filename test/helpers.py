@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """Helpers shared by the tests: hand-driven clock, polling, ROS context, DBC and codec checks."""
 from __future__ import annotations
 

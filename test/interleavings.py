@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The ROS-free model of a bridge under random interleavings (issue 34, the systematic part).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Test lanes: the marks ``ros`` (starts rclpy) and ``process`` (starts a process), kept honest.
 

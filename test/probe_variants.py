@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The device variants the simulator plays, for probe's round trips (test_probe_*.py).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 What several test files share: fakes that stand in for a bus or a log, and golden data.
 

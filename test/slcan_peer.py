@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 r"""
 A fake USB-CAN adapter speaking slcan (Lawicel ASCII) on a pty, for cross-process tests.
 

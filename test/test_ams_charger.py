@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The charger role's START (base + 0x010) without ROS: repeat, halt, disarm, bus down, order.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Bad .asc lines are counted (issue 34, 9): python-can's ASCReader drops them without a word.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Bad lifecycle and service requests against an armed bridge (issue 26, points 1 and 4).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Hostile parameter sets through the real parameter services (issue 26, points 1, 2, 3).
 

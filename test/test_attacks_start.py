@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Start-up attacks (issue 26, points 5, 8, 12, 13, 14): exit 2 with the reason, or a WARN.
 

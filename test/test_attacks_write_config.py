@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 A disarm during an EVMS3 write_config (issue 26, point 11).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 What the devices really send, end to end through the bridge node on python-can 'virtual'.
 

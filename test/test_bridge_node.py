@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The bridge node in-process on python-can 'virtual': golden frames in, exact messages out.
 

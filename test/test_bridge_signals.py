@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Ctrl-C and SIGTERM end the installed ``bridge`` cleanly whatever it is doing.
 

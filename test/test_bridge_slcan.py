@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The installed ``bridge`` executable on slcan over a pty: the test plays the USB-CAN adapter.
 

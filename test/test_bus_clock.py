@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The devices' clock: a live frame is timed by its arrival, a replayed one by its log time.
 

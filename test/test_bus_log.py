@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """The CAN bus log lines: one per change of state, never one per reconnect attempt."""
 from types import SimpleNamespace
 

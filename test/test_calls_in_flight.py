@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Calls in flight against a disarm and against lifecycle transitions (issue 34, points 2, 3).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """CanIo on real python-can buses: virtual in-process, slcan over a pty (SlcanPeer)."""
 import logging
 import sys

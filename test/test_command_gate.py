@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The command gate alone (engine/gate.py, no ROS): every frame the bridge sends passes it.
 

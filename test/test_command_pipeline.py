@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The one command pipeline (engine/calls.py) and the device rows, without ROS.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """Every config/*.yaml loads unchanged into the bridge node, with the values it declares."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """ros/convert.py: its message objects read off the wire as ones built field by field."""
 import math
 

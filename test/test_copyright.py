@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The licence, as ament_copyright checks it for a ``ros2 pkg create`` package (and a bit more).
 

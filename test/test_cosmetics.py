@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Issue 38, point 10: the small things a first hour trips over, each kept fixed.
 

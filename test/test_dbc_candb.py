@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 CANdb++ exports and DBC encodings as real files have them (issue 35, points 4 and 10).
 

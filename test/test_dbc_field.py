@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The dbc device on the DBC files and traces the field really has (test/fixtures/*/README.md).
 

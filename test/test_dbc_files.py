@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Every msg_defs/*.dbc is a product of its own: it must open cleanly in teams' CAN tools.
 

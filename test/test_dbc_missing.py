@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Missing data is never OK; a status a monitor can carry; a simulator that behaves like a BMS.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 A dbc device offline like the built-in ones: log2bag and replay publish what the device decodes.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 A dbc device never publishes what no battery reports (issue 35, points 3 and 6).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 A dbc device's timeouts follow the traffic; missing groups are named early (issue 35.5, 35.7).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 A dbc device end to end: ``simulator --dbc --mapping`` and the installed ``bridge``, both on slcan.
 

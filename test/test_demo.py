@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """The demo: its renderer with known data, and the installed `demo` executable end to end."""
 import math
 import os

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """./dev test: the whole suite by default, only the files or directories given otherwise."""
 from pathlib import Path
 import subprocess

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """AMS device state: frames in (built by hand from the spec) -> exact reports out."""
 import math
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The typed configuration classes (devices/configs.py) agree with the parameter tables.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The dbc device: a team's DBC + mapping -> BatteryState, diagnostics; every validation error.
 

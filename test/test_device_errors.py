@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """Every deliberate raise of the package is a package error, ValueError kept as its base."""
 import ast
 import builtins

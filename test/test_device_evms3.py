@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """EVMS3 device state: frames written by hand in, exact BatteryState and diagnostics out."""
 import math
 

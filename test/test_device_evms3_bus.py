@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 What else is on an EVMS3 bus: TC chargers (29-bit) and the EVMS's balance requests.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """Evms3Device.read_config and the read-back in diagnostics, without ROS (frames by hand)."""
 import threading
 import time

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """IVT-S device state: ROS sign convention, NaN until known, staleness, diagnostics levels."""
 import math
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 IVT-S command sequences of the device against the simulated sensor, in one process, no ROS.
 

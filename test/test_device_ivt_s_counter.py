@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 IVT-S result counters as a real sensor advances them: by its measurement cycles, not by frames.
 

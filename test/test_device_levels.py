@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """Device.diagnostic_level(): the level of diagnostic_report(), without building the values."""
 import random
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Links between devices (the AMS and its IVT-S): declared by the device, resolved by DeviceSet.
 

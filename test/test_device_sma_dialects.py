@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """SmaDevice with the Pylontech and Victron dialects, and every frame group expiring on its own."""
 import math
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """devices/timed.py: the one freshness store and the one counter-health rule of every device."""
 import math
 

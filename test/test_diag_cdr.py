@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """ros/diag_cdr.py: what the bridge serializes itself reads back as rclpy's messages."""
 from diagnostic_msgs.msg import DiagnosticArray
 from hypothesis import given, settings, strategies as st

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The documentation: doc/ builds without a warning (with ROS and without), links resolve.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 ROS domains and discovery: what keeps a test run, ./dev and the demo apart (issue 38.3, 38.4).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The engine without ROS: frames in, what a sink receives out, on a hand-driven clock.
 

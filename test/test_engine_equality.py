@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 One engine: the same CAN log through the running bridge (replay) and through log2bag.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """One exception hierarchy (errors.py) and the bus states as an Enum (bus_state.py)."""
 import pytest
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Tests start this package's executables, never a PATH namesake (iproute2's /usr/sbin/bridge).
 

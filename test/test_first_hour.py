@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 A newcomer's first hour without papercuts (issue 31 point 5): each found by trying the package.
 

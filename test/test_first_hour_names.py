@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Issue 38, points 5 and 10: a bridge name nothing shadows, and a help that needs no ROS.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """ament flake8 over the package, tests, benchmarks, launch files, scripts, doc/ (ROS style)."""
 import pytest
 from ament_flake8.main import main_with_errors

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Hostile traffic into the RUNNING bridge, over python-can's virtual bus and over slcan.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Parameter sets never starve the AMS heartbeat (issue 34, point 1): its slots are a fixed grid.
 

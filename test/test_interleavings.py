@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Random interleavings of everything a user and the world do to a bridge (issue 34).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The lane marks stay honest: a test that starts rclpy or a process without its mark fails.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 launch/bridge.launch.py: commands_allowed given at launch applies only when given (issue 18.6).
 

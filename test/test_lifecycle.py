@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The bridge as a lifecycle node, driven through the lifecycle_msgs services (autostart false).
 

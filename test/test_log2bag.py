@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 log2bag: CAN logs in several formats -> rosbag2, read back by two independent readers.
 

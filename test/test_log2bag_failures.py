@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 log2bag's failures (issue 18.8): each is one line on stderr and exit 2, and leaves no bag.
 

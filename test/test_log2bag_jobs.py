@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 log2bag LOG... --output-dir DIR --jobs N: logs converted side by side, one bag per log.
 

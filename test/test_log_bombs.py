@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 A log that would blow up on reading: a .blf container inflating far beyond what loggers write.
 

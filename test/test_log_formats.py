@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 CAN logs as the tools write them (issue 28 point 7): each reads whole, on its own timestamps.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Log timestamps that are no time, and gaps of days (issue 26 point 6), in log2bag and a replay.
 

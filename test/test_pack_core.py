@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """The pack's ROS-free core: each rule of doc/packs.md with exact numbers."""
 import math
 

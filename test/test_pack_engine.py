@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """The pack through the engine without ROS: member frames in, the pack's messages out."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """The pack through the live bridge: a BMS16 beside an EVMS3 on a virtual bus, one pack."""
 import math
 import threading

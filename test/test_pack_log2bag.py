@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """log2bag with a pack: the bag gets the pack's BatteryState and Float32 topics on log time."""
 import math
 

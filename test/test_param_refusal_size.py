@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 A huge value set on a scalar parameter is refused on its type first (issue 34, point 12).
 

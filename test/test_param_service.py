@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Array parameters set at run time through the real parameter service (issue 18, point 11).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Which parameter sets the running bridge allows, what they change, and a command call's answer.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """ament pep257 docstring conventions over the package, tests, scripts and doc/."""
 import pytest
 from ament_pep257.main import main

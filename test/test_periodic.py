@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """Periodic: tasks on one thread, each at its own period; stop() wakes and joins it at once."""
 import threading
 import time

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The one periodic sender (devices/periodic_sender.py) under the heartbeat, repeat and keep-alive.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Values no battery reports are malformed frames: counted, never published (issue 26 point 7).
 

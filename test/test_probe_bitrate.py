@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 probe --bitrate auto on slcan: only the rates the interface has, every one of them, and honesty.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The probe command line: bad input, help, conflicts, unknown IDs, the user's DBC.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 probe tells what a dbc mapping would publish, and writes the timeouts it heard (issue 35.8, 35.5).
 

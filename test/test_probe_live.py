@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 probe live over slcan on a pty (the test plays the USB-CAN adapter), then the bridge.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 probe on noise and on a backlog: no device from frames that do not come as a device sends them.
 

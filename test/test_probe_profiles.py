@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 probe's recogniser of the shipped dbc profiles, on frames written by hand from their DBCs.
 

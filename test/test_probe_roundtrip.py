@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 probe on recorded simulator traffic: its params file, through log2bag, reads what was sent.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 probe's SMA voltage scale (probe/sma_voltage.py) from hand-written frames.
 

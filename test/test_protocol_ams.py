@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """AMS codec: golden frames written by hand from doc/protocols.md section 1 (not from the DBC)."""
 import math
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """ZEVA BMS16 codec: golden frames written by hand from doc/protocols.md section 4, both ways."""
 import cantools
 from hypothesis import given, settings, strategies as st

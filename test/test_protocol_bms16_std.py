@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 BMS16 standard form (doc/protocols.md section 6): codec and device on hand-written frames.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 ZEVA EVMS3 + BMS12 codec against frames written by hand from doc/protocols.md section 3.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 EVMS3 configuration read-back (ID 51 -> 52..56), golden frames written by hand.
 

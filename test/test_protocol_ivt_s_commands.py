@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 IVT-S commands (0x411) and answers (0x511) against golden frames written by hand.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """protocols/layout.py: generated decoders and encoders equal cantools; one validator."""
 import contextlib
 import enum

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """protocols/settings.py: a device's configuration derived from its setting rows."""
 import pytest
 

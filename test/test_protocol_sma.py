@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """SMA Sunny Island BMS codec: golden frames written by hand from doc/protocols.md section 5."""
 from hypothesis import given, settings, strategies as st
 import pytest

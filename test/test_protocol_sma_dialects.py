@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Pylontech (0x359, 0x35C) and Victron (0x370..0x377) frames of the SMA protocol family.
 

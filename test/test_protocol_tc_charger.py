@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 TC/Elcon chargers on the EVMS3 bus, and the EVMS3 on 11-bit IDs next to them.
 

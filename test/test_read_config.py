@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 evms3/read_config against the simulated EVMS3 on the same virtual bus.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 ``can.record`` after a crash (issue 26 point 10): a real bridge process, killed with SIGKILL.
 

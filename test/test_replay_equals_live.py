@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Replay equals live: a recorded bus played back into a fresh bridge publishes the same data.
 

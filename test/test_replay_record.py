@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """Replay of log files through CanIo ('replay' interface) and recording of the raw bus."""
 import time
 import uuid

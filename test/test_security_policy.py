@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 security/policy.xml: a valid SROS2 policy that lets only /supervisor command the bridge.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """BMS16 and SMA simulators: schedules, physics, config and commands, faults, on a real bus."""
 import time
 

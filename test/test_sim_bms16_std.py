@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """The standard-form BMS16 simulator (``simulator --bms16-variant standard``) and the bridge."""
 import math
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The dbc simulator: in-range traffic encoded through the team's DBC, a pack the device reads.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """Simulated EVMS3 + BMS12: rates, physics, reactions to commands, faults, and a real bus."""
 import dataclasses
 import math

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """Simulated EVMS3 bus: charging with TC chargers that answer, and the answer to ID 51."""
 import pytest
 

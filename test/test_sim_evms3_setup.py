@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The simulated EVMS3 parks, enters SETUP and reports a configuration that fits its pack.
 

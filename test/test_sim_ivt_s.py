@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """IVT-S simulator: schedule, counters, consistent physics, both byte orders, faults."""
 import math
 import time

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """SimRunner on python-can's virtual bus, and the ``simulator`` executable as a process."""
 import contextlib
 import fcntl

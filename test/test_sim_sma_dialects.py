@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """SMA simulator dialects (--sma-dialect): what a Pylontech or Victron-style BMS sends."""
 import pytest
 

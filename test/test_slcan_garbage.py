@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 An slcan adapter that sends bytes without a line end (issue 26 point 9), over a real pty.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 SMA frames as real devices send them (issue "Field truth", doc/protocols.md section 5).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 SMA-family frames as real batteries send them, part II (doc/protocols.md section 5).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 SMA-family frames as real batteries send them, part III (issue 35, points 1 and 2).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The inverter keep-alive 0x305 (sma.inverter_keepalive, doc/protocols.md section 5).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Soak: a running bridge through silence, malformed bursts, bus drops and command calls.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The most common set-up mistakes are refused at start, naming what to change (issue 18).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The bridge's start-up decisions without ROS (engine/startup.py, engine/live.py).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """The type checker over the package: mypy (pinned in requirements-dev.txt, setup.cfg)."""
 import configparser
 from pathlib import Path

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The XML files, as ament_xmllint checks them, and the metadata the ROS index reads.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 EVMS3 and BMS16 services: exact bytes on the bus, and every refusal.
 

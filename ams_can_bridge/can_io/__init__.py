@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 CAN bus I/O: python-can bus lifecycle, replay of recordings, recording of the raw bus.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """Bus configuration of the CAN I/O layer: the can.* parameters, checked before any open."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """CanIo: python-can bus lifecycle (open, filters, receive thread, reconnect, send, record)."""
 from __future__ import annotations
 

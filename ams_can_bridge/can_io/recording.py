@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The raw recording of one bus (``can.record``): every frame in and out, in a python-can log.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """Replay of a recorded CAN log as if it were a bus (the 'replay' interface)."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 python-can's slcan bus, reading the serial port in blocks instead of one byte per call.
 

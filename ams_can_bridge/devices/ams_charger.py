@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The charger role's START/STOP (base + 0x010) without ROS: doc/protocols.md section 1.
 

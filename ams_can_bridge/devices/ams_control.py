@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The AMS's command side without ROS: its command rows, its senders, the frames it sends.
 

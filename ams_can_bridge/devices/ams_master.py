@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The AMS master role without ROS: the car-status heartbeat and the command/wait logic.
 

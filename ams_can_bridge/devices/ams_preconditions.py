@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Which AMS state a car command needs first: doc/protocols.md section 1.4.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 What an AMS's state means: its power_supply_health, its diagnostic level and message.
 

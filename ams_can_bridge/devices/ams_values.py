@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The diagnostic key/value table of an AMS device: every decoded field, named for a reader.
 

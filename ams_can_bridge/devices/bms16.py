@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 ZEVA BMS16 state: status + cell frames (and its SMA frames) -> BatteryState, diagnostics.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 ZEVA BMS16 in its standard form (``<name>.variant: standard``): EVMS3 protocol, 29-bit IDs.
 

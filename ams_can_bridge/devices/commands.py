@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 What a device type declares about its commands: a table of rows, read by the one pipeline.
 

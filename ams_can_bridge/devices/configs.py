@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The typed configuration of each device type (devices/config.py), one frozen dataclass each.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Any BMS from its DBC: a team's DBC and a short mapping -> BatteryState and diagnostics.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The cell arrays of a dbc mapping: templates, lists, positioned arrays, validity flags.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The checks of each entry of a dbc mapping, collecting every problem instead of stopping.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 What a dbc device's diagnostics say beyond its level rules: missing data, and a size cap.
 

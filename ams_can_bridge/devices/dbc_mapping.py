@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The mapping of a ``dbc`` device: a team's DBC signals -> BatteryState fields and diagnostics.
 

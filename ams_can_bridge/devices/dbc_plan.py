@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The checked form of a dbc device's mapping (``Plan``) and the tables it is checked with.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Profiles: a tested DBC and mapping shipped with the package, named instead of two paths.
 

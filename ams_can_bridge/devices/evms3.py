@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 ZEVA EVMS3 state: status (ID 30), battery current (ID 40), BMS12 modules and TC chargers.
 

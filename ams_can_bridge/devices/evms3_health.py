@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 EVMS3 error codes -> BatteryState health and diagnostic words, and when a write is allowed.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 What an EVMS3 device hears of its peers: the BMS12 modules and the TC chargers it drives.
 

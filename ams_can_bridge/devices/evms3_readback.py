@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 EVMS3 configuration read-back: ask with ID 51, collect the answer on 52..56. No rclpy.
 

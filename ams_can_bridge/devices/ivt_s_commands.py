@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 IVT-S command exchanges: send one 0x411 command, wait for its 0x511 answer. No rclpy.
 

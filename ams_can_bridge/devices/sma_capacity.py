@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 How an SMA device reads 0x35F's Ah: the capacity, or the charge left (issue 35.1).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The inverter keep-alive an SMA-protocol BMS may wait for (doc/protocols.md section 5).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The SMA family's diagnostics values: every decoded field of 0x351..0x382, as text.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 How an SMA device reads 0x356's voltage: ``<name>.voltage_scale`` or the battery's evidence.
 

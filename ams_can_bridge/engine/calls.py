@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The one command pipeline: a command service call, from its row to the bus, without ROS.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The bridge's command side without ROS: every device's rows, one pipeline, the armed senders.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The engine: every "what to emit, and when" decision of the bridge, without ROS.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The one command path: every frame the bridge sends passes this gate (no ROS here).
 

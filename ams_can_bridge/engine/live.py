@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The engine as the live bridge runs it, without ROS: its view of the bus, its periodic thread.
 

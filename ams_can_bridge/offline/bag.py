@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 A rosbag2 directory written with the ``rosbags`` library: no ROS install, no DDS.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 log2bag's engine on the log's time: the bridge's own engine fed frame by frame, a bag sink.
 

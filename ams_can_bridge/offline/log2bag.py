@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 ``log2bag``: a CAN log -> a rosbag2 of what the bridge would have published, offline.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The frames of a CAN log, as python-can reads it, with bad entries counted instead of fatal.
 

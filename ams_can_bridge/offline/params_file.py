@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 A ROS 2 parameters file read without ROS, for tools that run where rclpy does not.
 

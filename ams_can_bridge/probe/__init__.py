@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 ``probe``: what is on this bus, and how does the bridge read it? (doc/real_bus.md).
 

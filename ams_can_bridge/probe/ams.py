@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The Formula-Student AMS at any base ID (doc/protocols.md section 1), from its own frames.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The ZEVA BMS16 in both its forms (doc/protocols.md sections 4 and 6).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Any BMS from its DBC and mapping (``--dbc FILE --mapping FILE``; doc/protocols.md section 8).
 

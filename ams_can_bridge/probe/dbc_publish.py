@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 What a dbc device would publish from the frames probe heard (every ``--dbc`` pair, every profile).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 What a recogniser hands back: a candidate device with its evidence, settings and confidence.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The ZEVA EVMS3, its BMS12 modules and TC chargers (doc/protocols.md sections 3 and 7).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The params file probe writes, checked with the bridge's own start-up checks before it is kept.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The shipped ``dbc`` profiles (foxBMS 2, Orion BMS 2; doc/protocols.md section 8).
 

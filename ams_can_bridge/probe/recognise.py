@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Run the recognisers, settle candidates for the same IDs, link devices, list what is left.
 

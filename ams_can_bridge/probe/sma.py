@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 SMA-family batteries (doc/protocols.md section 5): the SMA frames and their dialect.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The 0x356 voltage scale of an SMA-family battery, from its own frames: refines the sma candidate.
 

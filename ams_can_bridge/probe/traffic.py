@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 What every CAN ID showed while probe listened: count, lengths, timing and sample payloads.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 What the EVMS3 and the standard-form BMS16 share on the bus (doc/protocols.md 3 and 6).
 

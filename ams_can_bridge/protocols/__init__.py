@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Pure-Python codecs for every CAN protocol the bridge speaks (no rclpy here).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 ZEVA BMS12 cell modules on an EVMS3 bus: frames <-> typed readings (doc/protocols.md 3.3).
 

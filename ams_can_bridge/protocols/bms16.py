@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 ZEVA BMS16, 11-bit / 500 kbit/s inverter form: frames <-> typed readings.
 

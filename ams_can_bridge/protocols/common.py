@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 What every protocol module shares: the frame type, the configuration field, the DBC loader.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 A team's own DBC, compiled: frames -> tuples of physical values, checked against [min|max].
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 A team's DBC as the field has it: loaded whole when cantools can, else what can be used.
 

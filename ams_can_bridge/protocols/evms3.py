@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 ZEVA EVMS3 and its BMS12 cell modules: 29-bit frames <-> typed readings and commands.
 

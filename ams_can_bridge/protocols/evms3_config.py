@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 ZEVA EVMS3 configuration: the typed config, its frames (IDs 32..36) and the read-back 51..56.
 

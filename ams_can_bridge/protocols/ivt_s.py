@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Isabellenhuette IVT-S current shunt: result frames <-> typed readings (doc/protocols.md 2.1).
 

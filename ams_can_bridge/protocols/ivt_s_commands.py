@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 IVT-S commands (0x411, host -> sensor) and answers (0x511), as doc/protocols.md 2.2-2.3 says.
 

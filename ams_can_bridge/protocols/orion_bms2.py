@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Orion BMS 2's checksum byte: the one rule of its standard messages a DBC cannot express.
 

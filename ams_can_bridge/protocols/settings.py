@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Device configuration from the layout table: one mechanism for every ZEVA settings frame.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 SMA Sunny Island BMS protocol: frames <-> typed readings (doc/protocols.md section 5).
 

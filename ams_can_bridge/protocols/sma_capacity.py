@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 What 0x35F bytes 4-5 carry: the pack's capacity (SMA's TI) or the charge left in it.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The SMA protocol's dialects (Pylontech, Victron): frames sent next to, or instead of, 0x35A.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Which scale a battery's 0x356 voltage is in: SMA's 0.01 V, or the 0.1 V some senders use.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 TC / Elcon chargers 1..3 as a ZEVA EVMS3 drives them (IDs, fields, decisions: doc/protocols.md 7).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Entry point of the ``bridge`` executable: the bridge node on a multi-threaded executor.
 

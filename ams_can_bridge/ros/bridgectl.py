@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The ``bridgectl`` executable: steer a running bridge without the ``ros2`` command line.
 

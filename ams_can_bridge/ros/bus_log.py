@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The user-facing log lines of the CAN bus's state: one line per change, never per retry.
 

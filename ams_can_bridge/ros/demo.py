@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The ``demo`` executable: the bridge and simulated devices in one process, with a live view.
 

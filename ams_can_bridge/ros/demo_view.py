@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Terminal view of the demo and of ``monitor``: plain data in, text out (no ROS, no curses).
 

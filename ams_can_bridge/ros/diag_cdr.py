@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 /diagnostics, BatteryState and the arrays serialized by the bridge itself: CDR, published raw.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Declare ParamSpec / ConfigField lists as ROS parameters, and validate values set later.
 

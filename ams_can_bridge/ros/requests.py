@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 A bad request is answered, never fatal: the services rclpy makes for the node itself.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The node behind the demo's and the monitor's view: one bridge's topics in, a ``View`` out.
 

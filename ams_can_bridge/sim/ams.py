@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Simulated Formula-Student AMS: the state machine, relays, cells, temperatures and SOC.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Simulated devices: the contract the runner (bus I/O) and the device models share.
 

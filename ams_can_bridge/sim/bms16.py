@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Simulated ZEVA BMS16: status, cells and SMA frames at 4 Hz; takes config and commands.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Simulated ZEVA BMS16 in its standard form (EVMS3 protocol, 29-bit IDs): ``--bms16-variant``.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 A simulated BMS for any dbc device: plausible traffic in the DBC's own units and meaning.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Simulated ZEVA EVMS3 with its CAN current sensor and BMS12 cell modules.
 

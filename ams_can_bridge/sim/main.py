@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """The ``simulator`` executable: simulated battery devices on any python-can bus."""
 from __future__ import annotations
 

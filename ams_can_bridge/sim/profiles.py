@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """Current profiles that make simulated packs move like real ones."""
 from __future__ import annotations
 

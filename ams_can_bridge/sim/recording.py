@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """A CAN log written from simulated devices in simulated time (for tests and benchmarks)."""
 from __future__ import annotations
 

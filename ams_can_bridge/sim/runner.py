@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """SimRunner: drives simulated devices on a real python-can bus from one thread."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Simulated BMS speaking the SMA Sunny Island protocol (a 16-cell LiFePO4 48 V pack).
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The ``pack`` device's ROS-free core: several battery devices' reports in, one battery out.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The pack: its members' reports in, its BatteryState, limits, time-to-go and diagnostics out.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Charge/discharge current limits derated from MOL (100 %) to RSL (0), like dbus-serialbattery.
 

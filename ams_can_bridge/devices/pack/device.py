@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 The ``pack`` device type: a Device without frames, fed by the engine with member reports.
 

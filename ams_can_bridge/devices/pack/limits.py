@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Safe operating area in three levels (foxBMS 2): MOL info, RSL warning, MSL fatal.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 ams_can_bridge developers
+# SPDX-License-Identifier: Apache-2.0
 """
 Time to empty / to full from the mean current over a window (dbus-serialbattery's time-to-go).
 
