@@ -1,7 +1,7 @@
 # Copyright 2026 ams_can_bridge developers
 # SPDX-License-Identifier: Apache-2.0
 """
-One BatteryReport from the members' (the table of shared/DESIGN.md, doc/packs.md).
+One BatteryReport from the members' (the table of doc/packs.md).
 
 A sum or mean with an unknown part is unknown (NaN): a pack that hides a silent member's
 share behind the others' numbers would report a battery that does not exist.
@@ -19,7 +19,7 @@ PARALLEL = 'parallel'
 SERIES = 'series'
 CONNECTIONS = (PARALLEL, SERIES)
 
-# Worst first: the pack's health is its worst member's (shared/DESIGN.md).
+# Worst first: the pack's health is its worst member's (doc/packs.md).
 HEALTH_ORDER = (PowerSupplyHealth.DEAD, PowerSupplyHealth.OVERHEAT,
                 PowerSupplyHealth.OVERVOLTAGE, PowerSupplyHealth.COLD,
                 PowerSupplyHealth.UNSPEC_FAILURE, PowerSupplyHealth.GOOD,

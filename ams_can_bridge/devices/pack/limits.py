@@ -38,7 +38,7 @@ class LimitKind:
     upper: bool  # beyond = above the level; False: below
 
 
-# The limit names of shared/DESIGN.md (``pack.limits.<name>``).
+# The limit names of doc/packs.md (``pack.limits.<name>``).
 KINDS: dict[str, LimitKind] = {
     'cell_voltage_max': LimitKind('V', True),
     'cell_voltage_min': LimitKind('V', False),
