@@ -326,3 +326,35 @@ def test_an_unknown_or_stale_state_never_refuses(rig):
     master._view = lambda: AmsView()  # no status frame yet
     result = master.command(CarCommand.ENABLE_DRIVE, timeout=0.1)
     assert 'refused' not in result.message and 'timeout' in result.message
+
+
+def test_an_ams_status_frame_wakes_the_waiting_call_before_the_next_heartbeat():
+    """The answer is noticed when the status frame arrives, not at the next slot or a poll."""
+    from ams_can_bridge.devices.ams import AmsDevice
+    device = AmsDevice('ams', {'heartbeat_period': 1.0})
+    sent: list[Frame] = []
+
+    def send(frame: Frame) -> tuple[bool, str]:
+        sent.append(frame)
+        return True, ''
+    master = device.attach_master(send)
+    master.start()
+    try:
+        answers: list = []
+        caller = threading.Thread(
+            target=lambda: answers.append(master.command(CarCommand.ENABLE_SC, timeout=5.0)))
+        caller.start()
+        wait_for(lambda: any(f.data[0] & 0x0F == CarCommand.ENABLE_SC for f in sent), 3.0,
+                 'the heartbeat carrying ENABLE_SC')
+        # status frame (doc/protocols.md 1.2): byte 1 bits 4..0 = state, SC_ENABLED = 2
+        answered_at = time.monotonic()
+        device.handle_frame(0x300, bytes([0xC0, 0x22, 180, 30, 66, 1, 0]), answered_at)
+        caller.join(timeout=5.0)
+        took = time.monotonic() - answered_at
+        assert answers and answers[0].success, answers
+        assert 'SC_ENABLED' in answers[0].message
+        # the next heartbeat is a whole second away: only the frame itself can wake the call
+        assert took < 0.5, f'the call noticed the answer after {took:.3f} s'
+        assert len(sent) == 1
+    finally:
+        master.stop()

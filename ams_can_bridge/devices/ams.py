@@ -211,6 +211,16 @@ class AmsDevice(AmsControl, Device[AmsConfig]):
             self._latest.put(kind, reading, now)
         return False
 
+    def handle_frame(self, arbitration_id: int, data: bytes, stamp: float) -> bool:
+        """Decode and apply one frame; wake a waiting car command when the AMS answered."""
+        seen = self.status_seq + self.error_seq  # written by this (the bus) thread only
+        primary = super().handle_frame(arbitration_id, data, stamp)
+        master = self.master
+        # after the device lock was released: the master's waiter reads the view under it
+        if master is not None and self.status_seq + self.error_seq != seen:
+            master.wake()
+        return primary
+
     def _on_status(self, status: proto.AmsStatus, stamp: float, now: float) -> None:
         # last_seen is still the previous status frame's (the base sets it after _handle):
         # after a silence longer than stale_timeout a restarted counter is no anomaly.

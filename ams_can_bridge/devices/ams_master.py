@@ -46,8 +46,6 @@ from ams_can_bridge.devices.periodic_sender import PeriodicSender
 from ams_can_bridge.devices.ports import SendFrame
 from ams_can_bridge.protocols.common import Frame
 
-POLL_S = 0.005  # waiting calls re-check the AMS state this often (a few ms)
-
 TARGETS = {
     CarCommand.ENABLE_SC: AmsState.SC_ENABLED,
     CarCommand.ENABLE_TS: AmsState.TS_ACTIVE,
@@ -225,6 +223,11 @@ class AmsMaster:
         with self._cond:
             self.bank_count = int(bank_count)
 
+    def wake(self) -> None:
+        """Tell a waiting call that the AMS reported something (a status or error event)."""
+        with self._cond:
+            self._cond.notify_all()
+
     def current_command(self) -> CarCommand:
         """Return the command the next heartbeat carries."""
         with self._cond:
@@ -350,7 +353,10 @@ class AmsMaster:
                                 if request.command in TARGETS else 'waiting to be sent')
                         return CommandResult(False, f'{name}: timeout after {timeout:g} s '
                                              f'{goal}, {sent}; {view.describe()}')
-                    self._cond.wait(min(POLL_S, deadline - now))
+                    # Woken by every heartbeat booked, every AMS status or error event
+                    # (``wake``), a cancel or a stop: no polling that competes with the
+                    # heartbeat thread for the interpreter.
+                    self._cond.wait(deadline - now)
         finally:
             with self._cond:
                 request.done = True
