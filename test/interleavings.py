@@ -44,6 +44,7 @@ from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.engine.commands import Commands
 from ams_can_bridge.engine.gate import CommandGate
 from ams_can_bridge.engine.param_sets import apply_set, set_refusal
+from ams_can_bridge.engine.live import settle_heap
 from ams_can_bridge.errors import ParamError
 from ams_can_bridge.parameters import coerce, ParamSpec
 from ams_can_bridge.protocols.ams import DEFAULT_BASE_ID as AMS_BASE
@@ -226,6 +227,7 @@ class ModelBridge:
                         self._on_frame, self.device_set.filters, self.log)
         self.gate.attach_bus(self.io)
         self.io.start()
+        settle_heap()  # as the node's configure does
         self.state = 'inactive'
 
     def _value(self, name: str, spec: ParamSpec) -> Any:

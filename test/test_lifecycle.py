@@ -11,6 +11,7 @@ services and publishers gone; configure works again. shutdown: finalized.
 """
 from __future__ import annotations
 
+import gc
 import threading
 
 from lifecycle_msgs.msg import Transition
@@ -56,8 +57,11 @@ def test_configure_activate_deactivate_cleanup_through_the_lifecycle_services(ri
     assert state(rig) == 'unconfigured'
     assert node.can_io is None and not node.command_services
 
+    gc.unfreeze()
     assert change(rig, Transition.TRANSITION_CONFIGURE)
     assert state(rig) == 'inactive'
+    # what configure built is kept out of full collections (a pause of every thread)
+    assert gc.get_freeze_count() > 0
     rig.wait(lambda: node.can_io.status().connected, what='the bus to open')
     # armed at launch, but inactive: the gate is shut and the heartbeat does not run
     assert node.commands_enabled is False

@@ -11,8 +11,10 @@ reach the user through the node (test_start_checks.py, test_lifecycle.py).
 """
 from __future__ import annotations
 
+import gc
 import logging
 import math
+import weakref
 
 import pytest
 
@@ -21,7 +23,7 @@ from ams_can_bridge.can_io.core import STATE_CHANGE_FORMAT
 from ams_can_bridge.device_set import DeviceSet, unknown_parameter_errors
 from ams_can_bridge.devices.base import device_params
 from ams_can_bridge.engine.gate import arming_refused
-from ams_can_bridge.engine.live import BusView, CLOCK_PERIOD, live_engine, open_bus
+from ams_can_bridge.engine.live import BusView, CLOCK_PERIOD, live_engine, open_bus, settle_heap
 from ams_can_bridge.engine.startup import (bus_settings, BusSettings, check_replay_clock,
                                            launch_gate, NO_DEVICES_WARNING, run_start_checks,
                                            start_error, start_summary)
@@ -307,3 +309,28 @@ def test_the_opened_bus_feeds_the_engine_and_logs_only_what_the_node_does_not():
         return logging.LogRecord('x', logging.WARNING, 'f', 1, msg, None, None)
     assert not logger.filter(record(STATE_CHANGE_FORMAT))
     assert logger.filter(record('something else'))
+
+
+class _Node:
+    """An object in a reference cycle: only a full collection frees it."""
+
+    def __init__(self) -> None:
+        self.me = self
+
+
+def test_settle_heap_freezes_what_configure_built_and_frees_it_after_cleanup():
+    """What lives at configure leaves the full collections; after cleanup it is collected."""
+    built = _Node()
+    gone = weakref.ref(built)
+    try:
+        settle_heap()
+        assert gc.get_freeze_count() > 0
+        frozen = gc.get_freeze_count()
+        del built  # cleanup released it; frozen, a full collection does not see it
+        gc.collect()
+        assert gone() is not None
+        settle_heap()  # the next configure: the earlier configure's garbage is collected
+        assert gone() is None
+        assert gc.get_freeze_count() <= frozen
+    finally:
+        gc.unfreeze()

@@ -13,6 +13,7 @@ the same engine on the log's time instead (``engine.core.Schedule``).
 """
 from __future__ import annotations
 
+import gc
 import logging
 import math
 import time
@@ -28,6 +29,21 @@ from ams_can_bridge.engine.startup import BusSettings
 from ams_can_bridge.periodic import Periodic
 
 CLOCK_PERIOD = 0.01  # s between /clock messages of a replay (can.replay_clock)
+
+
+def settle_heap() -> None:
+    """
+    Collect what a configure left behind, then keep the rest out of later full collections.
+
+    A full collection walks every object the collector tracks, with the interpreter held:
+    every thread stops, the heartbeat's too. The devices, codecs and DBCs built at configure
+    live until cleanup, so they are frozen (``gc.freeze``) and later full collections walk
+    only what came after. Unfrozen first: the objects of an earlier configure, released by
+    its cleanup, are collected now rather than kept forever.
+    """
+    gc.unfreeze()
+    gc.collect()
+    gc.freeze()
 
 
 class OpenBus(Protocol):

@@ -31,7 +31,7 @@ from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.devices.base import Device
 from ams_can_bridge.engine.commands import Commands
 from ams_can_bridge.engine.gate import CommandGate
-from ams_can_bridge.engine.live import device_clock, live_engine, open_bus
+from ams_can_bridge.engine.live import device_clock, live_engine, open_bus, settle_heap
 from ams_can_bridge.engine.param_sets import apply_set, not_set_refusal, set_refusal
 from ams_can_bridge.engine.startup import (bus_settings, check_replay_clock, launch_gate,
                                            run_start_checks, security_warning, start_summary)
@@ -127,6 +127,7 @@ class BridgeNode(LifecycleNode):
             self._release()
             raise
         self._start_error = None
+        settle_heap()  # before any sender runs: no full collection of all this while armed
         return TransitionCallbackReturn.SUCCESS
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
