@@ -28,6 +28,8 @@ After every step ``check()`` asserts the invariants (doc/failure_modes.md):
 """
 from __future__ import annotations
 
+import collections
+import gc
 import itertools
 import os
 import threading
@@ -78,6 +80,20 @@ SCALAR = ParamSpec('command_timeout', float, 1.0, 'a scalar', 0.1, 60.0)
 # Made once: building a 3,000,000-element list holds the GIL for ~20 ms in the test's own
 # thread, a stall that is not the bridge's (rclpy hands the node a value already built).
 HUGE = {size: [0.5] * size for size in (1_000, 3_000_000)}
+# Collections of the last minutes as (wall start, seconds, generation): a heartbeat gap names
+# the ones it overlaps, so a broken bound says whether the collector stopped every thread.
+GC_PAUSES: collections.deque[tuple[float, float, int]] = collections.deque(maxlen=512)
+_gc_started = [0.0]
+
+
+def _time_collections(phase: str, info: dict[str, int]) -> None:
+    if phase == 'start':
+        _gc_started[0] = time.time()
+    else:
+        GC_PAUSES.append((_gc_started[0], time.time() - _gc_started[0], info['generation']))
+
+
+gc.callbacks.append(_time_collections)
 TRANSITIONS = {
     'unconfigured': ('configure', 'shutdown'),
     'inactive': ('activate', 'cleanup', 'shutdown'),
@@ -392,7 +408,20 @@ class ModelBridge:
         for a, b in zip(times, times[1:]):
             if b - a > bound:
                 raise InvariantBroken(f'a {(b - a) * 1000:.0f} ms heartbeat gap (bound '
-                                      f'{bound * 1000:.0f} ms)')
+                                      f'{bound * 1000:.0f} ms); {self._why_late(a, b)}')
+
+    def _why_late(self, a: float, b: float) -> str:
+        """Say what else happened in a gap: collections, the sender's count, the load."""
+        pauses = [f'{seconds * 1000:.0f} ms (generation {generation})'
+                  for start, seconds, generation in list(GC_PAUSES)
+                  if start < b and start + seconds > a and seconds >= 0.002]
+        master = getattr(self.device_set.devices.get('ams') if self.device_set else None,
+                         'master', None)
+        missed = master.stats.missed_slots if master is not None else 'n/a'
+        load = ', '.join(f'{x:.1f}' for x in os.getloadavg())
+        return (f'garbage collections of 2 ms or more in it: {", ".join(pauses) or "none"}; '
+                f'slots the '
+                f'sender counted as missed since its start: {missed}; load average {load}')
 
     def bus_connected(self) -> bool:
         """Tell whether the bridge's bus is connected now."""
