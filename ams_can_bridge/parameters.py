@@ -15,6 +15,7 @@ import math
 import re
 from typing import Any, Iterable
 
+from ams_can_bridge import realtime
 from ams_can_bridge.errors import ConfigError, EncodeRangeError, ParamError
 from ams_can_bridge.protocols.common import ConfigField
 from ams_can_bridge.protocols.layout import check_value
@@ -248,6 +249,12 @@ NODE_PARAMS = [
               max_length=MAX_DEVICES),
     ParamSpec('diagnostics_period', float, 1.0, 's between /diagnostics publications',
               low=0.01, high=3600.0),
+    ParamSpec('realtime_priority', int, 0,
+              'SCHED_FIFO priority of the bridge\'s own senders (AMS heartbeat, charger '
+              'repeat, SMA keep-alive), so a busy computer cannot make their frames late; '
+              '0 = the default scheduling. Needs root, CAP_SYS_NICE or an rtprio limit '
+              '(doc/real_bus.md); without it the bridge warns and keeps the default',
+              low=0, high=realtime.PRIORITY_MAX),
     ParamSpec('commands_allowed', bool, False,
               'first key of the transmit gate, set only at launch: commands_enabled can '
               'become true only while this is true'),

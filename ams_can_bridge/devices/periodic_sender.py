@@ -31,6 +31,7 @@ import threading
 import time
 from typing import Callable
 
+from ams_can_bridge import realtime
 from ams_can_bridge.devices.ports import SendFrame
 from ams_can_bridge.errors import ParamError
 from ams_can_bridge.protocols.common import Frame
@@ -189,6 +190,7 @@ class PeriodicSender:
         self._wake.set()
 
     def _run(self, generation: int, schedule: SlotSchedule) -> None:
+        realtime.enter()  # the node's realtime_priority: runs as soon as a slot is due
         while True:
             with self._lock:
                 if generation != self._generation:

@@ -26,6 +26,7 @@ from rclpy.duration import Duration
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from rclpy.parameter import Parameter
 
+from ams_can_bridge import realtime
 from ams_can_bridge.can_io import CanIo
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.devices.base import Device
@@ -239,6 +240,12 @@ class BridgeNode(LifecycleNode):
         bus = self.params.declare_all('can.', BUS_PARAMS)
         node = self.params.declare_all('', NODE_PARAMS)
         self.diagnostics_period = node['diagnostics_period']
+        problem = realtime.use(node['realtime_priority'])
+        if problem:
+            self.get_logger().warning(problem)
+        elif node['realtime_priority']:
+            self.get_logger().info(f"the bridge's own senders run at SCHED_FIFO priority "
+                                   f"{node['realtime_priority']} (realtime_priority)")
         settings = bus_settings(bus)  # collected: every problem of the file at once
         self.params.errors += settings.errors
         # a can.* value that is unusable was replaced by its default: warnings about that
