@@ -33,9 +33,11 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import harness  # noqa: E402
 from harness import (bridge_args, cpu_share, percentile, process, PYTHON,  # noqa: E402
                      pty_pair, rss_mb, simulator_args, SLCAN_OPEN, write_params)
+from ams_can_bridge import realtime  # noqa: E402
 
 PROCS = os.path.join(harness.BENCH, 'procs.py')
 SAME_OPTIONS = SLCAN_OPEN + ['timeout=0.5']  # what the bridge uses on slcan by default
+REALTIME_PRIORITY = 50  # the heartbeat's extra loaded run, when this user may use SCHED_FIFO
 ROWS: list[dict] = []
 
 
@@ -213,11 +215,12 @@ def waiting_calls(service: str):
         rclpy.shutdown()
 
 
-def heartbeat_run(seconds: float, load: bool) -> list[float]:
+def heartbeat_run(seconds: float, load: bool, priority: int = 0) -> list[float]:
     """Heartbeat periods (ms) seen by a reader process on the adapter's side."""
     with tempfile.TemporaryDirectory() as work, pty_pair() as (a, b):
         params = write_params(os.path.join(work, 'p.yaml'), 'slcan', b, SLCAN_OPEN,
-                              commands=True, devices=('ams', 'ivt_s', 'evms3', 'bms16', 'sma'))
+                              commands=True, devices=('ams', 'ivt_s', 'evms3', 'bms16', 'sma'),
+                              extra={'realtime_priority': priority} if priority else None)
         out = os.path.join(work, 'hb.json')
         # The load comes from a process of its own that only writes to the adapter's side,
         # so the reader's timestamps are not delayed by the load it would otherwise send.
@@ -237,8 +240,13 @@ def heartbeat_run(seconds: float, load: bool) -> list[float]:
 
 def heartbeat(seconds: float) -> None:
     """AMS heartbeat period jitter, idle and under full load with a waiting call."""
-    for label, load in (('idle', False), ('load + waiting call', True)):
-        periods = heartbeat_run(seconds, load)
+    runs = [('idle', False, 0), ('load + waiting call', True, 0)]
+    if not realtime.use(REALTIME_PRIORITY):  # this user may: show what it gives, same run
+        runs.append((f'load + waiting call, realtime_priority {REALTIME_PRIORITY}', True,
+                     REALTIME_PRIORITY))
+    realtime.use(0)
+    for label, load, priority in runs:
+        periods = heartbeat_run(seconds, load, priority)
         errors = [abs(p - 50.0) for p in periods]
         missed = sum(1 for p in periods if p > 75.0)
         p99 = percentile(errors, 0.99)
@@ -327,15 +335,19 @@ def dbc_device(seconds: float) -> None:
         f"{figures['median_us']['cantools']:.2f} us cantools")
 
 
-def interleavings(minutes: float, seed: int) -> None:
+def interleavings(minutes: float, seed: int, priority: int = 0) -> None:
     """The interleaving model for minutes: sequences run, invariants broken (their seeds)."""
     import bench_interleavings
+    problem = realtime.use(priority)  # the model's senders, as the node's realtime_priority
+    if problem:
+        raise SystemExit(problem)
     figures = bench_interleavings.run(minutes, seed)
     broken = figures['broken_seeds']
     row('interleavings', f"sequences in {figures['minutes']:g} min", figures['sequences'],
         None, 'seq', 'none broken', not broken,
         f"up to {figures['steps_each']} steps each, seeds {seed}.."
-        f"{seed + figures['seeds'] - 1}; broken: {broken or 'none'}")
+        f"{seed + figures['seeds'] - 1}; broken: {broken or 'none'}; senders at "
+        + (f'SCHED_FIFO {priority}' if priority else 'the default scheduling'))
 
 
 SCENARIOS = {
@@ -363,6 +375,9 @@ def main() -> None:
                         help='interleavings: how long to run new sequences')
     parser.add_argument('--seed', type=int, default=1,
                         help='interleavings: the first sequence\'s seed')
+    parser.add_argument('--realtime-priority', type=int, default=0,
+                        help="interleavings: the model's senders at this SCHED_FIFO priority "
+                             '(the node parameter realtime_priority; 0 = off)')
     parser.add_argument('--json', default=os.path.join(harness.BENCH, 'results.json'))
     parser.add_argument('--update-readme', metavar='FILE', nargs='?', default='',
                         const=os.path.join(harness.BENCH, 'README.md'),
@@ -383,7 +398,7 @@ def main() -> None:
             args.soak = True
             continue
         if name == 'interleavings':  # only when named: it runs for --minutes
-            interleavings(args.minutes, args.seed)
+            interleavings(args.minutes, args.seed, args.realtime_priority)
             continue
         SCENARIOS[name](args.quick)
     if args.soak:
