@@ -346,7 +346,9 @@ def interleavings(minutes: float, seed: int, priority: int = 0) -> None:
     row('interleavings', f"sequences in {figures['minutes']:g} min", figures['sequences'],
         None, 'seq', 'none broken', not broken,
         f"up to {figures['steps_each']} steps each, seeds {seed}.."
-        f"{seed + figures['seeds'] - 1}; broken: {broken or 'none'}; senders at "
+        f"{seed + figures['seeds'] - 1}; broken: {broken or 'none'}; "
+        f"{len(figures['excused_gaps_ms'])} gaps the machine's (its delay of a separate "
+        "process as long); senders at "
         + (f'SCHED_FIFO {priority}' if priority else 'the default scheduling'))
 
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import time
 
+import pytest
 from hypothesis import HealthCheck, settings, strategies as st
 from hypothesis.stateful import (initialize, precondition, rule,
                                  run_state_machine_as_test)
@@ -107,5 +108,6 @@ def run(sequences: int = SEQUENCES, steps: int = STEPS,
             deadline=None, suppress_health_check=list(HealthCheck), **options))
 
 
+@pytest.mark.process  # the machine's canary (interleavings.Canary)
 def test_no_invariant_breaks_under_random_interleavings():
     run(heartbeat_slack=CI_HEARTBEAT_SLACK)

@@ -198,6 +198,7 @@ class LiveInterleavings(Checked):
 
 
 @pytest.mark.ros  # each sequence starts its own Rig (out of the lanes' sight)
+@pytest.mark.process  # the machine's canary (interleavings.Canary)
 def test_no_invariant_breaks_on_the_real_node():
     with gil_like_the_bridge():
         run_state_machine_as_test(LiveInterleavings, settings=settings(
