@@ -187,7 +187,7 @@ class Device(Generic[ConfigT]):
     # value the user gave (the resolved instance shows in the diagnostics instead).
     LINKS: ClassVar[Mapping[str, str]] = {}
     # The command services of the type, one row each (devices/commands.py): what the one
-    # command pipeline (engine/calls.py) runs and the ROS adapter offers.
+    # command pipeline (engine/commands.py) runs and the ROS adapter offers.
     COMMANDS: ClassVar[tuple[Command, ...]] = ()
     # std_msgs/Float32 topics '<instance>/<suffix>' the engine emits for the type (a pack's)
     FIGURES: ClassVar[tuple[str, ...]] = ()

@@ -4,7 +4,7 @@
 The one command path: every frame the bridge sends passes this gate (no ROS here).
 
 ``commands_allowed`` (read-only, from launch) and ``commands_enabled`` (set at run time) are
-the gate's; the command pipeline (engine/calls.py: every command service call, the EVMS3
+the gate's; the command pipeline (engine/commands.py: every command service call, the EVMS3
 read-back and the IVT-S exchanges included) and the periodic senders (the AMS heartbeat, the
 charger repeat, the SMA keep-alive) reach the bus only through it (``CommandPort``):
 

@@ -8,7 +8,7 @@ checks, errors and summary (``engine/startup.py``), the engine, its bus and its 
 thread (``engine/live.py``, ``engine/core.py``: a primary frame is published on the bus
 thread, so the executor runs only the services), which parameter sets are allowed and what
 they change (``engine/param_sets.py``), the transmit gate (``engine/gate.py``), every
-command's walk from its row to the bus (``engine/calls.py``) and the periodic senders that
+command's walk from its row to the bus (``engine/commands.py``) and the periodic senders that
 follow the gate (``engine/commands.py``). Here: the lifecycle, the parameter declarations
 (``ros/params.py``), the publishers (``ros/sink.py``) and one service per command row
 (``ros/services.py``), in ``service_group`` (a call may wait).
