@@ -6,7 +6,7 @@ The one command path: every frame the bridge sends passes this gate (no ROS here
 ``commands_allowed`` (read-only, from launch) and ``commands_enabled`` (set at run time) are
 the gate's; the command pipeline (engine/commands.py: every command service call, the EVMS3
 read-back and the IVT-S exchanges included) and the periodic senders (the AMS heartbeat, the
-charger repeat, the SMA keep-alive) reach the bus only through it (``CommandPort``):
+charger repeat, the SMA keep-alive) reach the bus only through it:
 
 - ``transmit`` (a service call's frame): refused naming ``commands_enabled`` while disabled;
   else waits (``wait=True``) up to ``can.connect_wait`` for a bus that is (re)opening, with
@@ -27,7 +27,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from contextlib import AbstractContextManager, contextmanager
+from contextlib import contextmanager
 from typing import Callable, Iterator, Protocol
 
 from ams_can_bridge.bus_state import BusStatus, RETRY_STATES
@@ -55,46 +55,6 @@ class BusPort(Protocol):
 
     def send(self, frame: Frame) -> None:
         """Send one frame; raise CanSendError when the bus or driver refuses."""
-
-
-class CommandPort(Protocol):
-    """The gate as the command pipeline and the periodic senders see it."""
-
-    @property
-    def enabled(self) -> bool:
-        """Tell whether commands are enabled now."""
-
-    @property
-    def allowed(self) -> bool:
-        """Tell whether commands may be enabled at all (set at launch)."""
-
-    def refusal(self, what: str) -> str:
-        """Return the answer to a command refused while disabled (names the parameters)."""
-
-    def wait_for_bus(self, limit: float | None = None) -> tuple[bool, str]:
-        """Wait for a (re)opening bus: (connected, why not)."""
-
-    def transmit(self, frame: Frame, *, wait: bool = True,
-                 source: str | None = None) -> tuple[bool, str]:
-        """Send one frame of a call: (ok, message)."""
-
-    def send_periodic(self, frame: Frame) -> tuple[bool, str]:
-        """Send one frame of a periodic sender, never waiting: (ok, message)."""
-
-    def end_waits(self) -> None:
-        """End every bus wait in flight now."""
-
-    def start_when_connected(self, start: Callable[[], None]) -> PendingStart:
-        """Call ``start`` once the bus is connected, while commands stay enabled."""
-
-    def batch(self) -> AbstractContextManager[None]:
-        """Hold the batch lock: no other call's frame goes out meanwhile."""
-
-    def add_listener(self, listener: Listener) -> None:
-        """Call listener(enabled) whenever commands_enabled changes."""
-
-    def remove_listener(self, listener: Listener) -> None:
-        """Stop calling listener."""
 
 
 def candump_text(frame: Frame) -> str:
