@@ -4,7 +4,7 @@
 import threading
 import time
 
-from ams_can_bridge.periodic import Periodic
+from ams_can_bridge.engine.timer import Periodic
 from helpers import assert_ended, wait_for
 
 

@@ -7,7 +7,7 @@ The node opens the bus (``CanIo``) in configure and closes it in cleanup; the en
 callbacks ask through ``BusView`` whether or not it is open. A closed bus reports
 ``stopped``; a message no frame stamps is stamped with the replayed log's time in a replay
 (so a replay's stale messages and diagnostics follow the recording), with the wall clock
-otherwise. The periodic work runs on one thread of its own (``Periodic``: see periodic.py
+otherwise. The periodic work runs on one thread of its own (``Periodic``: see timer.py
 for why not executor timers), so an idle bridge wakes no executor at all; ``log2bag`` runs
 the same engine on the log's time instead (``engine.core.Schedule``).
 """
@@ -25,7 +25,7 @@ from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.engine.core import Engine, Sink
 from ams_can_bridge.engine.gate import CommandGate
 from ams_can_bridge.engine.startup import BusSettings
-from ams_can_bridge.periodic import Periodic
+from ams_can_bridge.engine.timer import Periodic
 
 CLOCK_PERIOD = 0.01  # s between /clock messages of a replay (can.replay_clock)
 
