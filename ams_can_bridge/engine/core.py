@@ -7,7 +7,7 @@ Data flows bus -> ``on_frame`` -> devices -> one snapshot of a primary frame -> 
 The engine also owns the periodic decisions: a ``present: false`` BatteryState every
 second while a device is silent, /diagnostics every ``diagnostics_period`` and early when
 a level changes (the watch), and the CAN bus report. The live node drives it with the
-monotonic clock and a thread of its own (``Periodic``); ``log2bag`` drives the same engine
+monotonic clock and a thread of its own (``TimerThread``); ``log2bag`` drives the same engine
 with the log's time (``Schedule``), so a bag holds what the live bridge publishes.
 
 Threads (live): ``on_frame`` runs on the bus thread, the periodic work on another. A

@@ -20,7 +20,7 @@ from ams_can_bridge.errors import ConfigError
 _ERROR_LOG_EVERY = 5.0  # s between log lines for a task that keeps failing
 
 
-class Periodic:
+class TimerThread:
     """Run callbacks, each every its own period (no drift), on one thread until stopped."""
 
     def __init__(self, name: str, logger: logging.Logger | None = None) -> None:
