@@ -331,8 +331,7 @@ class Device(Generic[ConfigT]):
             reading = self.codec.decode(arbitration_id, data)
         except ProtocolError as exc:
             with self.lock:
-                self.frames_malformed += 1
-                self.last_malformed = str(exc)
+                self._count_malformed(str(exc))
             return False
         with self.lock:
             self.frames_received += 1
@@ -340,6 +339,11 @@ class Device(Generic[ConfigT]):
             if primary:
                 self.last_seen = self.clock()
             return primary
+
+    def _count_malformed(self, why: str) -> None:
+        """Count a malformed frame; ``why`` becomes 'last malformed frame' (lock held)."""
+        self.frames_malformed += 1
+        self.last_malformed = why
 
     def _handle(self, reading: Any, stamp: float) -> bool:
         raise NotImplementedError
