@@ -1,12 +1,12 @@
 # Copyright 2026 ams_can_bridge developers
 # SPDX-License-Identifier: Apache-2.0
 """
-Per-device state, the contract between the protocol layer and the ROS node.
+Per-device state, the contract between the protocol layer and the engine.
 
-The receive thread calls ``Device.handle_frame`` for every frame of the device's IDs; it
-decodes (protocol layer), updates state under a lock and returns quickly. The executor asks
-for ``battery_report`` / ``diagnostic_report`` and turns them into ROS messages. No rclpy here:
-reports are plain dataclasses that mirror sensor_msgs/BatteryState and DiagnosticStatus.
+``Device.handle_frame`` runs on the receive thread for every frame of the device's IDs:
+it decodes, updates the state under the device's lock, returns quickly and never raises for
+bad input. The reports are plain dataclasses that mirror sensor_msgs/BatteryState and
+DiagnosticStatus; no rclpy here. The flow around them: doc/architecture.md, "Data".
 """
 from __future__ import annotations
 

@@ -1,47 +1,13 @@
 # Copyright 2026 ams_can_bridge developers
 # SPDX-License-Identifier: Apache-2.0
 """
-The bridge's command side without ROS: every device's rows, one pipeline, the armed senders.
+The command side without ROS: a bridge's command rows, the one pipeline, the armed senders.
 
-``Commands`` is what a bridge (the node, or a test) holds: the rows of every device
-instance (``Device.COMMANDS``), each run through the one ``Pipeline``, and
-the devices' periodic senders (``Device.attach_senders``), which follow the gate:
-
-- commands enabled: each device's senders are armed once the bus is connected
-  (``CommandGate.start_when_connected``: an slcan adapter opens in ~2 s, and a heartbeat
-  started before would drop its frames); a call that has just waited for that bus arms
-  them at once (``Pipeline`` tells ``fire``);
-- commands disabled: a start still waiting for the bus is cancelled, and every sender is
-  disarmed before the gate's ``set_enabled(False)`` returns (the gate tells its listeners in
-  the caller's thread), so nothing is sent after it;
-- a device's start command (``Device.start_command``: the IVT-S's check_config_at_start)
-  runs once, through the pipeline, as soon as the device is heard while commands are
-  enabled.
-
-The pipeline: a command service call, from its row to the bus.
-
-Every command of every device passes ``Pipeline.call`` (the rows: devices/commands.py):
-
-1. the call is named to the gate (its command log lines name ``<instance>/<service>``);
-2. while commands are disabled it is refused, here and only here, naming the parameters,
-   and nothing is sent (a ``Local`` row sends nothing at all: it answers from the bridge's
-   own state, commands enabled or not);
-3. the device's method runs as the row's policy says: ``Frames`` (the frames are built, a
-   deliberate refusal, ``RefusedCommand`` or ``EncodeRangeError``, becomes the answer and
-   nothing is sent; the bus is waited for once, outside the batch; the frames go out in one
-   ``gate.batch()``, paced or not; a frame the gate refuses ends the call, and the answer
-   names what was sent and what not), ``Exchange`` (the device runs the call through a
-   ``CallPort``: each frame through the gate, waiting for the bus), ``Carried`` (the bus is
-   waited for within the command's own timeout, then the heartbeat carries it);
-4. anything else the device raises is a bug: logged with its traceback (ERROR) and
-   answered as an internal error, never as a refusal;
-5. the answer is logged (INFO when it succeeded, WARN when not).
-
-Every call in flight is known (``Call``): a lifecycle transition ends them all first
-(``cancel_calls``: a bus wait returns, a device waiting for an answer stops within
-``devices.ports.CANCEL_POLL``, nothing more is sent) and they answer ``success: false``,
-"cancelled by <transition>"; ``wait_calls`` then waits until they have returned (issue 34,
-point 3).
+``Commands`` holds every (instance, row) of a bridge, runs each call through ``Pipeline``
+and arms the devices' periodic senders while the gate is enabled and the bus connected.
+``Pipeline.call`` never raises: it answers (success, message), is the only place that
+refuses while commands are disabled, and a refused call sends nothing. A call's walk, the
+policies and the cancelling of calls in flight: doc/architecture.md, "Commands".
 """
 from __future__ import annotations
 
@@ -95,7 +61,7 @@ def no_config(name: str, values: Mapping[str, Any]) -> tuple[bool, str]:
 
 
 class Pipeline:
-    """Refuse, build, wait, send, answer: every command of every device (module docstring)."""
+    """Refuse, build, wait, send, answer: every command of every device (doc/architecture.md)."""
 
     def __init__(self, gate: CommandGate, log: Log, *, set_config: SetConfig = no_config,
                  bus_ready: Callable[[str], object] = lambda name: None,
