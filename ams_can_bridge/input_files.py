@@ -9,9 +9,10 @@ fails deep inside a library, and each used to be reported as "does not exist".
 
 ``load_yaml`` / ``compose_yaml`` read YAML with ``yaml.SafeLoader`` after counting, from the
 parse events alone (no value is built), how many values the document's aliases (``*name``)
-stand for once expanded: a 491-byte "billion laughs" document expands to billions and took
-2.8 GB before PyYAML gave up. Beyond ``ALIAS_VALUES_LIMIT`` (or any alias at all where the
-reader takes none: rcl refuses aliases in params files) the file is refused, named.
+stand for once expanded: a "billion laughs" document of a few hundred bytes expands to
+billions of values, and PyYAML would build them all. Beyond ``ALIAS_VALUES_LIMIT`` (or any
+alias at all where the reader takes none: rcl refuses aliases in params files) the file is
+refused, named.
 
 No rclpy and no python-can here: protocol and offline code import this module.
 """

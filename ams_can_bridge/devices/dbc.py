@@ -288,7 +288,7 @@ class DbcDevice(Device[DbcConfig]):
         Tell whether every group heard of a message has come twice (lock held).
 
         A group (multiplexer value, position) not heard by then is missing: its sender is
-        silent, not late (issue 35.7).
+        silent, not late.
         """
         rate = self.rates[message]
         return bool(self.arrivals[message]) and rate[6] >= rate[5]
