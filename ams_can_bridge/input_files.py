@@ -5,7 +5,7 @@ The files the package reads from a user: one check that a path is a regular file
 
 ``file_problem`` says why a path cannot be read as a file ("does not exist", "is a FIFO, not a
 regular file", ...): a FIFO blocks a reader forever, ``/dev/zero`` never ends, a directory
-fails deep inside a library, and each used to be reported as "does not exist".
+fails deep inside a library, and none of them "does not exist".
 
 ``load_yaml`` / ``compose_yaml`` read YAML with ``yaml.SafeLoader`` after counting, from the
 parse events alone (no value is built), how many values the document's aliases (``*name``)

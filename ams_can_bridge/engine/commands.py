@@ -134,7 +134,7 @@ class Pipeline:
              data: bool | None, call: Call) -> tuple[bool, str]:
         what = row.words(data)
         if isinstance(row.policy, Local):
-            # sends nothing on the bus: the transmit gate has nothing to guard (commands.py)
+            # sends nothing on the bus: the gate has nothing to guard (devices/commands.py)
             ok, message = getattr(device, row.build)(*row.args)
             return bool(ok), message
         if not self.gate.enabled:
@@ -147,14 +147,14 @@ class Pipeline:
             return self.frames(name, what, partial(method, *args), gap, policy, call=call)
         if isinstance(policy, Exchange):
             port = Port(self, name, what, call)
-            if policy.bus_first:  # before the method takes its own lock (commands.py)
+            if policy.bus_first:  # before the method takes its own lock (devices/commands.py)
                 ok, message = self.wait_for_bus(name)
                 if not ok:
                     return False, f'{name}: cannot {what}: {message}; nothing was sent'
                 port.waited = True
             ok, message = method(port, *args)
             return bool(ok), message
-        assert isinstance(policy, Carried), policy  # the three policies of commands.py
+        assert isinstance(policy, Carried), policy  # the other policies of devices/commands.py
         return self._carried(name, method(*args))
 
     # --- Frames ---------------------------------------------------------------------------
