@@ -6,8 +6,8 @@ CDR (XCDR1, little-endian) of /diagnostics, BatteryState and Float32MultiArray, 
 The bytes rclpy's ``serialize_message`` gives for the messages ``ros/convert.py`` builds
 from the same reports, built with ``struct`` and ``array`` in a few joins: the live bridge
 publishes them raw (``ros/diag_cdr.py`` checks them against rclpy once at start), log2bag
-writes them into its bags (issue 39: rosbags' message objects and serializer were a third
-of a conversion; test_log2bag_golden.py holds the bags byte-identical to what they gave).
+writes them into its bags (cheaper than rosbags' message objects and serializer;
+test_log2bag_golden.py holds the bags byte-identical to what they gave).
 
 The layout: a 4-byte encapsulation header, then each field aligned to its size counted
 from the end of that header; a string is a uint32 length (with the NUL), its UTF-8 bytes

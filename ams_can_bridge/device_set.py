@@ -45,7 +45,6 @@ INSTANCE_NAME_RULE = ('an instance name names its topics and services (<name>/ba
 OVERLAP_ADVICE = ('Two instances on one ID would both decode its frames (and both send, with '
                   'commands armed). Move one of them (<name>.base_id) or remove it from '
                   'devices')
-Ids = frozenset[tuple[int, bool]]
 
 
 def variant_spec(device_type: str) -> ParamSpec:

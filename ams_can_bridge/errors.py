@@ -126,7 +126,7 @@ class RefusedCommand(AmsCanBridgeError):
     """
     A service call that cannot go ahead; nothing was sent (the message says what to change).
 
-    Raised by a device while the command pipeline (``engine/calls.py``) builds a command's
+    Raised by a device while the command pipeline (``engine/commands.py``) builds a command's
     frames: configuration unset, device stale, nothing to acknowledge. The service answers
     ``success: false`` with the message.
     """

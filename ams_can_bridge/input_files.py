@@ -5,13 +5,14 @@ The files the package reads from a user: one check that a path is a regular file
 
 ``file_problem`` says why a path cannot be read as a file ("does not exist", "is a FIFO, not a
 regular file", ...): a FIFO blocks a reader forever, ``/dev/zero`` never ends, a directory
-fails deep inside a library, and each used to be reported as "does not exist".
+fails deep inside a library, and none of them "does not exist".
 
 ``load_yaml`` / ``compose_yaml`` read YAML with ``yaml.SafeLoader`` after counting, from the
 parse events alone (no value is built), how many values the document's aliases (``*name``)
-stand for once expanded: a 491-byte "billion laughs" document expands to billions and took
-2.8 GB before PyYAML gave up. Beyond ``ALIAS_VALUES_LIMIT`` (or any alias at all where the
-reader takes none: rcl refuses aliases in params files) the file is refused, named.
+stand for once expanded: a "billion laughs" document of a few hundred bytes expands to
+billions of values, and PyYAML would build them all. Beyond ``ALIAS_VALUES_LIMIT`` (or any
+alias at all where the reader takes none: rcl refuses aliases in params files) the file is
+refused, named.
 
 No rclpy and no python-can here: protocol and offline code import this module.
 """

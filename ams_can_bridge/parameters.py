@@ -181,7 +181,7 @@ def _short(value: Any) -> str:
     """
     Return repr(value) cut to a readable length, without ever writing out a huge value.
 
-    A refused value may have millions of elements (issue 34, point 12): only a short prefix
+    A refused value may have millions of elements: only a short prefix
     is ever turned into text, so the refusal costs the same whatever its size.
     """
     if isinstance(value, (list, tuple, array.array)) and len(value) > SHORT_ITEMS:

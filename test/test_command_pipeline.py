@@ -1,7 +1,7 @@
 # Copyright 2026 ams_can_bridge developers
 # SPDX-License-Identifier: Apache-2.0
 """
-The one command pipeline (engine/calls.py) and the device rows, without ROS.
+The one command pipeline (engine/commands.py) and the device rows, without ROS.
 
 Every service of every device type is a row (``Device.COMMANDS``); these tests walk the rows
 through ``engine.commands.Commands`` on a gate with a recording bus (test_command_gate's
@@ -20,8 +20,7 @@ from ams_can_bridge import registry
 from ams_can_bridge.bus_state import BusState
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.devices.commands import Carried, Exchange, Frames, Local, Request
-from ams_can_bridge.engine.calls import Pipeline
-from ams_can_bridge.engine.commands import Commands
+from ams_can_bridge.engine.commands import Commands, Pipeline
 from ams_can_bridge.engine.gate import CommandGate
 from shared import collecting_logger, FakeBus
 from helpers import assert_ended, wait_for

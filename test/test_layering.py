@@ -44,12 +44,12 @@ def test_only_the_ros_package_imports_ros():
 
 
 def test_the_engine_loads_no_ros_module_even_through_what_it_imports():
-    # the node's decisions live in engine/ (startup, live, param_sets, calls, gate, core):
+    # the node's decisions live in engine/ (startup, live, param_sets, commands, gate, core):
     # importing every one of them must not load rclpy or a message package on the way
     modules = sorted(f'ams_can_bridge.engine.{p.stem}' for p in (PACKAGE / 'engine').glob('*.py')
                      if p.stem != '__init__')
     assert {'ams_can_bridge.engine.startup', 'ams_can_bridge.engine.live',
-            'ams_can_bridge.engine.param_sets', 'ams_can_bridge.engine.calls'} <= set(modules)
+            'ams_can_bridge.engine.param_sets', 'ams_can_bridge.engine.commands'} <= set(modules)
     code = ('import importlib, sys\n'
             f'for name in {modules!r}:\n    importlib.import_module(name)\n'
             f'print(sorted(m for m in sys.modules if m.split(".")[0] in {ROS_ONLY!r}))\n')

@@ -12,7 +12,7 @@ from ams_can_bridge.bus_state import BusState, BusStatus
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.engine.core import Engine
 from ams_can_bridge.engine.gate import CommandGate
-from ams_can_bridge.engine.calls import Pipeline
+from ams_can_bridge.engine.commands import Pipeline
 from ams_can_bridge.errors import ConfigError, ParamError
 from ams_can_bridge.offline.params_file import FileParams
 from ams_can_bridge.parameters import NODE_PARAMS

@@ -3,7 +3,7 @@
 """
 Which parameter sets the running bridge allows, what they change, and a command call's answer.
 
-engine/param_sets.py and engine/calls.py without rclpy: the node asks them on every set of
+engine/param_sets.py and engine/commands.py without rclpy: the node asks them on every set of
 a parameter and every command service call (test_param_service.py, test_lifecycle.py and
 test_commands_gate.py drive the same rules through ROS).
 """
@@ -17,7 +17,7 @@ import pytest
 
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.devices.commands import Command, EXCHANGE, TRIGGER
-from ams_can_bridge.engine.calls import Pipeline
+from ams_can_bridge.engine.commands import Pipeline
 from ams_can_bridge.engine.gate import arming_refused, CommandGate
 from ams_can_bridge.engine.param_sets import (apply_set, device_changes, INACTIVE_REFUSAL,
                                               RUN_TIME_SET, set_refusal)
@@ -138,7 +138,7 @@ def test_commands_enabled_goes_to_the_gate_naming_how_it_was_set(devices):
     assert not gate.enabled and heard == [True, False] and gate.changes == 2
 
 
-# --- a command service call (through the one pipeline, engine/calls.py) -----------------------
+# --- a command service call (through the one pipeline, engine/commands.py) -----------------------
 class NamingGate:
     """The gate's ``calling``: which service the thread answers meanwhile (commands on)."""
 

@@ -1,10 +1,10 @@
 # Copyright 2026 ams_can_bridge developers
 # SPDX-License-Identifier: Apache-2.0
-"""Periodic: tasks on one thread, each at its own period; stop() wakes and joins it at once."""
+"""TimerThread: tasks on one thread, each at its own period; stop() wakes and joins it at once."""
 import threading
 import time
 
-from ams_can_bridge.periodic import Periodic
+from ams_can_bridge.engine.timer import TimerThread
 from helpers import assert_ended, wait_for
 
 
@@ -14,7 +14,7 @@ def test_tasks_run_at_their_periods_and_a_failing_one_does_not_stop_the_others()
     def broken():
         raise RuntimeError('boom')
 
-    periodic = Periodic('test-periodic')
+    periodic = TimerThread('test-periodic')
     periodic.every(0.02, lambda: fast.append(time.monotonic()))
     periodic.every(0.1, lambda: slow.append(time.monotonic()))
     periodic.every(0.02, broken)
@@ -34,7 +34,7 @@ def test_tasks_run_at_their_periods_and_a_failing_one_does_not_stop_the_others()
 
 
 def test_stop_wakes_a_thread_whose_next_task_is_an_hour_away():
-    periodic = Periodic('test-periodic')
+    periodic = TimerThread('test-periodic')
     periodic.every(3600.0, lambda: None)
     periodic.start()
     thread = periodic._thread
@@ -47,7 +47,7 @@ def test_stop_wakes_a_thread_whose_next_task_is_an_hour_away():
 
 def test_restart_after_stop_and_stop_before_start():
     calls = []
-    periodic = Periodic('test-periodic')
+    periodic = TimerThread('test-periodic')
     periodic.every(0.02, lambda: calls.append(1))
     periodic.stop()  # never started: nothing to do
     for _ in range(2):
@@ -58,7 +58,7 @@ def test_restart_after_stop_and_stop_before_start():
 
 
 def test_stop_from_inside_a_task():
-    periodic = Periodic('test-periodic')
+    periodic = TimerThread('test-periodic')
     done = threading.Event()
     calls = []
 

@@ -5,7 +5,7 @@ python-can's BLF reader with a bound on what one log object may inflate to.
 
 python-can's ``BLFReader`` inflates each LOG_CONTAINER object whole (``zlib`` without a
 limit) and keeps an object cut at a container's end in a tail that grows with every
-following container: a 1 MB crafted ``.blf`` took log2bag to 2.1 GB (issue 34, 6). Loggers
+following container, so a small crafted ``.blf`` can take gigabytes of memory. Loggers
 write containers of 128 KiB inflated (python-can's writer, Vector's tools); this reader
 refuses, naming the file and the object's offset, a container that declares or inflates to
 more than ``MAX_OBJECT_BYTES``, and an object that does not end within that many bytes.

@@ -5,9 +5,9 @@ python-can's slcan bus, reading the serial port in blocks instead of one byte pe
 
 python-can 4.6's ``slcanBus._read`` calls ``serial.read(1)`` for every byte of a line: a
 frame of 27 characters costs about 54 system calls (pyserial selects, then reads) and as
-many trips through Python. That was ~200 us per frame on this machine and most of the
-bridge's CPU at full load. ``BulkReadSlcanBus`` takes everything the port has ready in one
-``read`` and hands the lines out of its buffer; what the adapter sends, how a line is
+many trips through Python, most of the bridge's CPU at full load (bench/README.md).
+``BulkReadSlcanBus`` takes everything the port has ready in one ``read`` and hands the
+lines out of its buffer; what the adapter sends, how a line is
 parsed, opening, writing, flushing and closing stay python-can's own code.
 
 Used for ``can.interface: slcan``; with ``can.slcan_bulk_read: false`` it reads with

@@ -4,7 +4,7 @@
 The AMS's command side without ROS: its command rows, its senders, the frames it sends.
 
 A mixin of ``AmsDevice`` (devices/ams.py), as ``IvtSControl`` is of the IVT-S: the rows the
-one command pipeline runs (engine/calls.py; devices/commands.py says what a row is), the
+one command pipeline runs (engine/commands.py; devices/commands.py says what a row is), the
 master role (heartbeat and car commands, devices/ams_master.py) and the charger role (START
 repeat and its ordering rule, devices/ams_charger.py), made by ``attach_senders``, and the
 frames built on the device's own codec.

@@ -1,12 +1,12 @@
 # Copyright 2026 ams_can_bridge developers
 # SPDX-License-Identifier: Apache-2.0
 """
-Per-device state, the contract between the protocol layer and the ROS node.
+Per-device state, the contract between the protocol layer and the engine.
 
-The receive thread calls ``Device.handle_frame`` for every frame of the device's IDs; it
-decodes (protocol layer), updates state under a lock and returns quickly. The executor asks
-for ``battery_report`` / ``diagnostic_report`` and turns them into ROS messages. No rclpy here:
-reports are plain dataclasses that mirror sensor_msgs/BatteryState and DiagnosticStatus.
+``Device.handle_frame`` runs on the receive thread for every frame of the device's IDs:
+it decodes, updates the state under the device's lock, returns quickly and never raises for
+bad input. The reports are plain dataclasses that mirror sensor_msgs/BatteryState and
+DiagnosticStatus; no rclpy here. The flow around them: doc/architecture.md, "Data".
 """
 from __future__ import annotations
 
@@ -187,7 +187,7 @@ class Device(Generic[ConfigT]):
     # value the user gave (the resolved instance shows in the diagnostics instead).
     LINKS: ClassVar[Mapping[str, str]] = {}
     # The command services of the type, one row each (devices/commands.py): what the one
-    # command pipeline (engine/calls.py) runs and the ROS adapter offers.
+    # command pipeline (engine/commands.py) runs and the ROS adapter offers.
     COMMANDS: ClassVar[tuple[Command, ...]] = ()
     # std_msgs/Float32 topics '<instance>/<suffix>' the engine emits for the type (a pack's)
     FIGURES: ClassVar[tuple[str, ...]] = ()
@@ -331,8 +331,7 @@ class Device(Generic[ConfigT]):
             reading = self.codec.decode(arbitration_id, data)
         except ProtocolError as exc:
             with self.lock:
-                self.frames_malformed += 1
-                self.last_malformed = str(exc)
+                self._count_malformed(str(exc))
             return False
         with self.lock:
             self.frames_received += 1
@@ -340,6 +339,11 @@ class Device(Generic[ConfigT]):
             if primary:
                 self.last_seen = self.clock()
             return primary
+
+    def _count_malformed(self, why: str) -> None:
+        """Count a malformed frame; ``why`` becomes 'last malformed frame' (lock held)."""
+        self.frames_malformed += 1
+        self.last_malformed = why
 
     def _handle(self, reading: Any, stamp: float) -> bool:
         raise NotImplementedError

@@ -5,14 +5,10 @@ What a device type declares about its commands: a table of rows, read by the one
 
 Each device class lists its commands in ``COMMANDS``, one :class:`Command` row each: the
 service name, what it does in words (a refusal says "to <what>"), the request kind (Trigger
-or SetBool), the device method the pipeline calls and the policy. The pipeline
-(``engine/calls.py``) does the rest for every row alike: it refuses while commands are
-disabled, calls the method, turns a deliberate refusal into the answer and a bug into an
-internal error, waits for the bus, sends under one batch and words the answer and the log
-line; the ROS adapter (``ros/services.py``) offers one service per row. Adding a command is
-one builder on the device and one row here.
+or SetBool), the device method the pipeline calls and the policy. What the pipeline does
+with a row: doc/architecture.md, "Commands".
 
-The policies:
+What each policy's method must return:
 
 - :class:`Frames`: the method builds the call's frames (a ``Frame`` or a list; it raises
   ``RefusedCommand`` / ``EncodeRangeError`` to refuse, before anything is sent); the pipeline

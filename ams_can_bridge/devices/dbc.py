@@ -148,8 +148,7 @@ class DbcDevice(Device[DbcConfig]):
             values, bad = compiled.decode(data)
         except ProtocolError as exc:
             with self.lock:
-                self.frames_malformed += 1
-                self.last_malformed = str(exc)
+                self._count_malformed(str(exc))
             return False
         now = self.clock()
         with self.lock:
@@ -198,9 +197,8 @@ class DbcDevice(Device[DbcConfig]):
         problems += [f'{label} flagged invalid' for flag, rule, label in flags
                      if values[flag] is not None and rule.invalid(values[flag])]
         if problems:
-            self.frames_malformed += 1
-            self.last_malformed = f'{compiled.name} 0x{arbitration_id:X}: ' + ', '.join(
-                problems)
+            self._count_malformed(f'{compiled.name} 0x{arbitration_id:X}: '
+                                  + ', '.join(problems))
 
     def _out_of_range(self, compiled: Any, m: int, i: int, data: bytes, now: float) -> str:
         """
@@ -290,7 +288,7 @@ class DbcDevice(Device[DbcConfig]):
         Tell whether every group heard of a message has come twice (lock held).
 
         A group (multiplexer value, position) not heard by then is missing: its sender is
-        silent, not late (issue 35.7).
+        silent, not late.
         """
         rate = self.rates[message]
         return bool(self.arrivals[message]) and rate[6] >= rate[5]

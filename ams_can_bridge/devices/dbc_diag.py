@@ -14,7 +14,8 @@ BatteryState stays honest (NaN) as before.
 
 A status carries at most VALUES_CAP signal values besides the mapped ones (the signals a
 field or level reads always stay, as do the level message and the counters): ``values: all``
-on a DBC of 800 signals would otherwise put ~50 KB in every /diagnostics message.
+on a DBC of hundreds of signals would otherwise put all of them in every /diagnostics
+message.
 """
 from __future__ import annotations
 

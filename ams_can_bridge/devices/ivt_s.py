@@ -177,8 +177,7 @@ class IvtSDevice(IvtSControl, Device[IvtSConfig]):
             answer = decode_answer(data)
         except ProtocolError as exc:
             with self.lock:
-                self.frames_malformed += 1
-                self.last_malformed = str(exc)
+                self._count_malformed(str(exc))
                 self.link.malformed += 1
             return False
         with self.lock:

@@ -7,7 +7,7 @@ Devices build their frames but never reach the bus themselves: the periodic send
 heartbeat, the charger START repeat, the SMA keep-alive) send through a ``SendFrame`` (the
 gate's ``send_periodic``), and a command the device runs itself (an IVT-S or EVMS3 exchange,
 the charger's start and stop) through a ``CallPort`` the command pipeline hands it
-(``engine/calls.py``). Typed here, as Protocols, so that devices import neither the engine nor
+(``engine/commands.py``). Typed here, as Protocols, so that devices import neither the engine nor
 ROS.
 """
 from __future__ import annotations
@@ -78,7 +78,7 @@ def cancel_reason(send: Any) -> str:
     Return why the call of ``send`` was ended ('' while it runs, or for a plain sender).
 
     A device waiting for an answer asks this every ``CANCEL_POLL`` s: a lifecycle
-    transition ends the calls in flight before it goes on (engine/calls.py).
+    transition ends the calls in flight before it goes on (engine/commands.py).
     """
     cancelled = getattr(send, 'cancelled', None)
     return str(cancelled()) if callable(cancelled) else ''

@@ -1,7 +1,7 @@
 # Copyright 2026 ams_can_bridge developers
 # SPDX-License-Identifier: Apache-2.0
 """
-How an SMA device reads 0x35F's Ah: the capacity, or the charge left (issue 35.1).
+How an SMA device reads 0x35F's Ah: the capacity, or the charge left.
 
 The evidence (``protocols.sma_capacity.decide_info_capacity``: 0x35F against SoC x 0x379)
 decides; a decision it settles is kept (a full pack later fits both); until then 0x35F is

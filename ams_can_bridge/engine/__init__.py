@@ -4,6 +4,6 @@
 The ROS-free core: what to emit and when (core), the command gate (gate).
 
 And the decisions of the node, which only adapts them to ROS: start-up checks (startup),
-the live engine's bus view and thread (live), parameter sets (param_sets), service answers
-(calls).
+the live engine's bus view (live) and its timer thread (timer), parameter sets
+(param_sets), command service calls (commands).
 """

@@ -3,12 +3,10 @@
 """
 The engine: every "what to emit, and when" decision of the bridge, without ROS.
 
-Data flows bus -> ``on_frame`` -> devices -> one snapshot of a primary frame -> ``Sink``.
-The engine also owns the periodic decisions: a ``present: false`` BatteryState every
-second while a device is silent, /diagnostics every ``diagnostics_period`` and early when
-a level changes (the watch), and the CAN bus report. The live node drives it with the
-monotonic clock and a thread of its own (``Periodic``); ``log2bag`` drives the same engine
-with the log's time (``Schedule``), so a bag holds what the live bridge publishes.
+``Engine.on_frame`` takes every frame and emits a primary frame's snapshot into the
+``Sink``; the periodic decisions (stale messages, /diagnostics, the bus report) run on the
+clock its caller gives: the live node's ``TimerThread``, or log2bag's ``Schedule``, so a
+bag holds what the live bridge publishes. The flow: doc/architecture.md, "Data".
 
 Threads (live): ``on_frame`` runs on the bus thread, the periodic work on another. A
 device's BatteryState is emitted under ``_emit``: a staleness check and its ``present:
@@ -37,9 +35,9 @@ MALFORMED_LOG_PERIOD = 5.0  # s between malformed-frame log lines per device
 STALE_PUBLISH_PERIOD = 1.0  # s, battery_state present:false while stale
 WATCH_PERIOD = 0.2  # s, how fast bus state / staleness transitions are noticed
 # s: a device that keeps taking frames has its level rebuilt at most this often by the watch
-# (a report costs 40-150 us; at full load every device changes every watch, and rebuilding
-# all five reports 5 times a second was a third of the bridge's own CPU). A staleness change
-# and the first frame after a quiet spell are still noticed at the next watch.
+# (a report is the watch's largest cost, and at full load every device changes between two
+# watches; bench/README.md). A staleness change and the first frame after a quiet spell are
+# still noticed at the next watch.
 LEVEL_RECHECK_PERIOD = 0.5
 
 

@@ -1,33 +1,20 @@
 # Copyright 2026 ams_can_bridge developers
 # SPDX-License-Identifier: Apache-2.0
 """
-The one command path: every frame the bridge sends passes this gate (no ROS here).
+The command gate: every frame the bridge sends passes it (no ROS here).
 
-``commands_allowed`` (read-only, from launch) and ``commands_enabled`` (set at run time) are
-the gate's; the command pipeline (engine/calls.py: every command service call, the EVMS3
-read-back and the IVT-S exchanges included) and the periodic senders (the AMS heartbeat, the
-charger repeat, the SMA keep-alive) reach the bus only through it (``CommandPort``):
-
-- ``transmit`` (a service call's frame): refused naming ``commands_enabled`` while disabled;
-  else waits (``wait=True``) up to ``can.connect_wait`` for a bus that is (re)opening, with
-  at most ``BUS_WAIT_SLOTS`` callers waiting; then sends under the batch lock, so it never
-  lands between two frames of another call's ``batch()``; logs ``<service>: ID#hex sent``
-  (or ``NOT sent: reason``) at INFO when it runs for a service call;
-- ``send_periodic`` (the heartbeat, the charger repeat, the keep-alive): the same gate, but
-  never waits, neither for the bus nor for a batch (a late heartbeat is a wrong heartbeat),
-  and is not logged per frame;
-- ``start_when_connected``: a periodic sender starts once the bus is connected, not before
-  (an slcan adapter opens in ~2 s: a heartbeat started at launch would drop its frames);
-- ``batch()``: hold the batch lock for the frames of one call (and its pacing);
-- ``add_listener``: told at once when commands are enabled or disabled, so everything that
-  transmits on its own stops on a disarm.
+``CommandGate`` holds ``commands_allowed`` (read-only, from launch) and ``commands_enabled``;
+the command pipeline (``transmit``: may wait for a reopening bus, logged per frame) and the
+periodic senders (``send_periodic``: never waits, not logged) reach the bus only through it,
+and once ``set_enabled(False)`` has returned no frame leaves. Where it sits and its locks:
+doc/architecture.md, "Commands"; doc/threads_and_locks.md.
 """
 from __future__ import annotations
 
 import logging
 import threading
 import time
-from contextlib import AbstractContextManager, contextmanager
+from contextlib import contextmanager
 from typing import Callable, Iterator, Protocol
 
 from ams_can_bridge.bus_state import BusStatus, RETRY_STATES
@@ -55,46 +42,6 @@ class BusPort(Protocol):
 
     def send(self, frame: Frame) -> None:
         """Send one frame; raise CanSendError when the bus or driver refuses."""
-
-
-class CommandPort(Protocol):
-    """The gate as the command pipeline and the periodic senders see it."""
-
-    @property
-    def enabled(self) -> bool:
-        """Tell whether commands are enabled now."""
-
-    @property
-    def allowed(self) -> bool:
-        """Tell whether commands may be enabled at all (set at launch)."""
-
-    def refusal(self, what: str) -> str:
-        """Return the answer to a command refused while disabled (names the parameters)."""
-
-    def wait_for_bus(self, limit: float | None = None) -> tuple[bool, str]:
-        """Wait for a (re)opening bus: (connected, why not)."""
-
-    def transmit(self, frame: Frame, *, wait: bool = True,
-                 source: str | None = None) -> tuple[bool, str]:
-        """Send one frame of a call: (ok, message)."""
-
-    def send_periodic(self, frame: Frame) -> tuple[bool, str]:
-        """Send one frame of a periodic sender, never waiting: (ok, message)."""
-
-    def end_waits(self) -> None:
-        """End every bus wait in flight now."""
-
-    def start_when_connected(self, start: Callable[[], None]) -> PendingStart:
-        """Call ``start`` once the bus is connected, while commands stay enabled."""
-
-    def batch(self) -> AbstractContextManager[None]:
-        """Hold the batch lock: no other call's frame goes out meanwhile."""
-
-    def add_listener(self, listener: Listener) -> None:
-        """Call listener(enabled) whenever commands_enabled changes."""
-
-    def remove_listener(self, listener: Listener) -> None:
-        """Stop calling listener."""
 
 
 def candump_text(frame: Frame) -> str:

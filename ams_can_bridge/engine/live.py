@@ -7,7 +7,7 @@ The node opens the bus (``CanIo``) in configure and closes it in cleanup; the en
 callbacks ask through ``BusView`` whether or not it is open. A closed bus reports
 ``stopped``; a message no frame stamps is stamped with the replayed log's time in a replay
 (so a replay's stale messages and diagnostics follow the recording), with the wall clock
-otherwise. The periodic work runs on one thread of its own (``Periodic``: see periodic.py
+otherwise. The periodic work runs on one thread of its own (``TimerThread``: see timer.py
 for why not executor timers), so an idle bridge wakes no executor at all; ``log2bag`` runs
 the same engine on the log's time instead (``engine.core.Schedule``).
 """
@@ -26,7 +26,7 @@ from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.engine.core import Engine, Sink
 from ams_can_bridge.engine.gate import CommandGate
 from ams_can_bridge.engine.startup import BusSettings
-from ams_can_bridge.periodic import Periodic
+from ams_can_bridge.engine.timer import TimerThread
 
 CLOCK_PERIOD = 0.01  # s between /clock messages of a replay (can.replay_clock)
 
@@ -125,7 +125,7 @@ def live_engine(device_set: DeviceSet, sink: Sink, settings: BusSettings, gate: 
                 diagnostics_period: float, on_bus_status: Callable[[BusStatus], None],
                 logger: Callable[[str], logging.Logger], thread_name: str,
                 on_replay_end: Callable[[], None] | None = None,
-                ) -> tuple[Engine, BusView, Periodic]:
+                ) -> tuple[Engine, BusView, TimerThread]:
     """
     Return the engine of a live bridge, its view of the bus, its periodic thread (stopped).
 
@@ -143,7 +143,7 @@ def live_engine(device_set: DeviceSet, sink: Sink, settings: BusSettings, gate: 
     engine = Engine(device_set, sink, status_prefix=status_prefix,
                     interface=settings.interface, bus_status=view.status, now=view.now,
                     bus_values=view.values, on_bus_status=on_bus_status, logger=engine_logger)
-    periodic = Periodic(thread_name, logger('periodic'))
+    periodic = TimerThread(thread_name, logger('periodic'))
     for period, call in engine.schedule(diagnostics_period):
         periodic.every(period, call)
     if settings.replay_clock:

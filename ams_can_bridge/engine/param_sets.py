@@ -16,7 +16,7 @@ from typing import Any, Mapping
 
 from ams_can_bridge.device_set import overlap_error, overlap_problems
 from ams_can_bridge.devices.base import Device
-from ams_can_bridge.engine.calls import Log
+from ams_can_bridge.engine.commands import Log
 from ams_can_bridge.engine.gate import CommandGate
 
 INACTIVE_REFUSAL = ('commands_enabled = true refused: the bridge is inactive (lifecycle): '

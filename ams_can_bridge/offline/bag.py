@@ -4,8 +4,8 @@
 A rosbag2 directory written with the ``rosbags`` library: no ROS install, no DDS.
 
 Messages are serialized from the same report fields as the live bridge's by the project's
-own CDR encoder (``cdr.py``, the bytes rclpy gives): rosbags' message objects and their
-serializer were a third of a conversion (issue 39). rosbags writes the bag and gives each
+own CDR encoder (``cdr.py``, the bytes rclpy gives), cheaper than rosbags' message objects
+and their serializer. rosbags writes the bag and gives each
 topic its Jazzy message definition.
 """
 from __future__ import annotations

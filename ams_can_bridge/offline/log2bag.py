@@ -3,13 +3,10 @@
 """
 ``log2bag``: a CAN log -> a rosbag2 of what the bridge would have published, offline.
 
-The log goes through the bridge's own engine (``engine/core.py``) with the same parameters
-file, and a bag sink writes what it emits: each primary frame becomes one
-``<device>/battery_state`` (and the device's arrays), a silent device gets its
-``present: false`` message every second, ``/diagnostics`` is written every
-``diagnostics_period`` and early on a level change. The engine's clock is the log time: every
-header stamp and bag time is the log's timestamp of the frame (the moment it was on the bus)
-or the log moment the periodic work was due, and staleness follows the recording.
+The log goes through the bridge's own engine with the same parameters file, on the log's
+time (``offline/converter.py``; doc/architecture.md, "Data"): the bag holds what the live
+bridge would have published, and every header stamp and bag time is the log's (the moment
+a frame was on the bus, or the log moment the periodic work was due).
 
 Frames before ``--start`` are decoded but not written (the first message in the window
 carries the state the bus had built up); reading stops at ``--end``. Both are seconds from

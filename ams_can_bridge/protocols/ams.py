@@ -325,7 +325,7 @@ def check_dbc() -> None:
 
 # --- decoding: generated from the table, checks included -------------------------------------
 # The bus thread decodes every AMS frame (about 60/s with 5 banks); the generated code reads
-# the bytes as hand code would (about 1 us a frame; cantools took 4-13 us).
+# the bytes as hand code would (several times faster than cantools: bench/README.md).
 _D_WORD = LAYOUTS[STATUS].decoder(*(s.name for s in _WORD), into=AmsStatusWord)
 # Status words seen so far, by the two bytes that carry them: a car sends a handful of
 # distinct words, and building a frozen dataclass costs more than decoding the rest.

@@ -194,7 +194,7 @@ SmaReading = Union[SmaLimits, SmaSoc, SmaBattery, SmaAlarms, SmaManufacturer, Sm
 
 
 ABSOLUTE_ZERO_C = -273.15
-# degC: no battery reads hotter (issue "Hardened", 26.7): 0x356 at 1,047.6 degC is garbage.
+# degC: no battery reads hotter: 0x356 at 1,047.6 degC is garbage.
 MAX_BATTERY_TEMPERATURE_C = 200.0
 _TEMPERATURE_CHECK = ('temperature {value:g} degC is outside {low:g}..{high:g} degC (below '
                       'absolute zero, or hotter than any battery)')

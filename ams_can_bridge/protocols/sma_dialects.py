@@ -32,8 +32,8 @@ VICTRON_PRODUCT_NAME_ID = 0x382
 # 0x373 carries whole kelvin; public encoders add 273 (diyBMS victron_message_373), the
 # bridge subtracts 273.15: the 0.15 K is below the 1 K step either way (section 5.4).
 KELVIN_OFFSET = 273.15
-MAX_TEMPERATURE_K = 473  # 199.85 degC: no battery cell reads hotter than 200 degC (26.7)
-MAX_CELL_V = 10.0  # no battery cell reads more (issue "Hardened", 26.7)
+MAX_TEMPERATURE_K = 473  # 199.85 degC: no battery cell reads hotter than 200 degC
+MAX_CELL_V = 10.0  # no battery cell reads more
 MAX_CELL_TEMPERATURE_C = 200.0
 
 # 0x359: condition (SMA name, as msg_defs/sma.dbc names it) -> byte of the alarm, bit; the

@@ -84,12 +84,10 @@ class StopSignals:
 
     Why not rclpy's own handlers: their helper thread triggers the executors' guard
     conditions from C while the main thread, already raising KeyboardInterrupt, destroys
-    that executor. About one stop in 30 with traffic ended in a segmentation fault (exit -11,
-    in a thread with no Python frame), and one in ~500 ended with exit 0 but without the
-    start-up summary: the KeyboardInterrupt had been raised inside the node's constructor,
-    so the node was never destroyed and the bus never closed. Here a signal only sets a flag:
-    the node is always built whole, then torn down in order (420 stops under traffic in
-    test_bridge_slcan/test_bridge_signals, none failed; ~1 in 20 did before).
+    that executor (a segmentation fault in a thread with no Python frame), and a
+    KeyboardInterrupt raised inside the node's constructor leaves the node never destroyed
+    and the bus never closed. Here a signal only sets a flag: the node is always built
+    whole, then torn down in order (test_bridge_slcan, test_bridge_signals).
     """
 
     SIGNALS = (signal.SIGINT, signal.SIGTERM)

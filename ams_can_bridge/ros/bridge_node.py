@@ -3,13 +3,8 @@
 """
 The ``bridge`` node: the ROS adapter of the engine, its parameters and its services.
 
-A thin rclpy LifecycleNode; every decision is made below ``ros/``, without ROS: the start-up
-checks, errors and summary (``engine/startup.py``), the engine, its bus and its periodic
-thread (``engine/live.py``, ``engine/core.py``: a primary frame is published on the bus
-thread, so the executor runs only the services), which parameter sets are allowed and what
-they change (``engine/param_sets.py``), the transmit gate (``engine/gate.py``), every
-command's walk from its row to the bus (``engine/calls.py``) and the periodic senders that
-follow the gate (``engine/commands.py``). Here: the lifecycle, the parameter declarations
+A thin rclpy LifecycleNode: every decision is made in ``engine/``, without ROS
+(doc/architecture.md, "Layout"). Here: the lifecycle, the parameter declarations
 (``ros/params.py``), the publishers (``ros/sink.py``) and one service per command row
 (``ros/services.py``), in ``service_group`` (a call may wait).
 """

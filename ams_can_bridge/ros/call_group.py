@@ -5,8 +5,8 @@ The command services' callback group: never all executor threads, and known when
 
 The executor has 4 threads (``bridge_main.EXECUTOR_THREADS``). A command call may wait for
 seconds (the bus, an answer of the device), so if commands could take every thread, a
-parameter set (a disarm) or a lifecycle transition would wait behind them (issue 34, point
-2). This group lets at most ``COMMAND_THREADS`` command callbacks run at once: one thread
+parameter set (a disarm) or a lifecycle transition would wait behind them. This
+group lets at most ``COMMAND_THREADS`` command callbacks run at once: one thread
 always stays for the node's own services. A further call is taken when one of them returns
 (rclpy asks the group before it takes a request), and most are answered at once anyway: a
 call that would wait for the bus beyond the gate's ``BUS_WAIT_SLOTS`` is refused, never
@@ -14,7 +14,7 @@ queued.
 
 A transition that destroys the services first waits until no callback of the group runs
 (``wait_idle``): rclpy answers a request after its callback returned, with the service's
-handle, and a service destroyed in between ends the executor (``InvalidHandle``, point 3).
+handle, and a service destroyed in between ends the executor (``InvalidHandle``).
 rclpy's handler calls ``ending_execution`` only after the answer was sent.
 """
 from __future__ import annotations

@@ -67,7 +67,7 @@ def multi_array(rows: int, cols: int, data: list[float],
 @functools.lru_cache(maxsize=64)
 def _layout(rows: int, cols: int, labels: tuple[str, str]) -> MultiArrayLayout:
     # One layout object per shape, shared by every message of that shape (publishing only
-    # reads it): building the dimension messages was a third of a multi_array's cost.
+    # reads it): building the dimension messages was much of a multi_array's cost.
     return MultiArrayLayout(dim=[MultiArrayDimension(label=label, size=size, stride=stride)
                                  for label, size, stride in reports.array_dims(rows, cols,
                                                                                labels)],

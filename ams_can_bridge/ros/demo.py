@@ -194,7 +194,7 @@ def _run(args: argparse.Namespace, stop: threading.Event) -> int:
         print(f'demo: the bridge cannot start: {exc}', file=sys.stderr)
         return 2
     # The view watches the demo's own bridge only: its namespace (demo_<pid> by default)
-    # keeps it apart from any other bridge on this ROS domain (issue 38.3).
+    # keeps it apart from any other bridge on this ROS domain.
     watcher = BridgeWatcher(namespace=args.namespace, bridge_node=NODE_NAME, devices=DEVICES,
                             title=f'ams_can_bridge demo /{args.namespace}',
                             node_name='ams_can_bridge_demo_view')

@@ -8,8 +8,8 @@ bags); this module checks them against rclpy's serialization at start.
 
 Every second the bridge publishes ~340 key/value pairs. Through rclpy that costs two
 passes over Python objects: building a KeyValue per pair, then rclpy converting each back
-into C strings to serialize them (~1 us a pair, measured: the DDS write of the 13 kB result
-takes 3 us). About three quarters of the pairs are unchanged from one second to the next,
+into C strings to serialize them (far more than the DDS write of the result:
+bench/README.md). About three quarters of the pairs are unchanged from one second to the next,
 so this encoder keeps the serialized bytes of each (status, key) with its value and joins
 them, re-encoding only what changed.
 
@@ -22,8 +22,7 @@ another encoding), the node publishes the message objects as before.
 
 The same holds, for the same reason, for each primary frame's BatteryState and arrays
 (``battery_state``, ``multi_array``; ``check_telemetry()``): rclpy's conversion of the
-message objects was most of a publish (~12 us; the DDS write of the bytes ~3 us) and most
-of the code a cold publish runs.
+message objects was most of a publish and most of the code a cold publish runs.
 """
 from __future__ import annotations
 

@@ -5,7 +5,7 @@ A bad request is answered, never fatal: the services rclpy makes for the node it
 
 rclpy runs a service callback on the executor: an exception out of it ends the executor's
 spin, the bridge exits 1 and an armed AMS heartbeat stops. The device command services
-are answered by ``engine/calls.py``; the services rclpy creates for every node (parameters,
+are answered by ``engine/commands.py``; the services rclpy creates for every node (parameters,
 lifecycle, type description) are wrapped here once the node exists (``guard_services``):
 
 - ``change_state`` with a transition the current state does not have (configure sent to

@@ -3,10 +3,9 @@
 """
 Periodic work on one plain thread, off the ROS executor.
 
-rclpy's executors rebuild their wait set on every wake-up, which on a small computer costs
-more than the work a 5 Hz watch does: an idle bridge spent most of its CPU there. One
-thread that sleeps until the next task is due costs a few microseconds per wake-up instead,
-and leaves the executor asleep until a service is called.
+rclpy's executors rebuild their wait set on every wake-up, which costs more than the work
+a 5 Hz watch does. One thread that sleeps until the next task is due wakes for the task
+alone, and leaves the executor asleep until a service is called.
 """
 from __future__ import annotations
 
@@ -20,7 +19,7 @@ from ams_can_bridge.errors import ConfigError
 _ERROR_LOG_EVERY = 5.0  # s between log lines for a task that keeps failing
 
 
-class Periodic:
+class TimerThread:
     """Run callbacks, each every its own period (no drift), on one thread until stopped."""
 
     def __init__(self, name: str, logger: logging.Logger | None = None) -> None:
@@ -30,7 +29,7 @@ class Periodic:
         self._tasks: list[list] = []  # [next due (monotonic), period, callback, last log]
         # Held while the thread runs; stop() releases it to wake the thread at once. A plain
         # lock's timed acquire is one call; an Event's wait builds a Condition waiter each
-        # time (measured under load: ~20 us more CPU per wake-up).
+        # time (more CPU per wake-up: bench/README.md).
         self._wake = threading.Lock()
         self._stopping = True
         self._thread: threading.Thread | None = None
