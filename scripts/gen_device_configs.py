@@ -43,13 +43,13 @@ from ams_can_bridge.devices.config import DeviceConfig
 
 
 def device_classes() -> list[Any]:
-    """Return every Device class of the registry (types and variants), in registry order."""
-    from ams_can_bridge import registry
+    """Return every Device class of the built-in types (and variants), in their order."""
+    # the built-in ones only: a plugin installed beside this package writes its own Config
+    from ams_can_bridge.devices.builtin import BUILT_IN
     found: list[Any] = []
-    for device_type in registry.DEVICE_TYPES:
-        variants = registry.VARIANTS.get(device_type) or {None: None}
-        for variant in variants:
-            cls = registry.device_class(device_type, variant)
+    for descriptor in BUILT_IN:
+        for variant in descriptor.variant_names or (None,):
+            cls = descriptor.device_class(variant)
             if cls not in found:
                 found.append(cls)
     return found
