@@ -18,21 +18,24 @@ AMS = DeviceType(
     protocol='ams_can_bridge.protocols.ams',
     # the AMS goes first so the IVT-S can measure its pack (simulator)
     simulator='ams_can_bridge.sim.ams:AmsSimulator',
-    recognisers=('ams_can_bridge.probe.ams:recognise',))
+    recognisers=('ams_can_bridge.probe.ams:recognise',),
+    simulated_by_default=True)
 
 IVT_S = DeviceType(
     name='ivt_s', rank=1,
     device='ams_can_bridge.devices.ivt_s:IvtSDevice',
     protocol='ams_can_bridge.protocols.ivt_s',
     simulator='ams_can_bridge.sim.ivt_s:IvtSSimulator',
-    recognisers=('ams_can_bridge.probe.ivt_s:recognise',))
+    recognisers=('ams_can_bridge.probe.ivt_s:recognise',),
+    simulated_by_default=True)
 
 EVMS3 = DeviceType(
     name='evms3', rank=2,
     device='ams_can_bridge.devices.evms3:Evms3Device',
     protocol='ams_can_bridge.protocols.evms3',
     simulator='ams_can_bridge.sim.evms3:Evms3Simulator',
-    recognisers=('ams_can_bridge.probe.evms3:recognise',))
+    recognisers=('ams_can_bridge.probe.evms3:recognise',),
+    simulated_by_default=True)
 
 # BMS16: 'inverter' = the 11-bit / 500 kbit/s units "intended for CAN integration with
 # inverters" (doc/protocols.md section 4), 'standard' = the EVMS3 protocol (section 6).
@@ -42,6 +45,7 @@ BMS16 = DeviceType(
     protocol='ams_can_bridge.protocols.bms16',
     simulator='ams_can_bridge.sim.bms16:Bms16Simulator',
     recognisers=('ams_can_bridge.probe.bms16:recognise',),
+    simulated_by_default=True,
     variants=(
         Variant('inverter', 'ams_can_bridge.devices.bms16:Bms16Device',
                 'ams_can_bridge.sim.bms16:Bms16Simulator'),
@@ -60,7 +64,8 @@ SMA = DeviceType(
     simulator='ams_can_bridge.sim.sma:SmaSimulator',
     # sma_voltage refines the sma candidate: the 0x356 voltage scale from the limits
     recognisers=('ams_can_bridge.probe.sma:recognise',
-                 'ams_can_bridge.probe.sma_voltage:recognise'))
+                 'ams_can_bridge.probe.sma_voltage:recognise'),
+    simulated_by_default=True)
 
 # dbc: a team's own BMS from its DBC (--dbc/--mapping), not in the simulator's default set;
 # probe recognises the shipped profiles (they leave a device of the bridge its IDs).
@@ -69,14 +74,12 @@ DBC = DeviceType(
     device='ams_can_bridge.devices.dbc:DbcDevice',
     protocol='ams_can_bridge.protocols.dbc_codec',
     simulator='ams_can_bridge.sim.dbc:DbcSimulator',
-    recognisers=('ams_can_bridge.probe.profiles:recognise',),
-    simulated_by_default=False)
+    recognisers=('ams_can_bridge.probe.profiles:recognise',))
 
 # pack: several members' reports combined; nothing on the bus of its own.
 PACK = DeviceType(
     name='pack', rank=6,
     device='ams_can_bridge.devices.pack.device:PackDevice',
-    protocol='',  # no wire format: it reads its members' reports
-    simulated_by_default=False)
+    protocol='')  # no wire format: it reads its members' reports
 
 BUILT_IN = (AMS, IVT_S, EVMS3, BMS16, SMA, DBC, PACK)

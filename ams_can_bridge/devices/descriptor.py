@@ -51,7 +51,8 @@ class DeviceType:
     ``(traffic, found so far) -> new candidates``, run in the types' order. ``variants``:
     the wire forms of a type with several (the first is the default; ``device`` and
     ``simulator`` name the default's classes), described by ``variant_help``.
-    ``simulated_by_default``: the ``simulator`` runs it when ``--devices`` is not given.
+    ``simulated_by_default``: the ``simulator`` runs it when ``--devices`` is not given (off
+    unless said: installing a plugin does not change what ``simulator`` alone sends).
     ``rank`` orders the types (the built-in ones first; a plugin's default comes after them,
     then by name): the order of every list above, and the simulator's start order.
     """
@@ -63,7 +64,7 @@ class DeviceType:
     recognisers: tuple[str, ...] = ()
     variants: tuple[Variant, ...] = ()
     variant_help: str = ''
-    simulated_by_default: bool = True
+    simulated_by_default: bool = False
     rank: int = 1000
 
     def variant(self, name: str) -> Variant:
