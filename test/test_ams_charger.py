@@ -9,8 +9,8 @@ two services run one at a time, and the repeat has ended before the STOP is sent
 import threading
 import time
 
-from ams_can_bridge.devices.ams import AmsDevice
-from ams_can_bridge.devices.ams_charger import CHARGER_COMMAND_PERIOD, ChargerRepeater
+from ams_can_bridge.devices.ams.device import AmsDevice
+from ams_can_bridge.devices.ams.charger import CHARGER_COMMAND_PERIOD, ChargerRepeater
 from helpers import wait_for
 
 

@@ -6,7 +6,7 @@ import math
 import pytest
 
 from ams_can_bridge import registry
-from ams_can_bridge.devices.ams import AmsDevice
+from ams_can_bridge.devices.ams.device import AmsDevice
 from ams_can_bridge.devices.base import Level, PowerSupplyHealth, PowerSupplyStatus
 from ams_can_bridge.devices.ivt_s import IvtSDevice
 from ams_can_bridge.errors import RefusedCommand

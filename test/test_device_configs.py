@@ -88,7 +88,7 @@ def test_an_unknown_key_is_refused_by_name():
 
 
 def test_a_device_refuses_the_configuration_of_another_type():
-    from ams_can_bridge.devices.ams import AmsDevice
+    from ams_can_bridge.devices.ams.device import AmsDevice
     assert AmsDevice('pack', AmsConfig(bank_count=2)).bank_count == 2
     with pytest.raises(ConfigError,
                        match='AmsDevice is configured by AmsConfig, not by a IvtSConfig'):

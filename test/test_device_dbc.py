@@ -16,7 +16,7 @@ import cantools
 import pytest
 
 from ams_can_bridge.device_set import DeviceSet
-from ams_can_bridge.devices.ams import AmsDevice
+from ams_can_bridge.devices.ams.device import AmsDevice
 from ams_can_bridge.devices.base import Level, PowerSupplyHealth, PowerSupplyStatus
 from ams_can_bridge.devices.dbc import DbcDevice
 from ams_can_bridge.errors import ConfigError

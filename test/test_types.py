@@ -12,7 +12,7 @@ ROOT = Path(__file__).resolve().parent.parent
 # What the package's typing must keep catching: a configuration read of a parameter that does
 # not exist, a value of the wrong type, and a codec without decode.
 SEAMS = '''
-from ams_can_bridge.devices.ams import AmsDevice
+from ams_can_bridge.devices.ams.device import AmsDevice
 from ams_can_bridge.devices.base import Codec
 from ams_can_bridge.devices.evms3 import Evms3Device
 

@@ -14,7 +14,7 @@ from ams_can_bridge.devices.descriptor import DeviceType, Variant
 
 AMS = DeviceType(
     name='ams', rank=0,
-    device='ams_can_bridge.devices.ams:AmsDevice',
+    device='ams_can_bridge.devices.ams.device:AmsDevice',
     protocol='ams_can_bridge.protocols.ams',
     # the AMS goes first so the IVT-S can measure its pack (simulator)
     simulator='ams_can_bridge.sim.ams:AmsSimulator',

@@ -16,13 +16,13 @@ from __future__ import annotations
 
 from typing import Sequence, TYPE_CHECKING
 
-from ams_can_bridge.devices.ams_values import diagnostic_values
+from ams_can_bridge.devices.ams.values import diagnostic_values
 from ams_can_bridge.devices.base import DiagnosticReport, Level, PowerSupplyHealth
 from ams_can_bridge.protocols import ams as proto
 from ams_can_bridge.protocols.ams import AmsError, AmsState
 
 if TYPE_CHECKING:  # ams.py imports this module
-    from ams_can_bridge.devices.ams import AmsDevice
+    from ams_can_bridge.devices.ams.device import AmsDevice
 
 ERROR_STATES = (AmsState.ERROR, AmsState.CHARGE_ERROR)
 HEALTH_OF_ERROR = {

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 from ams_can_bridge.protocols.ams import AmsState, CarCommand
 
 if TYPE_CHECKING:  # the master imports this module; the view is only a type here
-    from ams_can_bridge.devices.ams_master import AmsView
+    from ams_can_bridge.devices.ams.master import AmsView
 
 # State command -> (the state it is given in, every state it can still succeed from): the
 # state itself, the target already reached, and PRECHARGING on the way to TS_ACTIVE.

@@ -28,10 +28,10 @@ import math
 import time
 from typing import Any, Callable, Iterable, Mapping
 
-from ams_can_bridge.devices.ams_charger import ChargerRepeater
-from ams_can_bridge.devices.ams_control import AmsControl
-from ams_can_bridge.devices.ams_master import AmsMaster, AmsView
-from ams_can_bridge.devices.ams_status import (diagnostic_report, ERROR_STATES, error_text,
+from ams_can_bridge.devices.ams.charger import ChargerRepeater
+from ams_can_bridge.devices.ams.control import AmsControl
+from ams_can_bridge.devices.ams.master import AmsMaster, AmsView
+from ams_can_bridge.devices.ams.status import (diagnostic_report, ERROR_STATES, error_text,
                                                health)
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, PowerSupplyStatus)

@@ -14,8 +14,8 @@ from __future__ import annotations
 import time
 from typing import Callable, ClassVar
 
-from ams_can_bridge.devices.ams_charger import ChargerRepeater
-from ams_can_bridge.devices.ams_master import AmsMaster, AmsView
+from ams_can_bridge.devices.ams.charger import ChargerRepeater
+from ams_can_bridge.devices.ams.master import AmsMaster, AmsView
 from ams_can_bridge.devices.base import Sent
 from ams_can_bridge.devices.commands import (CARRIED, Carry, Command, EXCHANGE_BUS_FIRST,
                                              ONCE, TRIGGER)

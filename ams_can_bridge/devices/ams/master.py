@@ -39,7 +39,7 @@ import time
 from dataclasses import dataclass
 from typing import Callable
 
-from ams_can_bridge.devices.ams_preconditions import precondition_refusal
+from ams_can_bridge.devices.ams.preconditions import precondition_refusal
 from ams_can_bridge.devices.commands import CommandResult
 from ams_can_bridge.protocols.ams import AmsState, CarCommand
 from ams_can_bridge.devices.periodic_sender import PeriodicSender
