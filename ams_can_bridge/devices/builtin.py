@@ -23,7 +23,7 @@ AMS = DeviceType(
 
 IVT_S = DeviceType(
     name='ivt_s', rank=1,
-    device='ams_can_bridge.devices.ivt_s:IvtSDevice',
+    device='ams_can_bridge.devices.ivt_s.device:IvtSDevice',
     protocol='ams_can_bridge.protocols.ivt_s',
     simulator='ams_can_bridge.sim.ivt_s:IvtSSimulator',
     recognisers=('ams_can_bridge.probe.ivt_s:recognise',),

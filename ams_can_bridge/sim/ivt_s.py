@@ -22,7 +22,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Callable, Mapping
 
-from ams_can_bridge.devices.ivt_s_control import DISABLED_CYCLE_MS
+from ams_can_bridge.devices.ivt_s.control import DISABLED_CYCLE_MS
 from ams_can_bridge.protocols import ivt_s_commands as cmd
 from ams_can_bridge.errors import ProtocolError
 from ams_can_bridge.protocols.common import Frame

@@ -14,10 +14,10 @@ from dataclasses import replace
 import threading
 from typing import Any, Callable, ClassVar, Iterable
 
-from ams_can_bridge.devices import ivt_s_commands as seq
+from ams_can_bridge.devices.ivt_s import exchanges as seq
 from ams_can_bridge.devices.commands import Command, EXCHANGE, SET_BOOL, TRIGGER
 from ams_can_bridge.devices.configs import IvtSConfig
-from ams_can_bridge.devices.ivt_s_commands import config_problems, NoAnswer
+from ams_can_bridge.devices.ivt_s.exchanges import config_problems, NoAnswer
 from ams_can_bridge.devices.ports import SendFrame
 from ams_can_bridge.errors import RefusedCommand
 from ams_can_bridge.protocols.ivt_s import DBC_NAME, IvtMux

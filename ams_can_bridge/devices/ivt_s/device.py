@@ -31,8 +31,8 @@ from typing import Any, Callable, Mapping
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, Level, PowerSupplyHealth, Sent)
 from ams_can_bridge.devices.configs import IvtSConfig
-from ams_can_bridge.devices.ivt_s_commands import CommandLink
-from ams_can_bridge.devices.ivt_s_control import CYCLE_KEYS, ERROR_MASKS_KEY, IvtSControl
+from ams_can_bridge.devices.ivt_s.exchanges import CommandLink
+from ams_can_bridge.devices.ivt_s.control import CYCLE_KEYS, ERROR_MASKS_KEY, IvtSControl
 from ams_can_bridge.devices.timed import CounterHealth, TimedStore
 from ams_can_bridge.errors import ParamError, ProtocolError
 from ams_can_bridge.parameters import ParamSpec
