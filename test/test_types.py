@@ -14,7 +14,7 @@ ROOT = Path(__file__).resolve().parent.parent
 SEAMS = '''
 from ams_can_bridge.devices.ams.device import AmsDevice
 from ams_can_bridge.devices.base import Codec
-from ams_can_bridge.devices.evms3 import Evms3Device
+from ams_can_bridge.devices.evms3.device import Evms3Device
 
 
 def banks(device: AmsDevice) -> int:

@@ -31,7 +31,7 @@ IVT_S = DeviceType(
 
 EVMS3 = DeviceType(
     name='evms3', rank=2,
-    device='ams_can_bridge.devices.evms3:Evms3Device',
+    device='ams_can_bridge.devices.evms3.device:Evms3Device',
     protocol='ams_can_bridge.protocols.evms3',
     simulator='ams_can_bridge.sim.evms3:Evms3Simulator',
     recognisers=('ams_can_bridge.probe.evms3:recognise',),

@@ -28,10 +28,10 @@ from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, Level, PowerSupplyStatus, Sent)
 from ams_can_bridge.devices.config import ConfigFields
 from ams_can_bridge.devices.configs import Evms3Config
-from ams_can_bridge.devices.evms3_health import (
+from ams_can_bridge.devices.evms3.health import (
     error_health, error_text, WRITABLE_STATES)
-from ams_can_bridge.devices.evms3_peers import Bms12Module, Chargers
-from ams_can_bridge.devices.evms3_readback import ConfigReader, read_back, ReadResult
+from ams_can_bridge.devices.evms3.peers import Bms12Module, Chargers
+from ams_can_bridge.devices.evms3.readback import ConfigReader, read_back, ReadResult
 from ams_can_bridge.devices.commands import (Command, EXCHANGE, Frames, ONCE, SET_BOOL,
                                              TRIGGER)
 from ams_can_bridge.devices.ports import CallPort, SendFrame
