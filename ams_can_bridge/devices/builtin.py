@@ -41,15 +41,15 @@ EVMS3 = DeviceType(
 # inverters" (doc/protocols.md section 4), 'standard' = the EVMS3 protocol (section 6).
 BMS16 = DeviceType(
     name='bms16', rank=3,
-    device='ams_can_bridge.devices.bms16:Bms16Device',
+    device='ams_can_bridge.devices.bms16.inverter:Bms16Device',
     protocol='ams_can_bridge.protocols.bms16',
     simulator='ams_can_bridge.sim.bms16:Bms16Simulator',
     recognisers=('ams_can_bridge.probe.bms16:recognise',),
     simulated_by_default=True,
     variants=(
-        Variant('inverter', 'ams_can_bridge.devices.bms16:Bms16Device',
+        Variant('inverter', 'ams_can_bridge.devices.bms16.inverter:Bms16Device',
                 'ams_can_bridge.sim.bms16:Bms16Simulator'),
-        Variant('standard', 'ams_can_bridge.devices.bms16_std:Bms16StdDevice',
+        Variant('standard', 'ams_can_bridge.devices.bms16.standard:Bms16StdDevice',
                 'ams_can_bridge.sim.bms16_std:Bms16StdSimulator'),
     ),
     variant_help=('wire form of the BMS16: inverter (11-bit, 500 kbit/s, IDs 500.. and the SMA '
