@@ -59,7 +59,7 @@ BMS16 = DeviceType(
 
 SMA = DeviceType(
     name='sma', rank=4,
-    device='ams_can_bridge.devices.sma:SmaDevice',
+    device='ams_can_bridge.devices.sma.device:SmaDevice',
     protocol='ams_can_bridge.protocols.sma',
     simulator='ams_can_bridge.sim.sma:SmaSimulator',
     # sma_voltage refines the sma candidate: the 0x356 voltage scale from the limits

@@ -22,7 +22,7 @@ from ams_can_bridge.devices.base import (
 from ams_can_bridge.devices.commands import Command, ONCE, TRIGGER
 from ams_can_bridge.devices.config import ConfigFields
 from ams_can_bridge.devices.configs import Bms16Config
-from ams_can_bridge.devices.sma import sma_values
+from ams_can_bridge.devices.sma.device import sma_values
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
 from ams_can_bridge.errors import MalformedFrameError, ParamError
 from ams_can_bridge.parameters import config_param_specs

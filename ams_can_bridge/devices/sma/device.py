@@ -39,10 +39,10 @@ from typing import Any, Callable, Hashable, Iterable, Mapping
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyHealth, Sent)
 from ams_can_bridge.devices.configs import SmaConfig
-from ams_can_bridge.devices.sma_capacity import capacity_values, InfoCapacity
-from ams_can_bridge.devices.sma_keepalive import InverterKeepalive, KEEPALIVE_PERIOD
-from ams_can_bridge.devices.sma_values import fmt, sma_values
-from ams_can_bridge.devices.sma_voltage import AUTO, SCALE_CHOICES, ScaleInUse, VoltageScale
+from ams_can_bridge.devices.sma.capacity import capacity_values, InfoCapacity
+from ams_can_bridge.devices.sma.keepalive import InverterKeepalive, KEEPALIVE_PERIOD
+from ams_can_bridge.devices.sma.values import fmt, sma_values
+from ams_can_bridge.devices.sma.voltage import AUTO, SCALE_CHOICES, ScaleInUse, VoltageScale
 from ams_can_bridge.devices.timed import TimedStore
 from ams_can_bridge.errors import ParamError
 from ams_can_bridge.parameters import coerce, ParamSpec
