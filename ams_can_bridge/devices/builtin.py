@@ -71,7 +71,7 @@ SMA = DeviceType(
 # probe recognises the shipped profiles (they leave a device of the bridge its IDs).
 DBC = DeviceType(
     name='dbc', rank=5,
-    device='ams_can_bridge.devices.dbc:DbcDevice',
+    device='ams_can_bridge.devices.dbc.device:DbcDevice',
     protocol='ams_can_bridge.protocols.dbc_codec',
     simulator='ams_can_bridge.sim.dbc:DbcSimulator',
     recognisers=('ams_can_bridge.probe.profiles:recognise',))

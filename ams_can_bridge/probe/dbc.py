@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 import os
 import re
 
-from ams_can_bridge.devices.dbc_mapping import load_plan
-from ams_can_bridge.devices.dbc_plan import MappingError, Plan, resolve_path
+from ams_can_bridge.devices.dbc.mapping import load_plan
+from ams_can_bridge.devices.dbc.plan import MappingError, Plan, resolve_path
 from ams_can_bridge.errors import ConfigError, MalformedFrameError
 from ams_can_bridge.probe.dbc_publish import read_back, say_published, timeouts_setting
 from ams_can_bridge.probe.evidence import Candidate, stale_setting

@@ -16,8 +16,8 @@ import math
 from typing import Any
 
 from ams_can_bridge.devices.base import BatteryReport
-from ams_can_bridge.devices.dbc import DbcDevice
-from ams_can_bridge.devices.dbc_plan import ARRAY_LABELS, LEARNED_PERIODS, Plan
+from ams_can_bridge.devices.dbc.device import DbcDevice
+from ams_can_bridge.devices.dbc.plan import ARRAY_LABELS, LEARNED_PERIODS, Plan
 from ams_can_bridge.probe.evidence import Candidate
 from ams_can_bridge.probe.traffic import Traffic
 

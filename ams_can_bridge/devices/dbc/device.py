@@ -26,13 +26,14 @@ from ams_can_bridge.devices.base import (
     BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyHealth,
     PowerSupplyStatus)
 from ams_can_bridge.devices.configs import DbcConfig
-from ams_can_bridge.devices.dbc_describe import start_lines
-from ams_can_bridge.devices.dbc_diag import capped_values, listed, missing_report, WARNINGS_CAP
-from ams_can_bridge.devices.dbc_mapping import given_timeouts, load_plan
-from ams_can_bridge.devices.dbc_plan import (
+from ams_can_bridge.devices.dbc.describe import start_lines
+from ams_can_bridge.devices.dbc.diagnostics import (
+    capped_values, listed, missing_report, WARNINGS_CAP)
+from ams_can_bridge.devices.dbc.mapping import given_timeouts, load_plan
+from ams_can_bridge.devices.dbc.plan import (
     Array, Enum, FlagRule, LEARNED_PERIODS, MappingError, OUTLIER, Plan, Ref, Scalar)
-from ams_can_bridge.devices.dbc_profiles import PROFILES
-from ams_can_bridge.devices.dbc_units import unit_text
+from ams_can_bridge.devices.dbc.profiles import PROFILES
+from ams_can_bridge.devices.dbc.units import unit_text
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
 from ams_can_bridge.errors import ConfigError, ProtocolError
 from ams_can_bridge.protocols import dbc_codec
