@@ -15,8 +15,8 @@ import time
 
 import pytest
 
-from ams_can_bridge.devices import periodic_sender
-from ams_can_bridge.devices.periodic_sender import PeriodicSender, SlotSchedule
+from ams_can_bridge.devices import sender_thread as periodic_sender
+from ams_can_bridge.devices.sender_thread import PeriodicSender, SlotSchedule
 from ams_can_bridge.protocols.common import Frame
 from helpers import assert_ended, wait_for
 

@@ -27,7 +27,7 @@ import threading
 import time
 from typing import Callable
 
-from ams_can_bridge.devices.periodic_sender import PeriodicSender
+from ams_can_bridge.devices.sender_thread import PeriodicSender
 from ams_can_bridge.devices.ports import CallPort, InfoLog, SendFrame
 from ams_can_bridge.protocols.ams import ChargerStart
 from ams_can_bridge.protocols.common import Frame

@@ -42,7 +42,7 @@ from typing import Callable
 from ams_can_bridge.devices.ams.preconditions import precondition_refusal
 from ams_can_bridge.devices.commands import CommandResult
 from ams_can_bridge.protocols.ams import AmsState, CarCommand
-from ams_can_bridge.devices.periodic_sender import PeriodicSender
+from ams_can_bridge.devices.sender_thread import PeriodicSender
 from ams_can_bridge.devices.ports import SendFrame
 from ams_can_bridge.protocols.common import Frame
 

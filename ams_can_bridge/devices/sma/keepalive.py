@@ -20,7 +20,7 @@ from __future__ import annotations
 import threading
 from typing import Callable
 
-from ams_can_bridge.devices.periodic_sender import PeriodicSender
+from ams_can_bridge.devices.sender_thread import PeriodicSender
 from ams_can_bridge.devices.ports import SendFrame
 from ams_can_bridge.protocols.common import Frame
 
