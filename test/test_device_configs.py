@@ -12,10 +12,10 @@ from pathlib import Path
 
 import pytest
 
-from ams_can_bridge.devices import configs
+from ams_can_bridge.devices import generated_configs as configs
 from ams_can_bridge.devices.base import device_params
 from ams_can_bridge.devices.config import DeviceConfig, field_name
-from ams_can_bridge.devices.configs import AmsConfig, Evms3Config, IvtSConfig
+from ams_can_bridge.devices.generated_configs import AmsConfig, Evms3Config, IvtSConfig
 from ams_can_bridge.errors import ConfigError, ParamError
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -34,9 +34,9 @@ DEVICE_CLASSES = GEN.device_classes()
 
 
 def test_the_generated_file_is_what_the_parameter_tables_give():
-    current = (ROOT / 'ams_can_bridge' / 'devices' / 'configs.py').read_text()
+    current = (ROOT / 'ams_can_bridge' / 'devices' / 'generated_configs.py').read_text()
     assert current == GEN.render(), (
-        'ams_can_bridge/devices/configs.py is out of date with the ParamSpecs: run '
+        'ams_can_bridge/devices/generated_configs.py is out of date with the ParamSpecs: run '
         '.venv/bin/python scripts/gen_device_configs.py')
 
 

@@ -68,4 +68,4 @@ def test_a_configuration_class_name_means_one_class(name):
     # the wire forms in protocols/ are ...Settings; ...Config is the device's parameters
     found = [p.relative_to(ROOT) for p in (ROOT / 'ams_can_bridge').rglob('*.py')
              if f'class {name}(' in p.read_text() or f'class {name}:' in p.read_text()]
-    assert found == [Path('ams_can_bridge/devices/configs.py')], found
+    assert found == [Path('ams_can_bridge/devices/generated_configs.py')], found

@@ -19,7 +19,7 @@ from ams_can_bridge.devices.ams.master import AmsMaster, AmsView
 from ams_can_bridge.devices.base import Sent
 from ams_can_bridge.devices.commands import (CARRIED, Carry, Command, EXCHANGE_BUS_FIRST,
                                              ONCE, TRIGGER)
-from ams_can_bridge.devices.configs import AmsConfig
+from ams_can_bridge.devices.generated_configs import AmsConfig
 from ams_can_bridge.devices.ports import Armed, CallPort, InfoLog, SendFrame
 from ams_can_bridge.errors import RefusedCommand
 from ams_can_bridge.parameters import ParamSpec

@@ -35,7 +35,7 @@ from ams_can_bridge.devices.ams.status import (diagnostic_report, ERROR_STATES, 
                                                health)
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, PowerSupplyStatus)
-from ams_can_bridge.devices.configs import AmsConfig
+from ams_can_bridge.devices.generated_configs import AmsConfig
 from ams_can_bridge.devices.timed import CounterHealth, TimedSpans, TimedStore
 from ams_can_bridge.parameters import ParamSpec
 from ams_can_bridge.protocols import ams as proto

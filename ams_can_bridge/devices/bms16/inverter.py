@@ -21,7 +21,7 @@ from ams_can_bridge.devices.base import (
     BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyHealth, Sent)
 from ams_can_bridge.devices.commands import Command, ONCE, TRIGGER
 from ams_can_bridge.devices.config import ConfigFields
-from ams_can_bridge.devices.configs import Bms16Config
+from ams_can_bridge.devices.generated_configs import Bms16Config
 from ams_can_bridge.devices.sma.device import sma_values
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
 from ams_can_bridge.errors import MalformedFrameError, ParamError

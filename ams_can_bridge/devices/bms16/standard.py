@@ -20,7 +20,7 @@ from ams_can_bridge.devices.base import (
     BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyStatus, Sent)
 from ams_can_bridge.devices.commands import Command, Frames, ONCE, TRIGGER
 from ams_can_bridge.devices.config import ConfigFields
-from ams_can_bridge.devices.configs import Bms16StdConfig
+from ams_can_bridge.devices.generated_configs import Bms16StdConfig
 from ams_can_bridge.devices.evms3.health import error_health, error_text
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
 from ams_can_bridge.errors import RefusedCommand

@@ -25,7 +25,7 @@ from typing import Any, Callable, Iterable, Mapping
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyHealth,
     PowerSupplyStatus)
-from ams_can_bridge.devices.configs import DbcConfig
+from ams_can_bridge.devices.generated_configs import DbcConfig
 from ams_can_bridge.devices.dbc.describe import start_lines
 from ams_can_bridge.devices.dbc.diagnostics import (
     capped_values, listed, missing_report, WARNINGS_CAP)

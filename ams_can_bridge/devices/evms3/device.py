@@ -27,7 +27,7 @@ from typing import Any, Callable, Iterable, Mapping
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, Level, PowerSupplyStatus, Sent)
 from ams_can_bridge.devices.config import ConfigFields
-from ams_can_bridge.devices.configs import Evms3Config
+from ams_can_bridge.devices.generated_configs import Evms3Config
 from ams_can_bridge.devices.evms3.health import (
     error_health, error_text, WRITABLE_STATES)
 from ams_can_bridge.devices.evms3.peers import Bms12Module, Chargers

@@ -16,7 +16,7 @@ from typing import Any, Callable, ClassVar, Iterable
 
 from ams_can_bridge.devices.ivt_s import exchanges as seq
 from ams_can_bridge.devices.commands import Command, EXCHANGE, SET_BOOL, TRIGGER
-from ams_can_bridge.devices.configs import IvtSConfig
+from ams_can_bridge.devices.generated_configs import IvtSConfig
 from ams_can_bridge.devices.ivt_s.exchanges import config_problems, NoAnswer
 from ams_can_bridge.devices.ports import SendFrame
 from ams_can_bridge.errors import RefusedCommand

@@ -30,7 +30,7 @@ from typing import Any, Callable, Mapping
 
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, DiagnosticReport, Device, Level, PowerSupplyHealth, Sent)
-from ams_can_bridge.devices.configs import IvtSConfig
+from ams_can_bridge.devices.generated_configs import IvtSConfig
 from ams_can_bridge.devices.ivt_s.exchanges import CommandLink
 from ams_can_bridge.devices.ivt_s.control import CYCLE_KEYS, ERROR_MASKS_KEY, IvtSControl
 from ams_can_bridge.devices.timed import CounterHealth, TimedStore

@@ -38,7 +38,7 @@ from typing import Any, Callable, Hashable, Iterable, Mapping
 
 from ams_can_bridge.devices.base import (
     BatteryReport, current_status, Device, DiagnosticReport, Level, NAN, PowerSupplyHealth, Sent)
-from ams_can_bridge.devices.configs import SmaConfig
+from ams_can_bridge.devices.generated_configs import SmaConfig
 from ams_can_bridge.devices.sma.capacity import capacity_values, InfoCapacity
 from ams_can_bridge.devices.sma.keepalive import InverterKeepalive, KEEPALIVE_PERIOD
 from ams_can_bridge.devices.sma.values import fmt, sma_values
