@@ -25,7 +25,7 @@ assert names == ["ams", "bms16", "evms3", "ivt_s", "sma"], names
 for n in names:
     assert load_dbc(n).messages
 from ams_can_bridge.devices.dbc.device import DbcDevice
-from ams_can_bridge.devices.dbc.profiles import PROFILES, profile_files
+from ams_can_bridge.protocols.dbc_profiles import PROFILES, profile_files
 for p in PROFILES:  # the dbc profiles: installed beside msg_defs, found, loading
     dbc, mapping = profile_files(p)
     assert Path(sys.argv[1]) in dbc.parents, f"profile {p} found at {dbc}"

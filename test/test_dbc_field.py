@@ -20,7 +20,7 @@ import pytest
 
 from ams_can_bridge.devices.base import Level, PowerSupplyHealth
 from ams_can_bridge.devices.dbc.device import DbcDevice
-from ams_can_bridge.devices.dbc.profiles import profile_files, PROFILES
+from ams_can_bridge.protocols.dbc_profiles import profile_files, PROFILES
 from helpers import Clock
 
 FIXTURES = Path(__file__).resolve().parent / 'fixtures'

@@ -15,7 +15,7 @@ from typing import Any, Sequence
 
 from ams_can_bridge import registry
 from ams_can_bridge.can_io import parse_options
-from ams_can_bridge.devices.dbc.profiles import PROFILES
+from ams_can_bridge.protocols.dbc_profiles import PROFILES
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols.sma import SMA_CONDITIONS
 from ams_can_bridge.sim.base import SimDevice

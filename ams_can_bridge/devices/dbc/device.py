@@ -32,7 +32,7 @@ from ams_can_bridge.devices.dbc.diagnostics import (
 from ams_can_bridge.devices.dbc.mapping import given_timeouts, load_plan
 from ams_can_bridge.devices.dbc.plan import (
     Array, Enum, FlagRule, LEARNED_PERIODS, MappingError, OUTLIER, Plan, Ref, Scalar)
-from ams_can_bridge.devices.dbc.profiles import PROFILES
+from ams_can_bridge.protocols.dbc_profiles import PROFILES
 from ams_can_bridge.devices.dbc.units import unit_text
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
 from ams_can_bridge.errors import ConfigError, ProtocolError

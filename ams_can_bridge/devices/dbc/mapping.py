@@ -26,7 +26,7 @@ from ams_can_bridge.devices.dbc.builder import Builder
 from ams_can_bridge.devices.dbc.plan import (
     Array, ARRAY_UNITS, base_unit, Enum, ENUMS, FIELD_BOUNDS, locate, MappingError,
     MIN_TIMEOUT, Plan, Ref, Scalar, SCALAR_UNITS, TIMEOUT_PERIODS, TOP_LEVEL)
-from ams_can_bridge.devices.dbc.profiles import profile_files
+from ams_can_bridge.protocols.dbc_profiles import profile_files
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.input_files import file_problem, load_yaml
 from ams_can_bridge.protocols import dbc_codec
