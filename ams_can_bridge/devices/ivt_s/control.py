@@ -21,14 +21,12 @@ from ams_can_bridge.devices.ivt_s.exchanges import config_problems, NoAnswer
 from ams_can_bridge.devices.ports import SendFrame
 from ams_can_bridge.errors import RefusedCommand
 from ams_can_bridge.protocols.ivt_s import DBC_NAME, IvtMux
-from ams_can_bridge.protocols.ivt_s_commands import CYCLE_MAX_MS, ResultConfig, TriggerMode
+from ams_can_bridge.protocols.ivt_s_commands import (
+    CYCLE_MAX_MS, DISABLED_CYCLE_MS, ResultConfig, TriggerMode)
 
 # The config.<result>_cycle_ms parameter of each result (DBC result names, lower case).
 CYCLE_KEYS = {kind: f'config.{DBC_NAME[kind].lower()}_cycle_ms' for kind in IvtMux}
 ERROR_MASKS_KEY = 'config.error_masks'  # byte 1 bit 5 of every result (global); unset: kept
-# ivts' example writes a disabled result with a non-zero time ("must have some non-zero
-# value to avoid message error"): a result switched off keeps this cycle time.
-DISABLED_CYCLE_MS = 60
 
 
 def _whole_ms(value: Any) -> int | None:
