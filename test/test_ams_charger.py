@@ -3,7 +3,7 @@
 """
 The charger role's START (base + 0x010) without ROS: repeat, halt, disarm, bus down, order.
 
-The ordering rule (no START ever after a STOP) is the device's (devices/ams_charger.py): its
+The ordering rule (no START ever after a STOP) is the device's (devices/ams/charger.py): its
 two services run one at a time, and the repeat has ended before the STOP is sent.
 """
 import threading

@@ -125,6 +125,6 @@ def test_a_node_with_only_a_bms16_imports_no_other_devices_code():
                          timeout=120, check=True).stdout
     loaded = eval(out)  # noqa: S307 (a list printed by the child)
     assert 'ams_can_bridge.devices.bms16.inverter' in loaded
-    # (the BMS16 also speaks SMA: devices.sma is its own code too)
+    # (the BMS16 also speaks SMA: devices.sma.device is its own code too)
     for other in ('ams', 'ivt_s', 'evms3', 'dbc', 'bms16.standard', 'pack.device'):
         assert f'ams_can_bridge.devices.{other}' not in loaded, loaded

@@ -3,7 +3,7 @@
 """
 Any BMS from its DBC and mapping (``--dbc FILE --mapping FILE``; doc/protocols.md section 8).
 
-The mapping names the messages the dbc device reads (``devices.dbc_mapping.load_plan``, the
+The mapping names the messages the dbc device reads (``devices.dbc.mapping.load_plan``, the
 device's own check of both files). Each of them is looked for by ID: heard, with a length
 the DBC message fits in, and with values inside the signals' DBC ranges (the compiled
 decoder the device uses says which are not). The primary message must be among them: it

@@ -3,10 +3,10 @@
 """
 The AMS's command side without ROS: its command rows, its senders, the frames it sends.
 
-A mixin of ``AmsDevice`` (devices/ams.py), as ``IvtSControl`` is of the IVT-S: the rows the
+A mixin of ``AmsDevice`` (devices/ams/device.py), as ``IvtSControl`` is of the IVT-S: the rows the
 one command pipeline runs (engine/calls.py; devices/commands.py says what a row is), the
-master role (heartbeat and car commands, devices/ams_master.py) and the charger role (START
-repeat and its ordering rule, devices/ams_charger.py), made by ``attach_senders``, and the
+master role (heartbeat and car commands, devices/ams/master.py) and the charger role (START
+repeat and its ordering rule, devices/ams/charger.py), made by ``attach_senders``, and the
 frames built on the device's own codec.
 """
 from __future__ import annotations

@@ -3,7 +3,7 @@
 """
 What an AMS's state means: its power_supply_health, its diagnostic level and message.
 
-Split from ``devices/ams.py`` (the frames, the banks, the IVT-S link and the command side),
+Split from ``devices/ams/device.py`` (the frames, the banks, the IVT-S link and the command side),
 which keeps the state; this reads it and holds none of its own. Called with the device lock
 held (``_battery_report``, ``_diagnostic_report``).
 

@@ -3,11 +3,11 @@
 """
 The checks of each entry of a dbc mapping, collecting every problem instead of stopping.
 
-``devices.dbc_mapping`` walks the file (its top-level keys, primary, timeouts) and hands each
+``devices.dbc.mapping`` walks the file (its top-level keys, primary, timeouts) and hands each
 entry to a ``Builder``: a "Message.signal" reference (the closest names when it is not in the
 DBC; a broken message or a duplicated name refused; the unit converted to what the field
 wants), a BatteryState scalar or enum, a diagnostics level or value list. Arrays are
-``devices.dbc_arrays``'. doc/protocols.md section 8 holds the rules.
+``devices.dbc.arrays``'. doc/protocols.md section 8 holds the rules.
 """
 from __future__ import annotations
 

@@ -3,14 +3,14 @@
 """
 Any BMS from its DBC: a team's DBC and a short mapping -> BatteryState and diagnostics.
 
-doc/protocols.md section 8, doc/own_bms.md. The mapping (``devices.dbc_mapping``)
+doc/protocols.md section 8, doc/own_bms.md. The mapping (``devices.dbc.mapping``)
 is checked whole at start; the device consumes exactly the messages it references. Each
 frame is decoded by the compiled decoder of its message (``protocols.dbc_codec``) and kept
 whole, with the time it came, as its *group* (a multiplexed message: one group per
 multiplexer value). Every group expires on its own after its message's timeout (the
 mapping's, else a few DBC periods, else ``stale_timeout``): its values are unknown (NaN)
 again, never an old number shown as live, and the device WARNs naming what is missing
-(``devices.dbc_diag``). A frame of the primary message makes one BatteryState; while it is
+(``devices.dbc.diagnostics``). A frame of the primary message makes one BatteryState; while it is
 silent the device is STALE as every other device.
 
 A value outside its DBC [min|max], or an element whose validity flag says invalid, is NaN

@@ -11,7 +11,7 @@ must be set, array templates must resolve, map keys must be value names (VAL_) o
 Units come from the DBC and are converted to what BatteryState wants (``dbc_units``).
 
 This module finds and reads the two files and walks the mapping's structure; the checks of
-each entry are ``devices.dbc_builder``'s and ``devices.dbc_arrays``'.
+each entry are ``devices.dbc.builder``'s and ``devices.dbc.arrays``'.
 """
 from __future__ import annotations
 

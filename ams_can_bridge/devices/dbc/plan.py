@@ -3,7 +3,7 @@
 """
 The checked form of a dbc device's mapping (``Plan``) and the tables it is checked with.
 
-``devices.dbc_mapping`` builds a Plan from a DBC and a mapping file; ``devices.dbc`` and
+``devices.dbc.mapping`` builds a Plan from a DBC and a mapping file; ``devices.dbc.device`` and
 ``sim.dbc`` use it. doc/protocols.md section 8 lists the units and the rules.
 """
 from __future__ import annotations
@@ -40,7 +40,7 @@ TIMEOUT_PERIODS = 5
 MIN_TIMEOUT = 0.1  # s
 # ... and never below LEARNED_PERIODS x the period it is heard at (a vendor's utility may set
 # a slower rate than its DBC says); an interval OUTLIER x the period so far is a pause, not a
-# new rate (devices.dbc DbcDevice._learn).
+# new rate (devices.dbc.device DbcDevice._learn).
 LEARNED_PERIODS = 3
 OUTLIER = 4.0
 

@@ -3,8 +3,8 @@
 """
 IVT-S device side of the command services: the rows, the configuration wanted, the checks.
 
-A mixin of ``IvtSDevice`` (devices/ivt_s.py): it uses the device's lock, configuration,
-``link`` (the 0x511 answers, devices/ivt_s_commands.py) and result tracks. No rclpy; the
+A mixin of ``IvtSDevice`` (devices/ivt_s/device.py): it uses the device's lock, configuration,
+``link`` (the 0x511 answers, devices/ivt_s/exchanges.py) and result tracks. No rclpy; the
 command pipeline (engine/calls.py) calls these methods with a ``send`` (its ``CallPort``)
 that applies the gate and waits for the bus.
 """

@@ -14,7 +14,7 @@ else the interval observed between its frames) and never before ``stale_timeout`
 the sensor sends every second is not "stopped" because the current comes every 10 ms. The
 current itself, the primary frame, expires after ``stale_timeout`` like the device.
 
-The sensor's configuration is read and written over 0x411/0x511 (devices/ivt_s_commands.py),
+The sensor's configuration is read and written over 0x411/0x511 (devices/ivt_s/exchanges.py),
 only from the command services; the answers, whoever asked, show in the diagnostics.
 
 Sign: on the wire the current is positive in whichever direction the shunt is mounted for;

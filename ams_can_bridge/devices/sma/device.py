@@ -9,12 +9,12 @@ sma_voltage.py: unknown until the battery's 0x351 tells). SoC comes from 0x355 (
 high-resolution SoC only where it agrees with the integer one: real BMSs put zeros there),
 capacity from 0x35F (0 = not sent: then Victron's installed capacity 0x379), and charge =
 capacity x SoC while both are known and fresh (NaN otherwise); where the battery's evidence
-says 0x35F is the charge left (it agrees with SoC x 0x379: devices/sma_capacity.py), the
+says 0x35F is the charge left (it agrees with SoC x 0x379: devices/sma/capacity.py), the
 charge is 0x35F and the capacity 0x379. The wire current is already
 positive while charging, the ROS sign. "Not available" markers become NaN.
 
 Commands: the only frame this device sends is the inverter keep-alive 0x305
-(``inverter_keepalive``, devices/sma_keepalive.py), while commands are enabled.
+(``inverter_keepalive``, devices/sma/keepalive.py), while commands are enabled.
 
 Dialects (``protocols.sma_dialects``): Pylontech-style BMSs send their alarms in 0x359
 instead of 0x35A; an active 0x359 alarm is ERROR and a warning WARN, exactly as in 0x35A,
@@ -90,7 +90,7 @@ GROUP_IDS: dict[Hashable, int] = {
 IDENTITY_GROUPS = frozenset({SmaManufacturer, SmaBatteryInfo, (VictronBmsName, 1),
                              (VictronBmsName, 2), VictronEnergy, VictronInstalledCapacity,
                              VictronProductName})
-# What tells the 0x356 voltage scale (devices/sma_voltage.py)
+# What tells the 0x356 voltage scale (devices/sma/voltage.py)
 EVIDENCE = (SmaBattery, SmaLimits, VictronCellExtremes, PylontechCellExtremes)
 ALARM_GROUPS = (SmaAlarms, PylontechAlarms)
 
@@ -244,7 +244,7 @@ class SmaDevice(Device[SmaConfig]):
             report.capacity = report.design_capacity = capacity
             # Remaining Ah only where both are known and fresh: NaN times anything is NaN.
             report.charge = report.capacity * report.percentage
-        if charge is not None:  # 0x35F is the charge left (devices/sma_capacity.py)
+        if charge is not None:  # 0x35F is the charge left (devices/sma/capacity.py)
             report.charge = charge
         if any(k in readings for k in ALARM_GROUPS):
             report.power_supply_health = self._health(readings)

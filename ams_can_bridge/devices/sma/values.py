@@ -4,7 +4,7 @@
 The SMA family's diagnostics values: every decoded field of 0x351..0x382, as text.
 
 Shared by the sma device and the BMS16 (its SMA frames, with a prefix). The readings are
-kept by ``devices.sma.group_key``: a reading's type, with the part / kind for Victron texts.
+kept by ``devices.sma.device.group_key``: a reading's type, with the part / kind for Victron texts.
 """
 from __future__ import annotations
 
