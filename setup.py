@@ -43,5 +43,16 @@ setup(
             'probe = ams_can_bridge.probe.main:main',
             'bridgectl = ams_can_bridge.ros.bridgectl:main',
         ],
+        # Device types (registry.py reads this group; another package adds its own the same
+        # way: doc/new_device.md).
+        'ams_can_bridge.devices': [
+            'ams = ams_can_bridge.devices.builtin:AMS',
+            'ivt_s = ams_can_bridge.devices.builtin:IVT_S',
+            'evms3 = ams_can_bridge.devices.builtin:EVMS3',
+            'bms16 = ams_can_bridge.devices.builtin:BMS16',
+            'sma = ams_can_bridge.devices.builtin:SMA',
+            'dbc = ams_can_bridge.devices.builtin:DBC',
+            'pack = ams_can_bridge.devices.builtin:PACK',
+        ],
     },
 )

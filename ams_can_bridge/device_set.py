@@ -116,6 +116,8 @@ class DeviceSet:
             device_type = declare(f'{name}.type', type_spec)
         except ParamError:
             device_type = None
+        if isinstance(device_type, str) and device_type in registry.BROKEN:
+            raise ConfigError(f'{name}.type: {registry.unknown(device_type)}')
         if device_type not in registry.DEVICE_TYPES:
             raise ConfigError(
                 f'{name}.type: unknown device type for instance {name!r}; set {name}.type to '

@@ -1,86 +1,120 @@
 # Copyright 2026 ams_can_bridge developers
 # SPDX-License-Identifier: Apache-2.0
 """
-Where each device type lives: its state class (with its command rows) and its simulator.
+Which device types are installed: the descriptors under the entry-point group.
 
-Lazy 'module:Class' strings, so importing the registry costs nothing and a node that only
-listens to a BMS16 never imports the AMS code.
+Every package (this one included, setup.py) registers its device types under the Python
+entry-point group ``ams_can_bridge.devices``: ``<type name> = package.module:DESCRIPTOR``, a
+:class:`~ams_can_bridge.devices.descriptor.DeviceType`. They are read once, at import, with
+importlib.metadata; loading one imports only its descriptor's module (the classes are lazy
+'module:Class' strings), so a node that only listens to a BMS16 never imports the AMS code.
+
+A plugin that fails to load (its module raises, the entry point names no DeviceType, or a
+name taken already) is no crash: it is left out, logged as a warning, and named in the error
+of an instance that asks for it. The tables below (``DEVICE_TYPES``, ``DEVICES``,
+``SIMULATORS``, ``VARIANTS``, ``VARIANT_HELP``) are views of the descriptors.
 """
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from importlib.metadata import entry_points, EntryPoint
+import logging
+from typing import Any, Iterable
 
+from ams_can_bridge.devices.builtin import BUILT_IN
+from ams_can_bridge.devices.descriptor import DeviceType, ENTRY_POINT_GROUP, load
 from ams_can_bridge.errors import ConfigError
 
-DEVICE_TYPES = ('ams', 'ivt_s', 'evms3', 'bms16', 'sma', 'dbc', 'pack')
+__all__ = ['BROKEN', 'DESCRIPTORS', 'DEVICE_TYPES', 'DEVICES', 'SIMULATORS', 'VARIANTS',
+           'VARIANT_HELP', 'descriptor', 'device_class', 'discover', 'load', 'simulator_class']
 
-DEVICES = {
-    'ams': 'ams_can_bridge.devices.ams:AmsDevice',
-    'ivt_s': 'ams_can_bridge.devices.ivt_s:IvtSDevice',
-    'evms3': 'ams_can_bridge.devices.evms3:Evms3Device',
-    'bms16': 'ams_can_bridge.devices.bms16:Bms16Device',
-    'sma': 'ams_can_bridge.devices.sma:SmaDevice',
-    'dbc': 'ams_can_bridge.devices.dbc:DbcDevice',
-    'pack': 'ams_can_bridge.devices.pack.device:PackDevice',
-}
 
-SIMULATORS = {
-    'ams': 'ams_can_bridge.sim.ams:AmsSimulator',
-    'ivt_s': 'ams_can_bridge.sim.ivt_s:IvtSSimulator',
-    'evms3': 'ams_can_bridge.sim.evms3:Evms3Simulator',
-    'bms16': 'ams_can_bridge.sim.bms16:Bms16Simulator',
-    'sma': 'ams_can_bridge.sim.sma:SmaSimulator',
-    'dbc': 'ams_can_bridge.sim.dbc:DbcSimulator',
-}
+Discovered = tuple[dict[str, DeviceType], dict[str, str]]
 
+
+def discover(found: Iterable[EntryPoint],
+             built_in: Iterable[DeviceType] = BUILT_IN) -> Discovered:
+    """
+    Load the descriptors of the entry points: ({name: descriptor} in order, {name: why not}).
+
+    The built-in descriptors are always there (a source checkout may run without installed
+    metadata); an entry point naming one of them again (this package's own registration, or
+    two installs on the path) adds nothing. Order: ``rank``, then name.
+    """
+    types = {d.name: d for d in built_in}
+    broken: dict[str, str] = {}
+    for point in found:
+        if point.name in broken:
+            continue
+        origin = f'entry point {point.name} = {point.value}' + (
+            f' (distribution {point.dist.name})' if point.dist is not None else '')
+        try:
+            loaded = point.load()
+        except Exception as exc:  # any plugin bug: reported, never a crash of the bridge
+            broken[point.name] = f'{origin} failed to load: {type(exc).__name__}: {exc}'
+            continue
+        if not isinstance(loaded, DeviceType):
+            broken[point.name] = (f'{origin} is a {type(loaded).__name__}, not an '
+                                  'ams_can_bridge.devices.descriptor.DeviceType')
+        elif loaded.name != point.name:
+            broken[point.name] = (f'{origin} names its DeviceType {loaded.name!r}: the entry '
+                                  'point and the descriptor must have the same name')
+        elif point.name in types:
+            if types[point.name] == loaded:  # registered twice (this package's own, two paths)
+                continue
+            if _is_built_in(point.name, built_in):
+                broken[point.name] = (f'{origin}: {point.name!r} is a built-in device type; '
+                                      'give the plugin a name of its own')
+            else:  # two plugins of one name: neither is trusted
+                broken[point.name] = f'{origin}: another installed package has that name too'
+                del types[point.name]
+        else:
+            types[point.name] = loaded
+    ordered = dict(sorted(types.items(), key=lambda item: (item[1].rank, item[0])))
+    for name, why in broken.items():
+        logging.getLogger(__name__).warning('device type %r not available: %s', name, why)
+    return ordered, broken
+
+
+def _is_built_in(name: str, built_in: Iterable[DeviceType]) -> bool:
+    return any(d.name == name for d in built_in)
+
+
+DESCRIPTORS, BROKEN = discover(entry_points(group=ENTRY_POINT_GROUP))
+DEVICE_TYPES = tuple(DESCRIPTORS)
+DEVICES = {name: d.device for name, d in DESCRIPTORS.items()}
+SIMULATORS = {name: d.simulator for name, d in DESCRIPTORS.items() if d.simulator is not None}
 # Device types with more than one wire form: '<name>.variant' picks the device and simulator
 # classes (the first variant is the default; DEVICES / SIMULATORS name the default's classes).
-# BMS16: 'inverter' = the 11-bit / 500 kbit/s units "intended for CAN integration with
-# inverters" (doc/protocols.md section 4), 'standard' = the EVMS3 protocol (section 6).
-VARIANTS = {
-    'bms16': {
-        'inverter': ('ams_can_bridge.devices.bms16:Bms16Device',
-                     'ams_can_bridge.sim.bms16:Bms16Simulator'),
-        'standard': ('ams_can_bridge.devices.bms16_std:Bms16StdDevice',
-                     'ams_can_bridge.sim.bms16_std:Bms16StdSimulator'),
-    },
-}
+VARIANTS = {name: {v.name: (v.device, v.simulator) for v in d.variants}
+            for name, d in DESCRIPTORS.items() if d.variants}
 # The description of '<name>.variant' (ros2 param describe, the parameter reference).
-VARIANT_HELP = {
-    'bms16': ('wire form of the BMS16: inverter (11-bit, 500 kbit/s, IDs 500.. and the SMA '
-              'frames; doc/protocols.md section 4) or standard (BMS16v2 standard form: EVMS3 '
-              'protocol, 29-bit, 250 kbit/s; section 6), which has its own base_id default '
-              'and config.* parameters'),
-}
+VARIANT_HELP = {name: d.variant_help for name, d in DESCRIPTORS.items() if d.variant_help}
 
 
-def load(path: str) -> Any:
-    """Import 'package.module:Name' and return Name."""
-    module, _, name = path.partition(':')
-    return getattr(importlib.import_module(module), name)
+def unknown(device_type: str) -> str:
+    """Return why a device type is not there: the installed ones, or its plugin's failure."""
+    if device_type in BROKEN:
+        return f'device type {device_type!r} is installed but unusable: {BROKEN[device_type]}'
+    return (f'unknown device type {device_type!r}: use one of ' + ', '.join(DEVICE_TYPES)
+            + ' (the installed ones: entry points of the group ' + ENTRY_POINT_GROUP + ')')
+
+
+def descriptor(device_type: str) -> DeviceType:
+    """Return the descriptor of a device type, with a clear error if it is not installed."""
+    if device_type not in DESCRIPTORS:
+        raise ConfigError(unknown(device_type))
+    return DESCRIPTORS[device_type]
 
 
 def device_class(device_type: str, variant: str | None = None) -> Any:
     """Return the Device subclass for a type (and variant), with a clear error if unknown."""
-    if device_type not in DEVICES:
-        raise ConfigError(f'unknown device type {device_type!r}: use one of '
-                          + ', '.join(DEVICE_TYPES))
-    if variant is None:
-        return load(DEVICES[device_type])
-    return load(_variant(device_type, variant)[0])
+    return descriptor(device_type).device_class(variant)
 
 
 def simulator_class(device_type: str, variant: str | None = None) -> Any:
     """Return the simulator class for a type (and variant)."""
-    if variant is None:
-        return load(SIMULATORS[device_type])
-    return load(_variant(device_type, variant)[1])
-
-
-def _variant(device_type: str, variant: str) -> tuple[str, str]:
-    variants = VARIANTS.get(device_type, {})
-    if variant not in variants:
-        raise ConfigError(f'{device_type} has no variant {variant!r}'
-                          + (': use one of ' + ', '.join(variants) if variants else ''))
-    return variants[variant]
+    cls = descriptor(device_type).simulator_class(variant)
+    if cls is None:
+        raise ConfigError(f'device type {device_type!r} has no simulator: simulate one of '
+                          + ', '.join(SIMULATORS))
+    return cls

@@ -22,8 +22,8 @@ import statistics
 import time
 from pathlib import Path
 
-from ams_can_bridge.devices.ams import AmsDevice
-from ams_can_bridge.devices.dbc import DbcDevice
+from ams_can_bridge.devices.ams.device import AmsDevice
+from ams_can_bridge.devices.dbc.device import DbcDevice
 from ams_can_bridge.protocols.common import load_dbc
 from ams_can_bridge.sim.ams import AmsSimulator
 

@@ -19,7 +19,7 @@ import statistics
 import tempfile
 import time
 
-from ams_can_bridge.devices.dbc_profiles import PROFILES
+from ams_can_bridge.protocols.dbc_profiles import PROFILES
 from ams_can_bridge.offline.log2bag import convert
 from ams_can_bridge.probe.output import render
 from ams_can_bridge.probe.recognise import recognise

@@ -24,14 +24,24 @@ names = sorted(p.stem for p in d.glob("*.dbc"))
 assert names == ["ams", "bms16", "evms3", "ivt_s", "sma"], names
 for n in names:
     assert load_dbc(n).messages
-from ams_can_bridge.devices.dbc import DbcDevice
-from ams_can_bridge.devices.dbc_profiles import PROFILES, profile_files
+from ams_can_bridge.devices.dbc.device import DbcDevice
+from ams_can_bridge.protocols.dbc_profiles import PROFILES, profile_files
 for p in PROFILES:  # the dbc profiles: installed beside msg_defs, found, loading
     dbc, mapping = profile_files(p)
     assert Path(sys.argv[1]) in dbc.parents, f"profile {p} found at {dbc}"
     assert (dbc.parent / "README.md").is_file() and mapping.is_file()
     assert DbcDevice("pack", {"profile": p}).plan.messages, p
-print("msg_defs at", d, "; profiles", ", ".join(PROFILES))
+# the device types: registered as entry points by the installed metadata, all loading
+from importlib.metadata import distributions
+from ams_can_bridge import registry
+from ams_can_bridge.devices.builtin import BUILT_IN
+[dist] = [x for x in distributions(path=[str(p) for p in Path(sys.argv[1]).rglob("site-packages")])
+          if x.metadata["Name"] == "ams_can_bridge"]
+points = dist.entry_points.select(group="ams_can_bridge.devices")
+assert sorted(e.name for e in points) == sorted(b.name for b in BUILT_IN), points
+assert all(e.load() in BUILT_IN for e in points) and registry.BROKEN == {}, registry.BROKEN
+print("msg_defs at", d, "; profiles", ", ".join(PROFILES), "; device types",
+      ", ".join(registry.DEVICE_TYPES))
 '
 
 echo "== colcon build in $scratch/ws"

@@ -1,7 +1,7 @@
 # Copyright 2026 ams_can_bridge developers
 # SPDX-License-Identifier: Apache-2.0
 """
-Write ams_can_bridge/devices/configs.py: one typed configuration class per device type.
+Write ams_can_bridge/devices/generated_configs.py: one typed configuration class per device type.
 
 The classes are generated from the parameter tables the node declares (``device_params``:
 common, the type's own, its command services'), so each ``config.<field>`` read is checked by
@@ -21,7 +21,7 @@ import textwrap
 from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
-TARGET = ROOT / 'ams_can_bridge' / 'devices' / 'configs.py'
+TARGET = ROOT / 'ams_can_bridge' / 'devices' / 'generated_configs.py'
 ARRAYS = {'int[]': 'tuple[int, ...]', 'str[]': 'tuple[str, ...]', 'float[]': 'tuple[float, ...]'}
 
 HEADER = '''# Copyright 2026 ams_can_bridge developers
@@ -43,13 +43,13 @@ from ams_can_bridge.devices.config import DeviceConfig
 
 
 def device_classes() -> list[Any]:
-    """Return every Device class of the registry (types and variants), in registry order."""
-    from ams_can_bridge import registry
+    """Return every Device class of the built-in types (and variants), in their order."""
+    # the built-in ones only: a plugin installed beside this package writes its own Config
+    from ams_can_bridge.devices.builtin import BUILT_IN
     found: list[Any] = []
-    for device_type in registry.DEVICE_TYPES:
-        variants = registry.VARIANTS.get(device_type) or {None: None}
-        for variant in variants:
-            cls = registry.device_class(device_type, variant)
+    for descriptor in BUILT_IN:
+        for variant in descriptor.variant_names or (None,):
+            cls = descriptor.device_class(variant)
             if cls not in found:
                 found.append(cls)
     return found
@@ -95,7 +95,7 @@ def render_class(device_cls: Any) -> str:
 
 
 def render() -> str:
-    """Return the whole text of devices/configs.py."""
+    """Return the whole text of devices/generated_configs.py."""
     return HEADER + ''.join(render_class(cls) for cls in device_classes())
 
 

@@ -3,14 +3,14 @@
 """
 The charger role's START (base + 0x010) without ROS: repeat, halt, disarm, bus down, order.
 
-The ordering rule (no START ever after a STOP) is the device's (devices/ams_charger.py): its
+The ordering rule (no START ever after a STOP) is the device's (devices/ams/charger.py): its
 two services run one at a time, and the repeat has ended before the STOP is sent.
 """
 import threading
 import time
 
-from ams_can_bridge.devices.ams import AmsDevice
-from ams_can_bridge.devices.ams_charger import CHARGER_COMMAND_PERIOD, ChargerRepeater
+from ams_can_bridge.devices.ams.device import AmsDevice
+from ams_can_bridge.devices.ams.charger import CHARGER_COMMAND_PERIOD, ChargerRepeater
 from helpers import wait_for
 
 

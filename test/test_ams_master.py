@@ -7,8 +7,8 @@ import time
 
 import pytest
 
-from ams_can_bridge.devices.ams_master import AmsMaster, AmsView
-from ams_can_bridge.devices.periodic_sender import SlotSchedule
+from ams_can_bridge.devices.ams.master import AmsMaster, AmsView
+from ams_can_bridge.devices.sender_thread import SlotSchedule
 from ams_can_bridge.protocols.ams import AmsState, CarCommand
 from ams_can_bridge.protocols.common import Frame
 from helpers import assert_ended, wait_for

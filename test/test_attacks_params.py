@@ -101,7 +101,7 @@ def test_a_parameter_of_no_known_type_is_answered_and_the_heartbeat_goes_on(rig_
 def test_an_array_longer_than_its_maximum_is_refused_on_its_length_alone():
     spec = next(s for s in NODE_PARAMS if s.key == 'devices')
     assert spec.max_length == MAX_DEVICES
-    from ams_can_bridge.devices.evms3 import Evms3Device
+    from ams_can_bridge.devices.evms3.device import Evms3Device
     cells = next(s for s in Evms3Device.COMMAND_PARAMS if s.key == 'config.cells_per_module')
     assert cells.max_length == 16
     # every element is out of range too: the length is what is named, so no element was

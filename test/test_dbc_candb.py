@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from ams_can_bridge.devices.base import Level
-from ams_can_bridge.devices.dbc import DbcDevice
+from ams_can_bridge.devices.dbc.device import DbcDevice
 from ams_can_bridge.protocols.dbc_load import read_dbc
 from helpers import Clock
 

@@ -19,8 +19,8 @@ import cantools
 import pytest
 
 from ams_can_bridge.devices.base import Level, PowerSupplyHealth
-from ams_can_bridge.devices.dbc import DbcDevice
-from ams_can_bridge.devices.dbc_profiles import profile_files, PROFILES
+from ams_can_bridge.devices.dbc.device import DbcDevice
+from ams_can_bridge.protocols.dbc_profiles import profile_files, PROFILES
 from helpers import Clock
 
 FIXTURES = Path(__file__).resolve().parent / 'fixtures'

@@ -18,9 +18,9 @@ import cantools
 import pytest
 
 from ams_can_bridge.devices.base import Level
-from ams_can_bridge.devices.dbc import DbcDevice
-from ams_can_bridge.devices.dbc_diag import VALUES_CAP
-from ams_can_bridge.devices.dbc_profiles import profile_files
+from ams_can_bridge.devices.dbc.device import DbcDevice
+from ams_can_bridge.devices.dbc.diagnostics import VALUES_CAP
+from ams_can_bridge.protocols.dbc_profiles import profile_files
 from ams_can_bridge.sim.dbc import DbcSimulator
 from dbc_fixtures import FRAMES, OUR_MAPPING, write_files
 from helpers import Clock

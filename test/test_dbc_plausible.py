@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from ams_can_bridge.devices.base import Level
-from ams_can_bridge.devices.dbc import DbcDevice
+from ams_can_bridge.devices.dbc.device import DbcDevice
 from ams_can_bridge.errors import ConfigError
 from helpers import Clock
 

@@ -6,9 +6,9 @@ import math
 import pytest
 
 from ams_can_bridge import registry
-from ams_can_bridge.devices.ams import AmsDevice
+from ams_can_bridge.devices.ams.device import AmsDevice
 from ams_can_bridge.devices.base import Level, PowerSupplyHealth, PowerSupplyStatus
-from ams_can_bridge.devices.ivt_s import IvtSDevice
+from ams_can_bridge.devices.ivt_s.device import IvtSDevice
 from ams_can_bridge.errors import RefusedCommand
 from ams_can_bridge.protocols.ams import AmsError, AmsState, ChargerStart
 from ams_can_bridge.protocols.common import Frame

@@ -6,7 +6,7 @@ import math
 import pytest
 
 from ams_can_bridge.devices.base import Level, PowerSupplyHealth, PowerSupplyStatus
-from ams_can_bridge.devices.bms16 import Bms16Device
+from ams_can_bridge.devices.bms16.inverter import Bms16Device
 from ams_can_bridge.errors import RefusedCommand
 from ams_can_bridge.protocols.bms16 import Bms16Error
 from helpers import Clock

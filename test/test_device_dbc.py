@@ -16,9 +16,9 @@ import cantools
 import pytest
 
 from ams_can_bridge.device_set import DeviceSet
-from ams_can_bridge.devices.ams import AmsDevice
+from ams_can_bridge.devices.ams.device import AmsDevice
 from ams_can_bridge.devices.base import Level, PowerSupplyHealth, PowerSupplyStatus
-from ams_can_bridge.devices.dbc import DbcDevice
+from ams_can_bridge.devices.dbc.device import DbcDevice
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols import ams as proto
 from ams_can_bridge.protocols import dbc_codec

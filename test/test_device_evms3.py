@@ -6,7 +6,7 @@ import math
 import pytest
 
 from ams_can_bridge.devices.base import Level, PowerSupplyHealth, PowerSupplyStatus
-from ams_can_bridge.devices.evms3 import Evms3Device
+from ams_can_bridge.devices.evms3.device import Evms3Device
 from ams_can_bridge.errors import RefusedCommand
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import Evms3Error, Evms3State

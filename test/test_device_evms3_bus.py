@@ -8,7 +8,7 @@ names, warns on any charger status bit, and lets each group expire on its own.
 """
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.devices.base import Level
-from ams_can_bridge.devices.evms3 import CHARGER_STALE_TIMEOUT, Evms3Device
+from ams_can_bridge.devices.evms3.device import CHARGER_STALE_TIMEOUT, Evms3Device
 from helpers import Clock
 
 # RUNNING, no error, 100.0 Ah, 400.0 V, aux 13.0 V, isolation 100 %, 25 degC

@@ -4,7 +4,7 @@
 import threading
 import time
 
-from ams_can_bridge.devices.evms3 import Evms3Device
+from ams_can_bridge.devices.evms3.device import Evms3Device
 from ams_can_bridge.protocols.common import Frame
 from helpers import Clock
 from shared import (EVMS3_ANSWER as ANSWER, EVMS3_ANSWER_CELLS as CELLS,

@@ -7,7 +7,7 @@ import pytest
 
 from ams_can_bridge import registry
 from ams_can_bridge.devices.base import Level, PowerSupplyHealth, PowerSupplyStatus
-from ams_can_bridge.devices.ivt_s import IvtSDevice
+from ams_can_bridge.devices.ivt_s.device import IvtSDevice
 from ams_can_bridge.protocols.ivt_s import IvtMux, IvtResult, IvtSCodec
 from helpers import Clock
 

@@ -12,7 +12,7 @@ import time
 import pytest
 
 from ams_can_bridge.devices.base import Level
-from ams_can_bridge.devices.ivt_s import IvtSDevice
+from ams_can_bridge.devices.ivt_s.device import IvtSDevice
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.ivt_s import IvtMux
 from ams_can_bridge.sim.ivt_s import IvtSSimulator

@@ -12,9 +12,9 @@ import threading
 import pytest
 
 from ams_can_bridge.device_set import DeviceSet
-from ams_can_bridge.devices.ams import AmsDevice
+from ams_can_bridge.devices.ams.device import AmsDevice
 from ams_can_bridge.devices.base import Device
-from ams_can_bridge.devices.ivt_s import IvtSDevice
+from ams_can_bridge.devices.ivt_s.device import IvtSDevice
 from ams_can_bridge.errors import ConfigError
 from helpers import Clock
 

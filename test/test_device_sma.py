@@ -6,7 +6,7 @@ import math
 import pytest
 
 from ams_can_bridge.devices.base import Level, PowerSupplyHealth, PowerSupplyStatus
-from ams_can_bridge.devices.sma import SmaDevice
+from ams_can_bridge.devices.sma.device import SmaDevice
 from ams_can_bridge.protocols.sma import SMA_CONDITIONS
 from helpers import Clock
 

@@ -6,7 +6,7 @@ import math
 import pytest
 
 from ams_can_bridge.devices.base import Level, PowerSupplyHealth
-from ams_can_bridge.devices.sma import IDENTITY_TIMEOUT, SmaDevice
+from ams_can_bridge.devices.sma.device import IDENTITY_TIMEOUT, SmaDevice
 from helpers import Clock
 
 # 51.23 V, -12.5 A, 25.3 degC

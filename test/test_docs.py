@@ -130,9 +130,12 @@ def test_the_executables_page_has_the_help_of_every_console_script(built):
 
 def test_the_topics_and_services_page_lists_every_service(built):
     text = page(built, 'topics_services')
-    for device_type in ('ams', 'ivt_s', 'evms3', 'bms16'):
-        for row in interface_table.device_services(device_type):
-            assert f'<literal><name>/{row.service}</literal>' in text, row
+    rows = [row for device_type in interface_table.registry.DEVICE_TYPES
+            for variant in interface_table.variants(device_type)
+            for row in interface_table.device_services(device_type, variant)]
+    assert len(rows) >= 25  # every command row of every device type and variant
+    for row in rows:
+        assert f'<literal><name>/{row.service}</literal>' in text, row
     for topic in ('<name>/battery_state', '<name>/temperatures', '/diagnostics'):
         assert f'<literal>{topic}</literal>' in text, topic
 

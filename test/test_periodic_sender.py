@@ -1,7 +1,7 @@
 # Copyright 2026 ams_can_bridge developers
 # SPDX-License-Identifier: Apache-2.0
 """
-The one periodic sender (devices/periodic_sender.py) under the heartbeat, repeat and keep-alive.
+The one periodic sender (devices/sender_thread.py) under the heartbeat, repeat and keep-alive.
 
 Modelled on python-can's ThreadBasedCyclicSendTask (can/broadcastmanager.py); what the
 bridge adds is tested here: an absolute schedule that never bursts, a stop after which
@@ -15,8 +15,8 @@ import time
 
 import pytest
 
-from ams_can_bridge.devices import periodic_sender
-from ams_can_bridge.devices.periodic_sender import PeriodicSender, SlotSchedule
+from ams_can_bridge.devices import sender_thread as periodic_sender
+from ams_can_bridge.devices.sender_thread import PeriodicSender, SlotSchedule
 from ams_can_bridge.protocols.common import Frame
 from helpers import assert_ended, wait_for
 

@@ -11,7 +11,7 @@ checksum of the Orion frames is evidence.
 """
 from __future__ import annotations
 
-from ams_can_bridge.devices.dbc_profiles import PROFILES
+from ams_can_bridge.protocols.dbc_profiles import PROFILES
 from ams_can_bridge.probe.profiles import SHIPPED
 from ams_can_bridge.probe.recognise import recognise
 from ams_can_bridge.probe.traffic import Traffic

@@ -13,6 +13,7 @@ every device type creates.
 from __future__ import annotations
 
 import fnmatch
+import importlib.util
 from pathlib import Path
 import xml.etree.ElementTree as ET
 
@@ -21,6 +22,7 @@ import pytest
 from helpers import every_device_bridge
 
 POLICY = Path(__file__).resolve().parents[1] / 'security' / 'policy.xml'
+GENERATOR = Path(__file__).resolve().parents[1] / 'scripts' / 'policy_xml.py'
 XML_BASE = '{http://www.w3.org/XML/1998/namespace}base'
 QUALIFIERS = ('ALLOW', 'DENY')
 # element: (allowed attributes, required attributes, {child: (min, max)}, ordered children)
@@ -109,6 +111,28 @@ def profiles(root: ET.Element) -> dict[str, Profile]:
 def bridge():
     with every_device_bridge('policy-test') as node:
         yield node
+
+
+def generator():
+    spec = importlib.util.spec_from_file_location('policy_xml', GENERATOR)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_checked_in_policy_is_the_generators_output_from_the_descriptors():
+    gen = generator()
+    assert POLICY.read_text() == gen.policy(), (
+        'security/policy.xml is out of date with the device types: run '
+        '.venv/bin/python scripts/policy_xml.py')
+    # every command row of every device type (and variant) is in it, for the supervisor
+    supervisor = profiles(ET.fromstring(gen.policy()))['/supervisor']
+    from ams_can_bridge import registry
+    rows = [(name, row.service) for name, found in registry.DESCRIPTORS.items()
+            for variant in (found.variant_names or (None,)) for row in found.commands(variant)]
+    assert len(rows) >= 25
+    for name, service in rows:
+        assert supervisor.allows('services', 'request', f'/{name}/{service}'), (name, service)
 
 
 def test_policy_is_valid_against_the_sros2_schema():

@@ -5,7 +5,7 @@ import math
 import pytest
 
 from ams_can_bridge import registry
-from ams_can_bridge.devices.ams import AmsDevice
+from ams_can_bridge.devices.ams.device import AmsDevice
 from ams_can_bridge.devices.base import Level
 from ams_can_bridge.protocols.ams import (
     AmsChargerStatus, AmsCodec, AmsError, AmsErrorEvent, AmsState, AmsStatus, CarCommand,

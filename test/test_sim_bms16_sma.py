@@ -7,8 +7,8 @@ import can
 import pytest
 
 from ams_can_bridge.devices.base import Level, PowerSupplyHealth, PowerSupplyStatus
-from ams_can_bridge.devices.bms16 import Bms16Device
-from ams_can_bridge.devices.sma import SmaDevice
+from ams_can_bridge.devices.bms16.inverter import Bms16Device
+from ams_can_bridge.devices.sma.device import SmaDevice
 from ams_can_bridge.protocols.bms16 import (
     AcknowledgeError, Bms16Codec, Bms16Settings, Bms16ConfigPart1, Bms16ConfigPart2, Bms16Error,
     PowerOff, ResetSoc)

@@ -14,8 +14,8 @@ import math
 import cantools
 import pytest
 
-from ams_can_bridge.devices.ams import AmsDevice
-from ams_can_bridge.devices.dbc import DbcDevice
+from ams_can_bridge.devices.ams.device import AmsDevice
+from ams_can_bridge.devices.dbc.device import DbcDevice
 from ams_can_bridge.sim.dbc import DbcSimulator
 from dbc_fixtures import OUR_BMS_DBC, OUR_PARAMS
 from helpers import Clock, same

@@ -8,7 +8,7 @@ import uuid
 import can
 import pytest
 
-from ams_can_bridge.devices.evms3 import Evms3Device
+from ams_can_bridge.devices.evms3.device import Evms3Device
 from ams_can_bridge.errors import MalformedFrameError
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import (

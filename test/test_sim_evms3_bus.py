@@ -4,7 +4,7 @@
 import pytest
 
 from ams_can_bridge.devices.base import Level, PowerSupplyStatus
-from ams_can_bridge.devices.evms3 import Evms3Device
+from ams_can_bridge.devices.evms3.device import Evms3Device
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import (
     Bms12Request, ConfigReadback, ConfigReport, Evms3Codec, Evms3Settings, Evms3State,

@@ -8,7 +8,7 @@ import can
 import pytest
 
 from ams_can_bridge import registry
-from ams_can_bridge.devices.ivt_s import IvtSDevice
+from ams_can_bridge.devices.ivt_s.device import IvtSDevice
 from ams_can_bridge.errors import MalformedFrameError
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.ivt_s import IvtMux, IvtSCodec

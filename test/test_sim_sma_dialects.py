@@ -4,7 +4,7 @@
 import pytest
 
 from ams_can_bridge.devices.base import Level, PowerSupplyHealth
-from ams_can_bridge.devices.sma import SmaDevice
+from ams_can_bridge.devices.sma.device import SmaDevice
 from ams_can_bridge.protocols.sma import SmaCodec
 from ams_can_bridge.sim.main import build_devices, build_parser
 from ams_can_bridge.sim.sma import SmaSimulator

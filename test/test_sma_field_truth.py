@@ -11,7 +11,7 @@ import math
 import pytest
 
 from ams_can_bridge.devices.base import Level
-from ams_can_bridge.devices.sma import IDENTITY_TIMEOUT, SmaDevice
+from ams_can_bridge.devices.sma.device import IDENTITY_TIMEOUT, SmaDevice
 from ams_can_bridge.errors import MalformedFrameError
 from ams_can_bridge.protocols.common import Frame, load_dbc
 from ams_can_bridge.protocols.sma import SmaCodec, SmaFlag, SmaLimits, SmaSoc

@@ -13,7 +13,7 @@ import math
 import pytest
 
 from ams_can_bridge.devices.base import Level
-from ams_can_bridge.devices.sma import SmaDevice
+from ams_can_bridge.devices.sma.device import SmaDevice
 from ams_can_bridge.errors import MalformedFrameError
 from ams_can_bridge.protocols.sma import SmaBatteryInfo, SmaCodec, SmaLimits
 from ams_can_bridge.protocols.sma_dialects import (

@@ -11,8 +11,8 @@ import threading
 
 from sensor_msgs.msg import BatteryState
 
-from ams_can_bridge.devices.sma import SmaDevice
-from ams_can_bridge.devices.sma_keepalive import InverterKeepalive
+from ams_can_bridge.devices.sma.device import SmaDevice
+from ams_can_bridge.devices.sma.keepalive import InverterKeepalive
 from ams_can_bridge.protocols.common import Frame
 from command_rig import rigs
 from helpers import assert_ended, wait_for

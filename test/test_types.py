@@ -12,9 +12,9 @@ ROOT = Path(__file__).resolve().parent.parent
 # What the package's typing must keep catching: a configuration read of a parameter that does
 # not exist, a value of the wrong type, and a codec without decode.
 SEAMS = '''
-from ams_can_bridge.devices.ams import AmsDevice
+from ams_can_bridge.devices.ams.device import AmsDevice
 from ams_can_bridge.devices.base import Codec
-from ams_can_bridge.devices.evms3 import Evms3Device
+from ams_can_bridge.devices.evms3.device import Evms3Device
 
 
 def banks(device: AmsDevice) -> int:
@@ -68,4 +68,4 @@ def test_a_configuration_class_name_means_one_class(name):
     # the wire forms in protocols/ are ...Settings; ...Config is the device's parameters
     found = [p.relative_to(ROOT) for p in (ROOT / 'ams_can_bridge').rglob('*.py')
              if f'class {name}(' in p.read_text() or f'class {name}:' in p.read_text()]
-    assert found == [Path('ams_can_bridge/devices/configs.py')], found
+    assert found == [Path('ams_can_bridge/devices/generated_configs.py')], found

@@ -199,7 +199,7 @@ class _FakeGate:
 
 def test_evms3_write_config_paces_20_ms_after_each_frame():
     # EVMS_Monitor3.c TransmitSettings: CanTX(id, data, 8, 20) = 20 ms after each frame
-    from ams_can_bridge.devices.evms3 import Evms3Device
+    from ams_can_bridge.devices.evms3.device import Evms3Device
     from ams_can_bridge.engine.commands import Pipeline
     gate = _FakeGate()
     device = Evms3Device('evms3', {f'config.{k}': v for k, v in EVMS3_CONFIG.items()})

@@ -163,11 +163,12 @@ class Device(Generic[ConfigT]):
     """
     Base of every device state: counters, staleness, locking, malformed-frame bookkeeping.
 
-    Subclasses are ``Device[<Type>Config]`` (their typed configuration, devices/configs.py):
-    they set the class constants and ``Config``, build their ``codec`` in __init__ (a type
-    without one codec overrides arbitration_ids, frame_ids, is_extended_id and handle_frame),
-    and implement ``_handle`` (decoded reading -> state; return True for the primary status
-    frame), ``_battery_report`` and ``_diagnostic_report``.
+    Subclasses are ``Device[<Type>Config]`` (their typed configuration,
+    devices/generated_configs.py): they set the class constants and ``Config``, build their
+    ``codec`` in __init__ (a type without one codec overrides arbitration_ids, frame_ids,
+    is_extended_id and handle_frame), and implement ``_handle`` (decoded reading -> state;
+    return True for the primary status frame), ``_battery_report`` and
+    ``_diagnostic_report``.
     """
 
     TYPE: ClassVar[str] = ''
@@ -192,7 +193,7 @@ class Device(Generic[ConfigT]):
     # std_msgs/Float32 topics '<instance>/<suffix>' the engine emits for the type (a pack's)
     FIGURES: ClassVar[tuple[str, ...]] = ()
 
-    # The typed, frozen configuration class of the device type (devices/configs.py,
+    # The typed, frozen configuration class of the device type (devices/generated_configs.py,
     # generated from device_params(); test_device_configs.py checks they agree).
     Config: type[ConfigT]
     codec: Codec

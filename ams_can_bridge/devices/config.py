@@ -3,7 +3,7 @@
 """
 A device instance's typed configuration: one frozen dataclass per device type.
 
-The classes are written out in ``devices/configs.py``, generated from the device types'
+The classes are written out in ``devices/generated_configs.py``, generated from the device types'
 ParamSpecs (common, their own, their command services') by ``scripts/gen_device_configs.py``;
 ``test/test_device_configs.py`` fails when a parameter table and its class part. So the
 parameter list stays the one source of names, types and defaults, and mypy checks every
@@ -32,7 +32,7 @@ def field_name(key: str) -> str:
 @dataclasses.dataclass(frozen=True)
 class DeviceConfig:
     """
-    Base of the configuration classes (devices/configs.py): the values every device has.
+    Base of the configuration classes (devices/generated_configs.py): the values every device has.
 
     A value given as None for a key that has a default takes the default (log2bag reads
     ``key: ~`` from a file as None; the node declares such a key with its default), so a

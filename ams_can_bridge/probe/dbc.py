@@ -3,7 +3,7 @@
 """
 Any BMS from its DBC and mapping (``--dbc FILE --mapping FILE``; doc/protocols.md section 8).
 
-The mapping names the messages the dbc device reads (``devices.dbc_mapping.load_plan``, the
+The mapping names the messages the dbc device reads (``devices.dbc.mapping.load_plan``, the
 device's own check of both files). Each of them is looked for by ID: heard, with a length
 the DBC message fits in, and with values inside the signals' DBC ranges (the compiled
 decoder the device uses says which are not). The primary message must be among them: it
@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 import os
 import re
 
-from ams_can_bridge.devices.dbc_mapping import load_plan
-from ams_can_bridge.devices.dbc_plan import MappingError, Plan, resolve_path
+from ams_can_bridge.devices.dbc.mapping import load_plan
+from ams_can_bridge.devices.dbc.plan import MappingError, Plan, resolve_path
 from ams_can_bridge.errors import ConfigError, MalformedFrameError
 from ams_can_bridge.probe.dbc_publish import read_back, say_published, timeouts_setting
 from ams_can_bridge.probe.evidence import Candidate, stale_setting

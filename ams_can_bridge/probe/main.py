@@ -22,7 +22,7 @@ from ams_can_bridge.errors import ConfigError, LogFileError
 from ams_can_bridge.probe import output, report
 from ams_can_bridge.probe.dbc import DbcRecogniser
 from ams_can_bridge.probe.evidence import Setting
-from ams_can_bridge.probe.recognise import BUILT_IN, recognise
+from ams_can_bridge.probe.recognise import INSTALLED, recognise
 from ams_can_bridge.probe.sources import listen_live, LiveInfo, read_log, AUTO_RATES
 
 DEFAULT_DURATION_S = 10.0
@@ -126,7 +126,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.output:
             output.check_target(args.output, [p for p in [args.log, *args.dbc, *args.mapping]
                                               if p is not None], args.force)
-        recognisers = [*BUILT_IN]
+        recognisers = [*INSTALLED]
         if args.dbc:
             recognisers.append(DbcRecogniser(list(zip(args.dbc, args.mapping))))
         if args.log is not None:

@@ -5,7 +5,8 @@ Run the recognisers, settle candidates for the same IDs, link devices, list what
 
 A recogniser is a function ``(traffic, found so far) -> new candidates``; it may also refine
 a candidate found before it (add or decide a setting), which is how a decision that needs
-more than one device's frames plugs in. They run in ``BUILT_IN`` order, then the DBC pairs
+more than one device's frames plugs in. Each device type's descriptor names its recognisers
+(``registry.py``); they run in ``INSTALLED`` order (the types' order), then the DBC pairs
 given on the command line. Two candidates that explain one ID cannot both be right: the one
 that explains everything the other does and more wins, else the more confident one (the
 user's own DBC on a tie), and the other is reported as a conflict.
@@ -23,15 +24,28 @@ import math
 from typing import Callable, Sequence
 
 from ams_can_bridge.errors import ProtocolError
-from ams_can_bridge.probe import ams, bms16, evms3, ivt_s, profiles, sma, sma_voltage
 from ams_can_bridge.probe.evidence import Candidate, Conflict, MEDIUM, WEAK
 from ams_can_bridge.probe.traffic import IdTraffic, Traffic
-from ams_can_bridge.registry import DEVICE_TYPES
+from ams_can_bridge.registry import DESCRIPTORS, DEVICE_TYPES, load
 
 Recogniser = Callable[[Traffic, list[Candidate]], list[Candidate]]
-BUILT_IN: tuple[Recogniser, ...] = (ams.recognise, ivt_s.recognise, evms3.recognise,
-                                    bms16.recognise, sma.recognise, sma_voltage.recognise,
-                                    profiles.recognise)
+
+
+def _installed() -> tuple[tuple[Recogniser, ...], tuple[str, ...]]:
+    """Load every device type's recognisers: (them, why one did not load)."""
+    loaded: list[Recogniser] = []
+    failed = []
+    for found in DESCRIPTORS.values():
+        for path in found.recognisers:
+            try:
+                loaded.append(load(path))
+            except Exception as exc:  # a plugin's bug: the others still run, probe says why
+                failed.append(f'{found.name}: recogniser {path} failed to load: '
+                              f'{type(exc).__name__}: {exc}')
+    return tuple(loaded), tuple(failed)
+
+
+INSTALLED, LOAD_FAILURES = _installed()
 PACK_VOLTAGE_AGREEMENT = 0.05  # an IVT-S voltage within 5 % of the AMS cell sum measures the pack
 MIN_FRAMES = 3  # a device repeats its frames: an ID heard once or twice is no device
 # Repetition is judged only on a recording this long: every device here repeats its frames
@@ -50,7 +64,7 @@ class Findings:
     devices: list[Candidate] = field(default_factory=list)
     conflicts: list[Conflict] = field(default_factory=list)
     unplaced: list[IdTraffic] = field(default_factory=list)
-    failures: list[str] = field(default_factory=list)  # recognisers a frame stopped
+    failures: list[str] = field(default_factory=list)  # recognisers stopped or not loaded
 
     @property
     def written(self) -> list[Candidate]:
@@ -58,10 +72,10 @@ class Findings:
         return [c for c in self.devices if c.written]
 
 
-def recognise(traffic: Traffic, recognisers: Sequence[Recogniser] = BUILT_IN) -> Findings:
+def recognise(traffic: Traffic, recognisers: Sequence[Recogniser] = INSTALLED) -> Findings:
     """Run every recogniser on the traffic and settle what they found."""
     found: list[Candidate] = []
-    failures = []
+    failures = list(LOAD_FAILURES)
     for recogniser in recognisers:
         try:
             found += recogniser(traffic, found)

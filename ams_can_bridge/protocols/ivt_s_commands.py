@@ -50,6 +50,9 @@ RESET_ALL_MEASUREMENT_ERRORS = 0x0000
 RESET_ALL_SYSTEM_ERRORS = 0x0100
 
 CYCLE_MAX_MS = 0xFFFF
+# ivts' example writes a disabled result with a non-zero time ("must have some non-zero
+# value to avoid message error"): a result switched off keeps this cycle time.
+DISABLED_CYCLE_MS = 60
 
 
 class TriggerMode(enum.IntEnum):

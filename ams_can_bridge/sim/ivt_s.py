@@ -22,7 +22,6 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Callable, Mapping
 
-from ams_can_bridge.devices.ivt_s_control import DISABLED_CYCLE_MS
 from ams_can_bridge.protocols import ivt_s_commands as cmd
 from ams_can_bridge.errors import ProtocolError
 from ams_can_bridge.protocols.common import Frame
@@ -93,7 +92,7 @@ class IvtSSimulator(SimDevice):
         cycles = {kind: round(period * 1000) for kind in IvtMux} | dict(cycles_ms or {})
         self.factory = {kind: ResultConfig(
             kind, TriggerMode.CYCLIC if cycles[kind] else TriggerMode.DISABLED,
-            cycles[kind] or DISABLED_CYCLE_MS, byte_order == 'little') for kind in IvtMux}
+            cycles[kind] or cmd.DISABLED_CYCLE_MS, byte_order == 'little') for kind in IvtMux}
         self.configs = dict(self.factory)
         self.stored = dict(self.factory)
         self.running = True

@@ -15,7 +15,7 @@ from typing import Any, Sequence
 
 from ams_can_bridge import registry
 from ams_can_bridge.can_io import parse_options
-from ams_can_bridge.devices.dbc_profiles import PROFILES
+from ams_can_bridge.protocols.dbc_profiles import PROFILES
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols.sma import SMA_CONDITIONS
 from ams_can_bridge.sim.base import SimDevice
@@ -23,9 +23,10 @@ from ams_can_bridge.sim.runner import open_bus, SimRunner
 
 DEFAULT_VIRTUAL_CHANNEL = 'ams_can_bridge'
 SUMMARY_AFTER = 0.2  # s of sending before the start line lists each device's IDs
-# The AMS goes first so the IVT-S can measure its pack.
-_ORDER = ('ams', 'ivt_s', 'evms3', 'bms16', 'sma')
-_SORT = _ORDER + ('dbc',)  # dbc: a team's own BMS (--dbc/--mapping), not in the default set
+# The descriptors' order (the AMS goes first so the IVT-S can measure its pack); dbc, a
+# team's own BMS (--dbc/--mapping), is simulated but not in the default set.
+_SORT = tuple(registry.SIMULATORS)
+_ORDER = tuple(name for name in _SORT if registry.DESCRIPTORS[name].simulated_by_default)
 
 
 def _device_list(text: str) -> list[str]:

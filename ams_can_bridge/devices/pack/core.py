@@ -37,7 +37,7 @@ class PackOutput:
 
 @dataclass(frozen=True)
 class PackSettings:
-    """The ``pack.*`` values (devices/configs.py builds them from the parameters)."""
+    """The ``pack.*`` values (devices/generated_configs.py builds them from the parameters)."""
 
     members: tuple[str, ...]
     connection: str = PARALLEL

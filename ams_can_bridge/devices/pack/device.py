@@ -16,7 +16,7 @@ from typing import Any, Callable, Mapping, Sequence
 from ams_can_bridge.devices.base import (BatteryReport, Device, DiagnosticReport, Level,
                                          stale_report)
 from ams_can_bridge.devices.commands import Command, LOCAL, TRIGGER
-from ams_can_bridge.devices.configs import PackConfig
+from ams_can_bridge.devices.generated_configs import PackConfig
 from ams_can_bridge.devices.pack.aggregate import CONNECTIONS, PARALLEL
 from ams_can_bridge.devices.pack.core import Pack, PackOutput, PackSettings
 from ams_can_bridge.devices.pack.limits import check_levels, KINDS
