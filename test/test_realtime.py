@@ -10,7 +10,7 @@ import threading
 import pytest
 
 from ams_can_bridge import realtime
-from ams_can_bridge.devices.periodic_sender import PeriodicSender
+from ams_can_bridge.devices.sender_thread import PeriodicSender
 from ams_can_bridge.parameters import NODE_PARAMS
 from ams_can_bridge.protocols.common import Frame
 from helpers import wait_for

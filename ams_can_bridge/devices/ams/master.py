@@ -4,7 +4,7 @@
 The AMS master role without ROS: the car-status heartbeat and the command/wait logic.
 
 The heartbeat (car status, base + 0x005) is one ``PeriodicSender`` (devices/
-periodic_sender.py): its own thread, a monotonic absolute schedule (slot k at ``start + k *
+sender_thread.py): its own thread, a monotonic absolute schedule (slot k at ``start + k *
 period``: no drift; a thread late by a period or more skips the missed slots, never a burst).
 This module keeps only what the heartbeat carries and what the AMS answers. The counter
 increments by one per frame actually put on the bus and wraps 255 -> 0.
