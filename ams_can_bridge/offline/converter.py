@@ -124,10 +124,13 @@ class Converter:
               write: bool) -> None:
         """Apply one frame at log time stamp; write its messages when write is true."""
         if write:  # the periodic work due before this frame, each at its own moment
-            if self.schedule.started:
-                self.schedule.run_until(stamp)
-            else:  # the first written frame starts the grid
-                self.schedule.start(stamp)
+            schedule = self.schedule
+            if not schedule.started:  # the first written frame starts the grid
+                schedule.start(stamp)
+            elif schedule.last <= stamp < schedule.due:  # most frames: nothing due, no call
+                schedule.last = stamp
+            else:
+                schedule.run_until(stamp)
         self.now = self.last_frame = stamp
         self.frames_in += 1
         self.sink.enabled = write

@@ -205,7 +205,10 @@ class IvtSDevice(IvtSControl, Device[IvtSConfig]):
         else:
             gap = now - self._results.seen(reading.kind)
             # After a silence longer than the result's timeout a counter restart is expected.
-            track.counter.observe(reading.counter, gap <= self._timeout(reading.kind, track))
+            # The timeout is never below stale_timeout: a gap within it (every frame of a
+            # sensor that keeps sending) needs no timeout worked out (a third of this call).
+            track.counter.observe(reading.counter, gap <= self.stale_timeout
+                                  or gap <= self._timeout(reading.kind, track))
             track.interval = gap if track.interval != track.interval else (
                 track.interval + INTERVAL_WEIGHT * (gap - track.interval))
         self._results.put(reading.kind, reading, now)
@@ -261,7 +264,10 @@ class IvtSDevice(IvtSControl, Device[IvtSConfig]):
         track = self._tracks.get(kind)
         if track is None:
             return None
-        return self._results.get(kind, self.clock(), self._timeout(kind, track))
+        now = self.clock()
+        if now - self._results.seen(kind) <= self.stale_timeout:  # within any timeout
+            return self._results.latest(kind)
+        return self._results.get(kind, now, self._timeout(kind, track))
 
     def _valid(self, kind: IvtMux) -> float:
         """
