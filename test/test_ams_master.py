@@ -330,7 +330,7 @@ def test_an_unknown_or_stale_state_never_refuses(rig):
 
 def test_an_ams_status_frame_wakes_the_waiting_call_before_the_next_heartbeat():
     """The answer is noticed when the status frame arrives, not at the next slot or a poll."""
-    from ams_can_bridge.devices.ams import AmsDevice
+    from ams_can_bridge.devices.ams.device import AmsDevice
     device = AmsDevice('ams', {'heartbeat_period': 1.0})
     sent: list[Frame] = []
 
