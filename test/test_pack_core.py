@@ -194,3 +194,23 @@ def test_level_lists_checked():
     assert 'strictly increasing' in check_levels('cell_voltage_max', [4.2, 4.1, 4.0])
     assert 'strictly decreasing' in check_levels('temperature_min', [0.0, 5.0, 10.0])
     assert 'three numbers' in check_levels('temperature_max', [45.0, 50.0])
+
+
+# Nav2's SimpleChargingDock (navigation2 nav2_docking/opennav_docking/src/
+# simple_charging_dock.cpp) reads `battery_state` and decides charging as
+# `current > charging_threshold` (default 0.5 A); power_supply_status is for the rest of ROS.
+NAV2_CHARGING_THRESHOLD = 0.5
+
+
+def test_the_pack_reads_as_nav2_docking_expects_charging_and_discharging():
+    charging = aggregate([('a', member(current=4.0)), ('b', member(current=3.0))], 'parallel')
+    assert charging.current == 7.0 and charging.current > NAV2_CHARGING_THRESHOLD
+    assert charging.power_supply_status == PowerSupplyStatus.CHARGING
+    driving = aggregate([('a', member(current=-4.0)), ('b', member(current=-3.0))],
+                        'parallel')
+    assert driving.current == -7.0 and not driving.current > NAV2_CHARGING_THRESHOLD
+    assert driving.power_supply_status == PowerSupplyStatus.DISCHARGING
+    # one member's current unknown: the pack's is NaN, which Nav2 reads as not charging
+    unknown = aggregate([('a', member(current=4.0)), ('b', member(current=NAN))], 'parallel')
+    assert math.isnan(unknown.current) and not unknown.current > NAV2_CHARGING_THRESHOLD
+    assert unknown.power_supply_status == PowerSupplyStatus.UNKNOWN
