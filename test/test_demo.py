@@ -238,3 +238,23 @@ def test_the_demo_keeps_to_its_own_bridge_beside_a_foreign_one(rig_factory):
     assert 'STALE' not in ' '.join(' '.join(rows_of(s).get('ams', [])) for s in shots[first:])
     assert 'DRIVE' in shown and 'abort -> OK' in result.stdout, result.stdout[-3000:]
     assert foreign.frames_out() == 0  # commands disabled: the foreign bridge sent nothing
+
+
+def test_a_pack_row_shows_its_limits_time_to_go_and_events():
+    """The pack's limits and time-to-go come from its diagnostics values, beside its events."""
+    from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+    from sensor_msgs.msg import BatteryState
+    values = {'members': 'bms16, evms3', 'connection': 'parallel',
+              'charge_current_limit': '0', 'discharge_current_limit': '120.5',
+              'time_to_empty': '9000', 'time_to_full': 'nan',
+              'event MSL cell_voltage_max': 'raised at 12.000, worst 4.31, level 4.25'}
+    status = DiagnosticStatus(level=b'\x02', name='ams_can_bridge: pack',
+                              message='MSL cell_voltage_max 4.31 beyond 4.25 (latched)',
+                              values=[KeyValue(key=k, value=v) for k, v in values.items()])
+    row = device_row('pack', BatteryState(voltage=48.0, current=-20.0), status)
+    assert row.message == ('limits: charge 0 A, discharge 120 A; to empty 2 h 30 min, '
+                           'to full n/a; MSL cell_voltage_max 4.31 beyond 4.25 (latched)')
+    assert '  pack: limits: charge 0 A' in render(View(rows=[row]), unicode=False)
+    # a device that is no pack keeps its line as it was
+    plain = DiagnosticStatus(level=b'\x00', name='ams_can_bridge: bms16', message='OK')
+    assert device_row('bms16', None, plain).message == ''

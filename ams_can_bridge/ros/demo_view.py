@@ -263,7 +263,8 @@ def device_row(name: str, msg: Any, status: Any) -> DeviceRow:
         row.level = level_name(status.level)
         row.state = state_of(values, status.message, row.level)
         message = without_readings(status.message)
-        row.message = message if message != row.state else ''  # 'bms16: OK' says nothing new
+        message = message if message != row.state else ''  # 'bms16: OK' says nothing new
+        row.message = '; '.join(part for part in (pack_figures(values), message) if part)
     if msg is not None:
         row.voltage = msg.voltage
         row.current = msg.current
@@ -271,6 +272,38 @@ def device_row(name: str, msg: Any, status: Any) -> DeviceRow:
         row.temperature = msg.temperature
         row.cell_min, row.cell_max = cell_range(list(msg.cell_voltage))
     return row
+
+
+def pack_figures(values: dict[str, str]) -> str:
+    """
+    Return a pack's current limits and time-to-go from its diagnostics values ('' otherwise).
+
+    The table has no column for them; a supervisor watching a pack wants them beside its
+    events (which the pack's message carries).
+    """
+    if 'charge_current_limit' not in values:
+        return ''
+    amps = {key: _number(values.get(key)) for key in ('charge_current_limit',
+                                                       'discharge_current_limit')}
+    return (f"limits: charge {fmt_value(amps['charge_current_limit'], 'A', 0, 'n/a')}, "
+            f"discharge {fmt_value(amps['discharge_current_limit'], 'A', 0, 'n/a')}; "
+            f"to empty {fmt_duration(_number(values.get('time_to_empty')))}, "
+            f"to full {fmt_duration(_number(values.get('time_to_full')))}")
+
+
+def _number(text: str | None) -> float:
+    try:
+        return float(text) if text is not None else NAN
+    except ValueError:
+        return NAN
+
+
+def fmt_duration(seconds: float) -> str:
+    """Return a time-to-go as '2 h 05 min' or '7 min' ('n/a' while unknown)."""
+    if not math.isfinite(seconds) or seconds < 0:
+        return 'n/a'
+    minutes = int(round(seconds / 60.0))
+    return f'{minutes // 60} h {minutes % 60:02d} min' if minutes >= 60 else f'{minutes} min'
 
 
 def state_of(values: dict[str, str], message: str, level: str = '') -> str:
