@@ -283,8 +283,8 @@ def pack_figures(values: dict[str, str]) -> str:
     """
     if 'charge_current_limit' not in values:
         return ''
-    amps = {key: _number(values.get(key)) for key in ('charge_current_limit',
-                                                       'discharge_current_limit')}
+    keys = ('charge_current_limit', 'discharge_current_limit')
+    amps = {key: _number(values.get(key)) for key in keys}
     return (f"limits: charge {fmt_value(amps['charge_current_limit'], 'A', 0, 'n/a')}, "
             f"discharge {fmt_value(amps['discharge_current_limit'], 'A', 0, 'n/a')}; "
             f"to empty {fmt_duration(_number(values.get('time_to_empty')))}, "
