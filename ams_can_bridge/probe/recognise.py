@@ -23,7 +23,7 @@ import math
 from typing import Callable, Sequence
 
 from ams_can_bridge.errors import ProtocolError
-from ams_can_bridge.probe import ams, bms16, evms3, ivt_s, profiles, sma, sma_voltage
+from ams_can_bridge.probe import ams, bms16, evms3, ivt_s, pack, profiles, sma, sma_voltage
 from ams_can_bridge.probe.evidence import Candidate, Conflict, MEDIUM, WEAK
 from ams_can_bridge.probe.traffic import IdTraffic, Traffic
 from ams_can_bridge.registry import DEVICE_TYPES
@@ -51,6 +51,8 @@ class Findings:
     conflicts: list[Conflict] = field(default_factory=list)
     unplaced: list[IdTraffic] = field(default_factory=list)
     failures: list[str] = field(default_factory=list)  # recognisers a frame stopped
+    # what the bridge's devices read from the frames heard (the pack section's guesses)
+    readings: dict[str, pack.Reading] = field(default_factory=dict)
 
     @property
     def written(self) -> list[Candidate]:
@@ -76,7 +78,10 @@ def recognise(traffic: Traffic, recognisers: Sequence[Recogniser] = BUILT_IN) ->
     _name(kept)
     _link(kept)
     claimed = set().union(*(c.ids for c in kept))
-    return Findings(kept, conflicts, [e for e in traffic if e.key not in claimed], failures)
+    written = [c for c in kept if c.written]
+    read = pack.readings(traffic, written) if len(pack.batteries(written)) > 1 else {}
+    return Findings(kept, conflicts, [e for e in traffic if e.key not in claimed], failures,
+                    read)
 
 
 def judge_traffic(traffic: Traffic, cand: Candidate) -> None:
