@@ -123,7 +123,7 @@ PACK_SECTION = {'type': 'pack', 'members': ['evms3', 'bms16'], 'max_charge_curre
                            'temperature_min': [5.0, 0.0, -10.0]}}
 
 
-def cpu_pack(seconds: float, windows: int = 3) -> None:
+def cpu_pack(seconds: float, windows: int = 5) -> None:
     """The pack's cost in the whole bridge: two bridges at full load, one with a pack.
 
     Both run at the same time, each on its own linked pty pair fed by its own simulator
@@ -390,7 +390,7 @@ def interleavings(minutes: float, seed: int) -> None:
 SCENARIOS = {
     'cpu_slcan': lambda q: cpu_slcan(5.0 if q else 10.0),
     'cpu_virtual': lambda q: cpu_virtual(5.0 if q else 10.0),
-    'cpu_pack': lambda q: cpu_pack(10.0 if q else 30.0),
+    'cpu_pack': lambda q: cpu_pack(20.0 if q else 60.0),
     'scaling': lambda q: scaling(4.0 if q else 6.0),
     'latency': lambda q: latency(8.0 if q else 20.0),
     'heartbeat': lambda q: heartbeat(8.0 if q else 20.0),
