@@ -11,7 +11,8 @@ configured, so derating and events are computed at each report). CPU per frame
 (``time.thread_time``), median of ``--passes`` alternating passes; the pack's share is its
 added CPU over the engine's own. The engine without ROS is the smaller part of the bridge's
 per-frame cost (publishing is the larger), so this share overstates the pack's share of the
-bridge's CPU. Target: at most 10 %.
+bridge's CPU: issue 36's target (at most 10 %) is measured on the whole bridge by
+``bench/run.py --only cpu_pack``.
 
 Run: ``.venv/bin/python bench/bench_pack.py [--json]``. Compare ratios, not absolute figures.
 """
@@ -32,7 +33,6 @@ from ams_can_bridge.sim.bms16 import Bms16Simulator
 from ams_can_bridge.sim.evms3 import Evms3Simulator
 from ams_can_bridge.sim.ivt_s import IvtSSimulator
 
-TARGET = 0.10
 DEVICES = ['ams', 'ivt_s', 'evms3', 'bms16']
 PACK = {'pack.type': 'pack', 'pack.members': ['evms3', 'bms16'],
         'pack.max_charge_current': 40.0, 'pack.max_discharge_current': 80.0,
@@ -118,7 +118,7 @@ def main() -> int:
               'pack_updates': updates, 'engine_us_per_frame': base * 1e6,
               'with_pack_us_per_frame': with_pack * 1e6,
               'pack_us_per_update': added * len(mix) / max(updates, 1) * 1e6,
-              'added_share': added / base, 'target': TARGET, 'met': added / base <= TARGET}
+              'added_share': added / base}
     if args.json:
         print(json.dumps(result))
     else:

@@ -144,8 +144,13 @@ def simulator_args(channel: str, banks: int = 5, modules: int = 16,
 def write_params(path: str, interface: str, channel: str, options: Sequence[str],
                  banks: int = 5, modules: int = 16, commands: bool = False,
                  devices: Sequence[str] = ('ams', 'ivt_s', 'evms3', 'bms16', 'sma'),
+                 sections: dict[str, dict] | None = None,
                  extra: dict | None = None) -> str:
-    """Write the bridge's parameters file for a benchmark run (``extra``: node parameters)."""
+    """
+    Write the bridge's parameters file for a benchmark run.
+
+    ``sections``: more instances (name: section); ``extra``: node parameters.
+    """
     import yaml
     params = {
         'can': {'interface': interface, 'channel': channel, 'options': list(options)},
@@ -158,6 +163,9 @@ def write_params(path: str, interface: str, channel: str, options: Sequence[str]
         params['evms3'] = {'bms12_modules': modules}
     if commands:
         params['commands_allowed'] = True
+    for name, section in (sections or {}).items():
+        params['devices'].append(name)
+        params[name] = section
     params.update(extra or {})
     with open(path, 'w', encoding='utf-8') as stream:
         yaml.safe_dump({'/**': {'ros__parameters': params}}, stream)

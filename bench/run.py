@@ -115,6 +115,55 @@ def cpu_slcan(seconds: float) -> None:
         row(scenario, 'CPU per frame', loaded / rate * 1e6, reference / rate * 1e6, 'us')
 
 
+# bench_pack.py's pack: the EVMS3 and the BMS16 in parallel, every limit configured, so
+# derating and the event checks run at each member report
+PACK_SECTION = {'type': 'pack', 'members': ['evms3', 'bms16'], 'max_charge_current': 40.0,
+                'max_discharge_current': 80.0,
+                'limits': {'cell_voltage_max': [4.15, 4.2, 4.25],
+                           'cell_voltage_min': [3.0, 2.8, 2.5],
+                           'temperature_max': [45.0, 50.0, 55.0],
+                           'temperature_min': [5.0, 0.0, -10.0]}}
+
+
+def cpu_pack(seconds: float, windows: int = 5) -> None:
+    """The pack's cost in the whole bridge: two bridges at full load, one with a pack.
+
+    Both run at the same time, each on its own linked pty pair fed by its own simulator
+    (the same frames), the one with ``pack`` of ``[evms3, bms16]`` beside the one without,
+    so both see the same machine noise. Two rounds with the roles swapped (the bridge
+    started first ran ~3 % dearer in an A/A run), ``windows`` CPU windows each; the added
+    share is the median of the windows' (with - without) / without (issue 36).
+    """
+    samples = []  # [without, with] per window
+    for first_has_pack in (False, True):
+        with tempfile.TemporaryDirectory() as work, pty_pair() as (a, b), \
+                pty_pair() as (c, d):
+            files = [write_params(os.path.join(work, 'p.yaml'), 'slcan', b, SLCAN_OPEN),
+                     write_params(os.path.join(work, 'q.yaml'), 'slcan', d, SLCAN_OPEN,
+                                  sections={'pack': PACK_SECTION})]
+            if first_has_pack:
+                files = [write_params(os.path.join(work, 'p.yaml'), 'slcan', b, SLCAN_OPEN,
+                                      sections={'pack': PACK_SECTION}),
+                         write_params(os.path.join(work, 'q.yaml'), 'slcan', d, SLCAN_OPEN)]
+            with process(bridge_args(files[0])) as one, \
+                    process(bridge_args(files[1]), settle=4.0) as two, \
+                    process(simulator_args(a)), process(simulator_args(c), settle=3.0):
+                pids = [two.pid, one.pid] if first_has_pack else [one.pid, two.pid]
+                for _ in range(windows):
+                    c0, t0 = [harness.cpu_seconds(p) for p in pids], time.monotonic()
+                    time.sleep(seconds / windows / 2)
+                    dt = time.monotonic() - t0
+                    samples.append([(harness.cpu_seconds(p) - c) / dt
+                                    for p, c in zip(pids, c0)])
+    shares = [(s[1] - s[0]) / s[0] for s in samples]
+    added = statistics.median(shares)
+    row('pack (slcan)', f'CPU with a pack of 2 (median of {len(samples)})',
+        statistics.median(s[1] for s in samples) * 100,
+        statistics.median(s[0] for s in samples) * 100, '%', '<= +10 %', added <= 0.10,
+        f'reference: the same bridge without the pack, same frames, same time; added '
+        f'{added * 100:.1f} % (windows: ' + ', '.join(f'{x * 100:.1f}' for x in shares) + ' %)')
+
+
 def virtual_run(mode: str, seconds: float, banks: int = 5, modules: int = 16) -> dict:
     """Run simulators + bridge or bare loop on one in-process virtual bus (procs.virtual)."""
     with tempfile.TemporaryDirectory() as work:
@@ -355,6 +404,7 @@ def interleavings(minutes: float, seed: int, priority: int = 0) -> None:
 SCENARIOS = {
     'cpu_slcan': lambda q: cpu_slcan(5.0 if q else 10.0),
     'cpu_virtual': lambda q: cpu_virtual(5.0 if q else 10.0),
+    'cpu_pack': lambda q: cpu_pack(20.0 if q else 60.0),
     'scaling': lambda q: scaling(4.0 if q else 6.0),
     'latency': lambda q: latency(8.0 if q else 20.0),
     'heartbeat': lambda q: heartbeat(8.0 if q else 20.0),

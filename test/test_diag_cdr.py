@@ -1,6 +1,8 @@
 # Copyright 2026 ams_can_bridge developers
 # SPDX-License-Identifier: Apache-2.0
 """ros/diag_cdr.py: what the bridge serializes itself reads back as rclpy's messages."""
+import struct
+
 from diagnostic_msgs.msg import DiagnosticArray
 from hypothesis import given, settings, strategies as st
 import pytest
@@ -122,4 +124,11 @@ def test_any_battery_report(values, ints, present, cells, temps, texts, stamp):
 
 def test_a_wrong_telemetry_encoding_fails_the_start_check(monkeypatch):
     monkeypatch.setattr(cdr, 'CDR_LE', b'\0\0\0\0')  # big-endian claimed
+    assert not diag_cdr.check_telemetry()
+
+
+def test_a_wrong_float32_encoding_fails_the_start_check(monkeypatch):
+    # a pack's four Float32 topics are published raw too: their bytes are checked at start
+    monkeypatch.setattr(diag_cdr, 'float32',
+                        lambda value: cdr.CDR_LE + struct.pack('>f', value))
     assert not diag_cdr.check_telemetry()

@@ -30,6 +30,7 @@ from ams_can_bridge.offline.converter import Converter, NODE_NAME
 from ams_can_bridge.offline.params_file import FileParams, load_parameters
 from ams_can_bridge.parameters import BUS_PARAMS, raise_param_errors
 from ams_can_bridge.probe.evidence import Setting
+from ams_can_bridge.probe.pack import suggest
 from ams_can_bridge.probe.recognise import Findings
 
 WIDTH = 92
@@ -113,6 +114,11 @@ def render(findings: Findings, bus: list[Setting], source: str) -> str:
         if not cand.written and cand.writable:
             lines += _comment(f'not written, confidence {cand.level} ({cand.confidence:.2f}): '
                               f'{cand.title}, {cand.ids_text()}', depth)
+    pack = suggest(devices, findings.readings)
+    if pack is not None:  # commented: whether they form one battery is not on the bus
+        lines += _comment(pack.check, depth)
+        lines.append(f'{INDENT * depth}# devices: {scalar(pack.devices)}')
+        lines += _entries(pack.settings, depth)
     return '\n'.join(lines) + '\n'
 
 

@@ -24,6 +24,7 @@ import math
 from typing import Callable, Sequence
 
 from ams_can_bridge.errors import ProtocolError
+from ams_can_bridge.probe import pack
 from ams_can_bridge.probe.evidence import Candidate, Conflict, MEDIUM, WEAK
 from ams_can_bridge.probe.traffic import IdTraffic, Traffic
 from ams_can_bridge.registry import DESCRIPTORS, DEVICE_TYPES, load
@@ -65,6 +66,8 @@ class Findings:
     conflicts: list[Conflict] = field(default_factory=list)
     unplaced: list[IdTraffic] = field(default_factory=list)
     failures: list[str] = field(default_factory=list)  # recognisers stopped or not loaded
+    # what the bridge's devices read from the frames heard (the pack section's guesses)
+    readings: dict[str, pack.Reading] = field(default_factory=dict)
 
     @property
     def written(self) -> list[Candidate]:
@@ -90,7 +93,10 @@ def recognise(traffic: Traffic, recognisers: Sequence[Recogniser] = INSTALLED) -
     _name(kept)
     _link(kept)
     claimed = set().union(*(c.ids for c in kept))
-    return Findings(kept, conflicts, [e for e in traffic if e.key not in claimed], failures)
+    written = [c for c in kept if c.written]
+    read = pack.readings(traffic, written) if len(pack.batteries(written)) > 1 else {}
+    return Findings(kept, conflicts, [e for e in traffic if e.key not in claimed], failures,
+                    read)
 
 
 def judge_traffic(traffic: Traffic, cand: Candidate) -> None:

@@ -34,7 +34,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from diagnostic_msgs.msg import DiagnosticArray
 
 from ams_can_bridge import cdr, reports
-from ams_can_bridge.cdr import cdr_string, multi_array  # noqa: F401 (this module's API)
+from ams_can_bridge.cdr import cdr_string, float32, multi_array  # noqa: F401 (this module's API)
 from ams_can_bridge.devices.base import BatteryReport, DiagnosticReport, Level
 
 
@@ -87,7 +87,9 @@ def _same(raw: bytes, msg: Any) -> bool:
 
 
 def check_telemetry() -> bool:
-    """Tell whether rclpy reads battery_state() and multi_array() as convert's messages."""
+    """Tell whether rclpy reads battery_state(), multi_array() and float32() as convert's."""
+    from std_msgs.msg import Float32
+
     from ams_can_bridge.ros import convert
     nan = math.nan
     samples = [
@@ -109,6 +111,9 @@ def check_telemetry() -> bool:
             data = [float(k) for k in range(rows * cols - 1)] + [nan]
             if not _same(multi_array(rows, cols, data, labels),
                          convert.multi_array(rows, cols, data, labels)):
+                return False
+        for value in (0.0, -12.25, 9000.5, nan, math.inf):  # a pack's figures
+            if not _same(float32(value), Float32(data=value)):
                 return False
     except Exception:
         return False

@@ -95,9 +95,11 @@ class RosSink:
         if not self.enabled:
             return
         pubs = self.figure_pubs.get(name, {})
-        for suffix, value in values.items():
+        raw = self._raw_telemetry  # 4 topics at every member report: the message objects
+        for suffix, value in values.items():  # were a third of a pack's cost (bench/README)
             if suffix in pubs:
-                self.publish(pubs[suffix], Float32(data=float(value)))
+                self.publish(pubs[suffix], diag_cdr.float32(float(value)) if raw
+                             else Float32(data=float(value)))
 
     def diagnostics(self, statuses: Statuses, stamp: float) -> None:
         """Publish one DiagnosticArray (serialized here, published raw when possible)."""

@@ -121,16 +121,29 @@ def aggregate(members: Members, connection: str) -> BatteryReport:
         cell_voltage=cells, cell_temperature=temps)
 
 
-def voltage_mismatches(members: Members, max_difference: float) -> list[str]:
-    """Name each pair of parallel members whose voltages differ by more than allowed."""
+def voltage_mismatch_pairs(members: Members,
+                           max_difference: float) -> list[tuple[str, float, str, float]]:
+    """Return each pair of parallel members whose voltages differ by more than allowed."""
     found = []
     for i, (name_a, a) in enumerate(members):
         for name_b, b in members[i + 1:]:
             if math.isfinite(a.voltage) and math.isfinite(b.voltage) \
                     and abs(a.voltage - b.voltage) > max_difference:
-                found.append(f'{name_a} {a.voltage:.3f} V and {name_b} {b.voltage:.3f} V '
-                             f'differ by more than {max_difference:g} V')
+                found.append((name_a, a.voltage, name_b, b.voltage))
     return found
+
+
+def voltage_mismatch_text(pair: tuple[str, float, str, float], max_difference: float) -> str:
+    """Name both members of a mismatched pair and their voltages."""
+    name_a, volts_a, name_b, volts_b = pair
+    return (f'{name_a} {volts_a:.3f} V and {name_b} {volts_b:.3f} V '
+            f'differ by more than {max_difference:g} V')
+
+
+def voltage_mismatches(members: Members, max_difference: float) -> list[str]:
+    """Name each pair of parallel members whose voltages differ by more than allowed."""
+    return [voltage_mismatch_text(pair, max_difference)
+            for pair in voltage_mismatch_pairs(members, max_difference)]
 
 
 def cell_sum_mismatches(members: Members, max_difference: float) -> list[str]:

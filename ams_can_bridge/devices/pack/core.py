@@ -16,7 +16,8 @@ from typing import Mapping, Sequence
 
 from ams_can_bridge.devices.base import BatteryReport, DiagnosticReport, Level
 from ams_can_bridge.devices.pack.aggregate import (PARALLEL, Members, aggregate,
-                                                   cell_sum_mismatches, voltage_mismatches)
+                                                   cell_sum_mismatches, voltage_mismatch_pairs,
+                                                   voltage_mismatch_text)
 from ams_can_bridge.devices.pack.derating import CHARGE_INPUTS, DISCHARGE_INPUTS, derated
 from ams_can_bridge.devices.pack.limits import Event, Limits, Severity
 from ams_can_bridge.devices.pack.time_to_go import TimeToGo
@@ -31,8 +32,21 @@ class PackOutput:
     discharge_current_limit: float
     time_to_empty: float
     time_to_full: float
-    warnings: list[str] = field(default_factory=list)
     raised: list[Event] = field(default_factory=list)
+    stale: list[str] = field(default_factory=list)
+    # parallel members too far apart: formatted when read (the diagnostics, ~1 Hz), not at
+    # every member report, where the float formatting was a tenth of the pack's cost
+    mismatched: list[tuple[str, float, str, float]] = field(default_factory=list)
+    max_voltage_difference: float = 1.5
+    cell_sums: list[str] = field(default_factory=list)
+
+    @property
+    def warnings(self) -> list[str]:
+        """Return the WARNs of this update: stale members, voltage mismatches, cell sums."""
+        return ([f'{name} is stale' for name in self.stale]
+                + [voltage_mismatch_text(pair, self.max_voltage_difference)
+                   for pair in self.mismatched]
+                + self.cell_sums)
 
 
 @dataclass(frozen=True)
@@ -67,10 +81,9 @@ class Pack:
         with self._lock:
             report = aggregate(members, s.connection)
             stale = [name for name, r in members if not r.present]
-            warnings = [f'{name} is stale' for name in stale]
-            if s.connection == PARALLEL:
-                warnings += voltage_mismatches(members, s.max_voltage_difference)
-            warnings += cell_sum_mismatches(members, s.max_cell_sum_difference)
+            mismatched = (voltage_mismatch_pairs(members, s.max_voltage_difference)
+                          if s.connection == PARALLEL else [])
+            cell_sums = cell_sum_mismatches(members, s.max_cell_sum_difference)
             raised = self.limits.update(report, stamp)
             value = self.limits.value
             charge = derated(s.max_charge_current, CHARGE_INPUTS, s.limits, value)
@@ -81,7 +94,8 @@ class Pack:
                 discharge = 0.0 if not math.isnan(discharge) else discharge
             self.time_to_go.add(stamp, report.current)
             empty, full = self.time_to_go.times(report.charge, report.capacity)
-            self.last = PackOutput(report, charge, discharge, empty, full, warnings, raised)
+            self.last = PackOutput(report, charge, discharge, empty, full, raised, stale,
+                                   mismatched, s.max_voltage_difference, cell_sums)
             return self.last
 
     def clear_events(self) -> tuple[bool, str]:

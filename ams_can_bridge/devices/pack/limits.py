@@ -14,7 +14,7 @@ from __future__ import annotations
 import enum
 import math
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
+from typing import Iterable, Mapping, Sequence
 
 from ams_can_bridge.devices.base import BatteryReport
 
@@ -49,26 +49,52 @@ KINDS: dict[str, LimitKind] = {
 }
 
 
-def _extreme(values: Sequence[float], upper: bool) -> float:
-    """Return the max (upper) or min of the values, NaN with none or an unknown one."""
-    # a sum propagates NaN in one C loop (max() would silently skip some NaN)
-    if not values or not math.isfinite(sum(values)):
-        return math.nan
-    return max(values) if upper else min(values)
-
-
 def limit_value(name: str, report: BatteryReport) -> float:
     """Return the pack value a limit watches (NaN when unknown)."""
-    if name.startswith('cell_voltage'):
-        return _extreme(report.cell_voltage, KINDS[name].upper)
-    if name.startswith('temperature'):
-        temps = list(report.cell_temperature)
-        if math.isfinite(report.temperature) or not temps:
-            temps.append(report.temperature)
-        return _extreme(temps, KINDS[name].upper)
-    if name == 'charge_current_max':
-        return report.current  # ROS sign: positive while charging
-    return -report.current  # discharge current, positive
+    return limit_values(report, (name,))[name]
+
+
+def limit_values(report: BatteryReport, names: Iterable[str]) -> dict[str, float]:
+    """
+    Return the pack values the limits watch, by name (NaN when unknown).
+
+    Each array is checked once for all the limits that watch it (at every member report:
+    the cells of every member), and the temperature is not copied onto the cell temperatures:
+    the highest (lowest) of ``temperature`` and every cell temperature, NaN when one is unknown;
+    with no cell temperature, ``temperature`` alone.
+    """
+    out = {}
+    cells_known: bool | None = None
+    temps_known: bool | None = None
+    temps = report.cell_temperature
+    temperature = report.temperature
+    for name in names:
+        upper = KINDS[name].upper
+        if name.startswith('cell_voltage'):
+            if cells_known is None:
+                cells = report.cell_voltage
+                cells_known = bool(cells) and math.isfinite(sum(cells))
+            out[name] = ((max(cells) if upper else min(cells)) if cells_known else math.nan)
+        elif name.startswith('temperature'):
+            if temps_known is None:
+                # the sum of the cells' and then the pack's (when known): _extreme's check
+                total = sum(temps) if temps else 0.0
+                own = math.isfinite(temperature)
+                temps_known = math.isfinite(total + temperature if own or not temps else total)
+            if not temps_known:
+                out[name] = math.nan
+            elif not temps:
+                out[name] = temperature
+            else:
+                extreme = max(temps) if upper else min(temps)
+                if math.isfinite(temperature):
+                    extreme = max(extreme, temperature) if upper else min(extreme, temperature)
+                out[name] = extreme
+        elif name == 'charge_current_max':
+            out[name] = report.current  # ROS sign: positive while charging
+        else:
+            out[name] = -report.current  # discharge current, positive
+    return out
 
 
 def check_levels(name: str, levels: Sequence[float]) -> str | None:
@@ -125,9 +151,9 @@ class Limits:
     def update(self, report: BatteryReport, stamp: float) -> list[Event]:
         """Take a pack report at ``stamp``; return the events raised by it."""
         raised = []
+        self._values = values = limit_values(report, self.levels)
         for name, levels in self.levels.items():
-            value = limit_value(name, report)
-            self._values[name] = value
+            value = values[name]
             if math.isnan(value):
                 continue
             if name not in self._open and not beyond(name, value, levels[0]):
