@@ -97,6 +97,26 @@ def bench_factory():
         bench.close()
 
 
+@pytest.fixture
+def ros():
+    """
+    Give a listener node and its executor in a ROS context of its own: ``(node, executor)``.
+
+    For the tests that watch an installed executable (a subprocess on this run's domain)
+    from this process; the context is shut down afterwards.
+    """
+    import rclpy  # only for the tests that use it: the fast lanes import no ROS
+    from rclpy.executors import SingleThreadedExecutor
+    from helpers import ros_context
+    with ros_context() as ctx:
+        node = rclpy.create_node('slcan_test_listener', context=ctx)
+        executor = SingleThreadedExecutor(context=ctx)
+        executor.add_node(node)
+        yield node, executor
+        executor.shutdown()
+        node.destroy_node()
+
+
 def examples(n: int) -> int:
     """Return n examples in CI, LONG_FACTOR x n with HYPOTHESIS_PROFILE=long."""
     return n * LONG_FACTOR if PROFILE == 'long' else n

@@ -68,3 +68,13 @@ def package_executable(name: str, bin_dir: Path | None = None,
         f'the {PACKAGE} executable {name!r} is not installed where this package installs it '
         f'(looked in {", ".join(str(d) for d in dirs)}): run ./dev setup (pip install -e .) '
         'or colcon build and source install/setup.bash')
+
+
+def bridge_executable() -> str:
+    """Return this package's installed bridge (never PATH's: that is iproute2's bridge)."""
+    return package_executable('bridge')
+
+
+def probe_executable() -> str:
+    """Return this package's installed probe, beside its bridge."""
+    return str(Path(bridge_executable()).with_name('probe'))

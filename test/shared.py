@@ -20,6 +20,9 @@ import yaml
 from ams_can_bridge.bus_state import BusState, BusStatus
 from ams_can_bridge.errors import CanSendError
 from ams_can_bridge import registry
+from ams_can_bridge.probe.main import main as probe_main
+from ams_can_bridge.probe.recognise import Findings
+from ams_can_bridge.probe.traffic import Traffic
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.evms3 import Evms3Settings
 from ams_can_bridge.ros.demo_rig import device_parameters, DEVICES
@@ -329,3 +332,31 @@ def rosbags_read(bag: str) -> dict[str, list]:
             out.setdefault(connection.topic, []).append(
                 (t_ns, reader.deserialize(raw, connection.msgtype)))
     return out
+
+
+# --- probe ---
+
+def one_line_error(capsys, argv: list[str]) -> str:
+    """Run probe; assert exit 2 with exactly one error line on stderr; return that line."""
+    assert probe_main(argv) == 2
+    err = capsys.readouterr().err
+    lines = [line for line in err.strip().splitlines()  # live: what it listened to first
+             if not line.startswith('probe: listening on')]
+    assert len(lines) == 1 and lines[0].startswith('probe: '), err
+    assert 'Traceback' not in err
+    return lines[0]
+
+
+def traffic_of(frames: list[tuple[float, int, bytes]], extended: bool = False) -> Traffic:
+    """Return probe's Traffic heard from (stamp, id, data) frames."""
+    traffic = Traffic()
+    for stamp, can_id, data in frames:
+        traffic.add(can_id, extended, data, stamp)
+    return traffic
+
+
+def only(findings: Findings, kind: str):
+    """Return the one device of type ``kind`` probe found; AssertionError if not exactly one."""
+    found = [c for c in findings.devices if c.type == kind]
+    assert len(found) == 1, [c.title for c in findings.devices]
+    return found[0]

@@ -13,7 +13,6 @@ SROS2.
 from __future__ import annotations
 
 import os
-from pathlib import Path
 
 import pytest
 from rclpy.parameter import Parameter
@@ -24,9 +23,8 @@ from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.offline.log2bag import main as log2bag
 from ams_can_bridge.offline.params_file import load_parameters
 from ams_can_bridge.parameters import coerce, MAX_DEVICES
+from bridge_runs import node_error, stopped_before_the_adapter
 from helpers import ros_context
-from slcan_peer import SlcanPeer
-from test_start_checks import assert_nothing_reached, node_error, run_bridge, slcan_yaml
 
 ARMED = '    commands_allowed: true\n    commands_enabled: true\n'
 KEEPALIVE_ID = 0x305
@@ -43,19 +41,6 @@ def device_set(names, values):
         value = values.get(name, spec.default)
         return None if value is None else coerce(name, spec, value)
     return DeviceSet(names, declare)
-
-
-def stopped_before_the_adapter(tmp_path: Path, body: str, tag: str) -> str:
-    """Start the bridge on a serial adapter; assert exit 2, no traceback, nothing sent."""
-    peer = SlcanPeer(symlink=tmp_path / f'ttyACM_{tag}')
-    try:
-        proc = run_bridge(tmp_path, slcan_yaml(peer, body))
-        assert proc.returncode == 2, proc.stderr
-        assert 'Traceback' not in proc.stderr, proc.stderr
-        assert_nothing_reached(peer)  # no heartbeat, not even the channel opened
-    finally:
-        peer.shutdown()
-    return proc.stderr
 
 
 # --- 5: IDs a device sends ----------------------------------------------------------------

@@ -12,18 +12,13 @@ import math
 import time
 
 from sensor_msgs.msg import BatteryState
+from bridge_runs import slcan_params
 from slcan_peer import SlcanPeer
 from shared import bms16_status, level, values
 
 from ams_can_bridge.protocols.common import Frame
 
 ERROR, STALE = 2, 3
-
-
-def slcan_params(peer: SlcanPeer) -> dict:
-    return {'can.interface': 'slcan', 'can.channel': peer.channel,
-            'can.options': ['sleep_after_open=0'], 'can.reconnect_period': 0.2,
-            'diagnostics_period': 0.2}
 
 
 def test_missing_adapter_then_plugged_in(rig_factory, tmp_path, capfd):

@@ -21,10 +21,10 @@ import pytest
 from std_srvs.srv import Trigger
 
 from ams_can_bridge.protocols.common import Frame
+from executables import bridge_executable
 from helpers import wait_for
 from shared import FRAMES
 from slcan_peer import SlcanPeer
-from test_bridge_slcan import bridge_executable, ros  # noqa: F401 (fixture)
 
 EXIT_WITHIN = 2.0  # s from the signal to the exit (issue 9)
 

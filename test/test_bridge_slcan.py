@@ -18,22 +18,15 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 import pytest
-import rclpy
-from rclpy.executors import SingleThreadedExecutor
 from sensor_msgs.msg import BatteryState
 
 from ams_can_bridge.protocols.common import Frame
-from executables import package_executable
-from helpers import interrupt, ros_context, wait_for
+from executables import bridge_executable
+from helpers import interrupt, wait_for
 from shared import FRAMES
 from slcan_peer import SlcanPeer
 
 BATTERY = ['ams', 'ivt', 'evms3', 'bms16', 'sma']
-
-
-def bridge_executable() -> str:
-    """Return this package's installed bridge (never PATH's: that is iproute2's bridge)."""
-    return package_executable('bridge')
 
 
 def params_file(path: Path, channel: str) -> Path:
@@ -61,17 +54,6 @@ def frames_round(n: int) -> list[Frame]:
     return [Frame(ivt.arbitration_id, ivt.data[:1] + bytes([n & 0x0F]) + ivt.data[2:]),
             Frame(ams.arbitration_id, ams.data[:5] + bytes([n & 0xFF]) + ams.data[6:])
             ] + FRAMES[2:]
-
-
-@pytest.fixture
-def ros():
-    with ros_context() as ctx:
-        node = rclpy.create_node('slcan_test_listener', context=ctx)
-        executor = SingleThreadedExecutor(context=ctx)
-        executor.add_node(node)
-        yield node, executor
-        executor.shutdown()
-        node.destroy_node()
 
 
 def test_installed_bridge_on_slcan(ros, tmp_path):

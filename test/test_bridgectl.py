@@ -21,6 +21,7 @@ from ams_can_bridge.sim.ams import AmsSimulator
 from ams_can_bridge.sim.ivt_s import IvtSSimulator
 from ams_can_bridge.sim.runner import SimRunner
 from command_bench import unique_channel
+from doc_blocks import block_after, commands, section
 from executables import package_executable
 
 pytestmark = pytest.mark.ros
@@ -198,7 +199,6 @@ def test_namespace_and_node_select_the_bridge(bridges, capsys):
 
 def doc_commands(page, heading=None):
     """Return the bridgectl commands of the first bash block of a page (or of a section)."""
-    from test_readme_new_team import block_after, commands, section
     text = section(page, heading) if heading else (ROOT / 'doc' / f'{page}.md').read_text()
     return [argv for argv in commands(block_after(text, '', 'bash')) if argv[0] == 'bridgectl']
 

@@ -109,7 +109,7 @@ def test_installed_bridge_answers_a_command_called_as_soon_as_its_service_appear
     from std_srvs.srv import SetBool
 
     from helpers import ros_context
-    from test_bridge_slcan import bridge_executable
+    from executables import bridge_executable
     ns = f'race_{os.getpid()}'
     # The adapter is plugged in only after the calls were made, so they surely race the
     # opening bus; python-can then sleeps its own 2 s in the open (no sleep_after_open).

@@ -20,8 +20,8 @@ from ams_can_bridge.can_io.core import CanIo
 from ams_can_bridge.can_io.slcan import lock_serial_port
 from ams_can_bridge.errors import ParamError
 from ams_can_bridge.parameters import BUS_PARAMS, coerce
+from bridge_runs import run_bridge, slcan_yaml
 from slcan_peer import SlcanPeer
-from test_start_checks import run_bridge, slcan_yaml
 
 SETTLE = 6.0  # s: the adapter's wait after opening, far longer than a prompt stop
 

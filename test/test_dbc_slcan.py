@@ -21,9 +21,8 @@ from diagnostic_msgs.msg import DiagnosticArray
 from sensor_msgs.msg import BatteryState
 
 from dbc_fixtures import OUR_BMS_DBC, OUR_MAPPING, OUR_PARAMS, write_files
-from executables import package_executable
+from executables import bridge_executable, package_executable
 from slcan_peer import SlcanPeer
-from test_bridge_slcan import bridge_executable, ros  # noqa: F401 (fixture)
 
 
 def simulator() -> str:

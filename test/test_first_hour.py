@@ -43,9 +43,9 @@ from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.reports import bus_report
 from ams_can_bridge.ros.bridge_node import BridgeNode
 from ams_can_bridge.ros.overrides import rcl_value, unapplied_overrides
+from executables import bridge_executable
 from helpers import ros_context, wait_for
 from slcan_peer import SlcanPeer
-from test_bridge_slcan import bridge_executable
 
 _ids = itertools.count()
 BUS = {spec.key: spec.default for spec in BUS_PARAMS}

@@ -29,11 +29,10 @@ from ams_can_bridge.input_files import ALIAS_VALUES_LIMIT, file_problem, load_ya
 from ams_can_bridge.offline.log2bag import main as log2bag
 from ams_can_bridge.offline.params_file import duplicate_problems, load_parameters
 from ams_can_bridge.ros.params import node_name_from_argv
+from bridge_runs import assert_nothing_reached, run_bridge, slcan_yaml, stopped_before_the_adapter
+from executables import bridge_executable
+from shared import one_line_error
 from slcan_peer import SlcanPeer
-from test_attacks_start import stopped_before_the_adapter
-from test_bridge_slcan import bridge_executable
-from test_probe_cli import one_line_error
-from test_start_checks import assert_nothing_reached, run_bridge, slcan_yaml
 
 NODE = 'ams_can_bridge'
 

@@ -20,7 +20,7 @@ import threading
 import pytest
 
 from ams_can_bridge.parameters import launch_parameters
-from test_bridge_slcan import bridge_executable
+from executables import bridge_executable
 
 LAUNCH = Path(__file__).resolve().parent.parent / 'launch' / 'bridge.launch.py'
 ARMED = ('/**:\n  ros__parameters:\n    commands_allowed: true\n    commands_enabled: true\n'

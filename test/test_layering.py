@@ -133,3 +133,36 @@ def test_the_check_sees_a_never_pair():
                              PurePath('parameters.py')) == ['parameters -> devices']
     assert forbidden_imports('from ams_can_bridge.devices.base import Device\n',
                              PurePath('ros/x.py')) == []
+
+
+TESTS = Path(__file__).resolve().parent
+
+
+def imported_tests(source: str) -> list[str]:
+    """Return the test modules (``test_*``) a source file imports, anywhere in it."""
+    found = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            names = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            names = [node.module]
+        else:
+            continue
+        found += [n for n in names if n.split('.')[0].startswith('test_')]
+    return found
+
+
+def test_no_test_module_imports_another_test_module():
+    # What several test files share lives in test/shared.py, the helper modules and
+    # conftest.py's fixtures: a test file is never a library (pytest would collect it twice
+    # under two names, and moving one test breaks another).
+    sources = sorted(TESTS.glob('*.py'))
+    assert len(sources) > 100
+    found = {p.name: imported_tests(p.read_text()) for p in sources}
+    assert {name: modules for name, modules in found.items() if modules} == {}
+
+
+def test_the_test_import_check_sees_both_forms():
+    source = ('import test_a\nfrom test_b.x import y\ndef f():\n    from test_c import z\n'
+              'from shared import FRAMES\nimport testing\n')
+    assert imported_tests(source) == ['test_a', 'test_b.x', 'test_c']

@@ -23,18 +23,8 @@ from ams_can_bridge.probe.main import main
 from ams_can_bridge.probe.output import check_file
 from ams_can_bridge.probe.recognise import settle
 from dbc_fixtures import OUR_BMS_DBC_FILE, OUR_MAPPING_FILE
-from test_probe_live import probe_executable
-
-
-def one_line_error(capsys, argv: list[str]) -> str:
-    """Run probe; assert exit 2 with exactly one error line on stderr; return that line."""
-    assert main(argv) == 2
-    err = capsys.readouterr().err
-    lines = [line for line in err.strip().splitlines()  # live: what it listened to first
-             if not line.startswith('probe: listening on')]
-    assert len(lines) == 1 and lines[0].startswith('probe: '), err
-    assert 'Traceback' not in err
-    return lines[0]
+from executables import probe_executable
+from shared import one_line_error
 
 
 @pytest.mark.parametrize('case, contents, words', [

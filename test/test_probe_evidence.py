@@ -9,21 +9,8 @@ what it decides and what it leaves as a check (never a silent guess).
 """
 from __future__ import annotations
 
-from ams_can_bridge.probe.recognise import Findings, recognise
-from ams_can_bridge.probe.traffic import Traffic
-
-
-def traffic_of(frames: list[tuple[float, int, bytes]], extended: bool = False) -> Traffic:
-    traffic = Traffic()
-    for stamp, can_id, data in frames:
-        traffic.add(can_id, extended, data, stamp)
-    return traffic
-
-
-def only(findings: Findings, kind: str):
-    found = [c for c in findings.devices if c.type == kind]
-    assert len(found) == 1, [c.title for c in findings.devices]
-    return found[0]
+from ams_can_bridge.probe.recognise import recognise
+from shared import only, traffic_of
 
 
 def ivt(base: int, kind: int, counter: int, raw: int, order: str = 'big') -> bytes:

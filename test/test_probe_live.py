@@ -35,19 +35,14 @@ from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.offline.converter import NODE_NAME
 from ams_can_bridge.offline.params_file import FileParams, load_parameters
 from ams_can_bridge.protocols.common import Frame
+from executables import bridge_executable, probe_executable
 from helpers import interrupt, ros_context, values_of
 from probe_variants import BY_NAME, PROFILE_VARIANTS, Variant, VARIANTS
 from slcan_peer import SlcanPeer
-from test_bridge_slcan import bridge_executable
 
 SLCAN_RATE = {500_000: 'S6', 250_000: 'S5'}
 LISTEN_S = 3.0
 WARM_UP_S = 2.5  # s after the bridge's first message: every group (1 s cycles) heard again
-
-
-def probe_executable() -> str:
-    """Return the installed probe next to this Python (venv), else on PATH."""
-    return str(Path(bridge_executable()).with_name('probe'))
 
 
 def nan_free(values: tuple) -> tuple:

@@ -28,7 +28,7 @@ from ams_can_bridge.probe.main import main as probe_main
 from ams_can_bridge.sim.recording import write_log
 from helpers import same, values_of
 from probe_variants import PROFILE_VARIANTS, Variant, VARIANTS
-from test_log2bag import rosbags_read
+from shared import rosbags_read
 
 SECONDS = 6.0
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from ams_can_bridge.probe.output import render
 from ams_can_bridge.probe.recognise import recognise
-from test_probe_evidence import only, traffic_of
+from shared import only, traffic_of
 
 # Discover Lynx II (issue 107 of ai-republic/bms-to-inverter): CVL 0x022E = 55.8 V, DVL
 # 0x01B0 = 43.2 V; 0x356 0x020A = 522

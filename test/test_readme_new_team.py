@@ -14,7 +14,6 @@ time (doc/parameters.md) is the node's own.
 import os
 from pathlib import Path
 import re
-import shlex
 import signal
 import subprocess
 import sys
@@ -25,34 +24,11 @@ import pytest
 import rclpy
 import yaml
 
+from doc_blocks import block_after, commands, section
 from helpers import every_device_bridge
 
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
-
-
-def section(page: str, heading: str) -> str:
-    """Return one '## heading' section of a page of doc/ (up to the next '## ')."""
-    text = (ROOT / 'doc' / f'{page}.md').read_text()
-    return text.split(f'\n## {heading}\n', 1)[1].split('\n## ', 1)[0]
-
-
-def block_after(text: str, title: str, kind: str) -> str:
-    """Return the first ```kind block of text after title ('' = the first of text)."""
-    rest = text.split(title, 1)[1] if title else text
-    return rest.split(f'```{kind}\n', 1)[1].split('```', 1)[0]
-
-
-def commands(block: str) -> list[list[str]]:
-    """Return the commands of a bash block (continuations joined, comments, '&' dropped)."""
-    text = block.replace('\\\n', ' ')
-    out = []
-    for line in text.splitlines():
-        line = re.sub(r'^#\s*or:\s*', '', line.strip())
-        if not line or line.startswith('#'):
-            continue
-        out.append(shlex.split(line.split(' #', 1)[0].rstrip(' &')))
-    return out
 
 
 class Output:

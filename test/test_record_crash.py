@@ -22,9 +22,9 @@ from sensor_msgs.msg import BatteryState
 
 from ams_can_bridge.can_io.recording import FLUSH_PERIOD
 from ams_can_bridge.protocols.common import Frame
+from executables import bridge_executable
+from shared import bms16_status
 from slcan_peer import SlcanPeer
-from test_bridge_node import bms16_status
-from test_bridge_slcan import bridge_executable, ros  # noqa: F401 (ros: a fixture)
 
 FRAMES = 100  # BMS16 status frames, SoC 0..99 %: a few kB, less than any writer's buffer
 

@@ -19,9 +19,9 @@ import pytest
 from ams_can_bridge.can_io import core
 from ams_can_bridge.can_io.slcan import BulkReadSlcanBus, MAX_LINE
 from ams_can_bridge.protocols.common import Frame
+from bridge_runs import slcan_params
+from shared import bms16_status, level, values
 from slcan_peer import frame_to_slcan, SlcanPeer
-from test_bridge_faults import slcan_params
-from test_bridge_node import bms16_status, level, values
 
 NOISE = bytes(range(0x20, 0x7F)) * 64  # printable, no CR (0x0D) or BEL (0x07): 6 KB
 FRAME = Frame(0x123, b'\x01\x02\x03')

@@ -11,43 +11,24 @@ import math
 import pytest
 
 from ams_can_bridge.devices.base import Level
-from ams_can_bridge.devices.sma.device import IDENTITY_TIMEOUT, SmaDevice
+from ams_can_bridge.devices.sma.device import IDENTITY_TIMEOUT
 from ams_can_bridge.errors import MalformedFrameError
 from ams_can_bridge.protocols.common import Frame, load_dbc
 from ams_can_bridge.protocols.sma import SmaCodec, SmaFlag, SmaLimits, SmaSoc
 from ams_can_bridge.protocols.sma_dialects import (
     keepalive_frame, PylontechRequest, VictronEnergy, VictronInstalledCapacity, VictronModules,
     VictronProductName)
-from helpers import Clock
+from sma_golden import (BYD_351, BYD_355, BYD_356, BYD_35A, BYD_35F, BYD_372, BYD_378, BYD_379,
+                        BYD_382, feed, make)
 
 CODEC = SmaCodec()
 
-# dfch/BydCanProtocol README.md: BYD Battery-Box Premium LVS talking to a Victron GX.
-BYD_351 = bytes([0x48, 0x02, 0x00, 0x05, 0x00, 0x05, 0xAE, 0x01])  # 58.4 V, 128 A, 128 A, 43 V
-BYD_355 = bytes([0x43, 0x00, 0x64, 0x00, 0x00, 0x00, 0x00, 0x00])  # 67 %, 100 %, zeros
-BYD_356 = bytes([0xBE, 0x14, 0xF9, 0xFF, 0x8C, 0x00, 0x00, 0x00])  # 53.10 V, -0.7 A, 14.0 C
-BYD_35A = bytes([0xAA] * 8)
-BYD_35F = bytes([0x4C, 0x69, 0x01, 0x17, 0x69, 0x00, 0x00, 0x00])  # 105 Ah
-BYD_372 = bytes([0x02, 0x00, 0x02, 0x00, 0x01, 0x00, 0x00, 0x00])
-BYD_378 = bytes([0x40, 0x08, 0x00, 0x00, 0x2B, 0x07, 0x00, 0x00])  # 211.2 / 183.5 kWh
-BYD_379 = bytes([0x9C, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00])  # 156 Ah
-BYD_382 = bytes([0x50, 0x52, 0x45, 0x4D, 0x49, 0x55, 0x4D, 0x00])  # "PREMIUM"
 # syssi/esphome-virtual-can-bms issue #3: candump of a Victron GX with a CAN-BMS battery.
 GX_355 = bytes([0x3C, 0x00, 0x64, 0x00, 0x84, 0x17, 0x00, 0x00])  # 60 %, 100 %, 60.20 %
 GX_35A = bytes([0xAA, 0xAA, 0xAA, 0x02, 0xAA, 0xAA, 0xAA, 0x02])
 # stuartpittaway/diyBMSv4ESP32 victron_canbus.cpp: 0x355 and 0x379 with DLC 2 (a U16 each).
 DIYBMS_355 = bytes([0x50, 0x00])  # 80 %
 DIYBMS_379 = bytes([0x9C, 0x00])  # 156 Ah
-
-
-def make():
-    clock = Clock(50.0)
-    return SmaDevice('sma', {}, clock=clock), clock
-
-
-def feed(device, *frames):
-    for can_id, data in frames:
-        device.handle_frame(can_id, data, 1.0)
 
 
 # --- 1. 0x355: the high-resolution SoC only where it agrees ---------------------------------

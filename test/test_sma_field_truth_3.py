@@ -9,7 +9,7 @@ or a vendor's own code), never produced by our simulator or codec (doc/protocols
 import pytest
 
 from ams_can_bridge.protocols.sma import SmaCodec
-from test_sma_field_truth import BYD_355, BYD_356, BYD_35F, BYD_379, feed, make
+from sma_golden import BYD_355, BYD_356, BYD_35F, BYD_379, feed, make
 
 CODEC = SmaCodec()
 

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import itertools
 import os
-from pathlib import Path
 import subprocess
 import sys
 import threading
@@ -30,9 +29,10 @@ from ams_can_bridge.parameters import coerce
 from ams_can_bridge.ros.bridge_node import BridgeNode
 from ams_can_bridge.ros.params import unmatched_params_files
 from ams_can_bridge.sim import main as sim_main
-from helpers import ros_context, wait_for
+from bridge_runs import assert_nothing_reached, node_error, run_bridge, slcan_yaml
+from executables import bridge_executable
+from helpers import ros_context
 from slcan_peer import SlcanPeer
-from test_bridge_slcan import bridge_executable
 
 _ids = itertools.count()
 TYPOS = ('/**:\n  ros__parameters:\n    device: [ams]\n    devices: [ams, ivt_s]\n'
@@ -52,36 +52,6 @@ TYPO_MESSAGES = [
 def context():
     with ros_context() as ctx:
         yield ctx
-
-
-def slcan_yaml(peer: SlcanPeer, body: str, bitrate: int = 500000) -> str:
-    return (f'{body}    can: {{interface: slcan, channel: {peer.channel}, bitrate: {bitrate},'
-            ' options: [sleep_after_open=0], reconnect_period: 0.2}\n')
-
-
-def run_bridge(tmp_path: Path, text: str, *args: str, env: dict | None = None):
-    params = tmp_path / f'params_{next(_ids)}.yaml'
-    params.write_text(text)
-    return subprocess.run([bridge_executable(), '--ros-args', '--params-file', str(params),
-                           *args], capture_output=True, text=True, timeout=30,
-                          env=env or dict(os.environ))
-
-
-def assert_nothing_reached(peer: SlcanPeer) -> None:
-    """Check that the adapter got no command, no frame: a marker now is the first thing read."""
-    with open(peer.channel, 'wb', buffering=0) as tty:  # as the bridge would have written
-        tty.write(b'V\r')
-    wait_for(lambda: 'V' in peer.commands, timeout=5.0, what='the marker line')
-    assert peer.commands == ['V'] and peer.received() == [] and not peer.is_open
-
-
-def node_error(context, overrides: dict) -> str:
-    params = {'can.interface': 'virtual', 'can.channel': f'checks-{os.getpid()}-{next(_ids)}',
-              **overrides}
-    with pytest.raises(ConfigError) as info:
-        BridgeNode(context=context, namespace=f'checks_{next(_ids)}',
-                   parameter_overrides=[Parameter(k, value=v) for k, v in params.items()])
-    return str(info.value)
 
 
 # --- 1: unknown keys ----------------------------------------------------------------------
