@@ -262,7 +262,7 @@ def test_a_pack_row_shows_its_limits_time_to_go_and_events():
 
 @pytest.mark.process
 def test_the_pack_demo_shows_the_pack_row_its_limits_and_the_scenarios_event():
-    """demo --pack: config/pack.yaml's pack, and the simulator's cell_over raising its MSL."""
+    """Show config/pack.yaml's pack in demo --pack, and the cell_over scenario's MSL."""
     result = subprocess.run([demo_executable(), '--pack', '--scenario', 'cell_over@3',
                              '--duration', '9', '--plain', '--interval', '0.5'],
                             capture_output=True, text=True, timeout=90, env=dict(os.environ))
@@ -274,7 +274,8 @@ def test_the_pack_demo_shows_the_pack_row_its_limits_and_the_scenarios_event():
     assert all(set(rows) == {'bms16', 'evms3', 'pack'} for rows, _ in packs[-3:]), shots[-1]
     # inside every limit first: the pack's own limits at their full value
     ok = [line for rows, line in packs if rows.get('pack', [''])[-1] == 'OK']
-    assert ok and ok[0].startswith("pack: limits: charge 40 A, discharge 150 A"), ok[:1]
+    # (the very first report may come before the EVMS3's: limits 0 until both reported)
+    assert any(line.startswith('pack: limits: charge 40 A, discharge 150 A') for line in ok), ok
     # then the scenario's cell past 4.20 V: MSL, latched, both limits 0
     rows, line = packs[-1]
     assert rows['pack'][1:3] == ['MSL', 'cell_voltag.'] and rows['pack'][-1] == 'ERROR'
@@ -283,7 +284,7 @@ def test_the_pack_demo_shows_the_pack_row_its_limits_and_the_scenarios_event():
 
 
 def rows_of_pack(snapshot: str) -> tuple[dict[str, list[str]], str]:
-    """The pair's and the pack's rows of one snapshot, and the pack's message line."""
+    """Return the pair's and the pack's rows of one snapshot, and the pack's message line."""
     rows = {}
     line = ''
     for text in snapshot.splitlines():

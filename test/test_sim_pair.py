@@ -127,7 +127,7 @@ def test_simulator_pack_on_a_virtual_bus_plays_all_three_into_the_pack():
     pack = device_set.devices['pack']
     args = ['--interface', 'virtual', '--channel', channel, '--pack', '--quiet',
             '--scenario', 'silence@0.5', '--scenario', 'cell_over@5',
-            '--scenario', 'drift@5', '--duration', '12']
+            '--scenario', 'drift@4', '--duration', '13']
     result: list[int] = []
     sim = threading.Thread(target=lambda: result.append(simulator_main(args)), daemon=True)
     seen: list[str] = []

@@ -59,17 +59,17 @@ def build_pair(current_fn: Callable[[float], float] = _half) -> list[SimDevice]:
 
 
 def parse_scenario(text: str) -> tuple[str, float]:
-    """Parse NAME[@START] (ValueError naming the choices)."""
+    """Parse NAME[@START] (ConfigError, a ValueError, naming the choices)."""
     name, sep, start = text.partition('@')
     if name not in SCENARIOS:
-        raise ValueError(f'scenario {text!r}: use one of {", ".join(SCENARIOS)}, '
-                         'optionally @START (s), e.g. cell_over@3')
+        raise ConfigError(f'scenario {text!r}: use one of {", ".join(SCENARIOS)}, '
+                          'optionally @START (s), e.g. cell_over@3')
     try:
         seconds = float(start) if sep else DEFAULT_START_S
     except ValueError:
-        raise ValueError(f'scenario {text!r}: START must be seconds, e.g. {name}@3') from None
+        raise ConfigError(f'scenario {text!r}: START must be seconds, e.g. {name}@3') from None
     if not seconds >= 0:
-        raise ValueError(f'scenario {text!r}: START must be >= 0 s')
+        raise ConfigError(f'scenario {text!r}: START must be >= 0 s')
     return name, seconds
 
 
