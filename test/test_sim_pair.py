@@ -126,7 +126,7 @@ def test_simulator_pack_on_a_virtual_bus_plays_all_three_into_the_pack():
     engine, _, device_set = build(pack_params(), clock)
     pack = device_set.devices['pack']
     args = ['--interface', 'virtual', '--channel', channel, '--pack', '--quiet',
-            '--scenario', 'silence@0.5', '--scenario', 'cell_over@5',
+            '--scenario', 'silence@0.5', '--scenario', 'cell_over@6',
             '--scenario', 'drift@4', '--duration', '13']
     result: list[int] = []
     sim = threading.Thread(target=lambda: result.append(simulator_main(args)), daemon=True)
@@ -150,7 +150,7 @@ def test_simulator_pack_on_a_virtual_bus_plays_all_three_into_the_pack():
     assert 'evms3 is stale' in seen
     assert 'OK' in seen[seen.index('evms3 is stale'):]  # and it came back
     final = pack.diagnostic_report()
-    assert final.level == Level.ERROR  # latched though the cell came back at 8 s
+    assert final.level == Level.ERROR  # latched though the cell came back at 9 s
     assert 'MSL cell_voltage_max: beyond 4.2 V' in final.message
     assert any('bms16' in t and 'evms3' in t and 'differ by more than 1.5 V' in t
                for t in seen)
