@@ -120,21 +120,39 @@ def test_diagnostics_aggregator_groups_every_status_of_the_examples():
     assert all(len(keys) == 1 for keys in matched.values()), matched
 
 
+def published_topics() -> dict[str, set[str]]:
+    """Every topic a shipped config's bridge publishes per device -> the fields it carries."""
+    from sensor_msgs.msg import BatteryState
+    from std_msgs.msg import Float32
+    battery = set(BatteryState.get_fields_and_field_types())
+    figure = set(Float32.get_fields_and_field_types())
+    topics: dict[str, set[str]] = {}
+    for path in FILES:
+        params = flatten(yaml.safe_load(path.read_text())['/**']['ros__parameters'])
+        for name in params['devices']:
+            cls = registry.device_class(params.get(f'{name}.type', name),
+                                        params.get(f'{name}.variant'))
+            topics.setdefault(f'/{name}/battery_state', set()).update(battery)
+            for suffix in cls.FIGURES:  # a pack's limits and time-to-go
+                topics.setdefault(f'/{name}/{suffix}', set()).update(figure)
+    return topics
+
+
 def test_foxglove_layout_uses_the_bridges_topics_and_fields():
     import json
 
-    from sensor_msgs.msg import BatteryState
     layout = json.loads((CONFIG / 'foxglove_layout.json').read_text())
-    topics = {name.split(': ')[1] for name in bridge_status_names()} - {'CAN bus'}
     paths = [p['value'] for panel in layout['configById'].values()
              for p in panel.get('paths', [])]
     assert paths
-    fields = BatteryState.get_fields_and_field_types()
+    published = published_topics()
     for path in paths:
         topic, _, field = path.partition('.')
-        device, leaf = topic.strip('/').split('/')
-        assert device in topics and leaf == 'battery_state', path
-        assert field.split('[')[0] in fields, path
+        assert topic in published, f'{path}: no shipped config publishes {topic}'
+        assert field.split('[')[0] in published[topic], path
+    # the pack's limits and time-to-go (config/pack.yaml) are in it, as doc/visualization.md says
+    assert {'/pack/charge_current_limit.data', '/pack/discharge_current_limit.data',
+            '/pack/time_to_empty.data', '/pack/time_to_full.data'} <= set(paths)
     rendered = {panel.get('topicToRender') for panel in layout['configById'].values()}
     assert '/diagnostics' in rendered
 

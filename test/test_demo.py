@@ -258,3 +258,40 @@ def test_a_pack_row_shows_its_limits_time_to_go_and_events():
     # a device that is no pack keeps its line as it was
     plain = DiagnosticStatus(level=b'\x00', name='ams_can_bridge: bms16', message='OK')
     assert device_row('bms16', None, plain).message == ''
+
+
+@pytest.mark.process
+def test_the_pack_demo_shows_the_pack_row_its_limits_and_the_scenarios_event():
+    """Show config/pack.yaml's pack in demo --pack, and the cell_over scenario's MSL."""
+    result = subprocess.run([demo_executable(), '--pack', '--scenario', 'cell_over@3',
+                             '--duration', '9', '--plain', '--interval', '0.5'],
+                            capture_output=True, text=True, timeout=90, env=dict(os.environ))
+    output = result.stdout + result.stderr
+    assert result.returncode == 0, output[-3000:]
+    assert 'Traceback' not in output, output[-3000:]
+    shots = snapshots(result.stdout)
+    packs = [rows_of_pack(shot) for shot in shots]
+    assert all(set(rows) == {'bms16', 'evms3', 'pack'} for rows, _ in packs[-3:]), shots[-1]
+    # inside every limit first: the pack's own limits at their full value
+    ok = [line for rows, line in packs if rows.get('pack', [''])[-1] == 'OK']
+    # (the very first report may come before the EVMS3's: limits 0 until both reported)
+    assert any(line.startswith('pack: limits: charge 40 A, discharge 150 A') for line in ok), ok
+    # then the scenario's cell past 4.20 V: MSL, latched, both limits 0
+    rows, line = packs[-1]
+    assert rows['pack'][1:3] == ['MSL', 'cell_voltag.'] and rows['pack'][-1] == 'ERROR'
+    assert line.startswith('pack: limits: charge 0 A, discharge 0 A'), line
+    assert 'pack scenario: cell_over from 3 s' in shots[-1]
+
+
+def rows_of_pack(snapshot: str) -> tuple[dict[str, list[str]], str]:
+    """Return the pair's and the pack's rows of one snapshot, and the pack's message line."""
+    rows = {}
+    line = ''
+    for text in snapshot.splitlines():
+        words = text.split()
+        if len(words) > 2 and words[0] in ('bms16', 'evms3', 'pack') and words[-1] in (
+                'OK', 'WARN', 'ERROR', 'STALE', 'n/a'):  # a table row, not a note
+            rows[words[0]] = words
+        if text.startswith('  pack: '):
+            line = text.strip()
+    return rows, line

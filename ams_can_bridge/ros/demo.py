@@ -25,6 +25,7 @@ DEVICE_TYPES = {'ams': 'ams', 'ivt_s': 'ivt_s', 'evms3': 'evms3', 'bms16': 'bms1
                 'sma': 'sma'}
 STEPS = ('enable_sc', 'enable_ts', 'enable_drive')
 DEMO_DOMAINS = range(100, 150)  # ROS_DOMAIN_ID when unset: ./dev's range, not the tests'
+DEFAULT_PACK_SCENARIO = 'cell_over@5'
 SERVICE_TIMEOUT = 10.0  # s to wait for an AMS answer (the bridge answers by command_timeout)
 
 
@@ -58,7 +59,26 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                         help='simulate an IVT-S set up little-endian while the bridge expects '
                         'big-endian: check_config_at_start detects it (ERROR naming '
                         'ivt_s.byte_order; needs commands)')
+    parser.add_argument('--pack', action='store_true',
+                        help="config/pack.yaml's pack instead: a BMS16 beside an EVMS3 in "
+                        'parallel, read as one pack with its limits; implies --no-commands')
+    parser.add_argument('--scenario', action='append', default=None, metavar='NAME[@START]',
+                        help='with --pack, repeatable: drift, silence or cell_over from START '
+                        f's (default: {DEFAULT_PACK_SCENARIO}, a latched MSL event); '
+                        "simulator --help tells what each does")
     args = parser.parse_args(argv)
+    if args.scenario is not None and not args.pack:
+        parser.error('--scenario plays on the pack demo: add --pack')
+    if args.pack:
+        if args.misconfigured_ivt:
+            parser.error('--misconfigured-ivt needs the IVT-S of the default demo: drop --pack')
+        from ams_can_bridge.sim.pair import parse_scenario
+        try:
+            args.scenario = [parse_scenario(text) for text in
+                             (args.scenario or [DEFAULT_PACK_SCENARIO])]
+        except ValueError as exc:
+            parser.error(str(exc))
+        args.no_commands = True  # no AMS to drive: the pack sends nothing either
     if args.duration < 0 or (args.interval is not None and args.interval <= 0):
         parser.error('--duration must be >= 0 and --interval > 0')
     args.namespace = (f'demo_{os.getpid()}' if args.namespace is None
@@ -183,19 +203,21 @@ def _run(args: argparse.Namespace, stop: threading.Event) -> int:
     from rclpy.executors import MultiThreadedExecutor
 
     from ams_can_bridge.ros.bridge_node import ConfigError, NODE_NAME
-    from ams_can_bridge.ros.demo_rig import DemoRig, DEVICES
+    from ams_can_bridge.ros.demo_rig import DemoRig, DEVICES, PACK_DEVICES
     from ams_can_bridge.ros.demo_view import Screen, show, View
     from ams_can_bridge.ros.watcher import BridgeWatcher, spin_in_thread
 
     try:
         rig = DemoRig(banks=args.banks, commands=not args.no_commands,
-                      misconfigured_ivt=args.misconfigured_ivt, namespace=args.namespace)
+                      misconfigured_ivt=args.misconfigured_ivt, namespace=args.namespace,
+                      pack=args.scenario if args.pack else None)
     except ConfigError as exc:
         print(f'demo: the bridge cannot start: {exc}', file=sys.stderr)
         return 2
     # The view watches the demo's own bridge only: its namespace (demo_<pid> by default)
     # keeps it apart from any other bridge on this ROS domain.
-    watcher = BridgeWatcher(namespace=args.namespace, bridge_node=NODE_NAME, devices=DEVICES,
+    watcher = BridgeWatcher(namespace=args.namespace, bridge_node=NODE_NAME,
+                            devices=PACK_DEVICES if args.pack else DEVICES,
                             title=f'ams_can_bridge demo /{args.namespace}',
                             node_name='ams_can_bridge_demo_view')
     executor = MultiThreadedExecutor(num_threads=4)
@@ -219,6 +241,10 @@ def _run(args: argparse.Namespace, stop: threading.Event) -> int:
         if args.misconfigured_ivt:
             shown.notes.append('IVT-S set up little-endian, the bridge expects big-endian: '
                                'see the ivt_s status')
+        if args.pack:
+            shown.notes.append('pack scenario: ' + ', '.join(
+                f'{name} from {start:g} s' for name, start in args.scenario)
+                + ' (clear a latched event: pack/clear_events)')
         if args.fault:
             shown.notes.append(f'fault injection: bms16 silent from {args.fault_after:g} s'
                                + (' (now)' if faulted else ''))

@@ -19,6 +19,7 @@ from ams_can_bridge.registry import load, SIMULATORS
 from ams_can_bridge.ros.bridge_node import BridgeNode
 
 DEVICES = ('ams', 'ivt_s', 'evms3', 'bms16', 'sma')
+PACK_DEVICES = ('bms16', 'evms3', 'pack')  # demo --pack: config/pack.yaml's instances
 BMS12_MODULES = 2
 PRECHARGE_S = 1.5
 EVMS3_CAPACITY_AH = 100.0  # the SoC of the EVMS3 needs the pack capacity configured
@@ -34,17 +35,29 @@ def device_parameters(banks: int = 2) -> dict[str, Any]:
     }
 
 
+def pack_parameters() -> dict[str, Any]:
+    """Return config/pack.yaml's devices and their parameters (the installed example's)."""
+    from ams_can_bridge.offline.params_file import load_parameters
+    from ams_can_bridge.protocols.common import msg_defs_dir
+    from ams_can_bridge.ros.bridge_node import NODE_NAME
+    values = load_parameters(str(msg_defs_dir().parent / 'config' / 'pack.yaml'), NODE_NAME)
+    # the bus, the keys and the diagnostics period are the demo's own
+    node_keys = ('commands_allowed', 'commands_enabled', 'diagnostics_period')
+    return {k: v for k, v in values.items() if not k.startswith('can.') and k not in node_keys}
+
+
 def _bridge_parameters(channel: str, banks: int, commands: bool,
-                       extra: dict[str, Any] | None = None) -> list[Parameter]:
+                       extra: dict[str, Any] | None = None,
+                       devices: dict[str, Any] | None = None) -> list[Parameter]:
     """Return the bridge's parameters for the demo bus and devices (plus ``extra``)."""
     values: dict[str, Any] = {
         'can.interface': 'virtual',
         'can.channel': channel,
-        'devices': list(DEVICES),
         'commands_allowed': commands,  # the demo arms itself: both keys at launch
         'commands_enabled': commands,
         'diagnostics_period': 0.25,  # the view redraws at 4 Hz: states keep up
-        **device_parameters(banks),
+        **(devices if devices is not None else {'devices': list(DEVICES),
+                                                **device_parameters(banks)}),
         **(extra or {}),
     }
     return [Parameter(name, value=value) for name, value in values.items()]
@@ -80,13 +93,29 @@ class DemoRig:
 
     def __init__(self, banks: int = 2, commands: bool = True,
                  channel: str | None = None, misconfigured_ivt: bool = False,
-                 context: Any = None, namespace: str = '') -> None:
+                 context: Any = None, namespace: str = '',
+                 pack: list[tuple[str, float]] | None = None) -> None:
+        """
+        Start the demo's devices, or with ``pack`` (scenarios, maybe none) config/pack.yaml's.
+
+        The pack demo runs the simulator's pair (sim/pair.py) and its scenarios against the
+        installed config/pack.yaml, as ``simulator --pack`` beside a bridge would.
+        """
         import can
 
+        from ams_can_bridge.sim.pair import build_pair, PairScenario
         from ams_can_bridge.sim.runner import SimRunner
         self.channel = channel or f'ams_can_bridge_demo_{os.getpid()}_{id(self):x}'
         self.hardware_id = f'virtual:{self.channel}'
-        self.simulators = build_simulators(banks)
+        devices = None
+        steering: list[Any] = []
+        if pack is not None:
+            pair = build_pair()
+            self.simulators: dict[str, Any] = {sim.name: sim for sim in pair}
+            steering = [PairScenario(pair, pack)] if pack else []
+            devices = pack_parameters()
+        else:
+            self.simulators = build_simulators(banks)
         extra: dict[str, Any] = {}
         if misconfigured_ivt:
             # Set up little-endian by a vendor tool, while the bridge expects the factory
@@ -94,11 +123,12 @@ class DemoRig:
             self.simulators['ivt_s'].misconfigure(little_endian=True)
             extra['ivt_s.check_config_at_start'] = True
         self.sim_bus = can.Bus(interface='virtual', channel=self.channel)
-        self.runner = SimRunner(self.sim_bus, list(self.simulators.values()))
+        self.runner = SimRunner(self.sim_bus, steering + list(self.simulators.values()))
         try:
             self.bridge = BridgeNode(
                 context=context, namespace=namespace,
-                parameter_overrides=_bridge_parameters(self.channel, banks, commands, extra))
+                parameter_overrides=_bridge_parameters(self.channel, banks, commands, extra,
+                                                       devices))
         except Exception:
             self.sim_bus.shutdown()
             raise

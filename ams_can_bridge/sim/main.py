@@ -19,6 +19,7 @@ from ams_can_bridge.protocols.dbc_profiles import PROFILES
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols.sma import SMA_CONDITIONS
 from ams_can_bridge.sim.base import SimDevice
+from ams_can_bridge.sim.pair import build_pair, PairScenario, parse_scenario, SCENARIOS
 from ams_can_bridge.sim.runner import open_bus, SimRunner
 
 DEFAULT_VIRTUAL_CHANNEL = 'ams_can_bridge'
@@ -48,6 +49,13 @@ def _fault(text: str) -> tuple[str, str, Any]:
             'ams:malformed, ams:drift=0.3, ams:drift_cell=5')
     parsed = parse_options([f'v={value}'])['v'] if value else True
     return device, kind, parsed
+
+
+def _scenario(text: str) -> tuple[str, float]:
+    try:
+        return parse_scenario(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 class _EpilogAsWritten(argparse.HelpFormatter):
@@ -122,6 +130,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--sma-no-capacity', action='store_true',
                    help='the SMA BMS sends capacity 0 (not sent) in 0x35F, as Revov/BYD and '
                         'Eco-Worthy batteries do')
+    p.add_argument('--pack', action='store_true',
+                   help="the two batteries of config/pack.yaml's pack: a standard BMS16 "
+                        '(29-bit, base 30) beside an EVMS3 with 11-bit IDs (base 100), '
+                        'in parallel at 250 kbit/s (replaces --devices)')
+    p.add_argument('--scenario', type=_scenario, action='append', default=[],
+                   metavar='NAME[@START]',
+                   help='with --pack, repeatable: ' + ', '.join(SCENARIOS) + ' from START s '
+                        '(default 2): drift (the EVMS3 falls about 2 V below the BMS16), '
+                        'silence (the EVMS3 silent for 4 s), cell_over (an EVMS3 cell 0.3 V '
+                        'high for 3 s: past the pack\'s MSL); doc/packs.md')
     p.add_argument('--fault', type=_fault, action='append', default=[],
                    metavar='DEVICE:KIND[=VALUE]',
                    help='inject a fault (repeatable): silent, malformed, error=CODE, '
@@ -296,17 +314,20 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise ConfigError(f'--profile {args.profile} brings its own DBC: drop --dbc')
         if not args.profile and bool(args.dbc) != bool(args.mapping):
             raise ConfigError('--dbc and --mapping go together')
-        devices = build_devices(selected_types(args), args.ams_banks, args.bms12_modules,
-                                args.ivt_byte_order, args.sma_dialect,
-                                args.evms3_charge_after, args.evms3_chargers,
-                                evms3_state=args.evms3_state,
-                                bms16_variant=args.bms16_variant,
-                                sma_soc_frame=args.sma_soc_frame, ams_pad=args.ams_pad,
-                                dbc_file=args.dbc, mapping_file=args.mapping,
-                                sma_voltage_scale=args.sma_voltage_scale,
-                                sma_no_capacity=args.sma_no_capacity,
-                                profile=args.profile)
+        if args.scenario and not args.pack:
+            raise ConfigError('--scenario plays on the pair of config/pack.yaml: add --pack')
+        if args.pack and (args.devices is not None or args.dbc or args.profile):
+            raise ConfigError('--pack brings its own two devices: drop --devices/--dbc/--profile')
+        devices = build_pair() if args.pack else build_devices(
+            selected_types(args), args.ams_banks, args.bms12_modules, args.ivt_byte_order,
+            args.sma_dialect, args.evms3_charge_after, args.evms3_chargers,
+            evms3_state=args.evms3_state, bms16_variant=args.bms16_variant,
+            sma_soc_frame=args.sma_soc_frame, ams_pad=args.ams_pad, dbc_file=args.dbc,
+            mapping_file=args.mapping, sma_voltage_scale=args.sma_voltage_scale,
+            sma_no_capacity=args.sma_no_capacity, profile=args.profile)
         apply_faults(devices, args.fault)
+        if args.scenario:  # first: it steers the pair before they tick
+            devices.insert(0, PairScenario(devices, args.scenario))
     except (ValueError, TypeError, ImportError) as exc:
         print(f'simulator: {exc}', file=sys.stderr)
         return 2
