@@ -47,6 +47,20 @@ def _pair(key: str, value: str) -> bytes:
     return key_part + _PADS[-len(key_part) & 3] + cdr_string(value)
 
 
+_PADDED: dict[str, bytes] = {}  # frame ids, status names, hardware ids: kept
+
+
+def _padded_string(text: str) -> bytes:
+    """Return cdr_string(text) padded to 4 (a frame_id, a status name), kept for a few."""
+    known = _PADDED.get(text)
+    if known is None:
+        known = cdr_string(text)
+        known += _PADS[-len(known) & 3]
+        if len(_PADDED) < 256:  # a node's devices; a growing set is never kept
+            _PADDED[text] = known
+    return known
+
+
 class DiagnosticsEncoder:
     """Serialize DiagnosticArray messages to CDR, reusing the bytes of unchanged pairs."""
 
@@ -56,17 +70,6 @@ class DiagnosticsEncoder:
         # status name -> key -> (value, the pair's bytes padded to 4, that padding's length):
         # bounded by the keys the devices report
         self._pairs: dict[str, dict[str, tuple[str, bytes, int]]] = {}
-        self._strings: dict[str, bytes] = {}  # status names, hardware id: cdr_string + pad
-
-    def _string(self, text: str) -> bytes:
-        """Return a string's CDR bytes padded to 4 (names and ids: a handful, kept)."""
-        known = self._strings.get(text)
-        if known is None:
-            known = cdr_string(text)
-            known += _PADS[-len(known) & 3]
-            if len(self._strings) < 256:  # a node's statuses; never a growing set
-                self._strings[text] = known
-        return known
 
     def encode(self, stamp: float, statuses: Iterable[tuple[str, DiagnosticReport]],
                hardware_id: str, frame_id: str = '') -> bytes:
@@ -77,14 +80,14 @@ class DiagnosticsEncoder:
         pos = 8 + len(body[1])
         body.append(_PADS[-pos & 3] + _U32(len(statuses)))
         pos += (-pos & 3) + 4
-        hardware = self._string(hardware_id)
+        hardware = _padded_string(hardware_id)
         every_pair = self._pairs
         append = body.append
         for name, report in statuses:
             # level (1 byte), then three strings and the pair count, each 4-aligned
             values = report.values
             message = cdr_string(report.message)
-            head = (bytes((int(report.level),)) + _PADS[-(pos + 1) & 3] + self._string(name)
+            head = (bytes((int(report.level),)) + _PADS[-(pos + 1) & 3] + _padded_string(name)
                     + message + _PADS[-len(message) & 3] + hardware + _U32(len(values)))
             append(head)
             pos += len(head)  # 4-aligned: the pair count ends it
@@ -123,12 +126,11 @@ def battery_state_at(report: BatteryReport, frame_id: str, sec: int, nanosec: in
     half of this call, on every primary frame): ``+ 0.0`` makes -0.0 0.0 as there.
     """
     r = report
-    frame = cdr_string(frame_id)
     cells = reports.float32_array(r.cell_voltage)
     temps = reports.float32_array(r.cell_temperature)
     location = cdr_string(r.location)
     return b''.join((
-        CDR_LE, _stamp(sec, nanosec), frame, _PADS[-len(frame) & 3],
+        CDR_LE, _stamp(sec, nanosec), _padded_string(frame_id),
         # array('f') converts as rclpy does (a C cast: out of float32 range is inf)
         array('f', (r.voltage + 0.0, r.temperature + 0.0, r.current + 0.0, r.charge + 0.0,
                     r.capacity + 0.0, r.design_capacity + 0.0, r.percentage + 0.0)).tobytes(),

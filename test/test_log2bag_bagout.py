@@ -8,7 +8,9 @@ import pytest
 
 from ams_can_bridge import cdr
 from ams_can_bridge.devices.base import BatteryReport
+from ams_can_bridge.offline import bag as bag_module
 from ams_can_bridge.offline.bag import BagOut
+from ams_can_bridge.offline.bag_types import MSGDEFS
 
 
 def _write_all(path: Path, own_write: bool) -> BagOut:
@@ -59,3 +61,13 @@ def test_an_array_is_serialized_again_whenever_its_data_changes():
     same = [4.0, 5.0, 6.0]
     first = encoder.encode('/u', 1, 3, same)
     assert encoder.encode('/u', 1, 3, list(same)) is first  # unchanged: the kept bytes
+
+
+def test_the_kept_message_definitions_are_the_jazzy_stores():
+    from rosbags.typesys import get_typestore, Stores
+    store = get_typestore(Stores.ROS2_JAZZY)
+    assert set(MSGDEFS) == {bag_module.BATTERY_STATE, bag_module.MULTI_ARRAY,
+                            bag_module.FLOAT32, bag_module.DIAGNOSTIC_ARRAY}
+    for msgtype, (msgdef, rihs01) in MSGDEFS.items():
+        assert msgdef == store.generate_msgdef(msgtype, ros_version=2)[0], msgtype
+        assert rihs01 == store.hash_rihs01(msgtype), msgtype

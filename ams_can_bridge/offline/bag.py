@@ -15,10 +15,10 @@ import struct
 from typing import Any, Literal
 
 from rosbags.rosbag2 import StoragePlugin, Writer
-from rosbags.typesys import get_typestore, Stores
 
 from ams_can_bridge import cdr, reports
 from ams_can_bridge.devices.base import BatteryReport, DiagnosticReport
+from ams_can_bridge.offline.bag_types import MSGDEFS
 
 STORAGES = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}
 BATTERY_STATE = 'sensor_msgs/msg/BatteryState'
@@ -42,7 +42,6 @@ class BagOut:
 
     def __init__(self, path: str, storage: str = 'mcap') -> None:
         """Create the bag directory (it must not exist yet, rosbag2's rule)."""
-        self.store = get_typestore(Stores.ROS2_JAZZY)  # the connections' message definitions
         self.writer = Writer(path, version=BAG_VERSION, storage_plugin=STORAGES[storage])
         self.writer.open()
         storage_writer = getattr(self.writer, 'storage', None)
@@ -57,7 +56,8 @@ class BagOut:
     def _write(self, topic: str, msgtype: str, raw: bytes, sec: int, nanosec: int) -> None:
         connection = self._connections.get(topic)
         if connection is None:
-            connection = self.writer.add_connection(topic, msgtype, typestore=self.store)
+            msgdef, rihs01 = MSGDEFS[msgtype]  # Jazzy's (bag_types.py)
+            connection = self.writer.add_connection(topic, msgtype, msgdef=msgdef, rihs01=rihs01)
             self._connections[topic] = connection
             self.counts[topic] = 0
         stamp = sec * 1_000_000_000 + nanosec
