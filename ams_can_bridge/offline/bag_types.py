@@ -9,6 +9,11 @@ here (bench/README.md, third pass): their definitions and RIHS01 hashes are kept
 to the store's ``generate_msgdef``/``hash_rihs01`` (copy those again if rosbags changes them).
 """
 
+_SEPARATOR = '=' * 80 + '\n'
+# std_msgs/Header and the Time in it, as a message with a header lists them
+_HEADER = (_SEPARATOR + 'MSG: std_msgs/Header\nbuiltin_interfaces/Time stamp\nstring frame_id\n'
+           + _SEPARATOR + 'MSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n')
+
 # message type -> (msgdef, RIHS01 hash)
 MSGDEFS: dict[str, tuple[str, str]] = {
     'sensor_msgs/msg/BatteryState': (
@@ -51,14 +56,7 @@ MSGDEFS: dict[str, tuple[str, str]] = {
         'float32[] cell_temperature\n'
         'string location\n'
         'string serial_number\n'
-        '================================================================================\n'
-        'MSG: std_msgs/Header\n'
-        'builtin_interfaces/Time stamp\n'
-        'string frame_id\n'
-        '================================================================================\n'
-        'MSG: builtin_interfaces/Time\n'
-        'int32 sec\n'
-        'uint32 nanosec\n',
+        + _HEADER,
         'RIHS01_4bee5dfce981c98faa6828b868307a0a73f992ed0789f374ee96c8f840e69741'),
     'std_msgs/msg/Float32MultiArray': (
         'std_msgs/MultiArrayLayout layout\n'
@@ -79,16 +77,8 @@ MSGDEFS: dict[str, tuple[str, str]] = {
     'diagnostic_msgs/msg/DiagnosticArray': (
         'std_msgs/Header header\n'
         'diagnostic_msgs/DiagnosticStatus[] status\n'
-        '================================================================================\n'
-        'MSG: std_msgs/Header\n'
-        'builtin_interfaces/Time stamp\n'
-        'string frame_id\n'
-        '================================================================================\n'
-        'MSG: builtin_interfaces/Time\n'
-        'int32 sec\n'
-        'uint32 nanosec\n'
-        '================================================================================\n'
-        'MSG: diagnostic_msgs/DiagnosticStatus\n'
+        + _HEADER + _SEPARATOR
+        + 'MSG: diagnostic_msgs/DiagnosticStatus\n'
         'byte OK=0\n'
         'byte WARN=1\n'
         'byte ERROR=2\n'
