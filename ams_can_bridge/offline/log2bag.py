@@ -231,27 +231,29 @@ def _convert(log: str, frames: LogFrames, converter: Converter, bag: BagOut,
     try:
         first = math.nan
         last = math.nan
+        read = 0  # summary.frames_read, kept in a local in the loop (every frame)
+        frame = converter.frame
+        limit = math.inf if end is None else end
         for msg in frames:
             stamp = msg.timestamp
-            if math.isnan(first):
+            if read == 0:
                 first = stamp
-            offset = stamp - first
-            if end is not None and offset > end:
+            if stamp - first > limit:
                 break
-            summary.frames_read += 1
-            if not summary.frames_read & PROGRESS_EVERY:
-                progress.update(summary.frames_read)
+            read += 1
+            if not read & PROGRESS_EVERY:
+                progress.update(read)
             if msg.is_error_frame:
                 converter.error_frames += 1
                 continue
             if msg.is_remote_frame:
                 continue
-            write = start is None or offset >= start
+            write = start is None or stamp - first >= start
             if write and math.isnan(summary.first_stamp):
                 summary.first_stamp = stamp
-            converter.frame(msg.arbitration_id, bytes(msg.data), msg.is_extended_id, stamp,
-                            write)
+            frame(msg.arbitration_id, bytes(msg.data), msg.is_extended_id, stamp, write)
             last = stamp
+        summary.frames_read = read
         check_frames(log, frames, summary, start, first, last)
         converter.finish(last)
         summary.last_stamp = last

@@ -29,7 +29,7 @@ from typing import Any, Iterator
 
 import can
 
-from ams_can_bridge.can_io.replay import open_log, stamp_problem
+from ams_can_bridge.can_io.replay import open_log, STAMP_END, stamp_problem
 from ams_can_bridge.errors import LogFileError
 from ams_can_bridge.input_files import file_problem
 
@@ -202,7 +202,9 @@ class LogFrames:
                 messages = iter(self.reader)
                 continue
             self.pending = None
-            problem = stamp_problem(msg.timestamp)
+            stamp = msg.timestamp
+            # most entries: a time a ROS stamp holds (NaN fails both comparisons)
+            problem = '' if 0.0 <= stamp < STAMP_END else stamp_problem(stamp)
             if problem:
                 self.bad += 1
                 self.bad_stamps += 1

@@ -384,7 +384,6 @@ class AmsCodec:
             raise EncodeRangeError('base_id', base_id,
                                    f'0..0x{highest:X} (11-bit IDs up to base + 0x051)')
         self.base_id = base_id
-        check_dbc()  # once
         # One dict lookup per frame: ID -> (DLC, reading builder).
         self._decode_table: dict[int, tuple[int, Callable[[bytes], AmsMessage]]] = {
             base_id + offset: (layout.length, _DECODERS[offset])

@@ -237,7 +237,6 @@ class Bms16Codec:
         if not 0 <= base_id <= 0x7FF - (ID_COUNT - 1):
             raise EncodeRangeError('base_id', base_id,
                                    f'0..{0x7FF - (ID_COUNT - 1)} (11-bit IDs, 9 of them)')
-        check_dbc()
         self.base_id = base_id
         self.arbitration_ids = frozenset(range(base_id, base_id + ID_COUNT))
 

@@ -227,7 +227,6 @@ class Evms3Codec:
         if voltage_multiplier not in (1, 2):
             raise ConfigError(f'voltage_multiplier {voltage_multiplier!r}: allowed 1 or 2')
         self.voltage_multiplier = voltage_multiplier
-        check_dbc()
         # ZEVA's firmware uses 29-bit IDs unless built with USE_29BIT_IDS 0; the TC chargers
         # on the same bus always use 29-bit IDs, so one EVMS3 may need both widths.
         top = 0x1FFFFFFF if extended_id else 0x7FF

@@ -183,7 +183,6 @@ class IvtSCodec:
         if not 0 <= base_id <= 0x7FF - 7:
             raise ConfigError(f'IVT-S base_id = {base_id!r} (0x{base_id:X}): allowed '
                               f'0..0x{0x7FF - 7:X} (11-bit IDs, 8 results from base_id)')
-        check_dbc()  # once
         self.base_id = base_id
         self.byte_order = byte_order
         self.arbitration_ids = frozenset(base_id + k for k in IvtMux)

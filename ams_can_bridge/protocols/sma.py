@@ -357,7 +357,7 @@ class SmaCodec:
     arbitration_ids = SMA_IDS | DIALECT_IDS
 
     def __init__(self) -> None:
-        check_dbc()
+        """Decode with the tables compiled at import (checked against sma.dbc in the tests)."""
 
     def decode(self, arbitration_id: int, data: bytes) -> SmaReading:
         """Decode one frame; MalformedFrameError for an unknown ID, a DLC or value out of range."""

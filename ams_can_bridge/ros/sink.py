@@ -17,6 +17,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import BatteryState
 from std_msgs.msg import Float32, Float32MultiArray
 
+from ams_can_bridge import cdr
 from ams_can_bridge.devices.base import BatteryReport
 from ams_can_bridge.engine.core import Arrays, Statuses
 from ams_can_bridge.ros import convert, diag_cdr
@@ -55,6 +56,7 @@ class RosSink:
         encoder = diag_cdr.DiagnosticsEncoder()
         self._diag_encoder = encoder if encoder.check() else None
         self._raw_telemetry = diag_cdr.check_telemetry()
+        self._arrays = cdr.ArrayEncoder()
         self.hardware_id = hardware_id
         self._alive = alive
         self.enabled = False  # lifecycle: publishing only while active
@@ -82,6 +84,10 @@ class RosSink:
                   build: Any, stamp: float) -> tuple[Any, list[tuple[Any, Any]]]:
         battery = build.battery_state(report, frame_id, stamp)
         pubs = self.array_pubs[name]
+        if build is diag_cdr:  # an unchanged array: its kept bytes (the engine's _emit held)
+            encode = self._arrays.encode
+            return battery, [(pubs[suffix], encode(f'{name}/{suffix}', rows, cols, data))
+                             for suffix, (rows, cols, data) in arrays.items() if suffix in pubs]
         return battery, [(pubs[suffix], build.multi_array(rows, cols, data))
                          for suffix, (rows, cols, data) in arrays.items() if suffix in pubs]
 
