@@ -12,7 +12,7 @@ coverage of the package they reach.
 
 Writes bench/inner_loop.json (``tests``, ``seconds``, ``cores``, ``date``; with --coverage
 ``coverage_percent`` instead of the time, which coverage slows down). doc/getting_started.md
-quotes the time, QUALITY_DECLARATION.md the coverage; test/test_inner_loop_figure.py keeps
+quotes the time, QUALITY_DECLARATION.md the coverage; test/test_package_doc_figures.py keeps
 both quotes equal to this file and fails once the suite has grown or shrunk by more than a
 tenth since it was measured: then run this again.
 """

@@ -1,7 +1,7 @@
 # Copyright 2026 ams_can_bridge developers
 # SPDX-License-Identifier: Apache-2.0
 """
-The interleaving model (test/test_interleavings.py) run for minutes: new sequences, seeded.
+The interleaving model (test/test_engine_interleavings.py) run for minutes: new sequences, seeded.
 
     ./dev bench --only interleavings --minutes 30 [--seed N]
 
@@ -22,7 +22,7 @@ from contextlib import redirect_stdout
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(os.path.dirname(HERE), 'test'))
-STEPS = 60  # steps per sequence at most (the CI lane: test_interleavings.STEPS)
+STEPS = 60  # steps per sequence at most (the CI lane: test_engine_interleavings.STEPS)
 PER_SEED = 20  # sequences per seed
 
 
@@ -31,17 +31,19 @@ def one(seed: int, steps: int = STEPS) -> str:
     import hypothesis.core
     from hypothesis import Phase, Verbosity
 
-    import test_interleavings
+    import test_engine_interleavings
     hypothesis.core.global_force_seed = seed  # this sequence, again with the same seed
     out = io.StringIO()
     try:
         with redirect_stdout(out):
-            test_interleavings.run(PER_SEED, steps, derandomize=False, database=None,
-                                   phases=[Phase.generate], verbosity=Verbosity.normal)
+            test_engine_interleavings.run(
+                PER_SEED, steps, derandomize=False, database=None, phases=[Phase.generate],
+                verbosity=Verbosity.normal)
     except BaseException as exc:  # an invariant (or anything) broke: report it whole
         if isinstance(exc, KeyboardInterrupt):
             raise
-        steps = '\n'.join(f'    {line}' for line in test_interleavings.Interleavings.last_steps)
+        last = test_engine_interleavings.Interleavings.last_steps
+        steps = '\n'.join(f'    {line}' for line in last)
         return (f'{type(exc).__name__}: {exc}\n  the steps of the last sequence run '
                 f'(monotonic s):\n{steps}\n{out.getvalue()}\n{traceback.format_exc()}')
     finally:
@@ -51,7 +53,7 @@ def one(seed: int, steps: int = STEPS) -> str:
 
 def run(minutes: float, seed: int = 1) -> dict:
     """Run seeds from ``seed`` on for ``minutes`` (at least one); return the figures."""
-    from test_interleavings import Interleavings
+    from test_engine_interleavings import Interleavings
     started = time.monotonic()
     deadline = started + minutes * 60.0
     seeds, broken = 0, []

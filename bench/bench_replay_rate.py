@@ -5,7 +5,8 @@ Measure how closely a replay keeps its log's timing at several rates (figures, n
 
 A 2 s log of 21 frames (100 ms apart) plays through CanIo at each rate; printed per rate: the
 span the frames took against the scaled log span, and the worst lateness of one frame. The
-test suite only checks which rate played (test_replay_record.py::test_replay_rate_scales_time).
+test suite only checks which rate played
+(test_can_io_replay_record.py::test_replay_rate_scales_time).
 
     .venv/bin/python bench/bench_replay_rate.py [--rates 1 2 4 10]
 """

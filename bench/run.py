@@ -13,7 +13,7 @@ on the same bus, options and frames, or a bare python-can -> rclpy pipeline. Mac
 noisy: compare the ratios, not the absolute figures across runs. The 10-minute memory soak
 runs only with --soak. Results are printed as one table and written as JSON (schema in
 bench/README.md). ``interleavings`` (the random-interleaving model of
-test/test_interleavings.py, for --minutes, from --seed on) runs only when named.
+test/test_engine_interleavings.py, for --minutes, from --seed on) runs only when named.
 """
 from __future__ import annotations
 

@@ -3,12 +3,12 @@
 """
 Sphinx configuration of the ams_can_bridge documentation (MyST Markdown).
 
-Built two ways: ``sphinx-build -W -n doc OUT`` from the package directory (test/test_docs.py
-does, in the test suite), and rosdoc2, which copies ``doc/`` into a build directory of its own
-and runs this file inside its generated conf.py: so nothing here may rely on ``__file__``;
-the package directory is found by its package.xml. The parameter, topic/service and
-executable references are generated at every build (docgen.py). The Python API pages import
-only modules without rclpy, so the docs build with or without ROS installed.
+Built two ways: ``sphinx-build -W -n doc OUT`` from the package directory
+(test/test_package_docs.py does, in the test suite), and rosdoc2, which copies ``doc/`` into a
+build directory of its own and runs this file inside its generated conf.py: so nothing here
+may rely on ``__file__``; the package directory is found by its package.xml. The parameter,
+topic/service and executable references are generated at every build (docgen.py). The Python
+API pages import only modules without rclpy, so the docs build with or without ROS installed.
 """
 import sys
 from pathlib import Path

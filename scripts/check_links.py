@@ -8,7 +8,7 @@ The files: README.md, bench/README.md and every page of doc/. A link is broken w
 directory) does not exist, leaves the package, or names an anchor that no heading of a
 Markdown target makes (GitHub's and MyST's heading anchors: lower case, punctuation dropped,
 spaces to '-', a repeated heading gets '-1', '-2', ...). Links with a scheme (https:,
-mailto:) are not followed: CI has no network. test/test_docs.py runs it.
+mailto:) are not followed: CI has no network. test/test_package_docs.py runs it.
 """
 from __future__ import annotations
 

@@ -4,7 +4,7 @@
 Print the bridge's topics and services as Markdown tables, from the devices and their rows.
 
 Usage: python scripts/interface_table.py. The doc build runs it for doc/topics_services.md
-(doc/docgen.py), so the page is whatever the code offers; test/test_docs.py compares the
+(doc/docgen.py), so the page is whatever the code offers; test/test_package_docs.py compares the
 tables with what a running bridge with every device type offers.
 
 Where the rows come from is one function each: :func:`device_services` (the command rows

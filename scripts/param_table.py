@@ -4,7 +4,7 @@
 Print the bridge's parameters as Markdown tables, from the specs the node declares.
 
 Usage: python scripts/param_table.py. The doc build runs it for doc/parameters.md
-(doc/docgen.py). test/test_readme.py checks that these tables name every parameter the node
+(doc/docgen.py). test/test_package_readme.py checks that these tables name every parameter the node
 declares, for every device type and variant.
 """
 from ams_can_bridge import registry

@@ -25,7 +25,7 @@ After every step ``check()`` asserts the invariants (doc/failure_modes.md):
 - every call answered within its bound (``CALL_BOUND``);
 - nothing escapes a thread (the node would exit).
 
-``test/test_interleavings.py`` drives it with hypothesis's ``RuleBasedStateMachine``;
+``test/test_engine_interleavings.py`` drives it with hypothesis's ``RuleBasedStateMachine``;
 ``bench/run.py --only interleavings`` runs it for minutes.
 """
 from __future__ import annotations

@@ -8,57 +8,20 @@ import math
 
 import pytest
 
-from ams_can_bridge.bus_state import BusState, BusStatus
-from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.engine.core import Engine
 from ams_can_bridge.engine.gate import CommandGate
 from ams_can_bridge.engine.commands import Pipeline
 from ams_can_bridge.errors import ConfigError, ParamError
-from ams_can_bridge.offline.params_file import FileParams
-from ams_can_bridge.parameters import NODE_PARAMS
 from ams_can_bridge.sim.bms16 import Bms16Simulator
 from ams_can_bridge.sim.evms3 import Evms3Simulator
 from helpers import Clock
+from pack_rig import build
 
 DEVICES = ['bms16', 'evms3', 'pack']
 BASE = {'devices': DEVICES, 'bms16.type': 'bms16', 'evms3.type': 'evms3',
         'pack.type': 'pack', 'pack.members': ['bms16', 'evms3'],
         'pack.max_charge_current': 40.0, 'pack.max_discharge_current': 80.0,
         'pack.max_voltage_difference': 1000.0, 'pack.max_cell_sum_difference': 1000.0}
-
-
-class PackSink:
-    """Every battery report and figure, by name."""
-
-    def __init__(self) -> None:
-        self.reports: dict[str, list] = {}
-        self.figure_msgs: dict[str, list] = {}
-        self.diagnostics_msgs: list = []
-
-    def battery(self, name, frame_id, report, arrays, stamp) -> None:
-        self.reports.setdefault(name, []).append((report, stamp))
-
-    def figures(self, name, values, stamp) -> None:
-        self.figure_msgs.setdefault(name, []).append((values, stamp))
-
-    def diagnostics(self, statuses, stamp) -> None:
-        self.diagnostics_msgs.append(statuses)
-
-    def clock(self, stamp) -> None:
-        pass
-
-
-def build(params: dict, clock: Clock) -> tuple[Engine, PackSink, DeviceSet]:
-    file_params = FileParams(params)
-    file_params.declare_all('', NODE_PARAMS)
-    device_set = DeviceSet(params['devices'], file_params.declare, clock=clock)
-    file_params.raise_errors()
-    sink = PackSink()
-    status = BusStatus(state=BusState.CONNECTED, reason='', frames_in=0, frames_out=0,
-                       frames_dropped_tx=0, error_frames=0, reconnects=0, hardware_id='x')
-    engine = Engine(device_set, sink, status_prefix='bridge', interface='virtual',
-                    bus_status=lambda: status, now=clock, monotonic=clock)
-    return engine, sink, device_set
 
 
 def play(engine: Engine, clock: Clock, sims, start: float, seconds: float) -> float:

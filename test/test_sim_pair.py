@@ -18,7 +18,7 @@ from ams_can_bridge.sim.main import main as simulator_main
 from ams_can_bridge.sim.pair import (
     build_pair, CELL_OVER_SECONDS, PairScenario, parse_scenario, SILENCE_SECONDS)
 from helpers import Clock
-from test_pack_engine import build
+from pack_rig import build
 
 PACK_YAML = Path(__file__).resolve().parents[1] / 'config' / 'pack.yaml'
 STEP = 0.01  # s between simulated ticks

@@ -5,7 +5,7 @@ The bridge's start-up decisions without ROS: the bus settings, the errors, the s
 
 The node (``ros/bridge_node.py``) declares the parameters and logs; which values stop the
 bridge, in which words, all of them at once, and what the start summary says are decided
-here and tested without rclpy (test_startup.py). The unknown keys and their nearest names
+here and tested without rclpy (test_engine_startup.py). The unknown keys and their nearest names
 are ``device_set.unknown_parameter_errors``; the device set and its overlaps ``DeviceSet``.
 """
 from __future__ import annotations

@@ -20,7 +20,7 @@ counts from the sensor's last reset and goes negative after a drive. The AMS rep
 SOC, so ``charge`` = ``design_capacity_ah`` x SOC when that parameter is set, NaN otherwise
 (doc/protocols.md section 1).
 
-Health and diagnostics (what the state means, and the error bookkeeping): ``ams_status.py``.
+Health and diagnostics (what the state means, and the error bookkeeping): ``status.py``.
 """
 from __future__ import annotations
 

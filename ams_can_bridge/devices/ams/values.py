@@ -4,7 +4,7 @@
 The diagnostic key/value table of an AMS device: every decoded field, named for a reader.
 
 Split from ``devices/ams/device.py`` (the state machine and the command side) to keep each file
-readable; called by ``ams_status.diagnostic_report`` with the device lock held.
+readable; called by ``status.diagnostic_report`` with the device lock held.
 """
 from __future__ import annotations
 

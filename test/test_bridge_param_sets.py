@@ -4,8 +4,8 @@
 Which parameter sets the running bridge allows, what they change, and a command call's answer.
 
 engine/param_sets.py and engine/commands.py without rclpy: the node asks them on every set of
-a parameter and every command service call (test_param_service.py, test_lifecycle.py and
-test_commands_gate.py drive the same rules through ROS).
+a parameter and every command service call (test_bridge_param_service.py,
+test_bridge_lifecycle.py and test_bridge_command_gate.py drive the same rules through ROS).
 """
 from __future__ import annotations
 
@@ -50,7 +50,7 @@ class GateLog(logging.Handler):
 
 
 def make_gate(allowed: bool) -> tuple[CommandGate, GateLog]:
-    logger = logging.getLogger(f'test_param_sets.{id(object())}')
+    logger = logging.getLogger(f'test_bridge_param_sets.{id(object())}')
     handler = GateLog()
     logger.addHandler(handler)
     logger.setLevel(logging.DEBUG)

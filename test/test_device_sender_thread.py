@@ -68,7 +68,7 @@ def test_absolute_slots_at_the_period_never_a_burst():
 
 
 def test_a_new_period_applies_from_the_next_slot_which_never_moves_later():
-    # the absolute grid and its skipped slots: test_ams_master.py; issue 34 point 1
+    # the absolute grid and its skipped slots: test_device_ams_master.py; issue 34 point 1
     schedule = SlotSchedule(0.05, start=100.0)
     assert schedule.take(100.001) == 0 and schedule.take(100.05) == 0
     schedule.rebase(0.1, 100.06)

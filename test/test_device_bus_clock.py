@@ -10,7 +10,7 @@ stall while the frame is handled ages nothing. In a replay it is the log's time
 machine delivers a frame, as log2bag and ``helpers.device_reference`` compute it. Before
 this, a replay timed values by the moment it handled them: a load stall longer than a
 result's timeout (0.5 s for the IVT-S) blanked values the recording had fresh
-(test_replay_equals_live.py failed 4 runs in 6 beside busy loops).
+(test_bridge_replay_equals_live.py failed 4 runs in 6 beside busy loops).
 """
 import threading
 import time

@@ -122,8 +122,8 @@ def test_a_node_logger_made_again_forwards_each_record_once():
             self.lines.append(text)
 
     first, second = RosLogger(), RosLogger()
-    stdlib_logger('test_convert.again', first, logging.DEBUG)
-    logger = stdlib_logger('test_convert.again', second)
+    stdlib_logger('test_bridge_convert.again', first, logging.DEBUG)
+    logger = stdlib_logger('test_bridge_convert.again', second)
     logger.warning('bus lost')
     assert second.lines == ['bus lost'] and first.lines == []
     assert logger.level == logging.DEBUG and not logger.propagate

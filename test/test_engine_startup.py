@@ -7,7 +7,7 @@ What the node used to decide itself, now tested without rclpy: which bus setting
 bridge and in which words, how every problem of the start values becomes one error, which
 keys are unknown and their nearest names, what the start summary says, how commands_enabled
 given at launch arms the gate, and what the engine's view of the bus answers. The same texts
-reach the user through the node (test_start_checks.py, test_lifecycle.py).
+reach the user through the node (test_bridge_start_checks.py, test_bridge_lifecycle.py).
 """
 from __future__ import annotations
 
@@ -198,7 +198,7 @@ def test_no_devices_is_said_in_the_summary_and_warned_with_how_to_set_them():
 def gate_at_launch(autostart: bool | None, allowed: bool, enabled: bool):
     node = {**NODE, 'commands_allowed': allowed, 'commands_enabled': enabled}
     return launch_gate('virtual:x', node, bus(), autostart=autostart,
-                       logger=logging.getLogger('test_startup'), node_name='/b')
+                       logger=logging.getLogger('test_engine_startup'), node_name='/b')
 
 
 def test_enabled_at_launch_arms_at_once_with_autostart_and_at_activate_without():
@@ -300,7 +300,7 @@ def test_the_opened_bus_feeds_the_engine_and_logs_only_what_the_node_does_not():
                                status_prefix='b', diagnostics_period=1.0,
                                on_bus_status=lambda status: None,
                                logger=logging.getLogger, thread_name='t')
-    logger = logging.getLogger('test_startup.can_io')
+    logger = logging.getLogger('test_engine_startup.can_io')
     can_io = open_bus(settings.config, engine, devices, gate, logger)
     assert gate._bus is can_io and can_io._on_frame == engine.on_frame
     assert logger.level == logging.WARNING

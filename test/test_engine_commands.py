@@ -4,7 +4,7 @@
 The one command pipeline (engine/commands.py) and the device rows, without ROS.
 
 Every service of every device type is a row (``Device.COMMANDS``); these tests walk the rows
-through ``engine.commands.Commands`` on a gate with a recording bus (test_command_gate's
+through ``engine.commands.Commands`` on a gate with a recording bus (test_engine_gate's
 ``FakeBus``, the gate itself real), so each holds for every command at once: the refusal
 while disabled, a bug answered as an internal error, the answer's log line, the periodic
 senders following the gate.
@@ -41,7 +41,7 @@ BRIDGES = (
 
 def command_side(params, *, allowed=True, enabled=False, bus=None):
     """Build every instance of params, a real gate on a recording bus, the command side."""
-    logger, lines = collecting_logger('test_command_pipeline')
+    logger, lines = collecting_logger('test_engine_commands')
     gate = CommandGate('fake:0', allowed=allowed, connect_wait=0.5, logger=logger,
                        node_name='/car/bridge')
     bus = bus or FakeBus()
@@ -230,7 +230,7 @@ def test_close_stops_every_sender_and_says_so_once():
 
 
 def test_a_pipeline_without_a_node_refuses_to_set_parameters():
-    logger, _ = collecting_logger('test_command_pipeline')
+    logger, _ = collecting_logger('test_engine_commands')
     gate = CommandGate('fake:0', allowed=True, connect_wait=0.0, logger=logger)
     assert Pipeline(gate, logger).set_config('evms3', {'config.cells': 12}) == (
         False, 'this bridge has no parameters to set')

@@ -6,8 +6,8 @@ README and doc/ stay true to the code.
 The parameter tables name every parameter the node declares; the pages name every config file
 and only failure-mode tests that exist.
 
-Every service of the node is in the generated topics/services page: test_docs.py checks that
-table against a running bridge with every device type
+Every service of the node is in the generated topics/services page: test_package_docs.py
+checks that table against a running bridge with every device type
 (``test_the_interface_table_is_what_a_running_bridge_offers``), so it is not checked here.
 """
 import ast

@@ -3,7 +3,7 @@
 """
 The interleavings against the real node (issue 34, the systematic part, the live run).
 
-A smaller run of the state machine of test/test_interleavings.py on a real ``BridgeNode``
+A smaller run of the state machine of test/test_engine_interleavings.py on a real ``BridgeNode``
 (``command_rig.Rig``) over the model's unpluggable virtual adapter, every request through
 ROS: parameter sets and ``commands_enabled`` through the parameter service, transitions
 through ``change_state``, every command row through its service. The same invariants,

@@ -66,7 +66,7 @@ def test_sma_hundredths_still_win_where_both_could_agree():
 # dfch/BydCanProtocol (MIT) README.md: a BYD Battery-Box Premium LVS tower of 2 x 78 Ah to a
 # Victron GX; lib/Byd/Messages/BatteryInfo.h names 0x35F bytes 4-5 SizeAvailableAmpereHour,
 # "available capacity in Ampere hours".
-# Its frames (test_sma_field_truth.py): 355 = 67 %, 100 %; 356 = 53.10 V, -0.7 A, 14.0 C;
+# Its frames (test_device_sma_field_frames.py): 355 = 67 %, 100 %; 356 = 53.10 V, -0.7 A, 14.0 C;
 # 35F = 105 Ah; 379 = 156 Ah installed.
 
 

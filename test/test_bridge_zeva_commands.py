@@ -204,7 +204,7 @@ def test_evms3_write_config_paces_20_ms_after_each_frame():
     gate = _FakeGate()
     device = Evms3Device('evms3', {f'config.{k}': v for k, v in EVMS3_CONFIG.items()})
     device.handle_frame(30, bytes([IDLE, 0x03, 0xE8, 0x0F, 0xA0, 0x8C, 100, 65]), 1.0)
-    pipeline = Pipeline(gate, logging.getLogger('test_zeva_commands'),
+    pipeline = Pipeline(gate, logging.getLogger('test_bridge_zeva_commands'),
                         sleep=lambda seconds: gate.events.append(('sleep', seconds)))
     [row] = [row for row in device.COMMANDS if row.service == 'write_config']
     ok, message = pipeline.call('evms3', device, row)

@@ -33,7 +33,7 @@ def test_raised_errors_are_caught_by_the_base():
         Bms16Codec(5000)
     with pytest.raises(errors.AmsCanBridgeError, match='does not exist'):
         LogFrames('/nonexistent/x.log')
-    io = CanIo(BusConfig(interface='virtual', channel='test_errors'), lambda *a: None)
+    io = CanIo(BusConfig(interface='virtual', channel='test_package_errors'), lambda *a: None)
     with pytest.raises(errors.AmsCanBridgeError, match=r'not connected \(stopped\)'):
         io.send(Frame(1, b''))
 

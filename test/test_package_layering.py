@@ -166,3 +166,17 @@ def test_the_test_import_check_sees_both_forms():
     source = ('import test_a\nfrom test_b.x import y\ndef f():\n    from test_c import z\n'
               'from shared import FRAMES\nimport testing\n')
     assert imported_tests(source) == ['test_a', 'test_b.x', 'test_c']
+
+
+def test_every_test_file_is_named_after_one_subsystem():
+    from subsystems import owners  # test/subsystems.py: what ./dev test NAME runs
+    names = sorted(p.name for p in TESTS.glob('test_*.py'))
+    assert len(names) > 100
+    assert {name: owners(name) for name in names if len(owners(name)) != 1} == {}
+
+
+def test_the_subsystem_check_sees_a_file_of_none():
+    from subsystems import owners
+    assert owners('test_first_hour.py') == []
+    assert owners('test_bridgectl.py') == ['tools'] and owners('test_bridge_node.py') == ['bridge']
+    assert owners('test_can_io.py') == ['can_io'] and owners('test_can_iox.py') == []

@@ -4,7 +4,7 @@
 Soak: a running bridge through silence, malformed bursts, bus drops and command calls.
 
 CI runs SOAK_SECONDS (default 12 s, at most 60); ``AMS_SOAK_SECONDS=600 ./dev test
-test/test_soak.py`` soaks longer. A seeded random schedule of phases drives one bridge on a
+test/test_bridge_soak.py`` soaks longer. A seeded random schedule of phases drives one bridge on a
 virtual bus; an offline replica of its devices sees every frame the bridge received. At the
 end (and the invariants hold all along, as they are cumulative):
 
@@ -48,7 +48,7 @@ def ams(counter: int) -> Frame:
     return Frame(0x300, bytes([0xC0, 0x21, 180, 30, 66, counter & 0xFF, 0]))
 
 
-def test_soak(rig_factory):
+def test_bridge_soak(rig_factory):
     rng = random.Random(9)
     bridge = rig_factory(PARAMS, topics=battery_topics(DEVICES))  # waits for the bus
     capture = bridge.capture

@@ -25,7 +25,7 @@ WAIT = 5.0  # s: the bound of every wait in this file (never reached when the ga
 
 def make_gate(*, allowed: bool = True, enabled: bool = True, connect_wait: float = 2.0,
               bus: FakeBus | None = None) -> tuple[CommandGate, FakeBus, Lines]:
-    logger, lines = collecting_logger('test_command_gate')
+    logger, lines = collecting_logger('test_engine_gate')
     gate = CommandGate('fake:0', allowed=allowed, connect_wait=connect_wait, logger=logger,
                        node_name='/car/bridge')
     bus = bus or FakeBus()
