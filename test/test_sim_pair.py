@@ -164,3 +164,17 @@ def test_scenarios_need_the_pair_and_say_how(capsys):
         parse_scenario('flood')
     with pytest.raises(ValueError, match='START must be seconds'):
         parse_scenario('drift@soon')
+
+
+def test_the_members_in_parallel_carry_the_same_current_at_the_same_moment():
+    # The BMS16's own time base is the clock's; the EVMS3's, the time since its first tick.
+    # On a clock far from 0 (a live run's monotonic time) they must still agree.
+    bms16, evms3 = build_pair()
+    seen = []
+    for step in range(400):
+        now = 5000.0 + step * STEP * 5
+        bms16.tick(now)
+        evms3.tick(now)
+        seen.append((round(bms16.current_a, 6), round(evms3.current_a, 6)))
+    assert len(set(seen)) > 20  # the drive profile moves
+    assert [b for b, _ in seen] == [e for _, e in seen]

@@ -50,9 +50,26 @@ def _half(t: float) -> float:
     return drive_current_a(t) / 2.0
 
 
+def _from_first_call(current_fn: Callable[[float], float]) -> Callable[[float], float]:
+    """Return current_fn on the time since the first call, the EVMS3 simulator's own time base."""
+    start: list[float] = []
+
+    def current(now: float) -> float:
+        if not start:
+            start.append(now)
+        return current_fn(now - start[0])
+    return current
+
+
 def build_pair(current_fn: Callable[[float], float] = _half) -> list[SimDevice]:
-    """Return the BMS16 (instance ``bms16``) and the EVMS3 (``evms3``) of config/pack.yaml."""
-    return [Bms16StdSimulator(name='bms16', base_id=BMS16_BASE_ID, current_fn=current_fn),
+    """
+    Return the BMS16 (instance ``bms16``) and the EVMS3 (``evms3``) of config/pack.yaml.
+
+    Both take current_fn on the time since their first tick (the BMS16's own is the clock's
+    time), so two members in parallel carry the same current at the same moment.
+    """
+    return [Bms16StdSimulator(name='bms16', base_id=BMS16_BASE_ID,
+                              current_fn=_from_first_call(current_fn)),
             Evms3Simulator(name='evms3', base_id=EVMS3_BASE_ID, extended_id=False,
                            bms12_modules=len(EVMS3_CELLS), cells_per_module=list(EVMS3_CELLS),
                            current_fn=current_fn)]
