@@ -7,11 +7,12 @@ The test suite by subsystem: each test file's name says which part of the packag
 every test file belongs to exactly one (test_package_layering.py checks it). ``./dev test
 <subsystem>`` runs one subsystem's files, the loop to keep going while changing that part;
 ``./dev loops`` prints this table. The seconds are one full run's time per subsystem on the
-2-core CI machine (``--junitxml``, summed per file; the fast lane leaves out what starts
-rclpy or a process), to choose a loop by, not a promise.
+2-core CI machine (2026-11-29, ``--junitxml`` summed per subsystem; the fast lane leaves out
+what starts rclpy or a process), to choose a loop by, not a promise.
 
 Run as a script: ``python test/subsystems.py files NAME`` prints NAME's files (what ``./dev
-test NAME`` runs), ``python test/subsystems.py table`` the table.
+test NAME`` runs), ``python test/subsystems.py table`` the table (``markdown``: as
+doc/getting_started.md has it, between its loops-table markers).
 """
 from __future__ import annotations
 
@@ -44,26 +45,26 @@ class Subsystem:
 
 SUBSYSTEMS = (
     Subsystem('protocol', ('protocol',), 'protocols/: the codecs, frames to values and back, '
-              'against the vendors\' documents', 0, 0),
+              'against the vendors\' documents', 14, 13),
     Subsystem('device', ('device',), 'devices/ without ROS: state, stale timeouts, reports, '
-              'commands\' frames, sender threads, plugins', 0, 0),
+              'commands\' frames, sender threads, plugins', 36, 22),
     Subsystem('dbc', ('dbc',), 'the dbc device: mappings and rules on the DBC files and traces '
-              'teams bring', 0, 0),
-    Subsystem('pack', ('pack',), 'the pack device: sums, limits, latched events', 0, 0),
+              'teams bring', 16, 8),
+    Subsystem('pack', ('pack',), 'the pack device: sums, limits, latched events', 2, 1),
     Subsystem('engine', ('engine',), 'engine/: the one command pipeline, the gate, start-up '
-              'decisions, the timer, the interleavings model', 0, 0),
+              'decisions, the timer, the interleavings model', 56, 3),
     Subsystem('can_io', ('can_io',), 'can_io/: buses, the slcan reader, log readers, replay '
-              'and recording', 0, 0),
-    Subsystem('sim', ('sim',), 'sim/: the simulators and their scenarios', 0, 0),
+              'and recording', 31, 14),
+    Subsystem('sim', ('sim',), 'sim/: the simulators and their scenarios', 32, 16),
     Subsystem('probe', ('probe',), 'probe/: recognising devices on a bus or a log, the params '
-              'file it writes', 0, 0),
-    Subsystem('log2bag', ('log2bag',), 'offline/: logs to bags, golden bags, --jobs', 0, 0),
+              'file it writes', 305, 27),
+    Subsystem('log2bag', ('log2bag',), 'offline/: logs to bags, golden bags, --jobs', 13, 7),
     Subsystem('bridge', ('bridge',), 'the running bridge (ros/): services, parameters, '
-              'lifecycle, faults, start-up checks, the installed executable', 0, 0),
-    Subsystem('tools', ('demo', 'monitor', 'bridgectl'), 'demo, monitor and bridgectl', 0, 0),
+              'lifecycle, faults, start-up checks, the installed executable', 199, 25),
+    Subsystem('tools', ('demo', 'monitor', 'bridgectl'), 'demo, monitor and bridgectl', 143, 0),
     Subsystem('package', ('package', 'flake8', 'pep257', 'copyright', 'xmllint', 'types'),
               'the package as a whole: docs, README, config files, layering, lanes, linters, '
-              'mypy, the security policy', 0, 0),
+              'mypy, the security policy', 97, 12),
 )
 BY_NAME = {s.name: s for s in SUBSYSTEMS}
 
@@ -83,10 +84,18 @@ def table(folder: Path = TEST_DIR) -> str:
     return '\n'.join(rows)
 
 
+def markdown(folder: Path = TEST_DIR) -> str:
+    """Return the table doc/getting_started.md carries between its loops-table markers."""
+    rows = ['| `./dev test NAME` | files | all (s) | fast (s) | covers |', '|---|---|---|---|---|']
+    rows += [f'| `{s.name}` | {len(s.files(folder))} | {s.seconds} | {s.fast_seconds} | '
+             f'{s.covers} |' for s in SUBSYSTEMS]
+    return '\n'.join(rows)
+
+
 def main(argv: list[str]) -> int:
     """Print a subsystem's files or the table; exit 2 naming the subsystems on a bad name."""
-    if argv[:1] == ['table'] and len(argv) == 1:
-        print(table())
+    if argv[:1] in (['table'], ['markdown']) and len(argv) == 1:
+        print(table() if argv[0] == 'table' else markdown())
         return 0
     if argv[:1] == ['files'] and len(argv) == 2 and argv[1] in BY_NAME:
         print('\n'.join(str(p.relative_to(TEST_DIR.parent)) for p in BY_NAME[argv[1]].files()))
@@ -95,7 +104,8 @@ def main(argv: list[str]) -> int:
         print(f'./dev test {argv[1]}: no such subsystem and no such path; give one of '
               f'{", ".join(BY_NAME)} (./dev loops lists them), or test files', file=sys.stderr)
     else:
-        print(f'subsystems.py {" ".join(argv)}: give "table" or "files NAME"', file=sys.stderr)
+        print(f'subsystems.py {" ".join(argv)}: give "table", "markdown" or "files NAME"',
+              file=sys.stderr)
     return 2
 
 

@@ -21,18 +21,21 @@ ROS_ONLY = ('rclpy', 'rcl_interfaces', 'sensor_msgs', 'diagnostic_msgs', 'std_ms
             'std_srvs', 'rosgraph_msgs', 'builtin_interfaces')
 
 
+def absolute_imports(source: str, filename: str = '<source>') -> list[str]:
+    """Return the modules a source imports by absolute name, anywhere in it (not only on top)."""
+    found = []
+    for node in ast.walk(ast.parse(source, filename)):
+        if isinstance(node, ast.Import):
+            found += [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            found.append(node.module)
+    return found
+
+
 def ros_imports(path: Path) -> list[str]:
     """Return the ROS modules a source file imports (anywhere in it, not only at the top)."""
-    found = []
-    for node in ast.walk(ast.parse(path.read_text(), str(path))):
-        if isinstance(node, ast.Import):
-            names = [alias.name for alias in node.names]
-        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            names = [node.module]
-        else:
-            continue
-        found += [n for n in names if n.split('.')[0] in ROS_ONLY]
-    return found
+    return [n for n in absolute_imports(path.read_text(), str(path))
+            if n.split('.')[0] in ROS_ONLY]
 
 
 def test_only_the_ros_package_imports_ros():
@@ -140,16 +143,7 @@ TESTS = Path(__file__).resolve().parent
 
 def imported_tests(source: str) -> list[str]:
     """Return the test modules (``test_*``) a source file imports, anywhere in it."""
-    found = []
-    for node in ast.walk(ast.parse(source)):
-        if isinstance(node, ast.Import):
-            names = [alias.name for alias in node.names]
-        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            names = [node.module]
-        else:
-            continue
-        found += [n for n in names if n.split('.')[0].startswith('test_')]
-    return found
+    return [n for n in absolute_imports(source) if n.split('.')[0].startswith('test_')]
 
 
 def test_no_test_module_imports_another_test_module():
@@ -180,3 +174,12 @@ def test_the_subsystem_check_sees_a_file_of_none():
     assert owners('test_first_hour.py') == []
     assert owners('test_bridgectl.py') == ['tools'] and owners('test_bridge_node.py') == ['bridge']
     assert owners('test_can_io.py') == ['can_io'] and owners('test_can_iox.py') == []
+
+
+def test_getting_started_lists_the_subsystems_as_the_table_has_them():
+    from subsystems import markdown
+    page = (TESTS.parent / 'doc' / 'getting_started.md').read_text()
+    quoted = page.split('<!-- loops-table -->\n', 1)[1].split('<!-- /loops-table -->', 1)[0]
+    assert quoted.strip() == markdown(), (
+        'doc/getting_started.md: paste `python test/subsystems.py markdown` between its '
+        'loops-table markers')
