@@ -50,7 +50,23 @@ _TRC_BAD = 'TRCReader: Failed to parse'
 _TRC_OTHER = 'TRCReader: Unsupported type'
 
 
-class _CompleteLines:
+class _FileLines:
+    """A file the reader iterates as its own: these lines, and the file's other attributes."""
+
+    _file: Any
+    _lines: Iterator[str]
+
+    def __iter__(self) -> Iterator[str]:
+        return self._lines
+
+    def __next__(self) -> str:
+        return next(self._lines)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._file, name)
+
+
+class _CompleteLines(_FileLines):
     """
     A text file's lines up to the last one that ends with a newline (a cut line is left).
 
@@ -77,15 +93,6 @@ class _CompleteLines:
                     owner.pending = (number, line)
             yield line
 
-    def __iter__(self) -> Iterator[str]:
-        return self._lines
-
-    def __next__(self) -> str:
-        return next(self._lines)
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._file, name)
-
 
 class _CountTrcErrors(logging.Filter):
     """Count (and silence) the TRC reader's per-line parse messages as bad entries."""
@@ -107,21 +114,12 @@ class _CountTrcErrors(logging.Filter):
         return True
 
 
-class _Lines:
+class _Lines(_FileLines):
     """A text file with lines put in front, that the reader iterates (and closes) as its own."""
 
     def __init__(self, first: list[str], file: Any) -> None:
         self._file = file
         self._lines: Iterator[str] = itertools.chain(first, file)
-
-    def __iter__(self) -> Iterator[str]:
-        return self._lines
-
-    def __next__(self) -> str:
-        return next(self._lines)
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._file, name)
 
 
 class LogFrames:
