@@ -10,7 +10,6 @@ DiagnosticStatus; no rclpy here. The flow around them: doc/architecture.md, "Dat
 """
 from __future__ import annotations
 
-import enum
 import math
 import threading
 import time
@@ -23,53 +22,11 @@ from ams_can_bridge.devices.config import DeviceConfig
 from ams_can_bridge.devices.ports import Armed, InfoLog, SendFrame
 from ams_can_bridge.errors import ConfigError, ParamError, ProtocolError
 from ams_can_bridge.parameters import ParamSpec
+# The message enums live with the protocols (which name them too); devices take them from here.
+from ams_can_bridge.protocols.battery_state import (  # noqa: F401 (re-exported)
+    Level, PowerSupplyHealth, PowerSupplyStatus, PowerSupplyTechnology)
 
 NAN = math.nan
-
-
-class Level(enum.IntEnum):
-    """diagnostic_msgs/DiagnosticStatus levels (same byte values)."""
-
-    OK = 0
-    WARN = 1
-    ERROR = 2
-    STALE = 3
-
-
-class PowerSupplyStatus(enum.IntEnum):
-    """sensor_msgs/BatteryState POWER_SUPPLY_STATUS_* values."""
-
-    UNKNOWN = 0
-    CHARGING = 1
-    DISCHARGING = 2
-    NOT_CHARGING = 3
-    FULL = 4
-
-
-class PowerSupplyHealth(enum.IntEnum):
-    """sensor_msgs/BatteryState POWER_SUPPLY_HEALTH_* values."""
-
-    UNKNOWN = 0
-    GOOD = 1
-    OVERHEAT = 2
-    DEAD = 3
-    OVERVOLTAGE = 4
-    UNSPEC_FAILURE = 5
-    COLD = 6
-    WATCHDOG_TIMER_EXPIRE = 7
-    SAFETY_TIMER_EXPIRE = 8
-
-
-class PowerSupplyTechnology(enum.IntEnum):
-    """sensor_msgs/BatteryState POWER_SUPPLY_TECHNOLOGY_* values."""
-
-    UNKNOWN = 0
-    NIMH = 1
-    LION = 2
-    LIPO = 3
-    LIFE = 4
-    NICD = 5
-    LIMN = 6
 
 
 @dataclass
