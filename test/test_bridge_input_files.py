@@ -21,8 +21,8 @@ import pytest
 
 from ams_can_bridge.can_io.config import BusConfig
 from ams_can_bridge.can_io.replay import ReplayBus
-from ams_can_bridge.devices.dbc.mapping import load_plan
-from ams_can_bridge.devices.dbc.plan import MappingError
+from ams_can_bridge.protocols.dbc_mapping.mapping import load_plan
+from ams_can_bridge.protocols.dbc_mapping.plan import MappingError
 from ams_can_bridge.protocols.dbc_profiles import profile_files
 from ams_can_bridge.errors import ConfigError, LogFileError
 from ams_can_bridge.input_files import ALIAS_VALUES_LIMIT, file_problem, load_yaml

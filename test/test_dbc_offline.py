@@ -12,8 +12,8 @@ import time
 
 import can
 
-from ams_can_bridge.devices.dbc import plan as dbc_plan
 from ams_can_bridge.offline.log2bag import convert, main
+from ams_can_bridge.protocols.dbc_mapping import plan as dbc_plan
 from ams_can_bridge.sim.dbc import DbcSimulator
 from ams_can_bridge.sim.recording import write_log
 from command_rig import battery_topics

@@ -19,7 +19,7 @@ import pytest
 
 from ams_can_bridge.devices.base import Level
 from ams_can_bridge.devices.dbc.device import DbcDevice
-from ams_can_bridge.devices.dbc.plan import set_params_files
+from ams_can_bridge.protocols.dbc_mapping.plan import set_params_files
 from ams_can_bridge.protocols.dbc_load import read_dbc
 from dbc_fixtures import FRAMES, OUR_BMS_DBC, OUR_MAPPING, write_files
 from helpers import Clock

@@ -11,7 +11,7 @@ from ams_can_bridge import errors, registry
 from ams_can_bridge.can_io import BusConfig, parse_options, ReplayBus
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.devices.ams.device import AmsDevice
-from ams_can_bridge.devices.dbc.plan import MappingError
+from ams_can_bridge.protocols.dbc_mapping.plan import MappingError
 from ams_can_bridge.devices.ivt_s.device import IvtSDevice
 from ams_can_bridge.devices.ivt_s.exchanges import NoAnswer
 from ams_can_bridge.sim.main import apply_faults

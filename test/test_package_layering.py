@@ -122,6 +122,16 @@ def test_no_layer_imports_a_layer_it_must_never_import():
     assert {r: pairs for r, pairs in broken.items() if pairs} == {}
 
 
+def test_no_simulator_imports_device_code():
+    # A simulator plays what the device's vendor documents, not what our device code
+    # believes: it may share protocols/ with the device, never devices/.
+    sources = sorted((PACKAGE / 'sim').glob('*.py'))
+    assert len(sources) > 8
+    found = {p.name: [t for t in package_imports(p.read_text(), p.relative_to(PACKAGE))
+                      if t == 'devices'] for p in sources}
+    assert {name: layers for name, layers in found.items() if layers} == {}
+
+
 def test_the_check_sees_a_never_pair():
     source = ('import ams_can_bridge.sim.pack\n'
               'def f():\n    from ams_can_bridge.devices.base import Device\n'

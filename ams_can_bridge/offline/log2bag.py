@@ -31,7 +31,7 @@ import sys
 import time
 from typing import Sequence, TextIO, TYPE_CHECKING
 
-from ams_can_bridge.devices.dbc.plan import set_params_files
+from ams_can_bridge.protocols.dbc_mapping.plan import set_params_files
 from ams_can_bridge.errors import ConfigError, LogFileError
 from ams_can_bridge.offline import log2bag_jobs
 from ams_can_bridge.offline.converter import Converter, NODE_NAME

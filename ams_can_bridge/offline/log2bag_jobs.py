@@ -18,7 +18,7 @@ import sys
 import time
 from typing import Iterable, Sequence
 
-from ams_can_bridge.devices.dbc.plan import set_params_files
+from ams_can_bridge.protocols.dbc_mapping.plan import set_params_files
 from ams_can_bridge.errors import ConfigError, LogFileError
 
 # what python-can's LogReader reads (a folder given is searched for these)

@@ -3,14 +3,14 @@
 """
 Any BMS from its DBC and mapping (``--dbc FILE --mapping FILE``; doc/protocols.md section 8).
 
-The mapping names the messages the dbc device reads (``devices.dbc.mapping.load_plan``, the
-device's own check of both files). Each of them is looked for by ID: heard, with a length
-the DBC message fits in, and with values inside the signals' DBC ranges (the compiled
-decoder the device uses says which are not). The primary message must be among them: it
-makes the BatteryState. The frames heard then go through the dbc device as the bridge
-would read them (``probe.dbc_publish``): what it would publish and refuse, the mapping's
-warnings, the timeouts the rates heard need. ``match_plan`` is what a shipped profile
-(foxBMS 2, Orion BMS 2) reuses to recognise itself.
+The mapping names the messages the dbc device reads
+(``protocols.dbc_mapping.mapping.load_plan``, the device's own check of both files). Each of
+them is looked for by ID: heard, with a length the DBC message fits in, and with values
+inside the signals' DBC ranges (the compiled decoder the device uses says which are not). The
+primary message must be among them: it makes the BatteryState. The frames heard then go
+through the dbc device as the bridge would read them (``probe.dbc_publish``): what it would
+publish and refuse, the mapping's warnings, the timeouts the rates heard need.
+``match_plan`` is what a shipped profile (foxBMS 2, Orion BMS 2) reuses to recognise itself.
 """
 from __future__ import annotations
 
@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 import os
 import re
 
-from ams_can_bridge.devices.dbc.mapping import load_plan
-from ams_can_bridge.devices.dbc.plan import MappingError, Plan, resolve_path
+from ams_can_bridge.protocols.dbc_mapping.mapping import load_plan
+from ams_can_bridge.protocols.dbc_mapping.plan import MappingError, Plan, resolve_path
 from ams_can_bridge.errors import ConfigError, MalformedFrameError
 from ams_can_bridge.probe.dbc_publish import read_back, say_published, timeouts_setting
 from ams_can_bridge.probe.evidence import Candidate, stale_setting

@@ -5,7 +5,7 @@ What a dbc device would publish from the frames probe heard (every ``--dbc`` pai
 
 The frames of the mapped messages go through a ``DbcDevice`` with the candidate's own
 configuration, as the bridge would read them: probe says the values it would publish, the
-frames it would refuse (outside a DBC range, implausible: devices.dbc.plan FIELD_BOUNDS),
+frames it would refuse (outside a DBC range, implausible: protocols.dbc_mapping.plan FIELD_BOUNDS),
 the mapping's warnings (a unit taken as it is), and writes ``<name>.timeouts`` for the
 messages heard slower than the DBC's periods allow (doc/own_bms.md "Timeouts"). A value no
 BMS publishes caps the confidence: such a candidate is not written.
@@ -17,7 +17,7 @@ from typing import Any
 
 from ams_can_bridge.devices.base import BatteryReport
 from ams_can_bridge.devices.dbc.device import DbcDevice
-from ams_can_bridge.devices.dbc.plan import ARRAY_LABELS, LEARNED_PERIODS, Plan
+from ams_can_bridge.protocols.dbc_mapping.plan import ARRAY_LABELS, LEARNED_PERIODS, Plan
 from ams_can_bridge.probe.evidence import Candidate
 from ams_can_bridge.probe.traffic import Traffic
 

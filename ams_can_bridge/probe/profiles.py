@@ -27,8 +27,8 @@ from typing import Iterable
 
 from cantools.database.can import Message
 
-from ams_can_bridge.devices.dbc.mapping import build_plan
-from ams_can_bridge.devices.dbc.plan import ARRAY_LABELS, Plan
+from ams_can_bridge.protocols.dbc_mapping.mapping import build_plan
+from ams_can_bridge.protocols.dbc_mapping.plan import ARRAY_LABELS, Plan
 from ams_can_bridge.protocols.dbc_profiles import profile_files, PROFILES
 from ams_can_bridge.errors import MalformedFrameError
 from ams_can_bridge.input_files import read_yaml

@@ -91,7 +91,7 @@ def _limits(info: SignalInfo, bound: tuple[float, float] | None = None
     """
     Return the DBC's [min|max] widened by layout.tolerance (inf where not stated).
 
-    ``bound``: what the field the signal is mapped to can be (devices.dbc.plan
+    ``bound``: what the field the signal is mapped to can be (protocols.dbc_mapping.plan
     FIELD_BOUNDS, in the signal's DBC unit): the two ranges intersected.
     """
     # float noise: 0.1 * 51 is 5.1000000000000005, still inside a DBC range [0|5.1]

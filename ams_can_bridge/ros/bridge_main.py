@@ -131,7 +131,7 @@ def main(args: list[str] | None = None) -> int:
     import rclpy.logging
     from rclpy.signals import SignalHandlerOptions
 
-    from ams_can_bridge.devices.dbc.plan import set_params_files
+    from ams_can_bridge.protocols.dbc_mapping.plan import set_params_files
     from ams_can_bridge.ros.bridge_node import BridgeNode, ConfigError, NODE_NAME
     from ams_can_bridge.ros.params import (
         node_name_from_argv, params_file_problems, params_files, unmatched_params_files)

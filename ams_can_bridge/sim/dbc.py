@@ -32,10 +32,10 @@ import itertools
 import math
 from typing import Any
 
-from ams_can_bridge.devices.base import PowerSupplyHealth, PowerSupplyStatus
-from ams_can_bridge.devices.dbc.mapping import load_plan
-from ams_can_bridge.devices.dbc.plan import Array, ARRAY_UNITS, Plan, Ref, SCALAR_UNITS
-from ams_can_bridge.devices.dbc.units import lookup
+from ams_can_bridge.protocols.battery_state import PowerSupplyHealth, PowerSupplyStatus
+from ams_can_bridge.protocols.dbc_mapping.mapping import load_plan
+from ams_can_bridge.protocols.dbc_mapping.plan import Array, ARRAY_UNITS, Plan, Ref, SCALAR_UNITS
+from ams_can_bridge.protocols.dbc_mapping.units import lookup
 from ams_can_bridge.protocols import dbc_codec, orion_bms2
 from ams_can_bridge.protocols.common import Frame
 from ams_can_bridge.protocols.dbc_load import cycle_time

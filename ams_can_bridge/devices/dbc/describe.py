@@ -10,7 +10,7 @@ message its timeout and where it comes from.
 """
 from __future__ import annotations
 
-from ams_can_bridge.devices.dbc.plan import (
+from ams_can_bridge.protocols.dbc_mapping.plan import (
     ARRAY_UNITS, base_unit, CONDITION_TEXT, Enum, ENUMS, LEARNED_PERIODS, Plan, Ref, Scalar,
     SCALAR_UNITS)
 

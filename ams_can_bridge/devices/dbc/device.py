@@ -3,7 +3,7 @@
 """
 Any BMS from its DBC: a team's DBC and a short mapping -> BatteryState and diagnostics.
 
-doc/protocols.md section 8, doc/own_bms.md. The mapping (``devices.dbc.mapping``)
+doc/protocols.md section 8, doc/own_bms.md. The mapping (``protocols.dbc_mapping.mapping``)
 is checked whole at start; the device consumes exactly the messages it references. Each
 frame is decoded by the compiled decoder of its message (``protocols.dbc_codec``) and kept
 whole, with the time it came, as its *group* (a multiplexed message: one group per
@@ -29,11 +29,11 @@ from ams_can_bridge.devices.generated_configs import DbcConfig
 from ams_can_bridge.devices.dbc.describe import start_lines
 from ams_can_bridge.devices.dbc.diagnostics import (
     capped_values, listed, missing_report, WARNINGS_CAP)
-from ams_can_bridge.devices.dbc.mapping import given_timeouts, load_plan
-from ams_can_bridge.devices.dbc.plan import (
+from ams_can_bridge.protocols.dbc_mapping.mapping import given_timeouts, load_plan
+from ams_can_bridge.protocols.dbc_mapping.plan import (
     Array, Enum, FlagRule, LEARNED_PERIODS, MappingError, OUTLIER, Plan, Ref, Scalar)
 from ams_can_bridge.protocols.dbc_profiles import PROFILES
-from ams_can_bridge.devices.dbc.units import unit_text
+from ams_can_bridge.protocols.dbc_mapping.units import unit_text
 from ams_can_bridge.devices.timed import TimedSpans, TimedStore
 from ams_can_bridge.errors import ConfigError, ProtocolError
 from ams_can_bridge.protocols import dbc_codec

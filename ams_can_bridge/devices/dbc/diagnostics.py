@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from typing import Any, Callable, Iterable
 
-from ams_can_bridge.devices.dbc.plan import Array, ARRAY_LABELS, Plan, Ref
+from ams_can_bridge.protocols.dbc_mapping.plan import Array, ARRAY_LABELS, Plan, Ref
 from ams_can_bridge.devices.timed import NEVER
 
 VALUES_CAP = 100  # signal values a status carries besides the mapped ones

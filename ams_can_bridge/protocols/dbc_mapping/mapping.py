@@ -21,9 +21,9 @@ from typing import Any, Iterable
 
 import yaml
 
-from ams_can_bridge.devices.dbc.arrays import build_array
-from ams_can_bridge.devices.dbc.builder import Builder
-from ams_can_bridge.devices.dbc.plan import (
+from ams_can_bridge.protocols.dbc_mapping.arrays import build_array
+from ams_can_bridge.protocols.dbc_mapping.builder import Builder
+from ams_can_bridge.protocols.dbc_mapping.plan import (
     Array, ARRAY_UNITS, base_unit, Enum, ENUMS, FIELD_BOUNDS, locate, MappingError,
     MIN_TIMEOUT, Plan, Ref, Scalar, SCALAR_UNITS, TIMEOUT_PERIODS, TOP_LEVEL)
 from ams_can_bridge.protocols.dbc_profiles import profile_files

@@ -13,9 +13,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable
 
-from ams_can_bridge.devices.base import (
+from ams_can_bridge.protocols.battery_state import (
     Level, PowerSupplyHealth, PowerSupplyStatus, PowerSupplyTechnology)
-from ams_can_bridge.devices.dbc.units import BASE
+from ams_can_bridge.protocols.dbc_mapping.units import BASE
 from ams_can_bridge.errors import ConfigError
 from ams_can_bridge.protocols import dbc_codec
 from ams_can_bridge.protocols.common import CELL_V_MAX, msg_defs_dir, TEMP_C_MAX

@@ -14,10 +14,10 @@ from __future__ import annotations
 import re
 from typing import Any
 
-from ams_can_bridge.devices.dbc.plan import (
+from ams_can_bridge.protocols.dbc_mapping.plan import (
     base_unit, CONDITIONS, Enum, EnumRule, ENUMS, LevelRule, LEVELS, REDUCERS, Ref, Scalar,
     SCALAR_UNITS)
-from ams_can_bridge.devices.dbc.units import lookup, QUANTITY_NAMES, unit_text
+from ams_can_bridge.protocols.dbc_mapping.units import lookup, QUANTITY_NAMES, unit_text
 from ams_can_bridge.protocols import dbc_codec
 from ams_can_bridge.protocols.dbc_load import DUPLICATE_MARK, LoadedDbc
 

@@ -14,8 +14,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from ams_can_bridge.devices.dbc.builder import Builder
-from ams_can_bridge.devices.dbc.plan import Array, ARRAY_UNITS, FlagRule, Ref
+from ams_can_bridge.protocols.dbc_mapping.builder import Builder
+from ams_can_bridge.protocols.dbc_mapping.plan import Array, ARRAY_UNITS, FlagRule, Ref
 from ams_can_bridge.protocols import dbc_codec
 
 ARRAY_KEYS = {'signal', 'signals', 'count', 'first', 'invalid', 'valid', 'per_frame',
