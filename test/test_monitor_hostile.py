@@ -18,7 +18,8 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from ams_can_bridge.ros.demo_view import DeviceRow, printable, render, state_of, View
-from ams_can_bridge.ros.watcher import BridgeWatcher, spin_in_thread
+from ams_can_bridge.ros.spinner import Spinner
+from ams_can_bridge.ros.watcher import BridgeWatcher
 from helpers import ros_context, wait_for
 
 CLEAR = '\x1b[2J\x1b[31m'
@@ -39,7 +40,7 @@ def test_a_hostile_status_is_skipped_and_the_view_stays_live():
         publisher = sender.create_publisher(DiagnosticArray, '/diagnostics', 10)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(watcher)
-        thread = spin_in_thread(executor, 'hostile-executor')
+        spinner = Spinner(executor, 'hostile-executor')
         try:
             wait_for(lambda: publisher.get_subscription_count() > 0, timeout=10.0,
                      what='the watcher subscribed')
@@ -53,12 +54,11 @@ def test_a_hostile_status_is_skipped_and_the_view_stays_live():
                 publisher.publish(good)
                 return 'ams' in watcher.rows
             wait_for(live, timeout=10.0, what='a good status after hostile ones')
-            assert thread.is_alive(), 'the executor thread ended'
+            assert spinner.thread.is_alive(), 'the executor thread ended'
             assert watcher.rows == ['ams']
             text = render(watcher.view(1.0), colour=False)
         finally:
-            executor.shutdown(timeout_sec=2.0)
-            thread.join(timeout=3.0)
+            spinner.stop(timeout=3.0)
             watcher.destroy_node()
             sender.destroy_node()
     assert '\x1b' not in text, repr(text)

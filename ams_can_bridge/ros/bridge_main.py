@@ -22,7 +22,6 @@ import signal
 import sys
 import threading
 import time
-import traceback
 from typing import Any
 
 from ams_can_bridge.registry import DEVICE_TYPES
@@ -175,30 +174,24 @@ def main(args: list[str] | None = None) -> int:
 
 def _spin_until(node: Any, signals: StopSignals) -> str | None:
     """Serve the node's services on an executor thread until a stop; the failure if any."""
-    from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+    from rclpy.executors import MultiThreadedExecutor
+
+    from ams_can_bridge.ros.spinner import Spinner
     executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
     executor.add_node(node)
     failure: list[str] = []
 
-    def spin() -> None:
-        try:
-            executor.spin()  # executor.shutdown() wakes it through its own guard condition
-        except ExternalShutdownException:
-            pass
-        except Exception as exc:  # a service callback that raised: stop, say why, exit 1
-            failure.append(f'{type(exc).__name__}: {exc}')
-            node.get_logger().fatal(
-                f'the executor stopped: {failure[0]}\n{traceback.format_exc()}')
-        finally:
-            signals.stop.set()
+    def on_error(exc: BaseException, trace: str) -> None:
+        # a service callback that raised: stop, say why, exit 1
+        failure.append(f'{type(exc).__name__}: {exc}')
+        node.get_logger().fatal(f'the executor stopped: {failure[0]}\n{trace}')
 
-    spinner = threading.Thread(target=spin, name=f'{node.get_name()}-executor', daemon=True)
-    spinner.start()
+    spinner = Spinner(executor, f'{node.get_name()}-executor', on_error=on_error,
+                      on_exit=signals.stop.set)
     try:
         signals.wait()
     finally:
-        executor.shutdown(timeout_sec=STOP_TIMEOUT)
-        spinner.join(timeout=STOP_TIMEOUT)
+        spinner.stop(timeout=STOP_TIMEOUT)
     return failure[0] if failure else None
 
 

@@ -205,7 +205,8 @@ def _run(args: argparse.Namespace, stop: threading.Event) -> int:
     from ams_can_bridge.ros.bridge_node import ConfigError, NODE_NAME
     from ams_can_bridge.ros.demo_rig import DemoRig, DEVICES, PACK_DEVICES
     from ams_can_bridge.ros.demo_view import Screen, show, View
-    from ams_can_bridge.ros.watcher import BridgeWatcher, spin_in_thread
+    from ams_can_bridge.ros.spinner import Spinner
+    from ams_can_bridge.ros.watcher import BridgeWatcher
 
     try:
         rig = DemoRig(banks=args.banks, commands=not args.no_commands,
@@ -223,7 +224,7 @@ def _run(args: argparse.Namespace, stop: threading.Event) -> int:
     executor = MultiThreadedExecutor(num_threads=4)
     executor.add_node(rig.bridge)
     executor.add_node(watcher)
-    spinner = spin_in_thread(executor, 'demo-executor')
+    spinner = Spinner(executor, 'demo-executor')
     driver = None
     if not args.no_commands:
         driver = CommandDriver(watcher, 'ams', args.hold, namespace=args.namespace)
@@ -256,8 +257,7 @@ def _run(args: argparse.Namespace, stop: threading.Event) -> int:
             driver.stop()
             command, answer = driver.last()
             print(f'demo stopped; last command: {command} -> {answer}', flush=True)
-        executor.shutdown(timeout_sec=2.0)
-        spinner.join(timeout=3.0)
+        spinner.stop(timeout=3.0)
         watcher.destroy_node()
         rig.close()
     return 0

@@ -93,18 +93,18 @@ def _run(args: argparse.Namespace, stop: threading.Event) -> int:
     from rclpy.executors import SingleThreadedExecutor
 
     from ams_can_bridge.ros.demo_view import Screen, show
-    from ams_can_bridge.ros.watcher import BridgeWatcher, spin_in_thread
+    from ams_can_bridge.ros.spinner import Spinner
+    from ams_can_bridge.ros.watcher import BridgeWatcher
 
     watcher = BridgeWatcher(args.namespace, args.node, stale_after=args.stale_after)
     executor = SingleThreadedExecutor()
     executor.add_node(watcher)
-    spinner = spin_in_thread(executor, 'monitor-executor')
+    spinner = Spinner(executor, 'monitor-executor')
     try:
         show(Screen(sys.stdout, plain=args.plain), watcher.view, stop, args.duration,
              args.interval)
     finally:
-        executor.shutdown(timeout_sec=2.0)
-        spinner.join(timeout=3.0)
+        spinner.stop(timeout=3.0)
         watcher.destroy_node()
     return 0
 

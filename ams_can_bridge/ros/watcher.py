@@ -194,19 +194,6 @@ class BridgeWatcher(Node):
         return view
 
 
-def spin_in_thread(executor: Any, name: str) -> threading.Thread:
-    """Spin the executor on a thread of its own until it is shut down; return the thread."""
-    def spin() -> None:
-        from rclpy.executors import ExternalShutdownException
-        try:
-            executor.spin()
-        except (ExternalShutdownException, KeyboardInterrupt):
-            pass  # shutdown during spin is the normal exit
-    thread = threading.Thread(target=spin, name=name, daemon=True)
-    thread.start()
-    return thread
-
-
 def run_with_ros(argv: Sequence[str], run: Callable[[threading.Event], int]) -> int:
     """
     Start rclpy with argv (the program's name first), return run(stop), shut rclpy down.
