@@ -16,24 +16,23 @@ def test_stop_ends_the_loop_before_the_executor_is_shut_down_every_time():
     # rclpy's shutdown destroys the guard condition a thread inside spin() is about to wait
     # on (the demo died so at a stop: AttributeError, 'NoneType' object has no attribute
     # 'handle'). With executor.spin() on the thread and shutdown before the join, these
-    # rounds fail (tried: 2 runs of 3 timed out waiting for the next round's timer).
+    # rounds fail.
     errors: list[BaseException] = []
     hook = threading.excepthook
     threading.excepthook = lambda args: errors.append(args.exc_value)
     try:
         with ros_context() as context:
-            node = rclpy.node.Node('spinner_test', context=context)
-            ticks = []
-            node.create_timer(0.001, lambda: ticks.append(1))
-            for _ in range(60):
+            for round_ in range(60):
+                node = rclpy.node.Node(f'spinner_test_{round_}', context=context)
+                ticks: list[int] = []
+                node.create_timer(0.001, lambda: ticks.append(1))
                 executor = MultiThreadedExecutor(num_threads=2, context=context)
                 executor.add_node(node)
                 spinner = Spinner(executor, 'spinner-test')
                 wait_for(lambda: len(ticks) > 0, timeout=5.0, what='a timer callback')
-                ticks.clear()
                 assert spinner.stop(timeout=3.0)
                 assert not spinner.thread.is_alive() and spinner.error is None
-            node.destroy_node()
+                node.destroy_node()
     finally:
         threading.excepthook = hook
     assert errors == []
