@@ -41,10 +41,9 @@ def cdr_string(text: str) -> bytes:
     return _U32(len(data) + 1) + data + b'\0'
 
 
-def _pair(key: str, value: str) -> bytes:
-    """Return a key/value pair's bytes: it starts 4-aligned, so they never depend on where."""
-    key_part = cdr_string(key)
-    return key_part + _PADS[-len(key_part) & 3] + cdr_string(value)
+def _pad4(data: bytes) -> bytes:
+    """Return data with the zero bytes that make its length a multiple of 4."""
+    return data + _PADS[-len(data) & 3]
 
 
 _PADDED: dict[str, bytes] = {}  # frame ids, status names, hardware ids: kept
@@ -54,8 +53,7 @@ def _padded_string(text: str) -> bytes:
     """Return cdr_string(text) padded to 4 (a frame_id, a status name), kept for a few."""
     known = _PADDED.get(text)
     if known is None:
-        known = cdr_string(text)
-        known += _PADS[-len(known) & 3]
+        known = _pad4(cdr_string(text))
         if len(_PADDED) < 256:  # a node's devices; a growing set is never kept
             _PADDED[text] = known
     return known
@@ -70,6 +68,7 @@ class DiagnosticsEncoder:
         # status name -> key -> (value, the pair's bytes padded to 4, that padding's length):
         # bounded by the keys the devices report
         self._pairs: dict[str, dict[str, tuple[str, bytes, int]]] = {}
+        self._keys: dict[str, bytes] = {}  # key -> its CDR string padded to 4: as bounded
 
     def encode(self, stamp: float, statuses: Iterable[tuple[str, DiagnosticReport]],
                hardware_id: str, frame_id: str = '') -> bytes:
@@ -82,6 +81,7 @@ class DiagnosticsEncoder:
         pos += (-pos & 3) + 4
         hardware = _padded_string(hardware_id)
         every_pair = self._pairs
+        keys = self._keys
         append = body.append
         for name, report in statuses:
             # level (1 byte), then three strings and the pair count, each 4-aligned
@@ -106,9 +106,14 @@ class DiagnosticsEncoder:
                     value = str(value)
                 known = pairs.get(key)
                 if known is None or known[0] != value:
-                    raw = _pair(key, value)
-                    pad = -len(raw) & 3
-                    known = pairs[key] = (value, raw + _PADS[pad], pad)
+                    # a changed value: the key's bytes (padded, it starts 4-aligned) are kept
+                    key_part = keys.get(key)
+                    if key_part is None:
+                        key_part = keys[key] = _pad4(cdr_string(key))
+                    data = value.encode('utf-8')
+                    pad = -(len(data) + 5) & 3  # after the length, the bytes and the NUL
+                    known = pairs[key] = (value, b''.join(
+                        (key_part, _U32(len(data) + 1), data, b'\0', _PADS[pad])), pad)
                 append(known[1])
                 pos += len(known[1])
                 last_pad = known[2]

@@ -79,7 +79,7 @@ def test_every_alignment_and_a_changed_value(frame_text):
 
 
 def test_a_wrong_encoding_fails_the_start_check(monkeypatch):
-    monkeypatch.setattr(cdr, '_pair', lambda key, value: cdr.cdr_string(key))
+    monkeypatch.setattr(cdr, '_pad4', lambda data: data)  # a key's padding left out
     assert not diag_cdr.DiagnosticsEncoder().check()
 
 

@@ -40,6 +40,12 @@ class TimedStore(Generic[K, V]):
         """Keep value as the latest of key, received at now."""
         self._latest[key] = (value, now)
 
+    def replace(self, key: K, value: V, now: float) -> float:
+        """Keep value as the latest of key, received at now; return the previous seen()."""
+        entry = self._latest.get(key)
+        self._latest[key] = (value, now)
+        return NEVER if entry is None else entry[1]
+
     def get(self, key: K, now: float, max_age: float) -> V | None:
         """Return the latest value of key if it came within max_age, else None."""
         entry = self._latest.get(key)

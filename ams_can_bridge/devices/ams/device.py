@@ -213,11 +213,13 @@ class AmsDevice(AmsControl, Device[AmsConfig]):
 
     def handle_frame(self, arbitration_id: int, data: bytes, stamp: float) -> bool:
         """Decode and apply one frame; wake a waiting car command when the AMS answered."""
-        seen = self.status_seq + self.error_seq  # written by this (the bus) thread only
-        primary = super().handle_frame(arbitration_id, data, stamp)
         master = self.master
+        if master is None:  # no car side (commands off, log2bag): nobody waits to be woken
+            return Device.handle_frame(self, arbitration_id, data, stamp)
+        seen = self.status_seq + self.error_seq  # written by this (the bus) thread only
+        primary = Device.handle_frame(self, arbitration_id, data, stamp)
         # after the device lock was released: the master's waiter reads the view under it
-        if master is not None and self.status_seq + self.error_seq != seen:
+        if self.status_seq + self.error_seq != seen:
             master.wake()
         return primary
 
@@ -236,14 +238,15 @@ class AmsDevice(AmsControl, Device[AmsConfig]):
         self.status_seq += 1
 
     def _bank_data(self, array: _BankArray, reading: Any, now: float) -> None:
-        self._highest_bank = max(self._highest_bank, reading.bank)
-        if reading.bank > self.bank_count:
+        bank = reading.bank
+        if bank > self._highest_bank:
+            self._highest_bank = bank
+        if bank > self.bank_count:
             self._beyond_banks += 1
         if array is self._cells:
-            array.put_group(reading.bank, reading.group, reading.voltages_v, now)
+            array.put_group(bank, reading.group, reading.voltages_v, now)
         else:  # floats once per frame here, not per published array
-            array.put_group(reading.bank, reading.group,
-                            tuple(map(float, reading.temperatures_c)), now)
+            array.put_group(bank, reading.group, tuple(map(float, reading.temperatures_c)), now)
 
     # --- what the commanding part waits on ------------------------------------------------
     def active_errors(self) -> list[AmsError]:

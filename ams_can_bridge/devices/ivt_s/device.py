@@ -171,8 +171,8 @@ class IvtSDevice(IvtSControl, Device[IvtSConfig]):
 
     def handle_frame(self, arbitration_id: int, data: bytes, stamp: float) -> bool:
         """Decode a result frame, or a 0x511 answer (never primary, never raises)."""
-        if arbitration_id != self.answer_id:
-            return super().handle_frame(arbitration_id, data, stamp)
+        if arbitration_id != self.answer_id:  # nearly every frame: no super() to look up
+            return Device.handle_frame(self, arbitration_id, data, stamp)
         try:
             answer = decode_answer(data)
         except ProtocolError as exc:
@@ -198,21 +198,22 @@ class IvtSDevice(IvtSControl, Device[IvtSConfig]):
     # --- bus thread ------------------------------------------------------------------------
     def _handle(self, reading: IvtResult, stamp: float) -> bool:
         now = self.clock()
-        track = self._tracks.get(reading.kind)
+        kind = reading.kind
+        previous = self._results.replace(kind, reading, now)  # the previous one's arrival
+        track = self._tracks.get(kind)
         if track is None:
-            track = self._tracks[reading.kind] = _Track()
+            track = self._tracks[kind] = _Track()
             track.counter.observe(reading.counter, False)
         else:
-            gap = now - self._results.seen(reading.kind)
+            gap = now - previous
             # After a silence longer than the result's timeout a counter restart is expected.
             # The timeout is never below stale_timeout: a gap within it (every frame of a
             # sensor that keeps sending) needs no timeout worked out (a third of this call).
             track.counter.observe(reading.counter, gap <= self.stale_timeout
-                                  or gap <= self._timeout(reading.kind, track))
+                                  or gap <= self._timeout(kind, track))
             track.interval = gap if track.interval != track.interval else (
                 track.interval + INTERVAL_WEIGHT * (gap - track.interval))
-        self._results.put(reading.kind, reading, now)
-        if reading.kind is IvtMux.I:
+        if kind is IvtMux.I:
             self._stamp = stamp
             return True
         return False
