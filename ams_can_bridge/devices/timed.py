@@ -51,6 +51,10 @@ class TimedStore(Generic[K, V]):
         entry = self._latest.get(key)
         return entry[0] if entry is not None and now - entry[1] <= max_age else None
 
+    def entry(self, key: K) -> tuple[V, float] | None:
+        """Return (latest value, the clock() it came at) of key, None before any."""
+        return self._latest.get(key)
+
     def latest(self, key: K) -> V | None:
         """Return the latest value of key whatever its age (None before any)."""
         entry = self._latest.get(key)

@@ -51,6 +51,11 @@ INTERVAL_WEIGHT = 0.25  # weight of each new gap in a result's observed interval
 SYSTEM_ERROR_TEXT = ('system error bit (byte 1 bit 7, System_Error: sensor functionality is '
                      'not ensured)')
 
+# The diagnostic keys of each result, in their order (written once: ~80 a report)
+_RESULT_KEYS = {kind: tuple(f'{DBC_NAME[kind]}{suffix}' for suffix in (
+    f' ({SI_UNIT[kind]})', f' raw ({RAW_UNIT[kind]})', ' counter', ' status', ' counter step',
+    ' counter stuck', ' counter jumps', ' age (s)', ' expires after (s)')) for kind in IvtMux}
+
 
 @dataclass
 class _Track:
@@ -262,13 +267,15 @@ class IvtSDevice(IvtSControl, Device[IvtSConfig]):
         return max(self.stale_timeout, RESULT_STALE_CYCLES * period)
 
     def _fresh(self, kind: IvtMux) -> IvtResult | None:
-        track = self._tracks.get(kind)
-        if track is None:
+        # _handle keeps a result and makes its track in one call: one exists with the other
+        entry = self._results.entry(kind)
+        if entry is None:
             return None
-        now = self.clock()
-        if now - self._results.seen(kind) <= self.stale_timeout:  # within any timeout
-            return self._results.latest(kind)
-        return self._results.get(kind, now, self._timeout(kind, track))
+        result, seen = entry
+        silent = self.clock() - seen
+        if silent <= self.stale_timeout:  # within any timeout (a dozen calls a report)
+            return result
+        return result if silent <= self._timeout(kind, self._tracks[kind]) else None
 
     def _valid(self, kind: IvtMux) -> float:
         """
@@ -349,27 +356,24 @@ class IvtSDevice(IvtSControl, Device[IvtSConfig]):
             'byte order': self.byte_order,
             'discharge positive': str(self.discharge_positive).lower(),
         }
-        for kind in IvtMux:
-            name = DBC_NAME[kind]
+        now = self.clock()
+        for kind, keys in _RESULT_KEYS.items():
             track = self._tracks.get(kind)
-            if track is None:
-                values[f'{name} ({SI_UNIT[kind]})'] = 'not received'
+            entry = self._results.entry(kind)
+            if track is None or entry is None:  # a track is made with its first result
+                values[keys[0]] = 'not received'
                 continue
-            r = self._results.latest(kind)
-            assert r is not None  # a track is made with its first result
-            values[f'{name} ({SI_UNIT[kind]})'] = f'{r.value:g}'
-            values[f'{name} raw ({RAW_UNIT[kind]})'] = str(r.raw)
-            values[f'{name} counter'] = str(r.counter)
+            r, seen = entry
             flags = [label for flag, label in (
                 (r.ocs, 'OCS'), (r.result_error, 'result error'),
                 (r.measurement_error, 'measurement error'), (r.system_error, 'system error'))
                 if flag]
-            values[f'{name} status'] = ', '.join(flags) or 'ok'
             step = track.counter.step
-            values[f'{name} counter step'] = 'not learned yet' if step is None else str(step)
-            values[f'{name} counter stuck'] = str(track.counter.repeats)
-            values[f'{name} counter jumps'] = str(track.counter.jumps)
-            values[f'{name} age (s)'] = f'{self.clock() - self._results.seen(kind):.2f}'
-            values[f'{name} expires after (s)'] = f'{self._timeout(kind, track):.2f}'
+            for key, value in zip(keys, (
+                    f'{r.value:g}', str(r.raw), str(r.counter), ', '.join(flags) or 'ok',
+                    'not learned yet' if step is None else str(step),
+                    str(track.counter.repeats), str(track.counter.jumps), f'{now - seen:.2f}',
+                    f'{self._timeout(kind, track):.2f}')):
+                values[key] = value
         values.update(self._command_values())
         return values
