@@ -11,14 +11,16 @@ from __future__ import annotations
 from typing import Any, Callable, Hashable, Mapping
 
 from ams_can_bridge.protocols.sma import (
-    HIRES_AGREEMENT_PCT, HIRES_SCALES, SmaAlarms, SmaBattery, SmaBatteryInfo, SmaLimits,
-    SmaManufacturer, SmaSoc)
+    HIRES_AGREEMENT_PCT, HIRES_SCALES, SmaAlarms, SmaBattery, SmaBatteryInfo, SmaFlag,
+    SmaLimits, SmaManufacturer, SmaSoc)
 from ams_can_bridge.protocols.sma_dialects import (
     CELL_ID_KINDS, PYLONTECH_CONDITION_NAMES, PylontechAlarms, PylontechCellExtremes,
     PylontechCellIds, PylontechRequest, VictronBmsName, VictronCellExtremes, VictronCellId,
     VictronEnergy, VictronInstalledCapacity, VictronModules, VictronProductName)
 
 ONLINE_TEXT = {True: 'online', False: 'offline', None: 'not sent'}
+# a flag's name: an enum member's .name is a property call, ~60 of them a report
+_FLAG_NAME = {flag: flag.name for flag in SmaFlag}
 
 
 def fmt(value: float | int | None, unit: str = '') -> str:
@@ -128,9 +130,9 @@ def sma_values(readings: Mapping[Any, Any], prefix: str = '') -> dict[str, str]:
         values[prefix + 'warnings active'] = ', '.join(alarms.active_warnings) or 'none'
         values[prefix + 'system status (0x35A byte 7)'] = ONLINE_TEXT[alarms.online]
         for name, flag in alarms.alarms.items():
-            values[f'{prefix}alarm {name}'] = flag.name
+            values[f'{prefix}alarm {name}'] = _FLAG_NAME[flag]
         for name, flag in alarms.warnings.items():
-            values[f'{prefix}warning {name}'] = flag.name
+            values[f'{prefix}warning {name}'] = _FLAG_NAME[flag]
     pylon = readings.get(PylontechAlarms)
     if pylon is not None:
         values[prefix + 'alarms active (0x359)'] = ', '.join(pylon.active_alarms) or 'none'
