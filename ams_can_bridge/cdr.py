@@ -131,18 +131,37 @@ def battery_state_at(report: BatteryReport, frame_id: str, sec: int, nanosec: in
     half of this call, on every primary frame): ``+ 0.0`` makes -0.0 0.0 as there.
     """
     r = report
-    cells = reports.float32_array(r.cell_voltage)
-    temps = reports.float32_array(r.cell_temperature)
-    location = cdr_string(r.location)
+    cells = _float32_sequence(r.cell_voltage)
+    temps = _float32_sequence(r.cell_temperature)
     return b''.join((
-        CDR_LE, _stamp(sec, nanosec), _padded_string(frame_id),
+        CDR_LE, _STAMP_PACK(sec & 0xFFFFFFFF, nanosec), _padded_string(frame_id),
         # array('f') converts as rclpy does (a C cast: out of float32 range is inf)
         array('f', (r.voltage + 0.0, r.temperature + 0.0, r.current + 0.0, r.charge + 0.0,
                     r.capacity + 0.0, r.design_capacity + 0.0, r.percentage + 0.0)).tobytes(),
         bytes((r.power_supply_status, r.power_supply_health, r.power_supply_technology,
                bool(r.present))),
-        _U32(len(cells)), cells.tobytes(), _U32(len(temps)), temps.tobytes(),
-        location, _PADS[-len(location) & 3], cdr_string(r.serial_number)))
+        cells, temps, _padded_string(r.location), _config_string(r.serial_number)))
+
+
+def _float32_sequence(values: list[float]) -> bytes:
+    """Return a float32[] as CDR: the count, then the values (-0.0 written 0.0)."""
+    data = array('f', values).tobytes()
+    if reports.F32_NEGATIVE_ZERO in data:  # float32_array's test, on bytes made once
+        data = reports.float32_array(values).tobytes()
+    return _U32(len(data) >> 2) + data
+
+
+_CONFIG_STRINGS: dict[str, bytes] = {}  # serial numbers: a device's configuration, kept
+
+
+def _config_string(text: str) -> bytes:
+    """Return cdr_string(text) (unpadded), kept for a few (a device's configured strings)."""
+    known = _CONFIG_STRINGS.get(text)
+    if known is None:
+        known = cdr_string(text)
+        if len(_CONFIG_STRINGS) < 256:  # a node's devices; a growing set is never kept
+            _CONFIG_STRINGS[text] = known
+    return known
 
 
 @functools.lru_cache(maxsize=64)

@@ -34,7 +34,7 @@ def report_stamp(report: BatteryReport, fallback: float | None = None) -> float:
     return report.stamp
 
 
-_F32_NEGATIVE_ZERO = array('f', [-0.0]).tobytes()
+F32_NEGATIVE_ZERO = array('f', [-0.0]).tobytes()
 
 
 def float32_array(values: Iterable[float]) -> array:
@@ -46,7 +46,7 @@ def float32_array(values: Iterable[float]) -> array:
     the float32 bit pattern runs in C; only an array that has one is rebuilt.
     """
     out = array('f', values)
-    if _F32_NEGATIVE_ZERO in out.tobytes():  # a hit off the 4-byte grid only costs a rebuild
+    if F32_NEGATIVE_ZERO in out.tobytes():  # a hit off the 4-byte grid only costs a rebuild
         out = array('f', [v + 0.0 for v in out])  # -0.0 + 0.0 == 0.0
     return out
 
