@@ -25,7 +25,7 @@ import itertools
 import logging
 import os
 import re
-from typing import Any, Iterator
+from typing import Any, Iterator, Tuple
 
 import can
 
@@ -48,6 +48,9 @@ _ASC_FRAME = re.compile(r'\s*\S+\s+(\d+\s+(\w+\s+(Tx|Rx)|ErrorFrame)|CANFD)',
 _TRC_LOGGER = 'can.io.trc'
 _TRC_BAD = 'TRCReader: Failed to parse'
 _TRC_OTHER = 'TRCReader: Unsupported type'
+# A frame as LogFrames.frames() yields it: (timestamp, arbitration_id, data, is_extended_id,
+# is_error_frame, is_remote_frame)
+Frame = Tuple[float, int, bytes, bool, bool, bool]
 
 
 class _FileLines:
@@ -200,23 +203,42 @@ class LogFrames:
                 messages = iter(self.reader)
                 continue
             self.pending = None
-            stamp = msg.timestamp
-            # most entries: a time a ROS stamp holds (NaN fails both comparisons)
-            problem = '' if 0.0 <= stamp < STAMP_END else stamp_problem(stamp)
-            if problem:
-                self.bad += 1
-                self.bad_stamps += 1
-                self.last_bad = (f'frame 0x{msg.arbitration_id:X} at timestamp '
-                                 f'{msg.timestamp!r}: {problem}')
-                continue
-            if (not msg.is_fd and not msg.is_remote_frame and not msg.is_error_frame
-                    and len(msg.data) != min(msg.dlc, 8)):  # an .asc's 'd f 01 02'
-                self.bad += 1
-                self.last_bad = (f'frame 0x{msg.arbitration_id:X} at timestamp '
-                                 f'{msg.timestamp!r}: data length {msg.dlc} (its DLC) with '
-                                 f'{len(msg.data)} data bytes')
-                continue
-            yield msg
+            if self._accepted(msg):
+                yield msg
+
+    def frames(self) -> Iterator[Frame]:
+        """
+        Yield every frame as a ``Frame`` tuple; the same frames, values and counts as iterating.
+
+        (timestamp, arbitration_id, data, is_extended_id, is_error_frame, is_remote_frame):
+        what log2bag's converter takes, without a ``can.Message`` per frame.
+        """
+        for msg in self:
+            yield (msg.timestamp, msg.arbitration_id, bytes(msg.data), msg.is_extended_id,
+                   msg.is_error_frame, msg.is_remote_frame)
+
+    def _accepted(self, msg: can.Message) -> bool:
+        """Tell whether a message read is a frame; count it as a bad entry when it is not."""
+        stamp = msg.timestamp
+        # most entries: a time a ROS stamp holds (NaN fails both comparisons)
+        problem = '' if 0.0 <= stamp < STAMP_END else stamp_problem(stamp)
+        if problem:
+            self.bad_stamp(msg.arbitration_id, stamp, problem)
+            return False
+        if (not msg.is_fd and not msg.is_remote_frame and not msg.is_error_frame
+                and len(msg.data) != min(msg.dlc, 8)):  # an .asc's 'd f 01 02'
+            self.bad += 1
+            self.last_bad = (f'frame 0x{msg.arbitration_id:X} at timestamp '
+                             f'{msg.timestamp!r}: data length {msg.dlc} (its DLC) with '
+                             f'{len(msg.data)} data bytes')
+            return False
+        return True
+
+    def bad_stamp(self, arbitration_id: int, stamp: float, problem: str) -> None:
+        """Count an entry whose timestamp is no time (``stamp_problem`` says why)."""
+        self.bad += 1
+        self.bad_stamps += 1
+        self.last_bad = f'frame 0x{arbitration_id:X} at timestamp {stamp!r}: {problem}'
 
     def drop_pending(self) -> None:
         """Count the .asc frame line the reader read without yielding a frame (bad entry)."""
