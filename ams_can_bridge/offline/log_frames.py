@@ -25,12 +25,16 @@ import itertools
 import logging
 import os
 import re
-from typing import Any, Iterator, Tuple
+from typing import Any, Iterator
 
 import can
 
+from ams_can_bridge.can_io.blf_bounded import BoundedBLFReader
 from ams_can_bridge.can_io.replay import open_log, STAMP_END, stamp_problem
 from ams_can_bridge.errors import LogFileError
+from ams_can_bridge.offline.blf_frames import BlfFrames
+from ams_can_bridge.offline.candump_frames import CandumpFrames
+from ams_can_bridge.offline.frame_tuples import Frame, message_frame
 from ams_can_bridge.input_files import file_problem
 
 # Readers that re-read a header when iterated anew: a blank line stands in for it.
@@ -48,9 +52,6 @@ _ASC_FRAME = re.compile(r'\s*\S+\s+(\d+\s+(\w+\s+(Tx|Rx)|ErrorFrame)|CANFD)',
 _TRC_LOGGER = 'can.io.trc'
 _TRC_BAD = 'TRCReader: Failed to parse'
 _TRC_OTHER = 'TRCReader: Unsupported type'
-# A frame as LogFrames.frames() yields it: (timestamp, arbitration_id, data, is_extended_id,
-# is_error_frame, is_remote_frame)
-Frame = Tuple[float, int, bytes, bool, bool, bool]
 
 
 class _FileLines:
@@ -193,31 +194,68 @@ class LogFrames:
                 self._check_end()
                 return
             except Exception as exc:
+                if not isinstance(self.reader, _RESUMABLE):
+                    self._stop_at(exc)
+                    return
                 self.bad += 1
                 self.last_bad = f'{type(exc).__name__}: {exc}'
-                if not isinstance(self.reader, _RESUMABLE):
-                    self.stopped = f'stopped at a bad entry ({self.last_bad})'
-                    return
                 if isinstance(self.reader, _NEEDS_HEADER_LINE):
                     self.reader.file = _Lines(['\n'], self.reader.file)  # type: ignore[assignment]
                 messages = iter(self.reader)
                 continue
             self.pending = None
-            if self._accepted(msg):
+            if self.accepted(msg):
                 yield msg
 
-    def frames(self) -> Iterator[Frame]:
+    def frames(self) -> Iterator[Frame]:  # a generator's frames, not one in between
         """
-        Yield every frame as a ``Frame`` tuple; the same frames, values and counts as iterating.
+        Yield every frame as a ``Frame`` tuple: the frames, values and counts of iterating.
 
-        (timestamp, arbitration_id, data, is_extended_id, is_error_frame, is_remote_frame):
-        what log2bag's converter takes, without a ``can.Message`` per frame.
+        What log2bag's converter takes, without a ``can.Message`` per frame: a candump .log
+        is read by log2bag's own reader (``candump_frames``), the other formats by
+        python-can.
         """
-        for msg in self:
-            yield (msg.timestamp, msg.arbitration_id, bytes(msg.data), msg.is_extended_id,
-                   msg.is_error_frame, msg.is_remote_frame)
+        if isinstance(self.reader.file, _CompleteLines) \
+                and isinstance(self.reader, can.CanutilsLogReader):
+            return self._candump_frames(self.reader.file)
+        if isinstance(self.reader, BoundedBLFReader):
+            return self._blf_frames(self.reader)
+        return map(message_frame, self)
 
-    def _accepted(self, msg: can.Message) -> bool:
+    def _candump_frames(self, lines: _CompleteLines) -> Iterator[Frame]:
+        """A candump .log's frames by the own reader; python-can's from a chunk on that is
+        not text in the file's encoding (it raises there, after the lines before it)."""
+        own = CandumpFrames(self, lines._file)
+        try:
+            for chunk in own.chunks():
+                yield from chunk
+        except UnicodeDecodeError:
+            lines._file.seek(0)
+            self.reader.file = rest = _CompleteLines(lines._file, self)  # type: ignore[assignment]
+            for _ in itertools.islice(rest, own.lines_read):
+                pass
+            for msg in self:
+                yield message_frame(msg)
+            return
+        self._check_end()
+
+    def _blf_frames(self, reader: BoundedBLFReader) -> Iterator[Frame]:
+        """A .blf's frames by the own parsing of python-can's containers."""
+        try:
+            for chunk in BlfFrames(self, reader).chunks():
+                yield from chunk
+        except Exception as exc:
+            self._stop_at(exc)
+            return
+        self._check_end()
+
+    def _stop_at(self, exc: Exception) -> None:
+        """Count the entry a binary log's reader raised at; reading ends there."""
+        self.bad += 1
+        self.last_bad = f'{type(exc).__name__}: {exc}'
+        self.stopped = f'stopped at a bad entry ({self.last_bad})'
+
+    def accepted(self, msg: can.Message) -> bool:
         """Tell whether a message read is a frame; count it as a bad entry when it is not."""
         stamp = msg.timestamp
         # most entries: a time a ROS stamp holds (NaN fails both comparisons)
