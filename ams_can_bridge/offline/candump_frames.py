@@ -137,12 +137,13 @@ class CandumpFrames:
                 or stamps_text.count(') (') != lines - 1 or stamps_text[0] != '(' \
                 or stamps_text[-1] != ')':
             return None
+        stamps_inside = stamps_text[1:-1].split(') (')
         ids = tokens[2::width]
         data = tokens[4::width]
         if max(map(len, data)) > 16:  # more than 8 bytes: python-can's DLC check
             return None
         try:
-            stamps = list(map(float, stamps_text[1:-1].split(') (')))
+            stamps = list(map(float, stamps_inside))
             payloads = list(map(bytes.fromhex, data))
             arbitration_ids = self._arbitration_ids(ids)
         except (ValueError, KeyError):
