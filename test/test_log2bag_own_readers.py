@@ -18,12 +18,11 @@ from __future__ import annotations
 from pathlib import Path
 import random
 
-import can
 import pytest
 
 from ams_can_bridge.offline import candump_frames
-from ams_can_bridge.offline.frame_tuples import message_frame
 from ams_can_bridge.offline.log_frames import LogFrames
+from shared import bare_python_can, frame_counts as counts, read_both_ways as read_both
 
 FIXTURES = Path(__file__).parent / 'fixtures'
 FIXTURE_LOGS = sorted(FIXTURES.rglob('*.log'))
@@ -101,35 +100,6 @@ ODD = [
     '(1790000000.010000) can0 123#01\x85',  # a line break to str.split, not to a file
     '(1790000000.010000) can0 123#01\x1c',  # whitespace to str.split
 ]
-
-
-def counts(frames: LogFrames) -> tuple:
-    return (frames.bad, frames.last_bad, frames.bad_stamps, frames.stopped, frames.truncated,
-            frames.cut_line)
-
-
-def read_both(path) -> tuple[list, tuple]:
-    """Read ``path`` with python-can (LogFrames iterated) and the own reader; assert the same
-    frames and counts; return them."""
-    reference = LogFrames(str(path))
-    want = [repr(message_frame(msg)) for msg in reference]
-    reference.close()
-    own = LogFrames(str(path))
-    got = [repr(frame) for frame in own.frames()]
-    own.close()
-    for index, (mine, theirs) in enumerate(zip(got, want)):
-        assert mine == theirs, f'{path}: frame {index}'
-    assert len(got) == len(want)
-    assert counts(own) == counts(reference)
-    return got, counts(own)
-
-
-def bare_python_can(path) -> list[str]:
-    reader = can.LogReader(str(path))
-    try:
-        return [repr(message_frame(msg)) for msg in reader]
-    finally:
-        reader.stop()
 
 
 def write(path: Path, lines: list[str], end: str = '\n') -> Path:

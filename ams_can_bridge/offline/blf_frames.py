@@ -172,7 +172,7 @@ class BlfFrames:
                 or max(flags) & _REMOTE or min(times) < 0.0 or max(times) >= STAMP_END:
             count = _same(headers, flags, times)
             self._window = _WINDOW
-            if count < 2:
+            if not count:
                 return 0
             del times[count:]
         elif self._window < RUN:
