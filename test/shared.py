@@ -339,7 +339,7 @@ def rosbags_read(bag: str) -> dict[str, list]:
 # --- log2bag's own readers against python-can's path (test_log2bag_own_readers*.py) ---------
 
 def frame_counts(frames: Any) -> tuple:
-    """A LogFrames' counters: bad, last_bad, bad_stamps, stopped, truncated, cut_line."""
+    """Return a LogFrames' counters: bad, last_bad, bad_stamps, stopped, truncated, cut_line."""
     return (frames.bad, frames.last_bad, frames.bad_stamps, frames.stopped, frames.truncated,
             frames.cut_line)
 
@@ -364,7 +364,7 @@ def read_both_ways(path: Any) -> tuple[list[str], tuple]:
 
 
 def bare_python_can(path: Any) -> list[str]:
-    """The frames of a bare ``can.LogReader`` read, as ``read_both_ways`` gives them."""
+    """Return the frames of a bare ``can.LogReader`` read, as ``read_both_ways`` gives them."""
     reader = can.LogReader(str(path))
     try:
         return [repr(message_frame(msg)) for msg in reader]

@@ -135,8 +135,11 @@ def container(payload: bytes, method: int = blf.ZLIB_DEFLATE) -> bytes:
 
 def crafted(path: Path, objects: bytes, cuts: list[int], method: int = blf.ZLIB_DEFLATE,
             ) -> Path:
-    """A BLF whose header python-can's writer wrote (its start: START), then ``objects``
-    in containers cut at ``cuts`` (offsets into ``objects``)."""
+    """
+    Write a BLF: python-can's writer's header (its start: START), then ``objects``.
+
+    The objects go in containers cut at ``cuts`` (offsets into ``objects``).
+    """
     blf_of(path, [can.Message(timestamp=START, arbitration_id=1, data=b'\x00')])
     bounds = [0] + sorted(cuts) + [len(objects)]
     with open(path, 'ab') as stream:
@@ -146,7 +149,7 @@ def crafted(path: Path, objects: bytes, cuts: list[int], method: int = blf.ZLIB_
 
 
 def objects_of_every_shape(rng: random.Random, count: int) -> bytes:
-    """Runs of equal objects broken by every shape of object python-can reads or skips."""
+    """Return runs of equal objects broken by every shape of object python-can reads or skips."""
     out = []
     stamp = 0
     for k in range(count):
@@ -245,8 +248,8 @@ def test_an_object_short_of_its_fields_at_a_containers_end(tmp_path, kind):
     first = b''.join(obj(blf.CAN_MESSAGE, message(0x100 + k, bytes(8)), k) for k in range(9))
     rest = b''.join(obj(blf.CAN_MESSAGE, message(0x200 + k, bytes(8)), k) for k in range(9))
     objects = first + short + rest
-    got, found = read_both_ways(crafted(tmp_path / 'short.blf', objects, [len(first) +
-                                                                           len(short)]))
+    cut = len(first) + len(short)
+    got, found = read_both_ways(crafted(tmp_path / 'short.blf', objects, [cut]))
     assert len(got) >= 19 and found[0] == 0
 
 

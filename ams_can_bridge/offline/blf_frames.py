@@ -23,7 +23,7 @@ import operator
 import struct
 import sys
 from itertools import repeat
-from typing import Iterator, List
+from typing import cast, Generator, Iterator, List
 
 import can
 from can.io import blf
@@ -55,6 +55,8 @@ _DATA_AT = 40
 _FLAGS_FROM = 0x20000000  # an ID from here has bits python-can masks off
 _RUNS = sys.byteorder == 'little'  # the columns are the machine's words
 _READS = 512  # bytes past an object's start python-can may read of it (FD64: 40 + 40 + 255)
+
+
 class BlfFrames:
     """The frames of a BLF as ``Frame`` tuples, python-can's values, a list per container."""
 
@@ -66,8 +68,11 @@ class BlfFrames:
         self._window = RUN
 
     def chunks(self) -> Iterator[List[Frame]]:
-        """Yield each container's frames; raise what python-can's reader raises, after the
-        frames before it."""
+        """
+        Yield each container's frames, a list a container.
+
+        Raise what python-can's reader raises, after the frames before it.
+        """
         reader = self.reader
         for inflated in reader.containers():
             data = reader._tail + inflated if reader._tail else inflated
@@ -138,10 +143,11 @@ class BlfFrames:
                     bool(can_id & _EXT), False, remote))
 
     def _python_can(self, data: bytes, pos: int, size: int, out: List[Frame]) -> None:
-        """An error frame or CAN FD message: python-can's ``_parse_data`` on its bytes."""
+        """Parse an error frame or CAN FD message with python-can's ``_parse_data``."""
         reader = self.reader
         search = reader._pos
-        parse = can.BLFReader._parse_data(reader, data[pos:pos + size + _READS])
+        parse = cast(Generator[can.Message, None, None], can.BLFReader._parse_data(
+            reader, data[pos:pos + size + _READS]))
         try:
             msg = next(parse, None)
         finally:
@@ -151,8 +157,10 @@ class BlfFrames:
             out.append(message_frame(msg))
 
     def _run(self, data: bytes, pos: int, size: int, out: List[Frame]) -> int:
-        """Parse the objects from ``pos`` that repeat the first one's header; return how
-        many (0: the first object is none for a run: one by one).
+        """
+        Parse the objects from ``pos`` that repeat the first one's header; return how many.
+
+        0: the first object is none for a run (it goes one by one).
 
         Each field is a column of the objects' bytes (a strided slice); the window (objects
         at once) starts at 8 after a run that stopped short and doubles up to RUN: a
@@ -192,8 +200,7 @@ class BlfFrames:
 
 
 def _same(headers: List[List[int]], flags: bytes, times: List[float]) -> int:
-    """How many objects from the first have its header, are no remote frame, and have a time
-    a ROS stamp holds."""
+    """Count the leading objects with the first one's header, no remote, a good stamp."""
     firsts = [column[0] for column in headers]
     for index, (*header, flag, stamp) in enumerate(zip(*headers, flags, times)):
         if header != firsts or flag & _REMOTE or not 0.0 <= stamp < STAMP_END:

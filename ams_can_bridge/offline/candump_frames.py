@@ -54,8 +54,9 @@ class CandumpFrames:
 
     def chunks(self) -> Iterator[List[Frame]]:
         """
-        Yield the frames, a list a chunk; set ``counts.cut_line`` to a last line without an
-        end (not read).
+        Yield the frames, a list a chunk.
+
+        ``counts.cut_line`` is set to a last line without an end (not read).
 
         A chunk that is not text in the file's encoding raises UnicodeDecodeError:
         ``lines_read`` says how many lines were read before it.
@@ -109,8 +110,11 @@ class CandumpFrames:
             counts.last_bad = f'{type(exc).__name__}: {exc}'
 
     def _block(self, text: str, lines: int) -> Optional[List[Frame]]:
-        """Return the frames of ``lines`` lines (each ending with a newline), or None when any
-        of them is not a common line."""
+        """
+        Return the frames of ``lines`` lines (each ending with a newline).
+
+        None when any of them is not a common line.
+        """
         if not text.isascii():
             return None
         for char in _OTHER_SPACE:

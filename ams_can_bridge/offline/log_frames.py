@@ -207,31 +207,37 @@ class LogFrames:
             if self.accepted(msg):
                 yield msg
 
-    def frames(self) -> Iterator[Frame]:  # a generator's frames, not one in between
+    def frames(self) -> Iterator[Frame]:
         """
-        Yield every frame as a ``Frame`` tuple: the frames, values and counts of iterating.
+        Return the frames as ``Frame`` tuples: the frames, values and counts of iterating.
 
         What log2bag's converter takes, without a ``can.Message`` per frame: a candump .log
-        is read by log2bag's own reader (``candump_frames``), the other formats by
-        python-can.
+        is read by log2bag's own reader (``candump_frames``), a .blf's containers parsed by
+        its own (``blf_frames``), the other formats by python-can. The iterator returned is
+        the reading's own generator (no generator in between: one less per frame).
         """
-        if isinstance(self.reader.file, _CompleteLines) \
-                and isinstance(self.reader, can.CanutilsLogReader):
-            return self._candump_frames(self.reader.file)
+        lines = getattr(self.reader, 'file', None)
+        if isinstance(lines, _CompleteLines) and isinstance(self.reader, can.CanutilsLogReader):
+            return self._candump_frames(lines)
         if isinstance(self.reader, BoundedBLFReader):
             return self._blf_frames(self.reader)
         return map(message_frame, self)
 
     def _candump_frames(self, lines: _CompleteLines) -> Iterator[Frame]:
-        """A candump .log's frames by the own reader; python-can's from a chunk on that is
-        not text in the file's encoding (it raises there, after the lines before it)."""
+        """
+        Yield a candump .log's frames, read by the own reader.
+
+        From a chunk on that is not text in the file's encoding, python-can reads the rest
+        (it raises there, after the lines before it).
+        """
         own = CandumpFrames(self, lines._file)
         try:
             for chunk in own.chunks():
                 yield from chunk
         except UnicodeDecodeError:
             lines._file.seek(0)
-            self.reader.file = rest = _CompleteLines(lines._file, self)  # type: ignore[assignment]
+            rest = _CompleteLines(lines._file, self)
+            setattr(self.reader, 'file', rest)  # python-can reads on after the lines read
             for _ in itertools.islice(rest, own.lines_read):
                 pass
             for msg in self:
@@ -240,7 +246,7 @@ class LogFrames:
         self._check_end()
 
     def _blf_frames(self, reader: BoundedBLFReader) -> Iterator[Frame]:
-        """A .blf's frames by the own parsing of python-can's containers."""
+        """Yield a .blf's frames, python-can's containers parsed by the own parsing."""
         try:
             for chunk in BlfFrames(self, reader).chunks():
                 yield from chunk
