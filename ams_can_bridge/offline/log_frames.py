@@ -25,7 +25,7 @@ import itertools
 import logging
 import os
 import re
-from typing import Any, Iterator
+from typing import Any, Iterable, Iterator, List
 
 import can
 
@@ -213,43 +213,40 @@ class LogFrames:
 
         What log2bag's converter takes, without a ``can.Message`` per frame: a candump .log
         is read by log2bag's own reader (``candump_frames``), a .blf's containers parsed by
-        its own (``blf_frames``), the other formats by python-can. The iterator returned is
-        the reading's own generator (no generator in between: one less per frame).
+        its own (``blf_frames``), the other formats by python-can. The own readers' frames
+        come a list a chunk, flattened in C (no Python generator resumed per frame).
         """
         lines = getattr(self.reader, 'file', None)
         if isinstance(lines, _CompleteLines) and isinstance(self.reader, can.CanutilsLogReader):
-            return self._candump_frames(lines)
+            return itertools.chain.from_iterable(self._candump_chunks(lines))
         if isinstance(self.reader, BoundedBLFReader):
-            return self._blf_frames(self.reader)
+            return itertools.chain.from_iterable(self._blf_chunks(self.reader))
         return map(message_frame, self)
 
-    def _candump_frames(self, lines: _CompleteLines) -> Iterator[Frame]:
+    def _candump_chunks(self, lines: _CompleteLines) -> Iterator[Iterable[Frame]]:
         """
-        Yield a candump .log's frames, read by the own reader.
+        Yield a candump .log's frames, a list a chunk, read by the own reader.
 
         From a chunk on that is not text in the file's encoding, python-can reads the rest
         (it raises there, after the lines before it).
         """
         own = CandumpFrames(self, lines._file)
         try:
-            for chunk in own.chunks():
-                yield from chunk
+            yield from own.chunks()
         except UnicodeDecodeError:
             lines._file.seek(0)
             rest = _CompleteLines(lines._file, self)
             setattr(self.reader, 'file', rest)  # python-can reads on after the lines read
             for _ in itertools.islice(rest, own.lines_read):
                 pass
-            for msg in self:
-                yield message_frame(msg)
+            yield map(message_frame, self)
             return
         self._check_end()
 
-    def _blf_frames(self, reader: BoundedBLFReader) -> Iterator[Frame]:
-        """Yield a .blf's frames, python-can's containers parsed by the own parsing."""
+    def _blf_chunks(self, reader: BoundedBLFReader) -> Iterator[List[Frame]]:
+        """Yield a .blf's frames, a list a container, parsed by the own parsing."""
         try:
-            for chunk in BlfFrames(self, reader).chunks():
-                yield from chunk
+            yield from BlfFrames(self, reader).chunks()
         except Exception as exc:
             self._stop_at(exc)
             return
