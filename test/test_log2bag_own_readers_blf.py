@@ -50,12 +50,14 @@ def log_messages(path: Path) -> list[can.Message]:
 
 
 @pytest.mark.parametrize('writer', WRITERS)
-@pytest.mark.parametrize('log', FIXTURE_LOGS, ids=lambda p: str(p.relative_to(FIXTURES)))
-def test_a_blf_of_every_fixture_log_reads_as_python_can_reads_it(tmp_path, log, writer):
-    path = blf_of(tmp_path / 'log.blf', log_messages(log), **WRITERS[writer])
-    got, found = read_both_ways(path)
-    assert got == bare_python_can(path)
-    assert found == (0, '', 0, '', '', None) and len(got) == len(log_messages(log))
+def test_a_blf_of_every_fixture_log_reads_as_python_can_reads_it(tmp_path, writer):
+    assert len(FIXTURE_LOGS) >= 10
+    for log in FIXTURE_LOGS:
+        path = blf_of(tmp_path / f'{log.parent.name}_{log.stem}.blf', log_messages(log),
+                      **WRITERS[writer])
+        got, found = read_both_ways(path)
+        assert got == bare_python_can(path), log
+        assert found == (0, '', 0, '', '', None) and len(got) == len(log_messages(log)), log
 
 
 def every_kind() -> list[can.Message]:
@@ -186,7 +188,7 @@ def objects_of_every_shape(rng: random.Random, count: int) -> bytes:
 
 
 @pytest.mark.parametrize('method', [blf.ZLIB_DEFLATE, blf.NO_COMPRESSION])
-@pytest.mark.parametrize('seed', range(6))
+@pytest.mark.parametrize('seed', range(3))
 def test_objects_of_every_shape_across_containers(tmp_path, seed, method):
     rng = random.Random(seed)
     objects = objects_of_every_shape(rng, 3000)
