@@ -273,7 +273,16 @@ def test_an_unknown_compression_is_skipped_as_python_can_skips_it(tmp_path):
     assert [eval(frame)[1] for frame in got] == [1, 1, 3]
 
 
-def test_an_object_smaller_than_its_header_stops_the_reading(tmp_path):
+@pytest.mark.parametrize('size', [1, 8, 15, 20])
+def test_an_object_smaller_than_its_fields_reads_as_python_can_reads_it(tmp_path, size):
+    objects = [obj(blf.CAN_MESSAGE, message(0x100, bytes(8)), k) for k in range(9)]
+    objects.insert(4, struct.pack('<4sHHLL', b'LOBJ', 16, 1, size, 1) + bytes(4)
+                   + obj(blf.CAN_MESSAGE, message(0x200, bytes(8)), 99))
+    got, _ = read_both_ways(crafted(tmp_path / 'small.blf', b''.join(objects), []))
+    assert len(got) >= 5
+
+
+def test_an_object_of_no_bytes_stops_the_reading(tmp_path):
     # python-can's _parse_data would parse this object again and again, for ever
     objects = b''.join(obj(blf.CAN_MESSAGE, message(0x100, bytes(8)), k) for k in range(5))
     path = crafted(tmp_path / 'small.blf', objects + struct.pack('<4sHHLL', b'LOBJ', 16, 1, 0,
@@ -281,4 +290,4 @@ def test_an_object_smaller_than_its_header_stops_the_reading(tmp_path):
     frames = LogFrames(str(path))
     got = list(frames.frames())
     frames.close()
-    assert len(got) == 6 and frames.bad == 1 and 'less than its header' in frames.stopped
+    assert len(got) == 6 and frames.bad == 1 and 'an object of 0 bytes' in frames.stopped

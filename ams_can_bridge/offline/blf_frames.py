@@ -102,8 +102,8 @@ class BlfFrames:
                     return
                 raise blf.BLFParseError('Could not find next object') from None
             _, _, version, size, kind = _BASE.unpack_from(data, pos)
-            if size < _BASE.size:  # python-can would parse this object again, for ever
-                raise blf.BLFParseError(f'an object of {size} bytes, less than its header')
+            if not size:  # python-can would parse this object again, for ever
+                raise blf.BLFParseError('an object of 0 bytes (less than its own header)')
             after = pos + size
             if after > end:
                 return  # the object continues in the next container
