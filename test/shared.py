@@ -20,6 +20,8 @@ import yaml
 from ams_can_bridge.bus_state import BusState, BusStatus
 from ams_can_bridge.errors import CanSendError
 from ams_can_bridge import registry
+from ams_can_bridge.offline.frame_tuples import message_frame
+from ams_can_bridge.offline.log_frames import LogFrames
 from ams_can_bridge.probe.main import main as probe_main
 from ams_can_bridge.probe.recognise import Findings
 from ams_can_bridge.probe.traffic import Traffic
@@ -332,6 +334,42 @@ def rosbags_read(bag: str) -> dict[str, list]:
             out.setdefault(connection.topic, []).append(
                 (t_ns, reader.deserialize(raw, connection.msgtype)))
     return out
+
+
+# --- log2bag's own readers against python-can's path (test_log2bag_own_readers*.py) ---------
+
+def frame_counts(frames: Any) -> tuple:
+    """Return a LogFrames' counters: bad, last_bad, bad_stamps, stopped, truncated, cut_line."""
+    return (frames.bad, frames.last_bad, frames.bad_stamps, frames.stopped, frames.truncated,
+            frames.cut_line)
+
+
+def read_both_ways(path: Any) -> tuple[list[str], tuple]:
+    """
+    Read a log with python-can (LogFrames iterated) and with ``LogFrames.frames()``.
+
+    Assert the same frames (their ``repr``: the same types too) and counters; return them.
+    """
+    reference = LogFrames(str(path))
+    want = [repr(message_frame(msg)) for msg in reference]
+    reference.close()
+    own = LogFrames(str(path))
+    got = [repr(frame) for frame in own.frames()]
+    own.close()
+    for index, (mine, theirs) in enumerate(zip(got, want)):
+        assert mine == theirs, f'{path}: frame {index}'
+    assert len(got) == len(want)
+    assert frame_counts(own) == frame_counts(reference)
+    return got, frame_counts(own)
+
+
+def bare_python_can(path: Any) -> list[str]:
+    """Return the frames of a bare ``can.LogReader`` read, as ``read_both_ways`` gives them."""
+    reader = can.LogReader(str(path))
+    try:
+        return [repr(message_frame(msg)) for msg in reader]
+    finally:
+        reader.stop()
 
 
 # --- probe ---

@@ -58,7 +58,8 @@ SUBSYSTEMS = (
     Subsystem('sim', ('sim',), 'sim/: the simulators and their scenarios', 32, 16),
     Subsystem('probe', ('probe',), 'probe/: recognising devices on a bus or a log, the params '
               'file it writes', 305, 27),
-    Subsystem('log2bag', ('log2bag',), 'offline/: logs to bags, golden bags, --jobs', 13, 7),
+    Subsystem('log2bag', ('log2bag',), 'offline/: logs to bags, golden bags, --jobs, the own '
+              'log readers against python-can\'s', 18, 13),
     Subsystem('bridge', ('bridge',), 'the running bridge (ros/): services, parameters, '
               'lifecycle, faults, start-up checks, the installed executable', 199, 25),
     Subsystem('tools', ('demo', 'monitor', 'bridgectl'), 'demo, monitor and bridgectl', 143, 0),

@@ -13,7 +13,7 @@ Everything else is python-can's own parsing (``_parse_container``).
 """
 from __future__ import annotations
 
-from typing import Any, Generator
+from typing import Any, Generator, Iterator
 import zlib
 
 import can
@@ -42,6 +42,17 @@ class BoundedBLFReader(can.BLFReader):
 
     def __iter__(self) -> Generator[can.Message, None, None]:
         """Yield the messages; raise BlfObjectTooLarge on an object beyond the bound."""
+        for inflated in self.containers():
+            yield from self._parse_container(inflated)
+        self.stop()
+
+    def containers(self) -> Iterator[bytes]:
+        """
+        Yield each LOG_CONTAINER's bytes, inflated, as python-can's ``__iter__`` reads them.
+
+        What follows is python-can's ``_parse_container`` (or log2bag's own parsing of the
+        same bytes, ``offline/blf_frames.py``). Raises BlfObjectTooLarge beyond the bound.
+        """
         base = blf.OBJ_HEADER_BASE_STRUCT
         while True:
             offset = self.file.tell()
@@ -71,5 +82,4 @@ class BoundedBLFReader(can.BLFReader):
             if len(self._tail) + len(inflated) > self.limit:
                 raise self._refuse(offset, 'continues an object that does not end within '
                                    f'{self.limit} bytes')
-            yield from self._parse_container(inflated)
-        self.stop()
+            yield inflated

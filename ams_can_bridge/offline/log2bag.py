@@ -234,8 +234,8 @@ def _convert(log: str, frames: LogFrames, converter: Converter, bag: BagOut,
         read = 0  # summary.frames_read, kept in a local in the loop (every frame)
         frame = converter.frame
         limit = math.inf if end is None else end
-        for msg in frames:
-            stamp = msg.timestamp
+        for stamp, arbitration_id, data, is_extended_id, is_error_frame, is_remote_frame \
+                in frames.frames():
             if read == 0:
                 first = stamp
             if stamp - first > limit:
@@ -243,15 +243,15 @@ def _convert(log: str, frames: LogFrames, converter: Converter, bag: BagOut,
             read += 1
             if not read & PROGRESS_EVERY:
                 progress.update(read)
-            if msg.is_error_frame:
+            if is_error_frame:
                 converter.error_frames += 1
                 continue
-            if msg.is_remote_frame:
+            if is_remote_frame:
                 continue
             write = start is None or stamp - first >= start
             if write and math.isnan(summary.first_stamp):
                 summary.first_stamp = stamp
-            frame(msg.arbitration_id, bytes(msg.data), msg.is_extended_id, stamp, write)
+            frame(arbitration_id, data, is_extended_id, stamp, write)
             last = stamp
         summary.frames_read = read
         check_frames(log, frames, summary, start, first, last)

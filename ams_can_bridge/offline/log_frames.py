@@ -25,12 +25,16 @@ import itertools
 import logging
 import os
 import re
-from typing import Any, Iterator
+from typing import Any, Iterable, Iterator, List
 
 import can
 
+from ams_can_bridge.can_io.blf_bounded import BoundedBLFReader
 from ams_can_bridge.can_io.replay import open_log, STAMP_END, stamp_problem
 from ams_can_bridge.errors import LogFileError
+from ams_can_bridge.offline.blf_frames import BlfFrames
+from ams_can_bridge.offline.candump_frames import CandumpFrames
+from ams_can_bridge.offline.frame_tuples import Frame, message_frame
 from ams_can_bridge.input_files import file_problem
 
 # Readers that re-read a header when iterated anew: a blank line stands in for it.
@@ -190,33 +194,92 @@ class LogFrames:
                 self._check_end()
                 return
             except Exception as exc:
+                if not isinstance(self.reader, _RESUMABLE):
+                    self._stop_at(exc)
+                    return
                 self.bad += 1
                 self.last_bad = f'{type(exc).__name__}: {exc}'
-                if not isinstance(self.reader, _RESUMABLE):
-                    self.stopped = f'stopped at a bad entry ({self.last_bad})'
-                    return
                 if isinstance(self.reader, _NEEDS_HEADER_LINE):
                     self.reader.file = _Lines(['\n'], self.reader.file)  # type: ignore[assignment]
                 messages = iter(self.reader)
                 continue
             self.pending = None
-            stamp = msg.timestamp
-            # most entries: a time a ROS stamp holds (NaN fails both comparisons)
-            problem = '' if 0.0 <= stamp < STAMP_END else stamp_problem(stamp)
-            if problem:
-                self.bad += 1
-                self.bad_stamps += 1
-                self.last_bad = (f'frame 0x{msg.arbitration_id:X} at timestamp '
-                                 f'{msg.timestamp!r}: {problem}')
-                continue
-            if (not msg.is_fd and not msg.is_remote_frame and not msg.is_error_frame
-                    and len(msg.data) != min(msg.dlc, 8)):  # an .asc's 'd f 01 02'
-                self.bad += 1
-                self.last_bad = (f'frame 0x{msg.arbitration_id:X} at timestamp '
-                                 f'{msg.timestamp!r}: data length {msg.dlc} (its DLC) with '
-                                 f'{len(msg.data)} data bytes')
-                continue
-            yield msg
+            if self.accepted(msg):
+                yield msg
+
+    def frames(self) -> Iterator[Frame]:
+        """
+        Return the frames as ``Frame`` tuples: the frames, values and counts of iterating.
+
+        What log2bag's converter takes, without a ``can.Message`` per frame: a candump .log
+        is read by log2bag's own reader (``candump_frames``), a .blf's containers parsed by
+        its own (``blf_frames``), the other formats by python-can. The own readers' frames
+        come a list a chunk, flattened in C (no Python generator resumed per frame).
+        """
+        lines = getattr(self.reader, 'file', None)
+        if isinstance(lines, _CompleteLines) and isinstance(self.reader, can.CanutilsLogReader):
+            return itertools.chain.from_iterable(self._candump_chunks(lines))
+        if isinstance(self.reader, BoundedBLFReader):
+            return itertools.chain.from_iterable(self._blf_chunks(self.reader))
+        return map(message_frame, self)
+
+    def _candump_chunks(self, lines: _CompleteLines) -> Iterator[Iterable[Frame]]:
+        """
+        Yield a candump .log's frames, a list a chunk, read by the own reader.
+
+        From a chunk on that is not text in the file's encoding, python-can reads the rest
+        (it raises there, after the lines before it).
+        """
+        own = CandumpFrames(self, lines._file)
+        try:
+            yield from own.chunks()
+        except UnicodeDecodeError:
+            lines._file.seek(0)
+            rest = _CompleteLines(lines._file, self)
+            setattr(self.reader, 'file', rest)  # python-can reads on after the lines read
+            for _ in itertools.islice(rest, own.lines_read):
+                pass
+            yield map(message_frame, self)
+            return
+        self._check_end()
+
+    def _blf_chunks(self, reader: BoundedBLFReader) -> Iterator[List[Frame]]:
+        """Yield a .blf's frames, a list a container, parsed by the own parsing."""
+        try:
+            yield from BlfFrames(self, reader).chunks()
+        except Exception as exc:
+            self._stop_at(exc)
+            return
+        self._check_end()
+
+    def _stop_at(self, exc: Exception) -> None:
+        """Count the entry a binary log's reader raised at; reading ends there."""
+        self.bad += 1
+        self.last_bad = f'{type(exc).__name__}: {exc}'
+        self.stopped = f'stopped at a bad entry ({self.last_bad})'
+
+    def accepted(self, msg: can.Message) -> bool:
+        """Tell whether a message read is a frame; count it as a bad entry when it is not."""
+        stamp = msg.timestamp
+        # most entries: a time a ROS stamp holds (NaN fails both comparisons)
+        problem = '' if 0.0 <= stamp < STAMP_END else stamp_problem(stamp)
+        if problem:
+            self.bad_stamp(msg.arbitration_id, stamp, problem)
+            return False
+        if (not msg.is_fd and not msg.is_remote_frame and not msg.is_error_frame
+                and len(msg.data) != min(msg.dlc, 8)):  # an .asc's 'd f 01 02'
+            self.bad += 1
+            self.last_bad = (f'frame 0x{msg.arbitration_id:X} at timestamp '
+                             f'{msg.timestamp!r}: data length {msg.dlc} (its DLC) with '
+                             f'{len(msg.data)} data bytes')
+            return False
+        return True
+
+    def bad_stamp(self, arbitration_id: int, stamp: float, problem: str) -> None:
+        """Count an entry whose timestamp is no time (``stamp_problem`` says why)."""
+        self.bad += 1
+        self.bad_stamps += 1
+        self.last_bad = f'frame 0x{arbitration_id:X} at timestamp {stamp!r}: {problem}'
 
     def drop_pending(self) -> None:
         """Count the .asc frame line the reader read without yielding a frame (bad entry)."""
