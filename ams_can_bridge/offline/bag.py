@@ -92,7 +92,7 @@ class BagOut:
             mcap.close_chunk()
 
     def stamp_parts(self, stamp: float) -> tuple[int, int]:
-        """Return reports.stamp_parts(stamp), the last one kept (a message and its arrays)."""
+        """Return the (sec, nanosec) of a stamp, the last one kept (a message and its arrays)."""
         if stamp != self._last_stamp:  # NaN is never equal: worked out again, (0, 0)
             self._last_stamp = stamp
             self._last_parts = reports.stamp_parts(stamp)
