@@ -17,6 +17,7 @@ from __future__ import annotations
 from pathlib import Path
 import random
 import struct
+import threading
 import zlib
 
 import can
@@ -25,6 +26,8 @@ import pytest
 
 from ams_can_bridge.offline import blf_frames
 from ams_can_bridge.offline.log_frames import LogFrames
+from ams_can_bridge.probe.sources import read_log
+from ams_can_bridge.probe.traffic import Traffic
 from shared import bare_python_can, frame_counts, read_both_ways
 
 FIXTURES = Path(__file__).parent / 'fixtures'
@@ -291,3 +294,17 @@ def test_an_object_of_no_bytes_stops_the_reading(tmp_path):
     got = list(frames.frames())
     frames.close()
     assert len(got) == 6 and frames.bad == 1 and 'an object of 0 bytes' in frames.stopped
+
+
+def test_probe_reads_such_a_log_to_the_object_and_stops(tmp_path):
+    # probe read logs through python-can's parser: on this object it never returned
+    objects = b''.join(obj(blf.CAN_MESSAGE, message(0x100, bytes(8)), k) for k in range(5))
+    path = crafted(tmp_path / 'small.blf', objects + struct.pack('<4sHHLL', b'LOBJ', 16, 1, 0,
+                                                                 1) + bytes(40), [])
+    outcome: list[object] = []
+    reader = threading.Thread(target=lambda: outcome.append(read_log(str(path))), daemon=True)
+    reader.start()
+    reader.join(30.0)
+    assert not reader.is_alive(), 'probe still reading after 30 s'
+    traffic = outcome[0]
+    assert isinstance(traffic, Traffic) and traffic.frames == 6

@@ -97,14 +97,16 @@ def read_log(path: str) -> Traffic:
     add = traffic.add
     read = 0
     try:
-        for msg in frames:
+        # log2bag's frames: its own readers for .log and .blf (faster, and a BLF object of 0
+        # bytes ends the reading there, where python-can's parser loops on it for ever)
+        for stamp, can_id, data, extended, error, remote in frames.frames():
             read += 1
-            if msg.is_error_frame:
+            if error:
                 traffic.error_frames += 1
-            elif msg.is_remote_frame:
+            elif remote:
                 traffic.remote_frames += 1
             else:
-                add(msg.arbitration_id, msg.is_extended_id, msg.data, msg.timestamp)
+                add(can_id, extended, data, stamp)
     finally:
         frames.close()
     check_frames(path, frames, Summary(frames_read=read, first_stamp=traffic.first), None,
