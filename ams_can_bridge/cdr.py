@@ -140,7 +140,7 @@ def battery_state_at(report: BatteryReport, frame_id: str, sec: int, nanosec: in
                     r.capacity + 0.0, r.design_capacity + 0.0, r.percentage + 0.0)).tobytes(),
         bytes((r.power_supply_status, r.power_supply_health, r.power_supply_technology,
                bool(r.present))),
-        cells, temps, _padded_string(r.location), _config_string(r.serial_number)))
+        cells, temps, _padded_string(r.location), cdr_string(r.serial_number)))
 
 
 def _float32_sequence(values: list[float]) -> bytes:
@@ -149,19 +149,6 @@ def _float32_sequence(values: list[float]) -> bytes:
     if reports.F32_NEGATIVE_ZERO in data:  # float32_array's test, on bytes made once
         data = reports.float32_array(values).tobytes()
     return _U32(len(data) >> 2) + data
-
-
-_CONFIG_STRINGS: dict[str, bytes] = {}  # serial numbers: a device's configuration, kept
-
-
-def _config_string(text: str) -> bytes:
-    """Return cdr_string(text) (unpadded), kept for a few (a device's configured strings)."""
-    known = _CONFIG_STRINGS.get(text)
-    if known is None:
-        known = cdr_string(text)
-        if len(_CONFIG_STRINGS) < 256:  # a node's devices; a growing set is never kept
-            _CONFIG_STRINGS[text] = known
-    return known
 
 
 @functools.lru_cache(maxsize=64)

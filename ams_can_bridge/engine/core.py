@@ -112,20 +112,7 @@ class Engine:
     def on_frame(self, arbitration_id: int, data: bytes, is_extended_id: bool,
                  stamp: float) -> None:
         """Decode one frame; emit the BatteryState of every device it was primary for."""
-        # DeviceSet.handle_frame's dispatch, inlined: one call less on every frame of a log
-        # (bench/README.md, issue 39 fourth pass); the tables are read anew each frame
-        device_set = self.device_set
-        devices = (device_set.ext if is_extended_id else device_set.std).get(arbitration_id)
-        if devices is None:
-            return
-        if len(devices) == 1:  # most IDs: one device
-            device = devices[0]
-            if device.handle_frame(arbitration_id, data, stamp):
-                with self._emit:
-                    self._emit_snapshot(device, stamp)
-            return
-        # every device takes the frame before any snapshot: one may read another's state
-        primaries = [d for d in devices if d.handle_frame(arbitration_id, data, stamp)]
+        primaries = self.device_set.handle_frame(arbitration_id, data, is_extended_id, stamp)
         if primaries:
             with self._emit:
                 for device in primaries:

@@ -11,7 +11,6 @@ topic its Jazzy message definition.
 from __future__ import annotations
 
 from importlib.metadata import version
-import math
 import struct
 from typing import Any, Literal
 
@@ -53,8 +52,6 @@ class BagOut:
         self._diagnostics = cdr.DiagnosticsEncoder()
         self._arrays = cdr.ArrayEncoder()
         self.counts: dict[str, int] = {}
-        self._last_stamp = math.nan
-        self._last_parts = (0, 0)
 
     def _write(self, topic: str, msgtype: str, raw: bytes, sec: int, nanosec: int) -> None:
         connection = self._connections.get(topic)
@@ -91,34 +88,18 @@ class BagOut:
         if bio.tell() > _MCAP_CHUNK_SIZE:
             mcap.close_chunk()
 
-    def stamp_parts(self, stamp: float) -> tuple[int, int]:
-        """Return the (sec, nanosec) of a stamp, the last one kept (a message and its arrays)."""
-        if stamp != self._last_stamp:  # NaN is never equal: worked out again, (0, 0)
-            self._last_stamp = stamp
-            self._last_parts = reports.stamp_parts(stamp)
-        return self._last_parts
-
     def battery_state(self, topic: str, report: BatteryReport, frame_id: str,
                       stamp: float) -> None:
         """Write one BatteryState, header stamp and bag time = stamp."""
-        self.battery_state_at(topic, report, frame_id, *self.stamp_parts(stamp))
-
-    def battery_state_at(self, topic: str, report: BatteryReport, frame_id: str, sec: int,
-                         nanosec: int) -> None:
-        """Write one BatteryState, header stamp and bag time = (sec, nanosec)."""
+        sec, nanosec = reports.stamp_parts(stamp)
         self._write(topic, BATTERY_STATE, cdr.battery_state_at(report, frame_id, sec, nanosec),
                     sec, nanosec)
 
     def multi_array(self, topic: str, rows: int, cols: int, data: list[float],
                     stamp: float) -> None:
         """Write one Float32MultiArray (row-major rows x cols) at bag time stamp."""
-        self.multi_array_at(topic, rows, cols, data, *self.stamp_parts(stamp))
-
-    def multi_array_at(self, topic: str, rows: int, cols: int, data: list[float], sec: int,
-                       nanosec: int) -> None:
-        """Write one Float32MultiArray (row-major rows x cols) at bag time (sec, nanosec)."""
         self._write(topic, MULTI_ARRAY, self._arrays.encode(topic, rows, cols, data),
-                    sec, nanosec)
+                    *reports.stamp_parts(stamp))
 
     def float32(self, topic: str, value: float, stamp: float) -> None:
         """Write one std_msgs/Float32 at bag time stamp."""

@@ -35,25 +35,14 @@ class BagSink:
         self.bag: BagOut | None = None
         self.hardware_id = hardware_id
         self.enabled = False
-        self._topics: dict[str, tuple[str, dict[str, str]]] = {}
 
     def battery(self, name: str, frame_id: str, report: BatteryReport, arrays: Arrays,
                 stamp: float) -> None:
         """Write a BatteryState and its arrays, header stamp and bag time = stamp."""
-        bag = self.bag
-        if self.enabled and bag is not None:
-            topics = self._topics.get(name)
-            if topics is None:  # a device's topic names, built once (every primary frame)
-                topics = self._topics[name] = (f'/{name}/battery_state', {})
-            sec, nanosec = bag.stamp_parts(stamp)
-            bag.battery_state_at(topics[0], report, frame_id, sec, nanosec)
-            if arrays:
-                array_topics = topics[1]
-                for suffix, (rows, cols, data) in arrays.items():
-                    topic = array_topics.get(suffix)
-                    if topic is None:
-                        topic = array_topics[suffix] = f'/{name}/{suffix}'
-                    bag.multi_array_at(topic, rows, cols, data, sec, nanosec)
+        if self.enabled and self.bag is not None:
+            self.bag.battery_state(f'/{name}/battery_state', report, frame_id, stamp)
+            for suffix, (rows, cols, data) in arrays.items():
+                self.bag.multi_array(f'/{name}/{suffix}', rows, cols, data, stamp)
 
     def figures(self, name: str, values: dict[str, float], stamp: float) -> None:
         """Write a pack's std_msgs/Float32 figures at bag time stamp."""
