@@ -6,7 +6,8 @@ ros/sink.py: a silent device's messages, kept as bytes and restamped, read as bu
 The periodic thread publishes every silent device's BatteryState and arrays each second.
 They are built once per silent spell and published raw, the BatteryState's header stamp
 rewritten in the kept bytes: a subscriber must read exactly what the message objects (the
-path the sink takes when the start check fails) give, stamped at each publish.
+path the sink takes when the start check fails) give, stamped at each publish, and a new
+silent spell after a change (a frame, a parameter) must not repeat the last spell's bytes.
 """
 from __future__ import annotations
 
@@ -87,6 +88,8 @@ def test_a_silent_devices_kept_bytes_read_as_its_messages_built_anew_at_each_sta
                     clock.now += 0.05
                     wall[0] += 0.05
                 clock.now += 30.0  # silent: every device stale
+                if spell == 1:  # a parameter changed while silent: that spell's messages
+                    devices.devices['bms16'].configure({'location': 'front'})
                 for second in range(3):
                     wall[0] += 1.25
                     engine.publish_stale()
@@ -102,4 +105,7 @@ def test_a_silent_devices_kept_bytes_read_as_its_messages_built_anew_at_each_sta
         sec, nanosec = int(stamp), round((stamp - int(stamp)) * 1e9)
         for _, text in stale[2 * k:2 * k + 2]:
             assert f'stamp=builtin_interfaces.msg.Time(sec={sec}, nanosec={nanosec})' in text
-    assert "location='rear'" in stale[-1][1] or "location='rear'" in stale[-2][1]
+    # the first spell's kept bytes were not published again for the second spell
+    bms16 = [text for topic, text in stale if topic == '/bms16/battery_state']
+    assert ["location='rear'" in text for text in bms16] == [True] * 3 + [False] * 3
+    assert all("location='front'" in text for text in bms16[3:])
