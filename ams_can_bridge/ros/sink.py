@@ -67,7 +67,7 @@ class RosSink:
 
     def battery(self, name: str, frame_id: str, report: BatteryReport, arrays: Arrays,
                 stamp: float) -> None:
-        """Publish a BatteryState and its arrays (raw CDR, or kept objects when stale)."""
+        """Publish a BatteryState and its arrays (raw CDR; a silent one's kept, restamped)."""
         if not self.enabled:
             return
         build = diag_cdr if self._raw_telemetry else convert
