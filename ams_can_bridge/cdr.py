@@ -123,6 +123,11 @@ class DiagnosticsEncoder:
         return self._header + b''.join(body)
 
 
+def restamp(message: bytes, sec: int, nanosec: int) -> bytes:
+    """Return a serialized message that starts with a std_msgs/Header, stamped anew."""
+    return message[:4] + _stamp(sec, nanosec) + message[12:]
+
+
 def battery_state_at(report: BatteryReport, frame_id: str, sec: int, nanosec: int) -> bytes:
     """
     Serialize the BatteryState of a report with header stamp (sec, nanosec).

@@ -10,8 +10,10 @@ decided before it was published after it, so the last word on a live device was 
 """
 from __future__ import annotations
 
+import dataclasses
 import threading
 
+from ams_can_bridge import registry
 from ams_can_bridge.bus_state import BusState, BusStatus
 from ams_can_bridge.device_set import DeviceSet
 from ams_can_bridge.engine.core import Engine, Schedule
@@ -124,3 +126,40 @@ def test_a_stale_message_decided_before_a_fresh_frame_is_never_published_after_i
     assert frame_done.wait(timeout=5.0)
     presents = [present for _name, present, _stamp in sink.battery_msgs]
     assert presents[-1] is True, f'a stale message overtook a fresh one: {presents}'
+
+
+def test_the_watch_notices_each_devices_level_and_the_bus_once_each_change():
+    # three devices and the bus, each changing alone: the one pass over the devices must
+    # see a change of the last as of the first, and publish once per change, not again
+    clock = Clock(100.0)
+    names = ['ams', 'ivt_s', 'bms16']
+    params = FileParams({'devices': names, 'ams.bank_count': 2})
+    sink = ListSink()
+    status = [BusStatus(state=BusState.CONNECTED, reason='', frames_in=0, frames_out=0,
+                        frames_dropped_tx=0, error_frames=0, reconnects=0, hardware_id='x')]
+    engine = Engine(DeviceSet(names, params.declare, clock=clock), sink,
+                    status_prefix='bridge', interface='virtual', bus_status=lambda: status[0],
+                    now=clock, monotonic=clock)
+    sims = {name: registry.load(registry.SIMULATORS[name])(
+        **({'bank_count': 2} if name == 'ams' else {})) for name in names}
+    engine.watch()
+    assert len(sink.diagnostic_msgs) == 1  # the first look
+    for count, name in enumerate(['bms16', 'ams', 'ivt_s'], start=2):  # last, first, middle
+        for step in range(20):  # one second of its frames, on a clock that stands still
+            for frame in sims[name].tick(step * 0.05):
+                engine.on_frame(frame.arbitration_id, frame.data, frame.is_extended_id,
+                                clock.now)
+        engine.watch()
+        engine.watch()
+        assert len(sink.diagnostic_msgs) == count
+        assert dict(sink.diagnostic_msgs[-1])[f'bridge: {name}'] != 3  # heard: not STALE
+    status[0] = dataclasses.replace(status[0], state=BusState.BUS_OFF)
+    engine.watch()
+    engine.watch()
+    assert len(sink.diagnostic_msgs) == 5
+    assert dict(sink.diagnostic_msgs[-1])['bridge: CAN bus'] == 2  # ERROR
+    clock.now += 10.0  # all silent: each goes STALE, one publish
+    engine.watch()
+    engine.watch()
+    assert len(sink.diagnostic_msgs) == 6
+    assert [level for _, level in sink.diagnostic_msgs[-1]] == [3, 3, 3, 2]

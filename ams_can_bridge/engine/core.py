@@ -208,18 +208,17 @@ class Engine:
             self._level_cache[name] = cached
         return cached[2]
 
-    def _levels_changed(self, status: BusStatus) -> bool:
-        levels = {name: self._device_level(name, self._stale.get(name))
-                  for name in self.devices}
-        levels['CAN bus'] = int(reports.bus_level(status))
-        return levels != self._levels
-
     def watch(self) -> None:
         """Notice staleness, malformed frames and level changes (every WATCH_PERIOD)."""
         status = self.bus_status()
         if self.on_bus_status is not None:
             self.on_bus_status(status)
         now = self.monotonic()
+        levels = self._levels  # as last published; {} before the first /diagnostics
+        # One pass over the devices: 5 times a second, each wake-up's code runs cold
+        # (bench/README.md, "Fifth pass"). Once a level differs the others are not asked:
+        # the publish that follows builds every report anew.
+        changed = levels.get('CAN bus') != int(reports.bus_level(status))
         for name, device in self.devices.items():
             stale = device.is_stale()
             if stale != self._stale[name]:
@@ -234,12 +233,15 @@ class Engine:
                     self.log.info('%s: first status frame received', name)
                 self._heard.add(name)
             count = device.frames_malformed
-            logged, at = self._malformed_logged.get(name, (0, -math.inf))
-            if count > logged and now - at >= MALFORMED_LOG_PERIOD:
-                self._malformed_logged[name] = (count, now)
-                self.log.warning('%s: %d malformed frame(s) so far, dropped; last: %s',
-                                 name, count, device.last_malformed)
-        if self._levels_changed(status):
+            if count:
+                logged, at = self._malformed_logged.get(name, (0, -math.inf))
+                if count > logged and now - at >= MALFORMED_LOG_PERIOD:
+                    self._malformed_logged[name] = (count, now)
+                    self.log.warning('%s: %d malformed frame(s) so far, dropped; last: %s',
+                                     name, count, device.last_malformed)
+            if not changed and self._device_level(name, stale) != levels.get(name):
+                changed = True
+        if changed:
             self.publish_diagnostics()
 
     def publish_clock(self, stamp: float) -> None:

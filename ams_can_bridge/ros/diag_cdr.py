@@ -79,6 +79,11 @@ def battery_state(report: BatteryReport, frame_id: str,
     return cdr.battery_state_at(report, frame_id, sec, nanosec)
 
 
+def restamp(message: bytes, stamp: float) -> bytes:
+    """Return a serialized BatteryState (or any message a Header starts) stamped ``stamp``."""
+    return cdr.restamp(message, *reports.stamp_parts(stamp))
+
+
 def _same(raw: bytes, msg: Any) -> bool:
     """Tell whether a subscriber reads the bytes as it reads the message (NaN == NaN)."""
     kind = type(msg)
@@ -87,7 +92,7 @@ def _same(raw: bytes, msg: Any) -> bool:
 
 
 def check_telemetry() -> bool:
-    """Tell whether rclpy reads battery_state(), multi_array() and float32() as convert's."""
+    """Tell whether rclpy reads battery_state() (restamped too), multi_array(), float32() right."""
     from std_msgs.msg import Float32
 
     from ams_can_bridge.ros import convert
@@ -106,6 +111,12 @@ def check_telemetry() -> bool:
             for report in samples:
                 if not _same(battery_state(report, frame_id, 2.5),
                              convert.battery_state(report, frame_id, 2.5)):
+                    return False
+                # a stale message: built once, restamped every second
+                msg = convert.battery_state(report, frame_id, 2.5)
+                msg.header.stamp = convert.stamp_msg(1_700_000_001.75)
+                if not _same(restamp(battery_state(report, frame_id, 2.5), 1_700_000_001.75),
+                             msg):
                     return False
         for rows, cols, labels in ((2, 3, ('bank', 'sensor')), (1, 5, ('module', 'cell'))):
             data = [float(k) for k in range(rows * cols - 1)] + [nan]

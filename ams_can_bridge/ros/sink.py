@@ -5,8 +5,9 @@ The engine's ROS sink: publishers of BatteryState, arrays, /diagnostics and /clo
 
 Called on the bus thread (a primary frame) and on the periodic thread; rclpy publishers
 are thread-safe. A primary frame's messages are serialized here (diag_cdr.py) and published
-raw: rclpy's conversion of message objects was most of a publish. A stale message is kept
-as objects, built once per silent spell and only restamped every second.
+raw: rclpy's conversion of message objects was most of a publish. A stale message is built
+once per silent spell and only restamped every second (its bytes: the periodic thread's
+idle work, bench/README.md "Fifth pass").
 """
 from __future__ import annotations
 
@@ -60,23 +61,27 @@ class RosSink:
         self.hardware_id = hardware_id
         self._alive = alive
         self.enabled = False  # lifecycle: publishing only while active
-        # name -> (the stale report it was built from, BatteryState, [(publisher, msg)])
+        # name -> (the stale report it was built from, BatteryState, [(publisher, msg)]),
+        # the messages raw (bytes) or objects as the primary frames' are
         self._stale: dict[str, tuple[BatteryReport, Any, list[tuple[Any, Any]]]] = {}
 
     def battery(self, name: str, frame_id: str, report: BatteryReport, arrays: Arrays,
                 stamp: float) -> None:
-        """Publish a BatteryState and its arrays (raw CDR, or kept objects when stale)."""
+        """Publish a BatteryState and its arrays (raw CDR; a silent one's kept, restamped)."""
         if not self.enabled:
             return
+        build = diag_cdr if self._raw_telemetry else convert
         if report.present:
-            build = diag_cdr if self._raw_telemetry else convert
             self._publish_all(name, *self._messages(name, frame_id, report, arrays, build,
                                                     stamp))
             return
         cached = self._stale.get(name)
         if cached is None or cached[0] is not report:
-            cached = (report, *self._messages(name, frame_id, report, arrays, convert, stamp))
+            cached = (report, *self._messages(name, frame_id, report, arrays, build, stamp))
             self._stale[name] = cached
+        if build is diag_cdr:  # raw: the kept bytes with a new stamp
+            self._publish_all(name, diag_cdr.restamp(cached[1], stamp), cached[2])
+            return
         cached[1].header.stamp = convert.stamp_msg(stamp)
         self._publish_all(name, cached[1], cached[2])
 
