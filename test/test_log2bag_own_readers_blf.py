@@ -10,7 +10,9 @@ the same counters): BLFs python-can's writer makes of every fixture .log (zlib a
 uncompressed, one container and many, objects cut across containers), every kind of
 message it writes, and files built object by object here with what a writer may put in
 (version 2 headers, 10 us stamps, CAN_MESSAGE2, padding, unknown objects, FD-64 objects,
-bad stamps), then cut short or corrupted.
+bad stamps), then cut short or corrupted. And BLFs nobody here or in python-can's writer
+made: Toby Lorenz's vector_blf test files and a user's CAN FD log (``fixtures/python_can_blf``),
+their frames written by hand from python-can's own expectations of them.
 """
 from __future__ import annotations
 
@@ -308,3 +310,32 @@ def test_probe_reads_such_a_log_to_the_object_and_stops(tmp_path):
     assert not reader.is_alive(), 'probe still reading after 30 s'
     traffic = outcome[0]
     assert isinstance(traffic, Traffic) and traffic.frames == 6
+
+
+# --- real BLF files (fixtures/python_can_blf/README.md) ------------------------------------
+
+REAL_BLF = FIXTURES / 'python_can_blf'
+# vector_blf's files: two objects each, stamped 2459565876.494607 (python-can's
+# logformats_test.py), past what a ROS stamp holds: both counted as bad stamps
+VECTOR_BLF = {'test_CanMessage.blf': 0x4444444, 'test_CanMessage2.blf': 0x4444444,
+              'test_CanFdMessage.blf': 0x4444444, 'test_CanFdMessage64.blf': 0x15555555,
+              'test_CanErrorFrameExt.blf': 0x19999999}
+
+
+@pytest.mark.parametrize('name', sorted(VECTOR_BLF))
+def test_vector_blf_files_read_as_python_can_reads_them(name):
+    got, found = read_both_ways(REAL_BLF / name)
+    assert got == []
+    bad, last_bad, bad_stamps = found[:3]
+    assert (bad, bad_stamps) == (2, 2)
+    assert last_bad.startswith(f'frame 0x{VECTOR_BLF[name]:X} at timestamp 2459565876.494607: ')
+
+
+def test_a_users_can_fd_blf_reads_as_python_can_reads_it():
+    # python-can issue 1905: a CAN FD logger's file; its first message as python-can's
+    # test_issue_1905 expects it (64 bytes: 48 x 0xFF, then 16 x 0x00)
+    got, found = read_both_ways(REAL_BLF / 'issue_1905.blf')
+    assert found == (0, '', 0, '', '', None)
+    assert got == bare_python_can(REAL_BLF / 'issue_1905.blf') and len(got) > 1
+    assert got[0] == repr((1735654183.491113, 0x6A9, b'\xff' * 48 + b'\x00' * 16, False,
+                           False, False))
