@@ -119,6 +119,22 @@ def test_every_fixture_log_reads_as_python_can_reads_it(path):
     assert len(got) > 5
 
 
+def test_a_real_candump_capture_is_parsed_without_python_can(monkeypatch):
+    # fixtures/canbus_rs: 2,000 lines candump wrote of a BMS bus (interface elmcan, 'R')
+    calls = []
+    monkeypatch.setattr(candump_frames.CandumpFrames, '_python_can',
+                        lambda self, line, out: calls.append(line))
+    path = FIXTURES / 'canbus_rs' / 'bms_dump_excerpt.log'
+    frames = LogFrames(str(path))
+    got = [repr(frame) for frame in frames.frames()]
+    assert calls == [] and counts(frames) == (0, '', 0, '', '', None)
+    assert len(got) == 2000 and got == bare_python_can(path)
+    # its first two lines, as the file has them
+    assert got[:2] == [repr((1621945396.763904, 0x301, b'\x00\x00', False, False, False)),
+                       repr((1621945396.78395, 0x321, bytes.fromhex('0000000004100408'),
+                             False, False, False))]
+
+
 @pytest.mark.parametrize('style', STYLES)
 def test_common_lines_are_parsed_without_python_can(tmp_path, monkeypatch, style):
     calls = []
