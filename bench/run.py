@@ -53,6 +53,8 @@ def row(scenario: str, figure: str, bridge: float, reference: float | None, unit
     verdict = '' if met is None else ('met' if met else 'NOT met')
     print(f'  {scenario:<24} {figure:<34} {bridge:10.2f} {ref:>10} {rat:>7} {unit:<6} '
           f'{target:<14} {verdict}', flush=True)
+    if met is False and note:  # why, under the row: a log cut to its last lines keeps it
+        print(f'    {scenario}: {note}', flush=True)
 
 
 def bare_loop(channel: str, seconds: float, options: list[str]) -> tuple[float, int]:
