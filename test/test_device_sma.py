@@ -127,7 +127,9 @@ def test_diagnostic_values_limits_soh_manufacturer_info():
     assert values['discharge current limit A'] == 'not available'
     assert values['discharge voltage limit V'] == '48'
     assert values['soh %'] == '98' and values['manufacturer'] == 'PYLON'
-    assert values['capacity Ah'] == '200' and values['bms version'] == '258'
+    assert values['capacity Ah'] == '200'
+    # 0x35F bytes 2-3 02 01: major 2, minor 1 (not the U16 258)
+    assert values['bms version'] == '2.1 (bytes 2-3: 02 01)'
     assert values['current A (positive = charging)'] == '-12.5'
 
 

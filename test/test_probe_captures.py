@@ -228,6 +228,14 @@ SMA = {  # capture -> (dialect, written settings, unplaced IDs, hand-decoded 0x3
                     {0x35B, 0x360},
                     dict(voltage=53.10, current=-0.7, temperature=14.0, percentage=0.67,
                          capacity=156.0, charge=105.0)),
+    # 351 1F 01 BC 02 E8 03 E7 00: charge 0x011F = 28.7 V, discharge 0x00E7 = 23.1 V; 356 32
+    # 0A 00 00 27 01: 0x0A32 = 2610 = 26.10 V at 0.01 V (261 V at 0.1 V is not within the
+    # limits), 0 A, 0x0127 = 295 x 0.1 degC; 355 32 00 64 00 88 13: 50 %, high resolution
+    # 0x1388 = 50.00 % (agrees); 35F bytes 4-5 0x0064 = 100 Ah, no 0x379: read as SMA's TI
+    # has it, the capacity, so the charge is 50 % of it. 0x380 ("1Q-1845") no source defines.
+    'sma_rec_q': ('sma', {'sma.voltage_scale': 0.01}, {0x380},
+                  dict(voltage=26.10, current=0.0, temperature=29.5, percentage=0.50,
+                       capacity=100.0, charge=50.0)),
     # 351 2E 02 .. B0 01: 55.8 V, 43.2 V; 356 0A 02 11 FF BE 00: 522 = 52.2 V at 0.1 V
     # (5.22 V at SMA's 0.01 V is far below 43.2 V), -239 x 0.1 A, 190 x 0.1 degC; 355 3E 00:
     # 62 %
@@ -257,6 +265,37 @@ def test_sma_family_captures(name, tmp_path, capsys):
         assert getattr(states[-1], field) == pytest.approx(value, abs=1e-4), field
     # the file's fixed scale reads the first 0x356 already (auto waits for 0x351's evidence)
     assert all(s.voltage == pytest.approx(values['voltage'], abs=1e-4) for s in states)
+
+
+def test_rec_q_capture_alarm_frame_and_firmware(tmp_path, capsys):
+    """A REC Q's 0x35A and 0x35F as its owner captured them (fixtures/probe/README.md)."""
+    log = FIXTURES / 'sma_rec_q.log'
+    _, params, _ = probe(log, tmp_path, capsys)
+    topics = bag(log, params, tmp_path)
+    assert topics['/sma/battery_state'][-1][1].power_supply_health == PowerSupplyHealth.GOOD
+    values = diagnostics(topics, 'sma')
+    # 35A A8 A0 82 00 | 00 00 80 0A: pairs of 2 bits, low pair first; 2 = OK, 0 = not sent.
+    # A8 = 10 10 10 00: high voltage, low voltage, high temperature OK, general not sent
+    assert [values[f'alarm {n}'] for n in ('general', 'high_voltage', 'low_voltage',
+                                           'high_temperature')] == [
+        'NOT_SUPPORTED', 'OK', 'OK', 'OK']
+    # A0 = 10 10 00 00: low temperature and high temperature while charging not sent
+    assert [values[f'alarm {n}'] for n in ('low_temperature', 'high_temperature_charge',
+                                           'low_temperature_charge',
+                                           'high_discharge_current')] == [
+        'NOT_SUPPORTED', 'NOT_SUPPORTED', 'OK', 'OK']
+    # 82 = 10 00 00 10: high charge current and BMS internal OK
+    assert values['alarm high_charge_current'] == values['alarm bms_internal'] == 'OK'
+    assert values['alarm contactor'] == values['alarm short_circuit'] == 'NOT_SUPPORTED'
+    # warnings 80 0A: byte 6 bits 6-7 = 2 (BMS internal OK), byte 7 bits 0-1 = 2 (cell
+    # imbalance OK) and bits 2-3 = 2: Victron's system status, online (not a warning)
+    assert values['warning bms_internal'] == values['warning cell_imbalance'] == 'OK'
+    assert values['system status (0x35A byte 7)'] == 'online'
+    assert values['alarms active'] == values['warnings active'] == 'none'
+    assert values['warning reserved1'] == 'NOT_SUPPORTED'
+    # 35F 00 00 02 06 64 00: firmware 2.6 (its owner: "was 2.6"), 100 Ah
+    assert values['bms version'] == '2.6 (bytes 2-3: 02 06)'
+    assert values['capacity Ah'] == '100' and values['manufacturer'] == 'REC-BMS'
 
 
 def test_discover_capture_names_its_odd_frames(tmp_path, capsys):

@@ -46,6 +46,21 @@ def _fixed3(value: float | None) -> str:
     return _fixed(value, 3)
 
 
+def _version(value: int | None) -> str:
+    """
+    Show 0x35F bytes 2-3 as their senders read them: byte 2 major, byte 3 minor.
+
+    BCD where every digit is 0-9 (a REC-Q's 02 06 is its firmware 2.6, a BYD's 01 17 is
+    v1.17: doc/protocols.md 5.2), else each byte's value; the bytes as sent follow.
+    """
+    if value is None:
+        return 'not available'
+    major, minor = value & 0xFF, value >> 8  # little-endian: byte 2 is the low byte
+    bcd = all(digit <= 9 for byte in (major, minor) for digit in (byte >> 4, byte & 0xF))
+    text = f'{major:X}.{minor:X}' if bcd else f'{major}.{minor}'
+    return f'{text} (bytes 2-3: {major:02X} {minor:02X})'
+
+
 def _cell_id(value: int | None) -> str:
     return 'not available' if value is None else f'{value:04X}'  # module, cell: 0206
 
@@ -63,7 +78,7 @@ _FIELDS: tuple[tuple[Hashable, tuple[tuple[str, str, Callable[[Any], str]], ...]
                   ('temperature degC', 'temperature_c', fmt))),
     (SmaManufacturer, (('manufacturer', 'name', str),)),
     (SmaBatteryInfo, (('battery type', 'battery_type', fmt),
-                      ('bms version', 'bms_version', fmt),
+                      ('bms version', 'bms_version', _version),
                       ('capacity Ah', 'capacity_ah', fmt))),
     (PylontechRequest, (('charge enable', 'charge_enable', _yes),
                         ('discharge enable', 'discharge_enable', _yes),
