@@ -36,7 +36,6 @@ import time
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 PARTS = ('python-can read', 'own read', '+ decode', '+ messages', 'log2bag')
-RATIO_TARGET = 0.5
 
 
 class _Recorder:
@@ -157,7 +156,7 @@ def _write(bag, kind: str, args: tuple, hardware_id: str) -> None:
 
 def measure(seconds: float, formats: list[str], rounds: int) -> list[dict]:
     """Return one row per format: seconds of each part (min of rounds), frames, ratios."""
-    from bench_log2bag import simulators
+    from bench_log2bag import RATIO_TARGET, simulators
     from ams_can_bridge.sim.recording import write_log
     work = tempfile.mkdtemp(prefix='bench_floor_')
     rows = []
