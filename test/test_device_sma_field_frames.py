@@ -169,6 +169,22 @@ def test_0x35a_byte7_bits_2_3_are_the_online_status_not_a_warning():
     assert CODEC.encode(byd) == Frame(0x35A, BYD_35A)
 
 
+# stuartpittaway/diyBMSv4ESP32 victron_message_35f (commit 90dca048): byte 2 the build's year,
+# byte 3 its week; 0 Ah. Built here for year 23, week 45 (0x17, 0x2D).
+DIYBMS_35F = bytes([0x00, 0x00, 0x17, 0x2D, 0x00, 0x00])
+
+
+@pytest.mark.parametrize('data, shown', [
+    # dfch/BydCanProtocol: "01 17" from a battery its README calls "B019 / v1.23"
+    (BYD_35F, '1.23 (bytes 2-3: 01 17)'),
+    (DIYBMS_35F, '23.45 (bytes 2-3: 17 2D)'),
+])
+def test_0x35f_bms_version_is_byte_2_major_byte_3_minor(data, shown):
+    device, _ = make()
+    feed(device, (0x35F, data))
+    assert device.diagnostic_report().values['bms version'] == shown
+
+
 def test_victron_energy_capacity_and_product_name():
     assert CODEC.decode(0x378, BYD_378) == VictronEnergy(211.2, 183.5)
     assert CODEC.decode(0x379, BYD_379) == VictronInstalledCapacity(156)

@@ -48,17 +48,15 @@ def _fixed3(value: float | None) -> str:
 
 def _version(value: int | None) -> str:
     """
-    Show 0x35F bytes 2-3 as their senders read them: byte 2 major, byte 3 minor.
+    Show 0x35F bytes 2-3 as their senders mean them: byte 2 major, byte 3 minor, each a number.
 
-    BCD where every digit is 0-9 (a REC-Q's 02 06 is its firmware 2.6, a BYD's 01 17 is
-    v1.17: doc/protocols.md 5.2), else each byte's value; the bytes as sent follow.
+    A REC Q's 02 06 is its firmware 2.6, a BYD LVS's 01 17 its v1.23, diyBMS sends its build's
+    year and week (doc/protocols.md 5.2); the bytes as sent follow.
     """
     if value is None:
         return 'not available'
     major, minor = value & 0xFF, value >> 8  # little-endian: byte 2 is the low byte
-    bcd = all(digit <= 9 for byte in (major, minor) for digit in (byte >> 4, byte & 0xF))
-    text = f'{major:X}.{minor:X}' if bcd else f'{major}.{minor}'
-    return f'{text} (bytes 2-3: {major:02X} {minor:02X})'
+    return f'{major}.{minor} (bytes 2-3: {major:02X} {minor:02X})'
 
 
 def _cell_id(value: int | None) -> str:
