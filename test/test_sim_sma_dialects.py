@@ -48,6 +48,7 @@ def test_pylontech_reaches_the_device_with_alarms_and_enables():
     assert diag.level == Level.OK
     assert diag.values['charge enable'] == 'yes' and diag.values['discharge enable'] == 'yes'
     assert diag.values['module count'] == '1' and 'alarms active' not in diag.values
+    assert diag.values['bms version'] == '1.0 (bytes 2-3: 01 00)'  # as a REC Q's 02 06 is 2.6
     sim.faults.extra['alarm'] = ['high_voltage', 'contactor']  # 0x359 has no contactor bit
     sim.faults.extra['warning'] = 'low_temperature'
     run_sim(sim, device, 1.0, start=2.0)

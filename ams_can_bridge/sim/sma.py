@@ -207,8 +207,9 @@ class SmaSimulator(SimDevice):
                 messages += self.victron_messages()
         if self._info.due(now):
             capacity = round(self.capacity_ah)
+            # BMS version 1.0: byte 2 major, byte 3 minor (doc/protocols.md 5.2), U16 0x0001
             messages += [SmaManufacturer(self.manufacturer),
-                         SmaBatteryInfo(1, 0x0100, capacity if self.send_capacity else 0)]
+                         SmaBatteryInfo(1, 0x0001, capacity if self.send_capacity else 0)]
             if self.dialect == 'victron':
                 messages += [VictronBmsName(1, self.bms_name[:8]),
                              VictronInstalledCapacity(capacity)]
