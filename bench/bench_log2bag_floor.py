@@ -84,19 +84,17 @@ def record(log: str) -> tuple[list, str]:
 
 
 def _decoders(devices) -> dict:
-    """Return (id, extended) -> the codecs' decode calls of the devices on it."""
-    table = {}
-    for device in devices.devices.values():
-        for key in device.frame_ids:
-            table.setdefault(key, []).append(device.codec.decode)
-    return table
+    """Return (id, extended) -> the decode calls of the devices the device set routes it to."""
+    return {(can_id, extended): [device.codec.decode for device in targets]
+            for extended, table in ((False, devices.std), (True, devices.ext))
+            for can_id, targets in table.items()}
 
 
 def part(name: str, log: str, events: list, hardware_id: str, work: str) -> tuple[float, int]:
     """Run one part over the whole file; return (seconds, frames)."""
     import can
     from bench_log2bag import PARAMETERS
-    from ams_can_bridge.offline.converter import Converter
+    from ams_can_bridge.offline.converter import BagSink, Converter
     from ams_can_bridge.offline.log2bag import convert, open_bag
     from ams_can_bridge.offline.log_frames import LogFrames
     from ams_can_bridge.errors import ProtocolError
@@ -113,6 +111,8 @@ def part(name: str, log: str, events: list, hardware_id: str, work: str) -> tupl
         return time.perf_counter() - start, summary.frames_read
     decoders = _decoders(Converter(PARAMETERS, None, 'floor').devices)
     bag = open_bag(out, 'mcap') if name == '+ messages' else None
+    sink = BagSink(hardware_id)  # writes each recorded message as the conversion's sink does
+    sink.bag, sink.enabled = bag, True
     pending = iter(events if bag is not None else ())
     upcoming = next(pending, None)
     start = time.perf_counter()
@@ -126,32 +126,16 @@ def part(name: str, log: str, events: list, hardware_id: str, work: str) -> tupl
                 except ProtocolError:
                     pass
         while upcoming is not None and upcoming[0] <= count:
-            _write(bag, upcoming[1], upcoming[2], hardware_id)
+            getattr(sink, upcoming[1])(*upcoming[2])
             upcoming = next(pending, None)
         count += 1
     frames.close()
     while upcoming is not None:  # the last /diagnostics, after the last frame
-        _write(bag, upcoming[1], upcoming[2], hardware_id)
+        getattr(sink, upcoming[1])(*upcoming[2])
         upcoming = next(pending, None)
     if bag is not None:
         bag.close()
     return time.perf_counter() - start, count
-
-
-def _write(bag, kind: str, args: tuple, hardware_id: str) -> None:
-    """Write one recorded event as BagSink writes it."""
-    if kind == 'battery':
-        name, frame_id, report, arrays, stamp = args
-        bag.battery_state(f'/{name}/battery_state', report, frame_id, stamp)
-        for suffix, (rows, cols, data) in arrays.items():
-            bag.multi_array(f'/{name}/{suffix}', rows, cols, data, stamp)
-    elif kind == 'figures':
-        name, values, stamp = args
-        for suffix, value in values.items():
-            bag.float32(f'/{name}/{suffix}', value, stamp)
-    else:
-        statuses, stamp = args
-        bag.diagnostics(statuses, hardware_id, stamp)
 
 
 def measure(seconds: float, formats: list[str], rounds: int) -> list[dict]:
